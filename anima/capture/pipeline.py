@@ -1,0 +1,176 @@
+"""Monocular face capture: decode -> MediaPipe face mesh (video mode) -> ICT fit -> smoothing -> artifact."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from tqdm import tqdm
+
+from anima import __version__
+from anima.capture.fit import FitConfig, LandmarkBasis, choose_keyframes, fit_frames, fit_identity, landmark_error
+from anima.core.camera import mediapipe_to_camera
+from anima.core.filters import gaussian_smooth
+from anima.core.rotations import matrix_to_rotvec
+from anima.errors import InputError
+from anima.facemodel.correspondence import load_correspondence
+from anima.facemodel.ict import load_face_model
+from anima.io.sequence import FLAG_LOW_CONFIDENCE, FLAG_NO_FACE, TrackedSequence
+from anima.io.video import VideoInfo, iter_frames, probe_video
+
+MIN_SIZE = 32  # px; smaller videos cannot hold a trackable face
+
+
+@dataclass
+class CaptureConfig:
+    smooth_sigma: float = 1.5
+    """Gaussian temporal smoothing of the fitted parameters, in frames (0 = off). Zero-phase: no lag."""
+    max_frames: int | None = None
+    """Stop after this many frames (None = whole video)."""
+    low_conf_nme: float = 0.05
+    """Frames whose fit NME exceeds this are flagged low-confidence."""
+    min_face_px: float = 40.0
+    """Faces whose landmark box is smaller than this (sqrt of area, px) are flagged low-confidence."""
+    fit: FitConfig = field(default_factory=FitConfig)
+
+
+@dataclass
+class Timings:
+    decode_track_s: float = 0.0
+    fit_s: float = 0.0
+    frames: int = 0
+
+
+def track_landmarks(info: VideoInfo, max_frames: int | None = None, progress: bool = True,
+                    warnings_out: list[str] | None = None) -> np.ndarray:
+    """Run MediaPipe face mesh over the video; ``[F, 478, 3]`` normalised landmarks, NaN where no face."""
+    from anima.capture.mediapipe_face import FaceMeshTracker
+
+    total = info.n_frames if max_frames is None else min(info.n_frames, max_frames)
+    out = []
+    errs: list[str] = []
+    with FaceMeshTracker(static_image_mode=False) as tracker, \
+            tqdm(total=total, desc="track", unit="fr", disable=not progress, leave=False) as bar:
+        for i, frame in enumerate(iter_frames(info, errors=errs)):
+            if max_frames is not None and i >= max_frames:
+                break
+            lm = tracker(frame)
+            out.append(np.full((478, 3), np.nan, np.float32) if lm is None else lm)
+            bar.update(1)
+    if warnings_out is not None:
+        warnings_out.extend(errs)
+    if not out:
+        raise InputError(f"no frame could be decoded from {info.path}")
+    return np.stack(out)
+
+
+def _fill_gaps(x: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Linear interpolation over invalid frames, holding the nearest value at the ends."""
+    idx = np.flatnonzero(valid)
+    out = x.copy()
+    if len(idx) == len(x) or len(idx) == 0:
+        return out
+    flat = out.reshape(len(x), -1)
+    for j in range(flat.shape[1]):
+        flat[:, j] = np.interp(np.arange(len(x)), idx, flat[idx, j])
+    return flat.reshape(x.shape)
+
+
+def _smooth_rotations(R: np.ndarray, sigma: float, valid: np.ndarray) -> np.ndarray:
+    Rs = gaussian_smooth(R.reshape(len(R), 9), sigma, valid).reshape(-1, 3, 3)
+    U, _, Vt = np.linalg.svd(Rs)
+    d = np.sign(np.linalg.det(U @ Vt))
+    U[:, :, 2] *= d[:, None]
+    return U @ Vt
+
+
+def fit_landmark_sequence(lm: np.ndarray, width: int, height: int, fps: float, cfg: CaptureConfig,
+                          meta: dict | None = None) -> TrackedSequence:
+    """Fit identity (keyframes), per-frame pose/camera/expression, smooth, flag. ``lm [F, 478, 3]``."""
+    model = load_face_model()
+    corr = load_correspondence()
+    basis = LandmarkBasis.build(model, corr, cfg.fit.use_iris)
+    F = lm.shape[0]
+    found = np.isfinite(lm).all(axis=(1, 2))
+    if not found.any():
+        raise InputError("no face found in any frame")
+    P_all = mediapipe_to_camera(lm[:, basis.index], width, height)
+    P = P_all[found]
+    key = choose_keyframes(P, basis, cfg.fit.n_keyframes)
+    identity = fit_identity(P[key], basis, cfg.fit)
+    fit = fit_frames(P, basis, identity, cfg.fit)
+
+    expr = np.zeros((F, basis.expr.shape[-1]))
+    R = np.tile(np.eye(3), (F, 1, 1))
+    s = np.ones(F)
+    t = np.zeros((F, 3))
+    expr[found], R[found], s[found], t[found] = fit.expr, fit.R, fit.scale, fit.t
+    expr, s, t = _fill_gaps(expr, found), _fill_gaps(s, found), _fill_gaps(t, found)
+    R = _fill_gaps(R, found)
+    if cfg.smooth_sigma > 0:
+        expr = np.clip(gaussian_smooth(expr, cfg.smooth_sigma), 0, 1)
+        s = gaussian_smooth(s, cfg.smooth_sigma)
+        t = gaussian_smooth(t, cfg.smooth_sigma)
+        R = _smooth_rotations(R, cfg.smooth_sigma, np.ones(F, bool))
+    else:
+        U, _, Vt = np.linalg.svd(R)
+        R = U @ Vt
+    # error of the final (smoothed) fit against the tracked landmarks
+    err = np.full(F, np.nan)
+    nme = np.full(F, np.nan)
+    V = basis.points(identity, expr[found])
+    err[found], nme[found] = landmark_error(P, V, s[found], R[found], t[found])
+    uv = P[..., :2]
+    face_px = np.full(F, np.nan)
+    wh = uv.max(1) - uv.min(1)
+    face_px[found] = np.sqrt(np.abs(wh[:, 0] * wh[:, 1]))
+    flags = np.zeros(F, np.uint8)
+    flags[~found] |= FLAG_NO_FACE
+    low = found & ((nme > cfg.low_conf_nme) | (face_px < cfg.min_face_px))
+    flags[low] |= FLAG_LOW_CONFIDENCE
+    meta = dict(meta or {})
+    meta.update(
+        tracker={"name": "mediapipe.face_mesh", "version": _mp_version(), "refine_landmarks": True,
+                 "mode": "video", "landmarks": 478},
+        face_model={"name": "ICT-FaceKit light", "n_identity": int(basis.ident.shape[-1]),
+                    "n_expression": int(basis.expr.shape[-1]), "correspondence": corr.meta},
+        fit={k: getattr(cfg.fit, k) for k in cfg.fit.__dataclass_fields__},
+        smoothing={"filter": "gaussian", "sigma_frames": cfg.smooth_sigma},
+        keyframes=np.flatnonzero(found)[key].tolist(),
+        anima_version=__version__,
+    )
+    return TrackedSequence(fps=fps, width=width, height=height, identity=identity, expression=expr,
+                           rotation=matrix_to_rotvec(R), scale=s, translation=t, fit_error_px=err, fit_nme=nme,
+                           flags=flags, landmarks=lm.astype(np.float32), expr_names=list(model.expr_names),
+                           meta=meta)
+
+
+def _mp_version() -> str:
+    import mediapipe
+
+    return getattr(mediapipe, "__version__", "?")
+
+
+def capture_face(video: str, cfg: CaptureConfig | None = None, progress: bool = True,
+                 timings: Timings | None = None) -> TrackedSequence:
+    """Track and fit a face in ``video``. Raises InputError for unreadable video or no face at all."""
+    cfg = cfg or CaptureConfig()
+    info = probe_video(video)
+    if min(info.width, info.height) < MIN_SIZE:
+        raise InputError(f"video is {info.width}x{info.height}: too small to find a face (min {MIN_SIZE} px)")
+    warns = list(info.warnings)
+    t0 = time.perf_counter()
+    lm = track_landmarks(info, cfg.max_frames, progress, warns)
+    t1 = time.perf_counter()
+    found = np.isfinite(lm).all(axis=(1, 2))
+    if not found.any():
+        raise InputError(f"no face found in {video} ({len(lm)} frames checked)")
+    if info.n_frames and len(lm) < min(info.n_frames, cfg.max_frames or info.n_frames) - 1:
+        warns.append(f"only {len(lm)} of {info.n_frames} frames decoded (truncated file?)")
+    seq = fit_landmark_sequence(lm, info.width, info.height, info.fps, cfg,
+                                meta={"source": {**info.as_dict(), "warnings": warns}})
+    if timings is not None:
+        timings.decode_track_s += t1 - t0
+        timings.fit_s += time.perf_counter() - t1
+        timings.frames += len(lm)
+    return seq

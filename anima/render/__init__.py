@@ -1,0 +1,1 @@
+"""Rasterizer, mesh and overlay renders, side-by-side videos."""
