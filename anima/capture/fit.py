@@ -43,7 +43,7 @@ class FitConfig:
     """L2 regularisation of identity coefficients (PCA modes, prior N(0, 1))."""
     n_keyframes: int = 12
     """Frames used to fit the per-clip identity."""
-    n_alternations: int = 3
+    n_alternations: int = 4
     """Pose / expression alternations per frame."""
     qp_iters: int = 60
     """FISTA iterations of the bounded expression solve."""

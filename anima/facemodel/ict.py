@@ -199,7 +199,7 @@ def import_ict_obj(folder: str | Path, vertex_indices_json: str | Path | None = 
         vi_path = asset("ict-facekit/vertex_indices.json")
     vi_text = vi_path.read_text()
     vi = json.loads(vi_text)
-    base = read_obj(neutral_path)
+    base = read_obj(neutral_path, dtype=np.float64)  # deltas are taken in double precision, then stored f32
     neutral = base["v"]
     skip = {"generic_neutral_mesh"}
     id_files = sorted(p for p in folder.glob("identity*.obj") if re.fullmatch(r"identity\d+", p.stem))
@@ -209,20 +209,20 @@ def import_ict_obj(folder: str | Path, vertex_indices_json: str | Path | None = 
     def deltas(paths):
         out = np.zeros((len(paths), *neutral.shape), np.float32)
         for i, p in enumerate(paths):
-            v = read_obj(p)["v"]
+            v = read_obj(p, dtype=np.float64)["v"]
             if v.shape != neutral.shape:
                 raise InputError(f"{p}: {v.shape[0]} vertices, expected {neutral.shape[0]}")
-            out[i] = v - neutral
+            out[i] = (v - neutral).astype(np.float32)
         return out
 
     return {
-        "neutral": neutral,
+        "neutral": neutral.astype(np.float32),
         "expr_names": np.asarray(order),
         "expr_deltas": deltas([expr_all[n] for n in order]),
         "id_names": np.asarray([p.stem for p in id_files]),
         "id_deltas": deltas(id_files),
         "faces": base["f"],
-        "uvs": base["vt"],
+        "uvs": base["vt"].astype(np.float32),
         "face_uvs": base["ft"],
         "vertex_indices_json": np.asarray(vi_text),
         "landmarks68": np.asarray(vi["idx_to_landmark_verts"], np.int32),

@@ -8,8 +8,8 @@ import numpy as np
 from anima.errors import InputError
 
 
-def read_obj(path: str | Path, max_corners: int = 4) -> dict:
-    """Return ``{"v": (N,3) float32, "vt": (M,2) float32, "f": (P,C) int32, "ft": (P,C) int32}`` with
+def read_obj(path: str | Path, max_corners: int = 4, dtype=np.float32) -> dict:
+    """Return ``{"v": (N,3) dtype, "vt": (M,2) float32, "f": (P,C) int32, "ft": (P,C) int32}`` with
     0-based indices and ``-1`` padding for polygons with fewer than ``max_corners`` corners."""
     path = Path(path)
     if not path.is_file():
@@ -36,7 +36,7 @@ def read_obj(path: str | Path, max_corners: int = 4) -> dict:
     if not v:
         raise InputError(f"{path}: no vertices (not an OBJ mesh?)")
     return {
-        "v": np.asarray(v, dtype=np.float32),
+        "v": np.asarray(v, dtype=dtype),
         "vt": np.asarray(vt, dtype=np.float32).reshape(-1, 2),
         "f": np.asarray(f, dtype=np.int32).reshape(-1, max_corners),
         "ft": np.asarray(ft, dtype=np.int32).reshape(-1, max_corners),

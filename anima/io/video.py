@@ -81,7 +81,8 @@ def probe_video(path: str | os.PathLike) -> VideoInfo:
         gen.close()
     except (RuntimeError, OSError, StopIteration, ValueError) as e:
         first = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
-        raise InputError(f"not a readable video: {p} ({first})") from None
+        raise InputError(f"not a readable video (corrupt, truncated before its index, or not a video): {p}"
+                         f" ({first})") from None
     if "size" not in meta or not meta.get("fps"):
         raise InputError(f"no video stream in {p}")
     w, h = meta["size"]
@@ -92,7 +93,8 @@ def probe_video(path: str | os.PathLike) -> VideoInfo:
     if len(pts) >= 3:
         d = np.diff(pts)
         d = d[d > 0]
-        if len(d) and (d.max() - d.min()) > 0.5 * np.median(d):
+        irregular = np.abs(d - np.median(d)) > 0.25 * np.median(d) if len(d) else np.zeros(0, bool)
+        if irregular.sum() >= 3 and irregular.mean() > 0.05:
             vfr = True
             warn.append(f"variable frame rate (frame intervals {d.min()*1000:.1f}-{d.max()*1000:.1f} ms): "
                         f"resampled to a constant {fps:g} fps")

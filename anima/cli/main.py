@@ -1,0 +1,245 @@
+"""``anima``: command-line interface. Every command has ``--help``; errors print one clear line."""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("GLOG_minloglevel", "2")
+os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
+
+from anima import __version__  # noqa: E402
+from anima.errors import AnimaError  # noqa: E402
+
+
+def _cmd_capture(a) -> int:
+    from anima.capture.export import export_arkit_csv, export_glb
+    from anima.capture.pipeline import CaptureConfig, Timings, capture_face
+    from anima.io.sequence import write_sequence
+    from anima.render.videos import render_videos
+
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    cfg = CaptureConfig(smooth_sigma=0.0 if a.no_smooth else a.sigma, max_frames=a.max_frames)
+    tm = Timings()
+    t0 = time.perf_counter()
+    seq = capture_face(a.video, cfg, progress=not a.quiet, timings=tm)
+    seq_path = write_sequence(seq, out / "face.npz")  # written first: nothing is lost if a render fails
+    written = [seq_path]
+    written.append(export_arkit_csv(seq, out / "arkit.csv"))
+    written.append(export_glb(seq, out / "face.glb"))
+    if not a.no_render:
+        render_videos(seq, a.video, out / "overlay.mp4", out / "mesh.mp4", progress=not a.quiet)
+        written += [out / "overlay.mp4", out / "mesh.mp4"]
+    s = seq.summary()
+    s["capture_fps"] = round(tm.frames / max(tm.decode_track_s + tm.fit_s, 1e-9), 1)
+    s["total_s"] = round(time.perf_counter() - t0, 2)
+    s["outputs"] = [str(p) for p in written]
+    s["warnings"] = seq.meta.get("source", {}).get("warnings", [])
+    if a.json:
+        print(json.dumps(s, indent=2))
+    else:
+        _table(s)
+    return 0
+
+
+def _table(s: dict) -> None:
+    rows = [("frames", f"{s['frames']} @ {s['fps']:g} fps ({s['duration_s']} s)"),
+            ("size", "x".join(map(str, s["size"]))),
+            ("face tracked", f"{100 * s['tracked_fraction']:.1f} %"),
+            ("low-confidence frames", str(s["low_confidence_frames"])),
+            ("mean fit error", f"{s['mean_fit_error_px']} px  (NME {100 * (s['mean_fit_nme'] or 0):.2f} %)"),
+            ("capture speed", f"{s.get('capture_fps', '-')} frames/s (decode+track+fit)"),
+            ("total time", f"{s.get('total_s', '-')} s")]
+    w = max(len(k) for k, _ in rows)
+    print("\n".join(f"  {k:<{w}}  {v}" for k, v in rows))
+    for p in s.get("outputs", []):
+        print(f"  wrote {p}")
+    for m in s.get("warnings", []):
+        print(f"  warning: {m}")
+
+
+def _cmd_info(a) -> int:
+    from anima.io.sequence import read_sequence
+
+    s = read_sequence(a.file).summary()
+    if a.json:
+        print(json.dumps(s, indent=2))
+    else:
+        _table(s)
+    return 0
+
+
+def _cmd_export(a) -> int:
+    from anima.capture.export import export_arkit_csv, export_glb
+    from anima.io.sequence import read_sequence
+
+    seq = read_sequence(a.file)
+    p = export_arkit_csv(seq, a.out) if a.format == "arkit" else export_glb(seq, a.out)
+    print(f"wrote {p}")
+    return 0
+
+
+def _cmd_eval_landmarks(a) -> int:
+    from anima.eval.landmarks import evaluate_aflw
+
+    r = evaluate_aflw()
+    if not a.per_image:
+        r.pop("per_image")
+    if a.json:
+        print(json.dumps(r, indent=2))
+    else:
+        print(f"AFLW2000-3D samples: {r['detected']}/{r['images']} faces found")
+        print(f"  NME raw MediaPipe (68 pt): {100 * r['nme_mediapipe']:.2f} %")
+        print(f"  NME fitted ICT model:      {100 * r['nme_fit']:.2f} %   (target <= 3.5 %)")
+    return 0
+
+
+def _cmd_eval_stability(a) -> int:
+    from anima.eval.stability import evaluate_stability
+
+    r = evaluate_stability(a.clips or None, max_frames=a.max_frames)
+    print(json.dumps(r, indent=2) if a.json else _fmt_stab(r))
+    return 0
+
+
+def _fmt_stab(r: dict) -> str:
+    lines = [f"{'clip':<28} {'acc raw':>9} {'acc fit':>9} {'reduction':>9} {'err ratio':>9}"]
+    for c in r["clips"]:
+        lines.append(f"{c['clip']:<28} {c['acc_raw']:>9.5f} {c['acc_fit_smoothed']:>9.5f} "
+                     f"{100 * c['acc_reduction']:>8.1f}% {c['error_ratio_smoothed_vs_unsmoothed']:>9.3f}")
+    lines.append(f"mean reduction {100 * r['mean_acc_reduction']:.1f}% (target >= 40%), "
+                 f"mean error ratio {r['mean_error_ratio']:.3f} (target <= 1.10)")
+    return "\n".join(lines)
+
+
+def _cmd_facemodel_import(a) -> int:
+    import numpy as np
+
+    from anima.facemodel.ict import import_ict_obj
+
+    d = import_ict_obj(a.folder)
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(out, **d)
+    print(f"imported {len(d['id_names'])} identity and {len(d['expr_names'])} expression shapes -> {out}")
+    return 0
+
+
+def _cmd_facemodel_correspondence(a) -> int:
+    import cv2
+
+    from anima.facemodel.correspondence import (DEFAULT_TEMPLATE_IMAGES, build_correspondence,
+                                                mediapipe_template, save_correspondence)
+    from anima.facemodel.ict import load_face_model
+    from anima.io.assets import asset, package_data
+
+    paths = a.images or [str(asset(p)) for p in DEFAULT_TEMPLATE_IMAGES]
+    ims = []
+    for p in paths:
+        im = cv2.imread(str(p))
+        if im is None:
+            raise AnimaError(f"cannot read image {p}")
+        ims.append(im[:, :, ::-1])
+    c = build_correspondence(mediapipe_template(ims), load_face_model())
+    out = Path(a.out) if a.out else package_data("mediapipe_ict_correspondence.npz")
+    save_correspondence(c, out)
+    print(json.dumps({"out": str(out), "valid": int(c.valid.sum()), **c.meta}, indent=2))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="anima", description="Monocular video and speech to 3D avatar animation.")
+    p.add_argument("--version", action="version", version=f"anima {__version__}")
+    p.add_argument("--debug", action="store_true", help="show full tracebacks on errors")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    c = sub.add_parser("capture", help="track and fit a 3D face in a video",
+                       description="Track a face in VIDEO with MediaPipe, fit the ICT face model (identity per "
+                       "clip; pose, camera and 53 expressions per frame), smooth, and write: face.npz (tracked "
+                       "sequence), arkit.csv (Live Link Face), face.glb (morph-target animation), overlay.mp4 "
+                       "and mesh.mp4.")
+    c.add_argument("video", help="input video (mp4/mov/mkv/webm; H.264, HEVC, VP9...)")
+    c.add_argument("--out", required=True, help="output folder (created)")
+    c.add_argument("--max-frames", type=int, default=None, help="only the first N frames")
+    c.add_argument("--sigma", type=float, default=1.0, help="temporal Gaussian smoothing, frames (default 1.0)")
+    c.add_argument("--no-smooth", action="store_true", help="disable temporal smoothing")
+    c.add_argument("--no-render", action="store_true", help="skip the overlay and mesh videos")
+    c.add_argument("--json", action="store_true", help="print the summary as JSON")
+    c.add_argument("--quiet", action="store_true", help="no progress bars")
+    c.set_defaults(func=_cmd_capture)
+
+    i = sub.add_parser("info", help="summarise a tracked-sequence file",
+                       description="Frames, fps, tracked fraction, mean fit error (px and NME) of FILE.")
+    i.add_argument("file")
+    i.add_argument("--json", action="store_true", help="print JSON")
+    i.set_defaults(func=_cmd_info)
+
+    x = sub.add_parser("export", help="export a tracked sequence (ARKit CSV or GLB)",
+                       description="Export FILE (face.npz) as a Live Link Face CSV or a GLB with morph targets.")
+    x.add_argument("format", choices=["arkit", "glb"])
+    x.add_argument("file")
+    x.add_argument("--out", required=True)
+    x.set_defaults(func=_cmd_export)
+
+    e = sub.add_parser("eval", help="evaluations that print JSON")
+    esub = e.add_subparsers(dest="eval_command", metavar="EVAL")
+    el = esub.add_parser("landmarks", help="68-point NME on the AFLW2000-3D samples",
+                         description="68-point NME (3DDFA_V2 protocol) of raw MediaPipe and of the fitted model.")
+    el.add_argument("--json", action="store_true")
+    el.add_argument("--per-image", action="store_true", help="include per-image rows")
+    el.set_defaults(func=_cmd_eval_landmarks)
+    es = esub.add_parser("stability", help="landmark jitter of the smoothed fit vs raw MediaPipe",
+                         description="Mean landmark acceleration (normalised by inter-ocular distance) of raw "
+                         "MediaPipe and of the smoothed fit, and the fit's landmark error with and without "
+                         "smoothing, on talking clips.")
+    es.add_argument("clips", nargs="*", help="videos (default: the shared talking clips)")
+    es.add_argument("--max-frames", type=int, default=300)
+    es.add_argument("--json", action="store_true")
+    es.set_defaults(func=_cmd_eval_stability)
+
+    fm = sub.add_parser("facemodel", help="face-model tools: import OBJs, build the landmark correspondence")
+    fsub = fm.add_subparsers(dest="fm_command", metavar="TOOL")
+    fi = fsub.add_parser("import", help="import ICT-FaceKit OBJs into the compact npz",
+                         description="Read generic_neutral_mesh.obj, identity*.obj and expression OBJs from "
+                         "FOLDER (ICT-FaceKit's FaceXModel) into an npz with the keys of ict_facekit_light.npz.")
+    fi.add_argument("folder")
+    fi.add_argument("--out", required=True)
+    fi.set_defaults(func=_cmd_facemodel_import)
+    fc = fsub.add_parser("correspondence", help="recompute the MediaPipe<->ICT correspondence",
+                         description="Rebuild anima/facemodel/data/mediapipe_ict_correspondence.npz from "
+                         "MediaPipe run on real portraits of the shared data (deterministic).")
+    fc.add_argument("--images", nargs="*", help="portrait images (default: the documented shared set)")
+    fc.add_argument("--out", default=None, help="output npz (default: the packaged file)")
+    fc.set_defaults(func=_cmd_facemodel_correspondence)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    a = parser.parse_args(argv)
+    if not getattr(a, "func", None):
+        parser.print_help()
+        return 0 if a.command is None else 2
+    try:
+        return int(a.func(a) or 0)
+    except AnimaError as e:
+        if a.debug:
+            raise
+        print(f"anima: error: {e}", file=sys.stderr)
+        return e.exit_code
+    except KeyboardInterrupt:
+        print("anima: interrupted", file=sys.stderr)
+        return 130
+    except Exception as e:  # noqa: BLE001 - last resort: one line, not a traceback
+        if a.debug:
+            raise
+        print(f"anima: internal error: {type(e).__name__}: {e} (rerun with --debug for details)", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

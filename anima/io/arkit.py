@@ -1,0 +1,84 @@
+"""ARKit blendshape CSV in Epic's Live Link Face layout (61 values: 52 blendshapes + head + eyes).
+
+Columns: ``Timecode, BlendShapeCount, EyeBlinkLeft ... TongueOut, HeadYaw, HeadPitch, HeadRoll,
+LeftEyeYaw ... RightEyeRoll``; Timecode ``HH:MM:SS:FF.mmm`` (frame number and its fraction).
+ICT names map to ARKit by dropping ``_L/_R`` for ``Left/Right``; ICT splits ``browInnerUp`` and
+``cheekPuff`` into left/right, which are averaged. ``TongueOut`` and eye rotations are written as 0.
+"""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+LIVE_LINK_COLUMNS = [
+    "EyeBlinkLeft", "EyeLookDownLeft", "EyeLookInLeft", "EyeLookOutLeft", "EyeLookUpLeft", "EyeSquintLeft",
+    "EyeWideLeft", "EyeBlinkRight", "EyeLookDownRight", "EyeLookInRight", "EyeLookOutRight", "EyeLookUpRight",
+    "EyeSquintRight", "EyeWideRight", "JawForward", "JawLeft", "JawRight", "JawOpen", "MouthClose",
+    "MouthFunnel", "MouthPucker", "MouthLeft", "MouthRight", "MouthSmileLeft", "MouthSmileRight",
+    "MouthFrownLeft", "MouthFrownRight", "MouthDimpleLeft", "MouthDimpleRight", "MouthStretchLeft",
+    "MouthStretchRight", "MouthRollLower", "MouthRollUpper", "MouthShrugLower", "MouthShrugUpper",
+    "MouthPressLeft", "MouthPressRight", "MouthLowerDownLeft", "MouthLowerDownRight", "MouthUpperUpLeft",
+    "MouthUpperUpRight", "BrowDownLeft", "BrowDownRight", "BrowInnerUp", "BrowOuterUpLeft", "BrowOuterUpRight",
+    "CheekPuff", "CheekSquintLeft", "CheekSquintRight", "NoseSneerLeft", "NoseSneerRight", "TongueOut",
+]
+HEAD_COLUMNS = ["HeadYaw", "HeadPitch", "HeadRoll", "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll",
+                "RightEyeYaw", "RightEyePitch", "RightEyeRoll"]
+
+
+def arkit_name(ict: str) -> str:
+    base = ict[:-2] if ict.endswith(("_L", "_R")) else ict
+    side = {"_L": "Left", "_R": "Right"}.get(ict[-2:], "")
+    return base[0].upper() + base[1:] + side
+
+
+def ict_to_arkit(expression: np.ndarray, expr_names: list[str]) -> np.ndarray:
+    """``[F, 53]`` ICT weights -> ``[F, 52]`` ARKit weights in LIVE_LINK_COLUMNS order."""
+    F = expression.shape[0]
+    acc = np.zeros((F, len(LIVE_LINK_COLUMNS)))
+    cnt = np.zeros(len(LIVE_LINK_COLUMNS))
+    col = {n: i for i, n in enumerate(LIVE_LINK_COLUMNS)}
+    for j, n in enumerate(expr_names):
+        a = arkit_name(n)
+        if a not in col:
+            a = arkit_name(n[:-2]) if n.endswith(("_L", "_R")) else a  # browInnerUp_L -> BrowInnerUp
+        if a in col:
+            acc[:, col[a]] += expression[:, j]
+            cnt[col[a]] += 1
+    return acc / np.maximum(cnt, 1)
+
+
+def timecode(i: int, fps: float) -> str:
+    t = i / fps
+    h, rem = divmod(t, 3600)
+    m, s = divmod(rem, 60)
+    frame = (s - int(s)) * fps
+    return f"{int(h):02d}:{int(m):02d}:{int(s):02d}:{int(frame):02d}.{int(round((frame - int(frame)) * 1000)) % 1000:03d}"
+
+
+def write_live_link_csv(path: str | Path, expression: np.ndarray, expr_names: list[str], fps: float,
+                        head_ypr: np.ndarray | None = None) -> Path:
+    """Write the CSV. head_ypr ``[F, 3]`` radians (yaw, pitch, roll), or None for zeros."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    ark = ict_to_arkit(np.asarray(expression), expr_names)
+    F = ark.shape[0]
+    head = np.zeros((F, len(HEAD_COLUMNS)))
+    if head_ypr is not None:
+        head[:, :3] = head_ypr
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["Timecode", "BlendShapeCount", *LIVE_LINK_COLUMNS, *HEAD_COLUMNS])
+        n = len(LIVE_LINK_COLUMNS) + len(HEAD_COLUMNS)
+        for i in range(F):
+            w.writerow([timecode(i, fps), n, *(f"{v:.6f}" for v in ark[i]), *(f"{v:.6f}" for v in head[i])])
+    return path
+
+
+def read_live_link_csv(path: str | Path) -> tuple[list[str], np.ndarray]:
+    """Return (column names after BlendShapeCount, values ``[F, 61]``)."""
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    header = rows[0]
+    return header[2:], np.array([[float(x) for x in r[2:]] for r in rows[1:]])

@@ -1,0 +1,60 @@
+"""Videos people look at: the fitted mesh over the input, and the fitted mesh alone."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from anima.facemodel.ict import load_face_model
+from anima.io.sequence import FLAG_NO_FACE, TrackedSequence
+from anima.io.video import VideoWriter, iter_frames, probe_video
+from anima.render.face import put_label, render_mesh
+
+
+class SequenceMesh:
+    """Per-frame camera-space vertices of the fitted skin mesh."""
+
+    def __init__(self, seq: TrackedSequence):
+        self.model = load_face_model().skin()
+        self.tris = self.model.triangles()
+        self.seq = seq
+        self.base = self.model.vertices(seq.identity)
+        self.R = seq.rotation_matrices()
+
+    def camera_vertices(self, f: int) -> np.ndarray:
+        V = self.base + np.tensordot(self.seq.expression[f].astype(np.float32), self.model.expr_deltas, 1)
+        return self.seq.scale[f] * V @ self.R[f].T + self.seq.translation[f]
+
+
+def render_videos(seq: TrackedSequence, video: str | None, overlay_path: str | Path | None,
+                  mesh_path: str | Path | None, progress: bool = True, alpha: float = 0.55) -> None:
+    """Write the overlay (mesh over the input frames, needs ``video``) and/or the mesh-only render.
+    The source's audio track, if any, is muxed into both."""
+    mesh = SequenceMesh(seq)
+    size = (seq.width, seq.height)
+    audio = None
+    frames = None
+    if video is not None:
+        info = probe_video(video)
+        audio = video if info.has_audio else None
+        frames = iter_frames(info)
+    w_over = VideoWriter(overlay_path, seq.fps, size, audio) if overlay_path and frames is not None else None
+    w_mesh = VideoWriter(mesh_path, seq.fps, size, audio) if mesh_path else None
+    try:
+        for f in tqdm(range(seq.n_frames), desc="render", unit="fr", disable=not progress, leave=False):
+            frame = next(frames, None) if frames is not None else None
+            no_face = bool(seq.flags[f] & FLAG_NO_FACE)
+            X = mesh.camera_vertices(f)
+            if w_over is not None and frame is not None:
+                img = frame if no_face else render_mesh(X, mesh.tris, size, background=frame, alpha=alpha)
+                w_over.write(put_label(img, "no face" if no_face else f"fit {seq.fit_error_px[f]:.1f}px"))
+            if w_mesh is not None:
+                img = render_mesh(X, mesh.tris, size)
+                w_mesh.write(put_label(img, "no face (interpolated)") if no_face else img)
+    finally:
+        for w in (w_over, w_mesh):
+            if w is not None:
+                w.close()
+        if frames is not None:
+            frames.close()

@@ -1,0 +1,77 @@
+import os
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+os.environ.setdefault("GLOG_minloglevel", "2")
+os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
+
+from anima.io.assets import asset  # noqa: E402
+from anima.io.video import FFMPEG  # noqa: E402
+
+D0 = "liveportrait-examples/assets/examples/driving/d0.mp4"
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="session")
+def d0_path() -> Path:
+    return asset(D0)
+
+
+@pytest.fixture(scope="session")
+def face_model():
+    from anima.facemodel.ict import load_face_model
+
+    return load_face_model()
+
+
+def ffmpeg(*args: str) -> None:
+    subprocess.run([FFMPEG, "-hide_banner", "-nostdin", "-v", "error", "-y", *args], check=True)
+
+
+@pytest.fixture(scope="session")
+def d0_capture(tmp_path_factory, d0_path):
+    """The real d0 clip (smile + blink) captured once for the session."""
+    from anima.capture.pipeline import capture_face
+
+    return capture_face(str(d0_path), progress=False)
+
+
+@pytest.fixture(scope="session")
+def videos(tmp_path_factory, d0_path) -> dict:
+    """Bad or unusual inputs derived from the real d0 clip with ffmpeg."""
+    d = tmp_path_factory.mktemp("videos")
+    out = {}
+    out["gray"] = d / "gray.mp4"
+    ffmpeg("-i", str(d0_path), "-t", "1.2", "-vf", "format=gray", "-c:v", "libx264", "-pix_fmt", "yuv420p",
+           str(out["gray"]))
+    out["tiny"] = d / "tiny.mp4"
+    ffmpeg("-i", str(d0_path), "-t", "0.5", "-vf", "scale=24:24", "-c:v", "libx264", str(out["tiny"]))
+    out["noface"] = d / "noface.mp4"
+    ffmpeg("-f", "lavfi", "-i", "testsrc=size=256x256:rate=25", "-t", "1", "-c:v", "libx264", "-pix_fmt",
+           "yuv420p", str(out["noface"]))
+    out["two_faces"] = d / "two.mp4"
+    ffmpeg("-i", str(d0_path), "-i", str(d0_path), "-t", "1", "-filter_complex",
+           "[0:v]scale=256:256[a];[1:v]scale=200:200,pad=256:256:28:28[b];[a][b]hstack", "-c:v", "libx264",
+           str(out["two_faces"]))
+    out["vfr"] = d / "vfr.mp4"
+    ffmpeg("-i", str(d0_path), "-t", "2", "-vf", "setpts='(N+0.6*mod(N,2))/25/TB'", "-vsync", "vfr",
+           "-c:v", "libx264", str(out["vfr"]))
+    ffmpeg("-i", str(d0_path), "-c", "copy", "-movflags", "+faststart", str(d / "faststart.mp4"))
+    data = (d / "faststart.mp4").read_bytes()
+    out["truncated"] = d / "truncated.mp4"  # an interrupted download: index first, 60 % of the data
+    out["truncated"].write_bytes(data[: int(len(data) * 0.6)])
+    out["text"] = d / "notes.mp4"
+    out["text"].write_text("this is not a video\n" * 20)
+    out["empty"] = d / "empty.mp4"
+    out["empty"].write_bytes(b"")
+    out["broken_mp4"] = d / "broken.mp4"
+    raw = d0_path.read_bytes()  # index at the end: cut before it, nothing is decodable
+    out["broken_mp4"].write_bytes(raw[: len(raw) // 3])
+    return out
+
+
+def synthetic_rng(seed: int = 0) -> np.random.Generator:
+    return np.random.default_rng(seed)
