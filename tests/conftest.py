@@ -52,12 +52,16 @@ def videos(tmp_path_factory, d0_path) -> dict:
     out["noface"] = d / "noface.mp4"
     ffmpeg("-f", "lavfi", "-i", "testsrc=size=256x256:rate=25", "-t", "1", "-c:v", "libx264", "-pix_fmt",
            "yuv420p", str(out["noface"]))
+    out["partial"] = d / "partial.mp4"  # 1 s of face, then 1 s without
+    ffmpeg("-i", str(d0_path), "-f", "lavfi", "-i", "testsrc=size=512x512:rate=25", "-filter_complex",
+           "[0:v]trim=duration=1,setpts=PTS-STARTPTS[a];[1:v]trim=duration=1,setpts=PTS-STARTPTS,format=yuv420p[b];"
+           "[a][b]concat=n=2:v=1[v]", "-map", "[v]", "-c:v", "libx264", str(out["partial"]))
     out["two_faces"] = d / "two.mp4"
     ffmpeg("-i", str(d0_path), "-i", str(d0_path), "-t", "1", "-filter_complex",
            "[0:v]scale=256:256[a];[1:v]scale=200:200,pad=256:256:28:28[b];[a][b]hstack", "-c:v", "libx264",
            str(out["two_faces"]))
     out["vfr"] = d / "vfr.mp4"
-    ffmpeg("-i", str(d0_path), "-t", "2", "-vf", "setpts='(N+0.6*mod(N,2))/25/TB'", "-vsync", "vfr",
+    ffmpeg("-i", str(d0_path), "-t", "2", "-vf", "setpts='(N+floor(N/2))/25/TB'", "-vsync", "vfr",
            "-c:v", "libx264", str(out["vfr"]))
     ffmpeg("-i", str(d0_path), "-c", "copy", "-movflags", "+faststart", str(d / "faststart.mp4"))
     data = (d / "faststart.mp4").read_bytes()

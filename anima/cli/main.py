@@ -218,9 +218,26 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _silence_native_stderr() -> None:
+    """MediaPipe/TFLite's C++ code writes start-up chatter straight to file descriptor 2. Point fd 2 at
+    /dev/null and give Python's ``sys.stderr`` (anima's messages, progress bars) a copy of the real one."""
+    try:
+        sys.stderr.flush()
+        real = os.dup(2)
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, 2)
+        os.close(devnull)
+        sys.stderr = os.fdopen(real, "w", buffering=1, encoding=sys.stderr.encoding or "utf-8",
+                               errors="replace")
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     a = parser.parse_args(argv)
+    if not a.debug and not os.environ.get("ANIMA_NATIVE_LOGS"):
+        _silence_native_stderr()
     if not getattr(a, "func", None):
         parser.print_help()
         return 0 if a.command is None else 2

@@ -100,8 +100,12 @@ def probe_video(path: str | os.PathLike) -> VideoInfo:
                         f"resampled to a constant {fps:g} fps")
     n = len(pts) if len(pts) else int(round(float(meta.get("duration", 0)) * fps))
     duration = float(meta.get("duration") or (n / fps))
+    expected = int(round(duration * fps))
     if vfr:
-        n = int(round(duration * fps))
+        n = expected
+    elif len(pts) and n < 0.95 * expected - 1:
+        warn.append(f"the file holds {n} of the {expected} frames its header announces (truncated?): "
+                    f"keeping the {n} that are there")
     return VideoInfo(str(p), fps, int(w), int(h), int(n), duration, str(meta.get("codec", "?")),
                      "audio_codec" in meta, vfr, warn)
 
