@@ -8,7 +8,8 @@ import numpy as np
 from tqdm import tqdm
 
 from anima import __version__
-from anima.capture.fit import FitConfig, LandmarkBasis, choose_keyframes, fit_frames, fit_identity, landmark_error
+from anima.capture.fit import (FitConfig, FrameFit, LandmarkBasis, choose_keyframes, fit_frames, fit_identity,
+                               landmark_error)
 from anima.core.camera import mediapipe_to_camera
 from anima.core.filters import gaussian_smooth
 from anima.core.rotations import matrix_to_rotvec
@@ -33,6 +34,11 @@ class CaptureConfig:
     """Frames whose fit NME exceeds this are flagged low-confidence."""
     min_face_px: float = 40.0
     """Faces whose landmark box is smaller than this (sqrt of area, px) are flagged low-confidence."""
+    identity_tolerance_cm: float = 0.05
+    """Fit-while-tracking keeps its per-frame fits if the whole-clip identity moves its landmarks by less
+    than this on average (else the clip is refitted)."""
+    stream: bool = True
+    """Fit chunks of frames on a worker thread while MediaPipe tracks (hides most of the fitting time)."""
     fit: FitConfig = field(default_factory=FitConfig)
 
 
@@ -44,8 +50,9 @@ class Timings:
 
 
 def track_landmarks(info: VideoInfo, max_frames: int | None = None, progress: bool = True,
-                    warnings_out: list[str] | None = None) -> np.ndarray:
-    """Run MediaPipe face mesh over the video; ``[F, 478, 3]`` normalised landmarks, NaN where no face."""
+                    warnings_out: list[str] | None = None, on_frame=None) -> np.ndarray:
+    """Run MediaPipe face mesh over the video; ``[F, 478, 3]`` normalised landmarks, NaN where no face.
+    ``on_frame(landmarks)`` is called after each frame (used to fit while tracking)."""
     from anima.capture.mediapipe_face import FaceMeshTracker
 
     total = info.n_frames if max_frames is None else min(info.n_frames, max_frames)
@@ -58,6 +65,8 @@ def track_landmarks(info: VideoInfo, max_frames: int | None = None, progress: bo
                 break
             lm = tracker(frame)
             out.append(np.full((478, 3), np.nan, np.float32) if lm is None else lm)
+            if on_frame is not None:
+                on_frame(out[-1])
             bar.update(1)
     if warnings_out is not None:
         warnings_out.extend(errs)
@@ -86,9 +95,66 @@ def _smooth_rotations(R: np.ndarray, sigma: float, valid: np.ndarray) -> np.ndar
     return U @ Vt
 
 
+class StreamingPrefit:
+    """Fit while tracking: a worker thread fits chunks of frames as MediaPipe produces them, with an
+    identity estimated from the first chunk's keyframes. Numpy releases the GIL and MediaPipe waits on its
+    own threads, so on 2 cores the fit mostly hides behind tracking. :func:`fit_landmark_sequence` then
+    re-estimates the identity from keyframes over the whole clip and keeps these per-frame fits only if the
+    identity shape moved by less than ``identity_tolerance_cm``; otherwise it refits, warm-started."""
+
+    def __init__(self, width: int, height: int, cfg: CaptureConfig, chunk: int = 100):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.width, self.height, self.cfg, self.chunk = width, height, cfg, chunk
+        self.basis = LandmarkBasis.build(load_face_model(), load_correspondence(), cfg.fit.use_iris)
+        self.frames: list[np.ndarray] = []
+        self.submitted = 0
+        self.identity = None
+        self.pool = ThreadPoolExecutor(max_workers=1)
+        self.jobs = []  # (start, end, future)
+
+    def __call__(self, lm: np.ndarray) -> None:
+        self.frames.append(lm)
+        if len(self.frames) - self.submitted >= self.chunk:
+            self._submit(len(self.frames))
+
+    def _submit(self, end: int) -> None:
+        start = self.submitted
+        block = np.stack(self.frames[start:end])
+        self.submitted = end
+        self.jobs.append((start, end, self.pool.submit(self._fit_block, block)))
+
+    def _fit_block(self, block: np.ndarray):
+        found = np.isfinite(block).all(axis=(1, 2))
+        if not found.any():
+            return None
+        P = mediapipe_to_camera(block[found][:, self.basis.index], self.width, self.height)
+        if self.identity is None:
+            key = choose_keyframes(P, self.basis, self.cfg.fit.n_keyframes)
+            self.identity = fit_identity(P[key], self.basis, self.cfg.fit)
+        return found, fit_frames(P, self.basis, self.identity, self.cfg.fit)
+
+    def result(self, n_frames: int):
+        """Per-frame fits ``(identity, expr [F,53], s, R, t)`` over the found frames of the first
+        ``n_frames``, or None when nothing usable was fitted."""
+        if self.submitted < n_frames:
+            self._submit(n_frames)
+        parts = []
+        for start, end, fut in self.jobs:
+            parts.append((start, end, fut.result()))
+        self.pool.shutdown()
+        if self.identity is None or any(r is None for *_, r in parts):
+            return None
+        fits = [r[1] for *_, r in parts]
+        return (self.identity, np.concatenate([f.expr for f in fits]), np.concatenate([f.scale for f in fits]),
+                np.concatenate([f.R for f in fits]), np.concatenate([f.t for f in fits]))
+
+
 def fit_landmark_sequence(lm: np.ndarray, width: int, height: int, fps: float, cfg: CaptureConfig,
-                          meta: dict | None = None) -> TrackedSequence:
-    """Fit identity (keyframes), per-frame pose/camera/expression, smooth, flag. ``lm [F, 478, 3]``."""
+                          meta: dict | None = None, prefit=None) -> TrackedSequence:
+    """Fit identity (keyframes), per-frame pose/camera/expression, smooth, flag. ``lm [F, 478, 3]``.
+    ``prefit``: the result of :meth:`StreamingPrefit.result` for these frames, reused when its identity
+    agrees with the whole-clip identity."""
     model = load_face_model()
     corr = load_correspondence()
     basis = LandmarkBasis.build(model, corr, cfg.fit.use_iris)
@@ -100,7 +166,16 @@ def fit_landmark_sequence(lm: np.ndarray, width: int, height: int, fps: float, c
     P = P_all[found]
     key = choose_keyframes(P, basis, cfg.fit.n_keyframes)
     identity = fit_identity(P[key], basis, cfg.fit)
-    fit = fit_frames(P, basis, identity, cfg.fit)
+    reused = False
+    if prefit is not None and len(prefit[1]) == len(P):
+        shift = np.abs(basis.shape(identity) - basis.shape(prefit[0])).mean()
+        if shift < cfg.identity_tolerance_cm:
+            fit = FrameFit(prefit[2], prefit[3], prefit[4], prefit[1])
+            identity, reused = prefit[0], True
+        else:
+            fit = fit_frames(P, basis, identity, cfg.fit, e0=prefit[1])
+    else:
+        fit = fit_frames(P, basis, identity, cfg.fit)
 
     expr = np.zeros((F, basis.expr.shape[-1]))
     R = np.tile(np.eye(3), (F, 1, 1))
@@ -139,6 +214,8 @@ def fit_landmark_sequence(lm: np.ndarray, width: int, height: int, fps: float, c
         fit={k: getattr(cfg.fit, k) for k in cfg.fit.__dataclass_fields__},
         smoothing={"filter": "gaussian", "sigma_frames": cfg.smooth_sigma},
         keyframes=np.flatnonzero(found)[key].tolist(),
+        identity_from=("first-chunk keyframes (within tolerance of the whole-clip identity)" if reused
+                       else "keyframes over the whole clip"),
         anima_version=__version__,
     )
     return TrackedSequence(fps=fps, width=width, height=height, identity=identity, expression=expr,
@@ -162,15 +239,17 @@ def capture_face(video: str, cfg: CaptureConfig | None = None, progress: bool = 
         raise InputError(f"video is {info.width}x{info.height}: too small to find a face (min {MIN_SIZE} px)")
     warns = list(info.warnings)
     t0 = time.perf_counter()
-    lm = track_landmarks(info, cfg.max_frames, progress, warns)
-    t1 = time.perf_counter()
+    stream = StreamingPrefit(info.width, info.height, cfg) if cfg.stream else None
+    lm = track_landmarks(info, cfg.max_frames, progress, warns, on_frame=stream)
     found = np.isfinite(lm).all(axis=(1, 2))
+    prefit = stream.result(len(lm)) if stream is not None else None
+    t1 = time.perf_counter()
     if not found.any():
         raise InputError(f"no face found in {video} ({len(lm)} frames checked)")
     if info.n_frames and len(lm) < min(info.n_frames, cfg.max_frames or info.n_frames) - 1:
         warns.append(f"only {len(lm)} of {info.n_frames} frames decoded (truncated file?)")
     seq = fit_landmark_sequence(lm, info.width, info.height, info.fps, cfg,
-                                meta={"source": {**info.as_dict(), "warnings": warns}})
+                                meta={"source": {**info.as_dict(), "warnings": warns}}, prefit=prefit)
     if timings is not None:
         timings.decode_track_s += t1 - t0
         timings.fit_s += time.perf_counter() - t1
