@@ -163,6 +163,25 @@ def _cmd_facemodel_landmarks68(a) -> int:
     return 0
 
 
+def _cmd_audio_features(a) -> int:
+    import numpy as np
+
+    from anima.audio.features import FEATURE_NAMES, read_audio, speech_features
+
+    f = speech_features(read_audio(a.file), a.fps, a.frames)
+    out = Path(a.out) if a.out else Path(a.file).with_suffix(".speech.npz")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(out, features=f.features, valid=f.valid, fps=np.float32(f.fps),
+                        names=np.asarray(FEATURE_NAMES))
+    s = {"file": str(a.file), "out": str(out), "frames": int(len(f.features)), "fps": f.fps,
+         "duration_s": round(f.duration_s, 3), "silent": f.silent, "gain_db": round(f.gain_db, 2),
+         "frames_outside_audio": int((~f.valid).sum())}
+    print(json.dumps(s, indent=2) if a.json else "\n".join(f"  {k:<21} {v}" for k, v in s.items()))
+    if f.silent:
+        print("anima: warning: the audio is silent (below -60 dBFS)", file=sys.stderr)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="anima", description="Monocular video and speech to 3D avatar animation.")
     p.add_argument("--version", action="version", version=f"anima {__version__}")
@@ -212,6 +231,18 @@ def build_parser() -> argparse.ArgumentParser:
     es.add_argument("--max-frames", type=int, default=300)
     es.add_argument("--json", action="store_true")
     es.set_defaults(func=_cmd_eval_stability)
+
+    au = sub.add_parser("audio", help="speech features aligned to motion frames")
+    asub = au.add_subparsers(dest="audio_command", metavar="TOOL")
+    af = asub.add_parser("features", help="13 MFCC + log energy and their derivatives (28) per motion frame",
+                         description="Read the audio of FILE (WAV/MP3/FLAC or a video), normalise loudness, and "
+                         "compute 28 speech features per motion frame, centred on the frame times i/fps.")
+    af.add_argument("file")
+    af.add_argument("--fps", type=float, default=30.0, help="motion frame rate (default 30)")
+    af.add_argument("--frames", type=int, default=None, help="number of motion frames (default: audio length)")
+    af.add_argument("--out", default=None, help="output .npz (default: FILE.speech.npz)")
+    af.add_argument("--json", action="store_true")
+    af.set_defaults(func=_cmd_audio_features)
 
     fm = sub.add_parser("facemodel", help="face-model tools: import OBJs, build the landmark correspondence")
     fsub = fm.add_subparsers(dest="fm_command", metavar="TOOL")

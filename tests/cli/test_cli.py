@@ -18,7 +18,8 @@ def run(*args, timeout=300):
 
 def test_help_for_every_command():
     for cmd in ([], ["capture"], ["info"], ["export"], ["eval", "landmarks"], ["eval", "stability"],
-                ["facemodel", "import"], ["facemodel", "correspondence"]):
+                ["facemodel", "import"], ["facemodel", "correspondence"], ["facemodel", "landmarks68"],
+                ["audio", "features"]):
         r = run(*cmd, "--help")
         assert r.returncode == 0 and "usage: anima" in r.stdout, cmd
 
@@ -78,3 +79,17 @@ def test_unusual_input_still_captured(videos, tmp_path, kind):
         assert s["tracked_fraction"] > 0.9
     if kind in ("vfr", "truncated"):
         assert s["warnings"], "the user is told about resampling / truncation"
+
+
+def test_audio_features_command(tmp_path):
+    from anima.io.assets import asset
+
+    out = tmp_path / "f.npz"
+    r = run("audio", "features", asset("videoretalking-examples/examples/audio/1.wav"), "--fps", "15", "--out", out,
+            "--json")
+    assert r.returncode == 0, r.stderr
+    s = json.loads(r.stdout)
+    with np.load(out) as z:
+        assert z["features"].shape == (s["frames"], 28) and np.isfinite(z["features"]).all()
+    r = run("audio", "features", asset("liveportrait-examples/assets/examples/driving/d0.mp4"), "--out", out)
+    assert r.returncode == 2 and "no audio track" in r.stderr
