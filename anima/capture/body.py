@@ -1,0 +1,200 @@
+"""Body and hands: assemble the 55-joint skeleton from MediaPipe Holistic, then clean it (seed 004 §4.3.1-4.3.2).
+
+Assembly, per frame: body joints from Pose *world* landmarks (metres, hip-centred; converted to anima's
+axes), made pelvis-relative. Hands come from the hand landmarks in image space (pixels, depth in x units),
+scaled to metres by the frame's metres-per-pixel factor (visibility-weighted image-plane extent of the
+upper-body landmarks in world vs image coordinates) and attached at the body's wrists.
+
+Cleaning (:func:`clean`): confidence filter (joints below ``min_conf`` are dropped), cubic interpolation of
+short drop-outs (``max_gap`` frames; hands are interpolated in wrist-relative coordinates so they stay
+attached), longer gaps left missing and flagged, per-frame hand scale stabilisation (each hand brought to
+the clip's median hand size: the per-frame metres-per-pixel estimate jitters), zero-phase Gaussian
+smoothing (sigma 1.5 frames), optional
+resampling (e.g. to 15 fps for gesture work) and optional fixed bone lengths per clip (median length of
+each bone, re-imposed along each bone's direction from the root outwards).
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from anima.core.filters import gaussian_smooth, valid_runs
+from anima.core.skeleton import BODY_JOINTS, LEFT_HAND, MP_POSE, N_JOINTS, PARENTS, RIGHT_HAND, bone_lengths
+
+_UPPER = [0, 7, 8, 11, 12, 13, 14, 15, 16, 23, 24]
+
+
+@dataclass
+class BodyTrack:
+    joints: np.ndarray  # (F, 55, 3) metres, pelvis-relative, NaN where missing
+    conf: np.ndarray  # (F, 55) in [0, 1]
+    fps: float
+    interpolated: np.ndarray = field(default=None)  # (F, 55) bool: filled by interpolation
+
+    @property
+    def valid(self) -> np.ndarray:
+        return np.isfinite(self.joints).all(-1)
+
+
+def _to_anima(p: np.ndarray) -> np.ndarray:
+    """MediaPipe axes (x right, y down, z away) -> anima (x right, y up, z towards the camera)."""
+    return p * np.array([1.0, -1.0, -1.0])
+
+
+def assemble_frame(pose: np.ndarray | None, pose_world: np.ndarray | None, left: np.ndarray | None,
+                   right: np.ndarray | None, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+    """One frame -> (joints ``[55, 3]`` metres pelvis-relative, confidence ``[55]``)."""
+    J = np.full((N_JOINTS, 3), np.nan)
+    C = np.zeros(N_JOINTS)
+    if pose_world is None or pose is None:
+        return J, C
+    W = _to_anima(pose_world[:, :3].astype(np.float64))
+    vis = pose_world[:, 3].astype(np.float64)
+    g = {k: W[i] for k, i in MP_POSE.items()}
+    v = {k: vis[i] for k, i in MP_POSE.items()}
+    pelvis = (g["left_hip"] + g["right_hip"]) / 2
+    neck = (g["left_shoulder"] + g["right_shoulder"]) / 2
+    pos = {"pelvis": pelvis, "left_hip": g["left_hip"], "right_hip": g["right_hip"], "spine": (pelvis + neck) / 2,
+           "neck": neck, "head": (g["left_ear"] + g["right_ear"]) / 2, "nose": g["nose"]}
+    cf = {"pelvis": min(v["left_hip"], v["right_hip"]), "left_hip": v["left_hip"], "right_hip": v["right_hip"],
+          "neck": min(v["left_shoulder"], v["right_shoulder"]), "head": min(v["left_ear"], v["right_ear"]),
+          "nose": v["nose"]}
+    cf["spine"] = min(cf["pelvis"], cf["neck"])
+    for side in ("left", "right"):
+        for part in ("shoulder", "elbow", "wrist"):
+            pos[f"{side}_{part}"] = g[f"{side}_{part}"]
+            cf[f"{side}_{part}"] = v[f"{side}_{part}"]
+    for i, n in enumerate(BODY_JOINTS):
+        J[i] = pos[n] - pelvis
+        C[i] = cf[n]
+    # metres per pixel: image-plane extent of the upper-body landmarks in the world vs in the image
+    # (MediaPipe's image-space depth is too noisy to enter the scale; world axes are camera-aligned)
+    img = np.stack([pose[:, 0] * width, -pose[:, 1] * height], -1).astype(np.float64)[_UPPER]
+    wrl = W[_UPPER, :2]
+    wv = np.maximum(vis[_UPPER], 1e-3)[:, None]
+    ci, cw = (img * wv).sum(0) / wv.sum(), (wrl * wv).sum(0) / wv.sum()
+    s = np.sqrt((wv * (wrl - cw) ** 2).sum() / max((wv * (img - ci) ** 2).sum(), 1e-12))
+    for hand, sl, wrist in ((left, LEFT_HAND, BODY_JOINTS.index("left_wrist")),
+                            (right, RIGHT_HAND, BODY_JOINTS.index("right_wrist"))):
+        if hand is None:
+            continue
+        h = np.stack([hand[:, 0] * width, -hand[:, 1] * height, -hand[:, 2] * width], -1).astype(np.float64)
+        J[sl] = s * (h - h[0]) + J[wrist]
+        C[sl] = 1.0
+    return J, C
+
+
+def assemble(frames, width: int, height: int, fps: float) -> BodyTrack:
+    out = [assemble_frame(f.pose, f.pose_world, f.left_hand, f.right_hand, width, height) for f in frames]
+    J = np.stack([o[0] for o in out]) if out else np.zeros((0, N_JOINTS, 3))
+    C = np.stack([o[1] for o in out]) if out else np.zeros((0, N_JOINTS))
+    return BodyTrack(J, C, fps, np.zeros(C.shape, bool))
+
+
+def _interp_gaps(x: np.ndarray, max_gap: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cubic interpolation over NaN gaps of at most ``max_gap`` frames, per column of ``x [F, D]``
+    (a gap at the clip's ends is not interpolated). Returns (filled, filled-mask [F])."""
+    F = len(x)
+    ok = np.isfinite(x).all(1)
+    filled = np.zeros(F, bool)
+    if ok.sum() < 4 or ok.all():
+        return x, filled
+    idx = np.flatnonzero(ok)
+    cs = CubicSpline(idx, x[idx], axis=0)
+    for a, b in valid_runs(~ok):
+        if a == 0 or b == F or b - a > max_gap:
+            continue
+        x[a:b] = cs(np.arange(a, b))
+        filled[a:b] = True
+    return x, filled
+
+
+def fix_bone_lengths(J: np.ndarray, lengths: np.ndarray | None = None) -> np.ndarray:
+    """Re-impose per-bone lengths (default: the clip's median) along each bone's direction, root outwards."""
+    if lengths is None:
+        lengths = np.nanmedian(bone_lengths(J), axis=0)
+    out = J.copy()
+    for j in range(1, N_JOINTS):  # parents precede children in the joint order
+        p = PARENTS[j]
+        d = J[:, j] - J[:, p]
+        n = np.linalg.norm(d, axis=-1, keepdims=True)
+        unit = np.where(n > 1e-9, d / np.maximum(n, 1e-9), 0.0)
+        unit[~np.isfinite(d).all(-1)] = np.nan
+        out[:, j] = out[:, p] + lengths[j] * unit
+    return out
+
+
+def clean(track: BodyTrack, min_conf: float = 0.5, max_gap: int = 8, sigma: float = 1.5,
+          fixed_bones: bool = False, resample_fps: float | None = None) -> BodyTrack:
+    J = track.joints.copy()
+    J[track.conf < min_conf] = np.nan
+    interp = np.zeros(track.conf.shape, bool)
+    # body joints: each joint on its own
+    for j in range(13):
+        J[:, j], interp[:, j] = _interp_gaps(J[:, j], max_gap)
+    # hands: wrist-relative shape, re-attached to the (interpolated) body wrist
+    for sl, wrist in ((LEFT_HAND, BODY_JOINTS.index("left_wrist")), (RIGHT_HAND, BODY_JOINTS.index("right_wrist"))):
+        rel = (J[:, sl] - J[:, sl][:, :1]).reshape(len(J), -1)
+        rel, f = _interp_gaps(rel, max_gap)
+        J[:, sl] = rel.reshape(len(J), -1, 3) + J[:, wrist][:, None]
+        interp[:, sl] = f[:, None] & np.isfinite(J[:, sl]).all(-1)
+    # hand scale: the per-frame metres-per-pixel estimate jitters; bring each frame's hand to the clip's
+    # median hand size (median ratio of its bone lengths to their clip medians), keeping its shape
+    for sl, wrist in ((LEFT_HAND, BODY_JOINTS.index("left_wrist")), (RIGHT_HAND, BODY_JOINTS.index("right_wrist"))):
+        L = bone_lengths(J)[:, sl][:, 1:]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # frames / clips without this hand
+            med = np.nanmedian(L, 0)
+            ratio = np.nanmedian(L / med, 1) if np.isfinite(med).all() and (med > 0).all() else None
+        if ratio is not None:
+            ok = np.isfinite(ratio) & (ratio > 0)
+            rel = J[ok][:, sl] - J[ok][:, wrist][:, None]
+            J[np.flatnonzero(ok)[:, None], np.arange(sl.start, sl.stop)[None]] = \
+                rel / ratio[ok][:, None, None] + J[ok][:, wrist][:, None]
+    if sigma > 0:
+        # hands are smoothed wrist-relative and re-attached, so they stay on the (smoothed) body wrists
+        rel = {"L": J[:, LEFT_HAND] - J[:, LEFT_HAND][:, :1], "R": J[:, RIGHT_HAND] - J[:, RIGHT_HAND][:, :1]}
+        for j in range(N_JOINTS):
+            src = J[:, j] if j < 13 else (rel["L"][:, j - 13] if j < 34 else rel["R"][:, j - 34])
+            ok = np.isfinite(src).all(-1)
+            sm = np.where(ok[:, None], gaussian_smooth(np.nan_to_num(src), sigma, ok), np.nan)
+            if j < 13:
+                J[:, j] = sm
+            elif j < 34:
+                rel["L"][:, j - 13] = sm
+            else:
+                rel["R"][:, j - 34] = sm
+        J[:, LEFT_HAND] = rel["L"] + J[:, BODY_JOINTS.index("left_wrist")][:, None]
+        J[:, RIGHT_HAND] = rel["R"] + J[:, BODY_JOINTS.index("right_wrist")][:, None]
+    fps = track.fps
+    conf = np.where(np.isfinite(J).all(-1), np.maximum(track.conf, interp * min_conf), 0.0)
+    if resample_fps and abs(resample_fps - fps) > 1e-6:
+        J, conf, interp = resample(J, conf, interp, fps, resample_fps)
+        fps = resample_fps
+    if fixed_bones:
+        J = fix_bone_lengths(J)
+    return BodyTrack(J, conf, fps, interp)
+
+
+def resample(J, conf, interp, fps: float, new_fps: float):
+    """Linear resampling of joints to ``new_fps`` (a frame is missing if either neighbour is)."""
+    F = len(J)
+    t_new = np.arange(int(np.floor((F - 1) / fps * new_fps)) + 1) / new_fps
+    x = t_new * fps
+    i0 = np.clip(np.floor(x).astype(int), 0, F - 1)
+    i1 = np.clip(i0 + 1, 0, F - 1)
+    w = (x - i0)[:, None, None]
+    Jn = (1 - w) * J[i0] + w * J[i1]
+    near = np.where(w[:, 0, 0] < 0.5, i0, i1)
+    return Jn, np.minimum(conf[i0], conf[i1]), interp[near]
+
+
+def bone_length_cv(J: np.ndarray) -> float:
+    """Mean over bones (non-zero length) of the coefficient of variation of the bone length over frames."""
+    L = bone_lengths(J)[:, 1:]
+    m = np.nanmean(L, 0)
+    keep = m > 5e-3  # hand wrists sit on the body wrists (zero-length bones)
+    return float(np.nanmean(np.nanstd(L[:, keep], 0) / m[keep]))
