@@ -39,6 +39,16 @@ class CaptureConfig:
     than this on average (else the clip is refitted)."""
     stream: bool = True
     """Fit chunks of frames on a worker thread while MediaPipe tracks (hides most of the fitting time)."""
+    face_only: bool = False
+    """Track the face only (MediaPipe face mesh: the fast path); otherwise Holistic: face, body and hands."""
+    body_min_conf: float = 0.5
+    """Body joints with a pose visibility below this are dropped before interpolation."""
+    max_gap: int = 8
+    """Longest drop-out (frames) filled by cubic interpolation; longer gaps stay missing and flagged."""
+    body_sigma: float = 1.5
+    """Gaussian smoothing of the skeleton, frames (seed 004 §4.3.1)."""
+    fixed_bones: bool = False
+    """Impose the clip's median bone lengths on every frame."""
     fit: FitConfig = field(default_factory=FitConfig)
 
 
@@ -228,6 +238,114 @@ def _mp_version() -> str:
     import mediapipe
 
     return getattr(mediapipe, "__version__", "?")
+
+
+def track_holistic(info: VideoInfo, max_frames: int | None = None, progress: bool = True,
+                   warnings_out: list[str] | None = None, on_face=None):
+    """Run MediaPipe Holistic over the video. Returns (face landmarks ``[F, 478, 3]`` NaN where no face,
+    list of :class:`HolisticFrame`)."""
+    from anima.capture.holistic import HolisticTracker
+
+    total = info.n_frames if max_frames is None else min(info.n_frames, max_frames)
+    lms, frames = [], []
+    errs: list[str] = []
+    with HolisticTracker() as tracker, \
+            tqdm(total=total, desc="track", unit="fr", disable=not progress, leave=False) as bar:
+        for i, image in enumerate(iter_frames(info, errors=errs)):
+            if max_frames is not None and i >= max_frames:
+                break
+            fr = tracker(image)
+            frames.append(fr)
+            lms.append(np.full((478, 3), np.nan, np.float32) if fr.face is None else fr.face)
+            if on_face is not None:
+                on_face(lms[-1])
+            bar.update(1)
+    if warnings_out is not None:
+        warnings_out.extend(errs)
+    if not frames:
+        raise InputError(f"no frame could be decoded from {info.path}")
+    return np.stack(lms), frames
+
+
+def empty_face_sequence(n: int, width: int, height: int, fps: float, meta: dict) -> TrackedSequence:
+    """A sequence with no face in any frame (body and speech may still be present)."""
+    model = load_face_model()
+    nan = np.full(n, np.nan)
+    return TrackedSequence(fps=fps, width=width, height=height, identity=np.zeros(model.id_deltas.shape[0]),
+                           expression=np.zeros((n, model.expr_deltas.shape[0])), rotation=np.zeros((n, 3)),
+                           scale=np.ones(n), translation=np.zeros((n, 3)), fit_error_px=nan, fit_nme=nan.copy(),
+                           flags=np.full(n, FLAG_NO_FACE, np.uint8), landmarks=np.full((n, 478, 3), np.nan, np.float32),
+                           expr_names=list(model.expr_names), meta=meta)
+
+
+def attach_speech(seq: TrackedSequence, audio_path: str) -> None:
+    """Speech features at the sequence's frame times, or ``meta.audio`` saying why there are none."""
+    from anima.audio.features import NoAudio, read_audio, speech_features
+
+    try:
+        x = read_audio(audio_path)
+    except NoAudio as e:
+        seq.meta["audio"] = {"present": False, "reason": str(e)}
+        return
+    except InputError as e:
+        seq.meta["audio"] = {"present": False, "reason": f"unreadable: {e}"}
+        return
+    f = speech_features(x, seq.fps, seq.n_frames)
+    seq.speech, seq.speech_valid = f.features, f.valid
+    seq.meta["audio"] = {"present": True, "path": str(audio_path), "duration_s": round(f.duration_s, 3),
+                         "silent": f.silent, "gain_db": round(f.gain_db, 2),
+                         "frames_outside_audio": int((~f.valid).sum()),
+                         "features": "13 MFCC + log mean energy + first derivatives (anima.audio.features)"}
+
+
+def capture_video(video: str, cfg: CaptureConfig | None = None, audio: str | None = None, progress: bool = True,
+                  timings: Timings | None = None) -> TrackedSequence:
+    """One pass over ``video``: face (ICT fit), body and hands (55 joints, cleaned), speech features.
+    ``cfg.face_only`` keeps the fast face-mesh path. ``audio``: a separate audio file (default: the
+    video's own track). Raises InputError when neither a face nor a body is found."""
+    from anima.capture.body import assemble, clean
+    from anima.core.skeleton import JOINT_NAMES, PARENTS
+
+    cfg = cfg or CaptureConfig()
+    if cfg.face_only:
+        seq = capture_face(video, cfg, progress, timings)
+    else:
+        info = probe_video(video)
+        if min(info.width, info.height) < MIN_SIZE:
+            raise InputError(f"video is {info.width}x{info.height}: too small to find a person (min {MIN_SIZE} px)")
+        warns = list(info.warnings)
+        t0 = time.perf_counter()
+        stream = StreamingPrefit(info.width, info.height, cfg) if cfg.stream else None
+        lm, frames = track_holistic(info, cfg.max_frames, progress, warns, on_face=stream)
+        found = np.isfinite(lm).all(axis=(1, 2))
+        prefit = stream.result(len(lm)) if stream is not None and found.any() else None
+        if stream is not None and not found.any():
+            stream.pool.shutdown()
+        t1 = time.perf_counter()
+        body = assemble(frames, info.width, info.height, info.fps)
+        if not found.any() and not body.valid[:, :13].all(1).any():
+            raise InputError(f"no person found in {video} ({len(lm)} frames checked)")
+        if info.n_frames and len(lm) < min(info.n_frames, cfg.max_frames or info.n_frames) - 1:
+            warns.append(f"only {len(lm)} of {info.n_frames} frames decoded (truncated file?)")
+        meta = {"source": {**info.as_dict(), "warnings": warns}}
+        if found.any():
+            seq = fit_landmark_sequence(lm, info.width, info.height, info.fps, cfg, meta=meta, prefit=prefit)
+        else:
+            warns.append("no face found: face arrays are empty (flagged), body and speech are kept")
+            seq = empty_face_sequence(len(lm), info.width, info.height, info.fps, meta)
+        cleaned = clean(body, cfg.body_min_conf, cfg.max_gap, cfg.body_sigma, cfg.fixed_bones)
+        seq.body_joints, seq.body_joints_raw = cleaned.joints, body.joints
+        seq.body_conf, seq.body_interpolated = cleaned.conf, cleaned.interpolated
+        seq.meta["skeleton"] = {"joints": JOINT_NAMES, "parents": PARENTS.tolist(), "units": "m",
+                                "origin": "pelvis", "tracker": "mediapipe.holistic (model_complexity=1)",
+                                "cleaning": {"min_conf": cfg.body_min_conf, "max_gap": cfg.max_gap,
+                                             "sigma": cfg.body_sigma, "fixed_bones": cfg.fixed_bones}}
+        if timings is not None:
+            timings.decode_track_s += t1 - t0
+            timings.fit_s += time.perf_counter() - t1
+            timings.frames += len(lm)
+    attach_speech(seq, audio or video)
+    return seq
 
 
 def capture_face(video: str, cfg: CaptureConfig | None = None, progress: bool = True,

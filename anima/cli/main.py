@@ -17,17 +17,18 @@ from anima.errors import AnimaError  # noqa: E402
 
 def _cmd_capture(a) -> int:
     from anima.capture.export import export_arkit_csv, export_glb
-    from anima.capture.pipeline import CaptureConfig, Timings, capture_face
+    from anima.capture.pipeline import CaptureConfig, Timings, capture_video
     from anima.io.sequence import write_sequence
     from anima.render.videos import render_videos
 
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    cfg = CaptureConfig(smooth_sigma=0.0 if a.no_smooth else a.sigma, max_frames=a.max_frames)
+    cfg = CaptureConfig(smooth_sigma=0.0 if a.no_smooth else a.sigma, max_frames=a.max_frames,
+                        face_only=a.face_only, max_gap=a.max_gap, fixed_bones=a.fixed_bones)
     tm = Timings()
     t0 = time.perf_counter()
-    seq = capture_face(a.video, cfg, progress=not a.quiet, timings=tm)
-    seq_path = write_sequence(seq, out / "face.npz")  # written first: nothing is lost if a render fails
+    seq = capture_video(a.video, cfg, audio=a.audio, progress=not a.quiet, timings=tm)
+    seq_path = write_sequence(seq, out / "capture.npz")  # written first: nothing is lost if a render fails
     written = [seq_path]
     written.append(export_arkit_csv(seq, out / "arkit.csv"))
     written.append(export_glb(seq, out / "face.glb"))
@@ -52,6 +53,13 @@ def _table(s: dict) -> None:
             ("face tracked", f"{100 * s['tracked_fraction']:.1f} %"),
             ("low-confidence frames", str(s["low_confidence_frames"])),
             ("mean fit error", f"{s['mean_fit_error_px']} px  (NME {100 * (s['mean_fit_nme'] or 0):.2f} %)"),
+            *([("body tracked", f"{100 * s['body_tracked_fraction']:.1f} %"),
+               ("hands tracked (L / R)", f"{100 * s['left_hand_tracked_fraction']:.1f} % / "
+                                         f"{100 * s['right_hand_tracked_fraction']:.1f} %  (after interpolation "
+                                         f"{100 * s['left_hand_after_interpolation']:.1f} / "
+                                         f"{100 * s['right_hand_after_interpolation']:.1f})")]
+              if s.get("body_tracked_fraction") is not None else []),
+            ("speech features", _speech_line(s.get("speech"))),
             ("capture speed", f"{s.get('capture_fps', '-')} frames/s (decode+track+fit)"),
             ("total time", f"{s.get('total_s', '-')} s")]
     w = max(len(k) for k, _ in rows)
@@ -60,6 +68,14 @@ def _table(s: dict) -> None:
         print(f"  wrote {p}")
     for m in s.get("warnings", []):
         print(f"  warning: {m}")
+
+
+def _speech_line(sp) -> str:
+    if not sp:
+        return "-"
+    if not sp.get("present"):
+        return f"none ({sp.get('reason')})"
+    return f"{sp['duration_s']} s of audio" + (" (silent!)" if sp.get("silent") else "")
 
 
 def _cmd_info(a) -> int:
@@ -188,17 +204,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--debug", action="store_true", help="show full tracebacks on errors")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
-    c = sub.add_parser("capture", help="track and fit a 3D face in a video",
-                       description="Track a face in VIDEO with MediaPipe, fit the ICT face model (identity per "
-                       "clip; pose, camera and 53 expressions per frame), smooth, and write: face.npz (tracked "
-                       "sequence), arkit.csv (Live Link Face), face.glb (morph-target animation), overlay.mp4 "
-                       "and mesh.mp4.")
+    c = sub.add_parser("capture", help="track a 3D face, body and hands (and speech) in a video",
+                       description="Track face, body and hands in VIDEO with MediaPipe Holistic (or the face "
+                       "only with --face-only), fit the ICT face model (identity per clip; pose, camera and 53 "
+                       "expressions per frame), build the cleaned 55-joint upper-body+hands skeleton, compute "
+                       "speech features from the audio, and write: capture.npz (tracked sequence), arkit.csv "
+                       "(Live Link Face), face.glb (morph-target animation), overlay.mp4 and mesh.mp4.")
     c.add_argument("video", help="input video (mp4/mov/mkv/webm; H.264, HEVC, VP9...)")
     c.add_argument("--out", required=True, help="output folder (created)")
     c.add_argument("--max-frames", type=int, default=None, help="only the first N frames")
     c.add_argument("--sigma", type=float, default=1.0, help="temporal Gaussian smoothing, frames (default 1.0)")
     c.add_argument("--no-smooth", action="store_true", help="disable temporal smoothing")
     c.add_argument("--no-render", action="store_true", help="skip the overlay and mesh videos")
+    c.add_argument("--face-only", action="store_true", help="track the face only (fast path, no body/hands)")
+    c.add_argument("--audio", default=None, help="separate WAV/MP3/FLAC for the speech features "
+                   "(default: the video's own audio track)")
+    c.add_argument("--max-gap", type=int, default=8, help="longest hand/body drop-out filled by cubic "
+                   "interpolation, frames (default 8)")
+    c.add_argument("--fixed-bones", action="store_true", help="impose the clip's median bone lengths")
     c.add_argument("--json", action="store_true", help="print the summary as JSON")
     c.add_argument("--quiet", action="store_true", help="no progress bars")
     c.set_defaults(func=_cmd_capture)
@@ -210,7 +233,7 @@ def build_parser() -> argparse.ArgumentParser:
     i.set_defaults(func=_cmd_info)
 
     x = sub.add_parser("export", help="export a tracked sequence (ARKit CSV or GLB)",
-                       description="Export FILE (face.npz) as a Live Link Face CSV or a GLB with morph targets.")
+                       description="Export FILE (capture.npz) as a Live Link Face CSV or a GLB with morph targets.")
     x.add_argument("format", choices=["arkit", "glb"])
     x.add_argument("file")
     x.add_argument("--out", required=True)

@@ -1,7 +1,7 @@
 """The tracked-sequence artifact: one writer (:func:`write_sequence`), one reader (:func:`read_sequence`).
 
 File: a NumPy ``.npz`` (no pickles) holding the arrays below plus ``meta``, a JSON string.
-Schema ``anima.tracked_sequence`` version 1 (docs/artifacts.md has the same table):
+Schema ``anima.tracked_sequence`` version 2 (docs/artifacts.md has the same table):
 
 =================  ===============  ===========================================================
 array              shape, dtype     meaning
@@ -16,7 +16,17 @@ fit_nme            (F,) f4          fit_error_px / sqrt(w*h of the tracked landm
 flags              (F,) u1          bit 1: no face (values interpolated from neighbours),
                                     bit 2: low confidence (large fit error or tiny face)
 landmarks          (F, 478, 3) f4   raw MediaPipe landmarks (normalised x, y, z), NaN if no face
+body_joints        (F, 55, 3) f4    cleaned skeleton (anima.core.skeleton), metres, pelvis-relative,
+                                    NaN where missing after cleaning                      [v2, optional]
+body_joints_raw    (F, 55, 3) f4    the same before cleaning                              [v2, optional]
+body_conf          (F, 55) f4       per-joint confidence (pose visibility; hands 1/0)     [v2, optional]
+body_interpolated  (F, 55) u1       1 where a short drop-out was filled by interpolation   [v2, optional]
+speech             (F, 28) f4       13 MFCC + log energy + first derivatives per frame    [v2, optional]
+speech_valid       (F,) u1          1 where the frame's time lies inside the audio        [v2, optional]
 =================  ===============  ===========================================================
+
+Version 1 files (face only) still load: the v2 arrays are then None. meta.audio says why speech is absent
+("no audio track", "unreadable: ...") and whether it is silent.
 
 ``meta``: schema, version, fps, n_frames, width, height, expr_names, camera ("weak_perspective"),
 units, smoothing, tracker and face-model versions, source (path, codec, duration, size, warnings).
@@ -34,11 +44,12 @@ from anima.core.rotations import matrix_to_euler, rotvec_to_matrix
 from anima.errors import InputError, SchemaError
 
 SCHEMA = "anima.tracked_sequence"
-VERSION = 1
+VERSION = 2
 FLAG_NO_FACE = 1
 FLAG_LOW_CONFIDENCE = 2
 ARRAYS = ("identity", "expression", "rotation", "scale", "translation", "fit_error_px", "fit_nme", "flags",
           "landmarks")
+OPTIONAL = ("body_joints", "body_joints_raw", "body_conf", "body_interpolated", "speech", "speech_valid")
 
 
 @dataclass
@@ -57,6 +68,12 @@ class TrackedSequence:
     landmarks: np.ndarray
     expr_names: list[str]
     meta: dict = field(default_factory=dict)
+    body_joints: np.ndarray | None = None
+    body_joints_raw: np.ndarray | None = None
+    body_conf: np.ndarray | None = None
+    body_interpolated: np.ndarray | None = None
+    speech: np.ndarray | None = None
+    speech_valid: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:
@@ -76,7 +93,7 @@ class TrackedSequence:
     def summary(self) -> dict:
         tr = self.tracked
         ok = tr & np.isfinite(self.fit_error_px)
-        return {
+        out = {
             "frames": self.n_frames,
             "fps": self.fps,
             "duration_s": round(self.n_frames / self.fps, 3) if self.fps else None,
@@ -85,9 +102,23 @@ class TrackedSequence:
             "low_confidence_frames": int(((self.flags & FLAG_LOW_CONFIDENCE) > 0).sum()),
             "mean_fit_error_px": round(float(self.fit_error_px[ok].mean()), 3) if ok.any() else None,
             "mean_fit_nme": round(float(self.fit_nme[ok].mean()), 5) if ok.any() else None,
-            "schema": f"{SCHEMA}/{VERSION}",
+            "schema": f"{SCHEMA}/{self.meta.get('version', VERSION)}",
             "source": self.meta.get("source", {}).get("path"),
         }
+        if self.body_joints is not None:
+            from anima.core.skeleton import LEFT_HAND, RIGHT_HAND
+
+            raw = np.isfinite(self.body_joints_raw).all(-1) if self.body_joints_raw is not None else None
+            fin = np.isfinite(self.body_joints).all(-1)
+            out["body_tracked_fraction"] = round(float(raw[:, :13].all(1).mean()), 4) if raw is not None else None
+            for name, sl in (("left_hand", LEFT_HAND), ("right_hand", RIGHT_HAND)):
+                if raw is not None:
+                    out[f"{name}_tracked_fraction"] = round(float(raw[:, sl].all(1).mean()), 4)
+                out[f"{name}_after_interpolation"] = round(float(fin[:, sl].all(1).mean()), 4)
+        out["speech"] = None if self.speech is None else self.meta.get("audio", {})
+        if self.speech is None and "audio" in self.meta:
+            out["speech"] = self.meta["audio"]
+        return out
 
 
 def write_sequence(seq: TrackedSequence, path: str | Path) -> Path:
@@ -99,9 +130,12 @@ def write_sequence(seq: TrackedSequence, path: str | Path) -> Path:
                 height=int(seq.height), expr_names=list(seq.expr_names), camera="weak_perspective",
                 units={"model": "cm", "image": "px", "time": "s", "angles": "rad"})
     arrays = {k: np.asarray(getattr(seq, k)) for k in ARRAYS}
-    for k in ARRAYS:
+    arrays.update({k: np.asarray(getattr(seq, k)) for k in OPTIONAL if getattr(seq, k) is not None})
+    for k in arrays:
         if arrays[k].dtype.kind == "f":
             arrays[k] = arrays[k].astype(np.float32)
+        elif arrays[k].dtype.kind == "b":
+            arrays[k] = arrays[k].astype(np.uint8)
     arrays["flags"] = arrays["flags"].astype(np.uint8)
     tmp = path.with_name(path.name + ".tmp.npz")
     np.savez_compressed(tmp, meta=np.asarray(json.dumps(meta)), **arrays)
@@ -129,5 +163,9 @@ def read_sequence(path: str | Path) -> TrackedSequence:
     missing = [k for k in ARRAYS if k not in arrays]
     if missing:
         raise SchemaError(f"{path}: missing arrays {missing}")
+    opt = {k: arrays.get(k) for k in OPTIONAL}
+    for k in ("body_interpolated", "speech_valid"):
+        if opt[k] is not None:
+            opt[k] = opt[k].astype(bool)
     return TrackedSequence(fps=float(meta["fps"]), width=int(meta["width"]), height=int(meta["height"]),
-                           expr_names=list(meta["expr_names"]), meta=meta, **{k: arrays[k] for k in ARRAYS})
+                           expr_names=list(meta["expr_names"]), meta=meta, **{k: arrays[k] for k in ARRAYS}, **opt)

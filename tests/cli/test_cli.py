@@ -30,7 +30,7 @@ def test_capture_end_to_end_on_real_clip(d0_path, tmp_path):
     assert r.returncode == 0, r.stderr
     summary = json.loads(r.stdout)
     assert summary["frames"] == 40 and summary["tracked_fraction"] == 1.0
-    for name in ("face.npz", "arkit.csv", "face.glb", "overlay.mp4", "mesh.mp4"):
+    for name in ("capture.npz", "arkit.csv", "face.glb", "overlay.mp4", "mesh.mp4"):
         assert (out / name).stat().st_size > 1000, name
     from anima.io.video import read_video
 
@@ -40,15 +40,15 @@ def test_capture_end_to_end_on_real_clip(d0_path, tmp_path):
     # the mesh is drawn over the face: the face region changed, the corners did not
     diff = np.abs(frames.astype(int) - src.astype(int)).mean(-1)
     assert diff[:, 200:330, 180:330].mean() > 15 and diff[:, -40:, -40:].mean() < 5
-    r = run("info", out / "face.npz", "--json")
+    r = run("info", out / "capture.npz", "--json")
     info = json.loads(r.stdout)
     assert info["frames"] == 40 and info["mean_fit_error_px"] < 5 and "mean_fit_nme" in info
-    r = run("export", "glb", out / "face.npz", "--out", tmp_path / "again.glb")
+    r = run("export", "glb", out / "capture.npz", "--out", tmp_path / "again.glb")
     assert r.returncode == 0 and (tmp_path / "again.glb").exists()
 
 
 @pytest.mark.parametrize("kind,expect", [("text", "not a readable video"), ("empty", "empty"),
-                                         ("broken_mp4", "not a readable video"), ("noface", "no face"),
+                                         ("broken_mp4", "not a readable video"), ("noface", "no person"),
                                          ("tiny", "too small")])
 def test_bad_input_clear_message_nonzero_exit(videos, tmp_path, kind, expect):
     r = run("capture", videos[kind], "--out", tmp_path / kind, "--quiet", "--no-render")
@@ -69,7 +69,7 @@ def test_unusual_input_still_captured(videos, tmp_path, kind):
     r = run("capture", videos[kind], "--out", out, "--quiet", "--no-render", "--json")
     assert r.returncode == 0, r.stderr
     s = json.loads(r.stdout)
-    seq = read_sequence(out / "face.npz")
+    seq = read_sequence(out / "capture.npz")
     assert seq.n_frames == s["frames"] > 0
     if kind == "partial":  # frames without a face are kept and flagged, not dropped
         no_face = (seq.flags & FLAG_NO_FACE) > 0
