@@ -22,7 +22,8 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from anima.core.filters import gaussian_smooth, valid_runs
-from anima.core.skeleton import BODY_JOINTS, LEFT_HAND, MP_POSE, N_JOINTS, PARENTS, RIGHT_HAND, bone_lengths
+from anima.core.skeleton import (BODY_JOINTS, LEFT_HAND, MP_POSE, N_JOINTS, RIGHT_HAND, bone_lengths,
+                                 fix_bone_lengths)
 
 _UPPER = [0, 7, 8, 11, 12, 13, 14, 15, 16, 23, 24]
 
@@ -110,21 +111,6 @@ def _interp_gaps(x: np.ndarray, max_gap: int) -> tuple[np.ndarray, np.ndarray]:
         x[a:b] = cs(np.arange(a, b))
         filled[a:b] = True
     return x, filled
-
-
-def fix_bone_lengths(J: np.ndarray, lengths: np.ndarray | None = None) -> np.ndarray:
-    """Re-impose per-bone lengths (default: the clip's median) along each bone's direction, root outwards."""
-    if lengths is None:
-        lengths = np.nanmedian(bone_lengths(J), axis=0)
-    out = J.copy()
-    for j in range(1, N_JOINTS):  # parents precede children in the joint order
-        p = PARENTS[j]
-        d = J[:, j] - J[:, p]
-        n = np.linalg.norm(d, axis=-1, keepdims=True)
-        unit = np.where(n > 1e-9, d / np.maximum(n, 1e-9), 0.0)
-        unit[~np.isfinite(d).all(-1)] = np.nan
-        out[:, j] = out[:, p] + lengths[j] * unit
-    return out
 
 
 def clean(track: BodyTrack, min_conf: float = 0.5, max_gap: int = 8, sigma: float = 1.5,

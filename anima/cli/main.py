@@ -16,6 +16,8 @@ from anima.errors import AnimaError  # noqa: E402
 
 
 def _cmd_capture(a) -> int:
+    import numpy as np
+
     from anima.capture.export import export_arkit_csv, export_glb
     from anima.capture.pipeline import CaptureConfig, Timings, capture_video
     from anima.io.sequence import write_sequence
@@ -32,6 +34,10 @@ def _cmd_capture(a) -> int:
     written = [seq_path]
     written.append(export_arkit_csv(seq, out / "arkit.csv"))
     written.append(export_glb(seq, out / "face.glb"))
+    if seq.body_joints is not None and np.isfinite(seq.body_joints).all(-1).all(-1).any():
+        from anima.capture.export import export_bvh
+
+        written.append(export_bvh(seq, out / "body.bvh"))
     if not a.no_render:
         render_videos(seq, a.video, out / "overlay.mp4", out / "mesh.mp4", progress=not a.quiet)
         written += [out / "overlay.mp4", out / "mesh.mp4"]
@@ -94,7 +100,12 @@ def _cmd_export(a) -> int:
     from anima.io.sequence import read_sequence
 
     seq = read_sequence(a.file)
-    p = export_arkit_csv(seq, a.out) if a.format == "arkit" else export_glb(seq, a.out)
+    if a.format == "bvh":
+        from anima.capture.export import export_bvh
+
+        p = export_bvh(seq, a.out, a.fps)
+    else:
+        p = export_arkit_csv(seq, a.out) if a.format == "arkit" else export_glb(seq, a.out)
     print(f"wrote {p}")
     return 0
 
@@ -232,11 +243,14 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--json", action="store_true", help="print JSON")
     i.set_defaults(func=_cmd_info)
 
-    x = sub.add_parser("export", help="export a tracked sequence (ARKit CSV or GLB)",
-                       description="Export FILE (capture.npz) as a Live Link Face CSV or a GLB with morph targets.")
-    x.add_argument("format", choices=["arkit", "glb"])
+    x = sub.add_parser("export", help="export a tracked sequence (ARKit CSV, GLB or BVH)",
+                       description="Export FILE (capture.npz) as a Live Link Face CSV, a GLB with morph targets, "
+                       "or a BVH of the upper body and hands (fixed bone lengths; rest pose documented in "
+                       "anima/io/bvh.py).")
+    x.add_argument("format", choices=["arkit", "glb", "bvh"])
     x.add_argument("file")
     x.add_argument("--out", required=True)
+    x.add_argument("--fps", type=float, default=None, help="BVH only: resample, e.g. 15 for gesture work")
     x.set_defaults(func=_cmd_export)
 
     e = sub.add_parser("eval", help="evaluations that print JSON")

@@ -53,5 +53,22 @@ def bone_lengths(joints: np.ndarray) -> np.ndarray:
     return np.linalg.norm(joints - joints[..., par, :], axis=-1)
 
 
+def fix_bone_lengths(J: np.ndarray, lengths: np.ndarray | None = None, parents: np.ndarray = PARENTS) -> np.ndarray:
+    """Re-impose per-bone lengths (default: the clip's median) along each bone's current direction, from
+    the root outwards (parents must precede children). ``J [F, J, 3]``; missing joints stay NaN."""
+    par = np.where(parents < 0, np.arange(len(parents)), parents)
+    if lengths is None:
+        lengths = np.nanmedian(np.linalg.norm(J - J[:, par], axis=-1), axis=0)
+    out = J.copy()
+    for j in range(1, J.shape[1]):
+        p = parents[j]
+        d = J[:, j] - J[:, p]
+        n = np.linalg.norm(d, axis=-1, keepdims=True)
+        unit = np.where(n > 1e-9, d / np.maximum(n, 1e-9), 0.0)
+        unit[~np.isfinite(d).all(-1)] = np.nan
+        out[:, j] = out[:, p] + lengths[j] * unit
+    return out
+
+
 def children(j: int) -> list[int]:
     return [int(c) for c in np.flatnonzero(PARENTS == j)]
