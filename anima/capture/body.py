@@ -34,6 +34,7 @@ class BodyTrack:
     conf: np.ndarray  # (F, 55) in [0, 1]
     fps: float
     interpolated: np.ndarray = field(default=None)  # (F, 55) bool: filled by interpolation
+    image: np.ndarray = field(default=None)  # (F, 55, 2) pixel positions of the tracked joints (raw)
 
     @property
     def valid(self) -> np.ndarray:
@@ -45,13 +46,30 @@ def _to_anima(p: np.ndarray) -> np.ndarray:
     return p * np.array([1.0, -1.0, -1.0])
 
 
+def _image_joints(pose: np.ndarray, left, right, width: int, height: int) -> np.ndarray:
+    """Pixel positions ``[55, 2]`` of the joints (same construction as the 3D joints)."""
+    uv = np.full((N_JOINTS, 2), np.nan)
+    px = pose[:, :2].astype(np.float64) * [width, height]
+    g = {k: px[i] for k, i in MP_POSE.items()}
+    pelvis = (g["left_hip"] + g["right_hip"]) / 2
+    neck = (g["left_shoulder"] + g["right_shoulder"]) / 2
+    pos = {"pelvis": pelvis, "left_hip": g["left_hip"], "right_hip": g["right_hip"], "spine": (pelvis + neck) / 2,
+           "neck": neck, "head": (g["left_ear"] + g["right_ear"]) / 2, "nose": g["nose"]}
+    for i, n in enumerate(BODY_JOINTS):
+        uv[i] = pos.get(n, g.get(n))
+    for hand, sl in ((left, LEFT_HAND), (right, RIGHT_HAND)):
+        if hand is not None:
+            uv[sl] = hand[:, :2].astype(np.float64) * [width, height]
+    return uv
+
+
 def assemble_frame(pose: np.ndarray | None, pose_world: np.ndarray | None, left: np.ndarray | None,
-                   right: np.ndarray | None, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
-    """One frame -> (joints ``[55, 3]`` metres pelvis-relative, confidence ``[55]``)."""
+                   right: np.ndarray | None, width: int, height: int):
+    """One frame -> (joints ``[55, 3]`` metres pelvis-relative, confidence ``[55]``, pixels ``[55, 2]``)."""
     J = np.full((N_JOINTS, 3), np.nan)
     C = np.zeros(N_JOINTS)
     if pose_world is None or pose is None:
-        return J, C
+        return J, C, np.full((N_JOINTS, 2), np.nan)
     W = _to_anima(pose_world[:, :3].astype(np.float64))
     vis = pose_world[:, 3].astype(np.float64)
     g = {k: W[i] for k, i in MP_POSE.items()}
@@ -85,14 +103,15 @@ def assemble_frame(pose: np.ndarray | None, pose_world: np.ndarray | None, left:
         h = np.stack([hand[:, 0] * width, -hand[:, 1] * height, -hand[:, 2] * width], -1).astype(np.float64)
         J[sl] = s * (h - h[0]) + J[wrist]
         C[sl] = 1.0
-    return J, C
+    return J, C, _image_joints(pose, left, right, width, height)
 
 
 def assemble(frames, width: int, height: int, fps: float) -> BodyTrack:
     out = [assemble_frame(f.pose, f.pose_world, f.left_hand, f.right_hand, width, height) for f in frames]
     J = np.stack([o[0] for o in out]) if out else np.zeros((0, N_JOINTS, 3))
     C = np.stack([o[1] for o in out]) if out else np.zeros((0, N_JOINTS))
-    return BodyTrack(J, C, fps, np.zeros(C.shape, bool))
+    UV = np.stack([o[2] for o in out]) if out else np.zeros((0, N_JOINTS, 2))
+    return BodyTrack(J, C, fps, np.zeros(C.shape, bool), UV)
 
 
 def _interp_gaps(x: np.ndarray, max_gap: int) -> tuple[np.ndarray, np.ndarray]:

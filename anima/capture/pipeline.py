@@ -336,6 +336,7 @@ def capture_video(video: str, cfg: CaptureConfig | None = None, audio: str | Non
         cleaned = clean(body, cfg.body_min_conf, cfg.max_gap, cfg.body_sigma, cfg.fixed_bones)
         seq.body_joints, seq.body_joints_raw = cleaned.joints, body.joints
         seq.body_conf, seq.body_interpolated = cleaned.conf, cleaned.interpolated
+        seq.body_image = body.image
         seq.meta["skeleton"] = {"joints": JOINT_NAMES, "parents": PARENTS.tolist(), "units": "m",
                                 "origin": "pelvis", "tracker": "mediapipe.holistic (model_complexity=1)",
                                 "cleaning": {"min_conf": cfg.body_min_conf, "max_gap": cfg.max_gap,

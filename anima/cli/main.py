@@ -39,8 +39,15 @@ def _cmd_capture(a) -> int:
 
         written.append(export_bvh(seq, out / "body.bvh"))
     if not a.no_render:
-        render_videos(seq, a.video, out / "overlay.mp4", out / "mesh.mp4", progress=not a.quiet)
-        written += [out / "overlay.mp4", out / "mesh.mp4"]
+        if seq.tracked.any():
+            render_videos(seq, a.video, out / "overlay.mp4", out / "mesh.mp4", progress=not a.quiet)
+            written += [out / "overlay.mp4", out / "mesh.mp4"]
+        if seq.body_joints is not None:
+            from anima.render.skeleton import render_skeleton_videos
+
+            render_skeleton_videos(seq, a.video, out / "skeleton_overlay.mp4", out / "skeleton3d.mp4",
+                                   progress=not a.quiet)
+            written += [out / "skeleton_overlay.mp4", out / "skeleton3d.mp4"]
     s = seq.summary()
     s["capture_fps"] = round(tm.frames / max(tm.decode_track_s + tm.fit_s, 1e-9), 1)
     s["total_s"] = round(time.perf_counter() - t0, 2)

@@ -21,6 +21,7 @@ body_joints        (F, 55, 3) f4    cleaned skeleton (anima.core.skeleton), metr
 body_joints_raw    (F, 55, 3) f4    the same before cleaning                              [v2, optional]
 body_conf          (F, 55) f4       per-joint confidence (pose visibility; hands 1/0)     [v2, optional]
 body_interpolated  (F, 55) u1       1 where a short drop-out was filled by interpolation   [v2, optional]
+body_image         (F, 55, 2) f4    raw pixel positions of the joints (2D evidence)       [v2, optional]
 speech             (F, 28) f4       13 MFCC + log energy + first derivatives per frame    [v2, optional]
 speech_valid       (F,) u1          1 where the frame's time lies inside the audio        [v2, optional]
 =================  ===============  ===========================================================
@@ -49,7 +50,8 @@ FLAG_NO_FACE = 1
 FLAG_LOW_CONFIDENCE = 2
 ARRAYS = ("identity", "expression", "rotation", "scale", "translation", "fit_error_px", "fit_nme", "flags",
           "landmarks")
-OPTIONAL = ("body_joints", "body_joints_raw", "body_conf", "body_interpolated", "speech", "speech_valid")
+OPTIONAL = ("body_joints", "body_joints_raw", "body_conf", "body_interpolated", "body_image", "speech",
+            "speech_valid")
 
 
 @dataclass
@@ -72,6 +74,7 @@ class TrackedSequence:
     body_joints_raw: np.ndarray | None = None
     body_conf: np.ndarray | None = None
     body_interpolated: np.ndarray | None = None
+    body_image: np.ndarray | None = None
     speech: np.ndarray | None = None
     speech_valid: np.ndarray | None = None
 
