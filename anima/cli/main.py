@@ -140,6 +140,24 @@ def _cmd_eval_stability(a) -> int:
     return 0
 
 
+def _cmd_eval_body(a) -> int:
+    from anima.eval.body import evaluate_body
+
+    r = evaluate_body(a.clips or None, a.max_frames, progress=not a.json)
+    if a.json:
+        print(json.dumps(r, indent=2))
+        return 0
+    print(f"{'clip':<44} {'body':>6} {'L hand':>7} {'R hand':>7} {'L int':>6} {'R int':>6} {'CV raw':>7} {'CV cln':>7}")
+    for c in r["clips"]:
+        print(f"{c['clip'][:44]:<44} {100 * c['body_tracked']:>5.1f}% {100 * c['left_hand_tracked']:>6.1f}% "
+              f"{100 * c['right_hand_tracked']:>6.1f}% {100 * c['left_hand_after_interpolation']:>5.1f}% "
+              f"{100 * c['right_hand_after_interpolation']:>5.1f}% {c['bone_cv_raw']:>7.3f} {c['bone_cv_cleaned']:>7.3f}")
+    print(f"bone-length CV dropped on {r['bone_cv_dropped_on']}")
+    for h in r["hand_images"]:
+        print(f"hand image {h['image']}: {h['hands_found']} hand(s) {h['scores']}")
+    return 0
+
+
 def _fmt_stab(r: dict) -> str:
     lines = [f"{'clip':<28} {'acc raw':>9} {'acc fit':>9} {'reduction':>9} {'err ratio':>9}"]
     for c in r["clips"]:
@@ -287,6 +305,15 @@ def build_parser() -> argparse.ArgumentParser:
     af.add_argument("--out", default=None, help="output .npz (default: FILE.speech.npz)")
     af.add_argument("--json", action="store_true")
     af.set_defaults(func=_cmd_audio_features)
+
+    eb = esub.add_parser("body", help="body/hand tracking and cleaning report on the gesture clips",
+                         description="Per clip: body and hand tracked %%, after interpolation, bone-length CV "
+                         "before/after cleaning; hand detector on hand-images/. Default clips: pats-crops, "
+                         "tango-interviews, LatentSync.")
+    eb.add_argument("clips", nargs="*", help="glob patterns under the data root (default: the gesture sets)")
+    eb.add_argument("--max-frames", type=int, default=None)
+    eb.add_argument("--json", action="store_true")
+    eb.set_defaults(func=_cmd_eval_body)
 
     fm = sub.add_parser("facemodel", help="face-model tools: import OBJs, build the landmark correspondence")
     fsub = fm.add_subparsers(dest="fm_command", metavar="TOOL")

@@ -93,3 +93,28 @@ def test_audio_features_command(tmp_path):
         assert z["features"].shape == (s["frames"], 28) and np.isfinite(z["features"]).all()
     r = run("audio", "features", asset("liveportrait-examples/assets/examples/driving/d0.mp4"), "--out", out)
     assert r.returncode == 2 and "no audio track" in r.stderr
+
+
+def test_capture_body_outputs_and_bvh_export(tmp_path):
+    from anima.io.assets import asset
+    from anima.io.bvh import read_bvh
+    from anima.io.video import probe_video
+
+    clip = asset("gesture-video/tango-interviews/speaker8_jjRWaMCWs44_00-00-30.16_00-00-33.32.mp4")
+    out = tmp_path / "o"
+    r = run("capture", clip, "--out", out, "--max-frames", "30", "--json", "--quiet")
+    assert r.returncode == 0, r.stderr
+    s = json.loads(r.stdout)
+    assert s["body_tracked_fraction"] == 1.0 and s["speech"]["present"]
+    for name in ("body.bvh", "skeleton_overlay.mp4", "skeleton3d.mp4"):
+        assert (out / name).stat().st_size > 1000, name
+    info = probe_video(out / "skeleton3d.mp4")
+    assert info.has_audio and info.n_frames == 30
+    r = run("export", "bvh", out / "capture.npz", "--out", tmp_path / "g.bvh", "--fps", "15")
+    assert r.returncode == 0, r.stderr
+    b = read_bvh(tmp_path / "g.bvh")
+    assert abs(b.frame_time - 1 / 15) < 1e-6 and len(b.names) == 55
+    r = run("capture", clip, "--out", tmp_path / "f", "--max-frames", "10", "--face-only", "--quiet", "--json")
+    assert r.returncode == 0 and "body_tracked_fraction" not in json.loads(r.stdout)
+    r = run("export", "bvh", tmp_path / "f" / "capture.npz", "--out", tmp_path / "x.bvh")
+    assert r.returncode == 2 and "no body" in r.stderr
