@@ -146,6 +146,14 @@ def clean(track: BodyTrack, min_conf: float = 0.5, max_gap: int = 8, sigma: floa
         rel, f = _interp_gaps(rel, max_gap)
         J[:, sl] = rel.reshape(len(J), -1, 3) + J[:, wrist][:, None]
         interp[:, sl] = f[:, None] & np.isfinite(J[:, sl]).all(-1)
+    # interpolated frames get the clip's median bone lengths (a spline per coordinate does not keep them)
+    if interp.any():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            med = np.nanmedian(bone_lengths(np.where(interp[..., None], np.nan, J)), axis=0)
+        rows = interp.any(1)
+        fixed = fix_bone_lengths(J[rows], np.nan_to_num(med))
+        J[rows] = np.where(interp[rows][..., None], fixed, J[rows])
     # hand scale: the per-frame metres-per-pixel estimate jitters; bring each frame's hand to the clip's
     # median hand size (median ratio of its bone lengths to their clip medians), keeping its shape
     for sl, wrist in ((LEFT_HAND, BODY_JOINTS.index("left_wrist")), (RIGHT_HAND, BODY_JOINTS.index("right_wrist"))):

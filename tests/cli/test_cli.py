@@ -118,3 +118,20 @@ def test_capture_body_outputs_and_bvh_export(tmp_path):
     assert r.returncode == 0 and "body_tracked_fraction" not in json.loads(r.stdout)
     r = run("export", "bvh", tmp_path / "f" / "capture.npz", "--out", tmp_path / "x.bvh")
     assert r.returncode == 2 and "no body" in r.stderr
+
+
+def test_bad_audio_keeps_motion(videos, tmp_path, d0_path):
+    from anima.io.video import FFMPEG
+
+    silent = tmp_path / "silent.wav"
+    subprocess.run([FFMPEG, "-v", "error", "-f", "lavfi", "-i", "anullsrc=r=16000:cl=mono", "-t", "2", str(silent)],
+                   check=True)
+    r = run("capture", d0_path, "--out", tmp_path / "s", "--max-frames", "10", "--audio", silent, "--quiet",
+            "--no-render", "--json")
+    assert r.returncode == 0 and json.loads(r.stdout)["speech"]["silent"] is True
+    r = run("capture", d0_path, "--out", tmp_path / "u", "--max-frames", "10", "--audio", videos["text"], "--quiet",
+            "--no-render", "--json")
+    assert r.returncode == 0, r.stderr
+    sp = json.loads(r.stdout)["speech"]
+    assert sp["present"] is False and "unreadable" in sp["reason"]
+    assert read_sequence(tmp_path / "u" / "capture.npz").n_frames == 10
