@@ -135,7 +135,9 @@ def _interp_gaps(x: np.ndarray, max_gap: int) -> tuple[np.ndarray, np.ndarray]:
 def clean(track: BodyTrack, min_conf: float = 0.5, max_gap: int = 8, sigma: float = 1.5,
           fixed_bones: bool = False, resample_fps: float | None = None) -> BodyTrack:
     J = track.joints.copy()
-    J[track.conf < min_conf] = np.nan
+    drop = track.conf < min_conf
+    drop[:, 0] = False  # the pelvis is the origin by construction (its visibility only tells about the hips)
+    J[drop] = np.nan
     interp = np.zeros(track.conf.shape, bool)
     # body joints: each joint on its own
     for j in range(13):

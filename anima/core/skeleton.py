@@ -66,7 +66,9 @@ def fix_bone_lengths(J: np.ndarray, lengths: np.ndarray | None = None, parents: 
         n = np.linalg.norm(d, axis=-1, keepdims=True)
         unit = np.where(n > 1e-9, d / np.maximum(n, 1e-9), 0.0)
         unit[~np.isfinite(d).all(-1)] = np.nan
-        out[:, j] = out[:, p] + lengths[j] * unit
+        moved = out[:, p] + lengths[j] * unit
+        # a bone whose parent is missing cannot be re-measured: keep the joint where it was
+        out[:, j] = np.where(np.isfinite(out[:, p]).all(-1, keepdims=True), moved, J[:, j])
     return out
 
 
