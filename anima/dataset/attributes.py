@@ -1,0 +1,163 @@
+"""Automatic, timestamped attribute detectors on tracked motion (seed 000 ch. 8: annotate from the motion).
+
+Each detector turns a per-frame signal of the tracked sequence (ICT expression weights, head pose from the
+fit, speech energy) into events ``(attribute, start_s, end_s)`` with hysteresis thresholds and minimum
+durations. Thresholds live in :class:`DetectorConfig`; they were calibrated on shared clips against frame
+labels made by watching them (``tests/labels/attributes/*.json``, ``anima eval annotations``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import uniform_filter1d
+from scipy.signal import find_peaks
+
+from anima.core.filters import valid_runs
+from anima.core.rotations import matrix_to_euler, rotvec_to_matrix
+
+ATTRIBUTES = ["blink", "smile", "frown", "squint", "raise eyebrows", "surprise", "mouth open", "yawn", "talk",
+              "nod", "shake head", "turn"]
+
+
+@dataclass
+class DetectorConfig:
+    blink_on: float = 0.5
+    blink_max_s: float = 0.6
+    smile_on: float = 0.35
+    frown_on: float = 0.25
+    squint_on: float = 0.2
+    brow_on: float = 0.3
+    mouth_open_on: float = 0.3
+    yawn_jaw: float = 0.45
+    yawn_min_s: float = 1.0
+    talk_motion: float = 0.6
+    """Mean absolute speed of the lip shapes (weights per second) above which the mouth is 'talking'."""
+    talk_voice_log_energy: float = -9.0
+    """Speech log mean energy above which a frame is voiced (features are normalised to -20 dBFS)."""
+    nod_deg: float = 4.0
+    shake_deg: float = 5.0
+    turn_deg: float = 20.0
+    baseline_pct: float = 25.0
+    """Brow and lid signals are measured above this percentile of the clip (the face's own neutral)."""
+    min_s: float = 0.2
+    hysteresis: float = 0.7
+    """Events end when the signal drops below ``hysteresis * on-threshold``."""
+
+
+def _mean(seq, names):
+    idx = [seq.expr_names.index(n) for n in names]
+    return seq.expression[:, idx].mean(1)
+
+
+def hysteresis_events(x: np.ndarray, on: float, off: float, fps: float, min_s: float = 0.0,
+                      max_s: float | None = None, valid: np.ndarray | None = None) -> list[tuple[int, int]]:
+    """Frame runs ``[a, b)`` where x rises above ``on`` and lasts until it falls below ``off``."""
+    active = np.zeros(len(x), bool)
+    state = False
+    for i, v in enumerate(x):
+        if valid is not None and not valid[i]:
+            state = False
+        elif not state and v >= on:
+            state = True
+        elif state and v < off:
+            state = False
+        active[i] = state
+    runs = []
+    for a, b in valid_runs(active):
+        # extend the start back while above the off threshold (hysteresis on both sides)
+        while a > 0 and x[a - 1] >= off and (valid is None or valid[a - 1]):
+            a -= 1
+        d = (b - a) / fps
+        if d >= min_s and (max_s is None or d <= max_s):
+            runs.append((a, b))
+    return runs
+
+
+def head_angles_deg(seq) -> np.ndarray:
+    """(yaw, pitch, roll) in degrees ``[F, 3]`` from the fitted head rotation."""
+    return np.rad2deg(matrix_to_euler(rotvec_to_matrix(seq.rotation)))
+
+
+def _oscillation_events(sig: np.ndarray, fps: float, prominence: float, min_swings: int,
+                        max_gap_s: float = 0.8) -> list[tuple[int, int]]:
+    """Runs of alternating peaks/troughs (detrended signal) with the given prominence."""
+    trend = uniform_filter1d(sig, size=max(3, int(1.5 * fps)), mode="nearest")
+    d = sig - trend
+    pk, _ = find_peaks(d, prominence=prominence)
+    tr, _ = find_peaks(-d, prominence=prominence)
+    ext = sorted([(i, 1) for i in pk] + [(i, -1) for i in tr])
+    events = []
+    cur = []
+    for i, s in ext:
+        if cur and (s == cur[-1][1] or (i - cur[-1][0]) / fps > max_gap_s):
+            if len(cur) >= min_swings + 1:
+                events.append((cur[0][0], cur[-1][0] + 1))
+            cur = [(i, s)]
+        else:
+            cur.append((i, s))
+    if len(cur) >= min_swings + 1:
+        events.append((cur[0][0], cur[-1][0] + 1))
+    return events
+
+
+def detect(seq, cfg: DetectorConfig | None = None) -> list[tuple[str, float, float]]:
+    """All attribute events of a tracked sequence, ``(attribute, start_s, end_s)`` sorted by start."""
+    cfg = cfg or DetectorConfig()
+    fps = seq.fps
+    valid = seq.tracked
+    h = cfg.hysteresis
+    ev: list[tuple[str, int, int]] = []
+
+    def add(name, runs):
+        ev.extend((name, a, b) for a, b in runs)
+
+    blink = np.minimum(_mean(seq, ["eyeBlink_L"]), 1) * 0.5 + _mean(seq, ["eyeBlink_R"]) * 0.5
+    add("blink", hysteresis_events(blink, cfg.blink_on, cfg.blink_on * h, fps, 0.04, cfg.blink_max_s, valid))
+    smile = _mean(seq, ["mouthSmile_L", "mouthSmile_R"])
+    add("smile", hysteresis_events(smile, cfg.smile_on, cfg.smile_on * h, fps, cfg.min_s, None, valid))
+    def rel(x):  # brows and lids sit differently on every face: measure against the clip's own baseline
+        return x - (np.percentile(x[valid], cfg.baseline_pct) if valid.any() else 0.0)
+
+    up = _mean(seq, ["browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOuterUp_R"])
+    frown = rel(_mean(seq, ["browDown_L", "browDown_R"]) - up)
+    add("frown", hysteresis_events(frown, cfg.frown_on, cfg.frown_on * h, fps, cfg.min_s, None, valid))
+    squint = rel(_mean(seq, ["eyeSquint_L", "eyeSquint_R"])) * (blink < cfg.blink_on)
+    add("squint", hysteresis_events(squint, cfg.squint_on, cfg.squint_on * h, fps, cfg.min_s, None, valid))
+    brow = rel(_mean(seq, ["browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOuterUp_R"]))
+    add("raise eyebrows", hysteresis_events(brow, cfg.brow_on, cfg.brow_on * h, fps, cfg.min_s, None, valid))
+    jaw = _mean(seq, ["jawOpen"])
+    wide = _mean(seq, ["eyeWide_L", "eyeWide_R"])
+    surprise = np.minimum(brow / cfg.brow_on, np.maximum(jaw / cfg.mouth_open_on, wide / 0.3))
+    add("surprise", hysteresis_events(surprise, 1.0, h, fps, cfg.min_s, None, valid))
+    add("mouth open", hysteresis_events(jaw, cfg.mouth_open_on, cfg.mouth_open_on * h, fps, cfg.min_s, None, valid))
+    add("yawn", hysteresis_events(jaw, cfg.yawn_jaw, cfg.yawn_jaw * h, fps, cfg.yawn_min_s, None, valid))
+    # talk: lip motion, gated by voice activity where there is audio
+    lips = ["jawOpen", "mouthClose", "mouthFunnel", "mouthPucker", "mouthLowerDown_L", "mouthLowerDown_R",
+            "mouthUpperUp_L", "mouthUpperUp_R", "mouthPress_L", "mouthPress_R", "mouthStretch_L", "mouthStretch_R"]
+    idx = [seq.expr_names.index(n) for n in lips]
+    speed = np.abs(np.diff(seq.expression[:, idx], axis=0, prepend=seq.expression[:1, idx])).sum(1) * fps
+    motion = uniform_filter1d(speed, size=max(3, int(0.5 * fps)), mode="nearest")
+    talk = motion / cfg.talk_motion
+    if seq.speech is not None:
+        voiced = uniform_filter1d((seq.speech[:, 13] > cfg.talk_voice_log_energy).astype(float),
+                                  size=max(3, int(0.5 * fps)), mode="nearest") > 0.3
+        talk = np.where(voiced & seq.speech_valid, talk, 0.0)
+    add("talk", hysteresis_events(talk, 1.0, h, fps, 0.5, None, valid))
+    ypr = head_angles_deg(seq)
+    add("nod", _oscillation_events(ypr[:, 1], fps, cfg.nod_deg, 2))
+    add("shake head", _oscillation_events(ypr[:, 0], fps, cfg.shake_deg, 3))
+    yaw_dev = np.abs(ypr[:, 0] - np.median(ypr[valid, 0])) if valid.any() else np.zeros(len(ypr))
+    add("turn", hysteresis_events(yaw_dev, cfg.turn_deg, cfg.turn_deg * h, fps, cfg.min_s, None, valid))
+    out = [(n, a / fps, b / fps) for n, a, b in ev]
+    return sorted(out, key=lambda e: (e[1], ATTRIBUTES.index(e[0])))
+
+
+def frame_mask(events: list[tuple[str, float, float]], attribute: str, n_frames: int, fps: float) -> np.ndarray:
+    """Per-frame boolean of an attribute from its events (frame i covers time i / fps)."""
+    m = np.zeros(n_frames, bool)
+    t = np.arange(n_frames) / fps
+    for name, s, e in events:
+        if name == attribute:
+            m |= (t >= s - 1e-9) & (t < e - 1e-9)
+    return m
