@@ -81,7 +81,7 @@ def assemble_frame(pose: np.ndarray | None, pose_world: np.ndarray | None, left:
     cf = {"pelvis": min(v["left_hip"], v["right_hip"]), "left_hip": v["left_hip"], "right_hip": v["right_hip"],
           "neck": min(v["left_shoulder"], v["right_shoulder"]), "head": min(v["left_ear"], v["right_ear"]),
           "nose": v["nose"]}
-    cf["spine"] = min(cf["pelvis"], cf["neck"])
+    cf["spine"] = cf["neck"]  # the pelvis is the origin by construction; the spine hangs off the neck
     for side in ("left", "right"):
         for part in ("shoulder", "elbow", "wrist"):
             pos[f"{side}_{part}"] = g[f"{side}_{part}"]

@@ -158,6 +158,47 @@ def _cmd_eval_body(a) -> int:
     return 0
 
 
+def _cmd_dataset_build(a) -> int:
+    from anima.dataset.build import BuildConfig, build_dataset
+    from anima.dataset.filters import FilterConfig
+
+    cfg = BuildConfig(filters=FilterConfig(min_s=a.min_len, max_s=a.max_len, max_yaw_deg=a.max_yaw,
+                                           max_fit_nme=a.max_fit_nme),
+                      n_descriptions=a.descriptions, seed=a.seed, max_frames=a.max_frames)
+    m = build_dataset(a.videos, a.out, cfg, annotations=a.annotations, address=a.address,
+                      num_workers=a.workers, progress=not a.quiet)
+    keys = ["videos", "videos_done", "clips_total", "clips_kept", "removed_by_rule", "windows", "frames",
+            "seconds_of_video", "compute_s", "last_run"]
+    s = {k: m[k] for k in keys} | {"videos_failed": len(m["videos_failed"])}
+    print(json.dumps(s, indent=2) if a.json else "\n".join(f"  {k:<17} {v}" for k, v in s.items()))
+    for e in m["videos_failed"]:
+        print(f"anima: warning: failed: {e['source']}: {e['error']}", file=sys.stderr)
+    return 0
+
+
+def _cmd_dataset_report(a) -> int:
+    from anima.dataset.report import write_report
+
+    p = write_report(a.dataset, sheets=a.sheets)
+    print(f"wrote {p} and {p.with_suffix('.html')}")
+    return 0
+
+
+def _cmd_eval_annotations(a) -> int:
+    from anima.eval.annotations import evaluate_annotations
+
+    r = evaluate_annotations()
+    if a.json:
+        print(json.dumps(r, indent=2))
+        return 0
+    print(f"{'attribute':<16} {'P':>5} {'R':>5} {'frameP':>7} {'frameR':>7} {'events':>7} {'detections':>10}")
+    for k, v in r["per_attribute"].items():
+        f = lambda x: "  -  " if x is None else f"{x:5.2f}"  # noqa: E731
+        print(f"{k:<16} {f(v['precision'])} {f(v['recall'])} {f(v['frame_precision']):>7} "
+              f"{f(v['frame_recall']):>7} {v['labelled_events']:>7} {v['detections']:>10}")
+    return 0
+
+
 def _fmt_stab(r: dict) -> str:
     lines = [f"{'clip':<28} {'acc raw':>9} {'acc fit':>9} {'reduction':>9} {'err ratio':>9}"]
     for c in r["clips"]:
@@ -314,6 +355,41 @@ def build_parser() -> argparse.ArgumentParser:
     eb.add_argument("--max-frames", type=int, default=None)
     eb.add_argument("--json", action="store_true")
     eb.set_defaults(func=_cmd_eval_body)
+
+    ea = esub.add_parser("annotations", help="attribute detectors vs labels made by watching frames",
+                         description="Precision and recall per attribute (event and frame level) of the automatic "
+                         "attribute detectors on the labelled clips in anima/eval/labels/attributes/.")
+    ea.add_argument("--json", action="store_true")
+    ea.set_defaults(func=_cmd_eval_annotations)
+
+    ds = sub.add_parser("dataset", help="build and report (text, motion) and (audio, motion) datasets")
+    dsub = ds.add_subparsers(dest="dataset_command", metavar="TOOL")
+    db = dsub.add_parser("build", help="capture, filter, annotate and store videos as training pairs (Ray)",
+                         description="One Ray task per video (local Ray by default, --address for a cluster): "
+                         "capture, filter (length, action keywords, head yaw, fit error, confidence), annotate "
+                         "(imported or automatic), describe, and write Parquet shards. Resumable: rerun the same "
+                         "command after an interruption and finished videos are skipped.")
+    db.add_argument("videos", nargs="+", help="video files, folders (searched recursively) or glob patterns")
+    db.add_argument("--out", required=True, help="dataset folder")
+    db.add_argument("--annotations", default=None, help="CelebV-Text style JSON (see anima/dataset/annotations.py)")
+    db.add_argument("--address", default=None, help="Ray cluster address (default: a local Ray instance)")
+    db.add_argument("--workers", type=int, default=None, help="local Ray workers (default: all cores)")
+    db.add_argument("--min-len", type=float, default=5.0, help="shortest clip, s (default 5)")
+    db.add_argument("--max-len", type=float, default=10.0, help="longest clip, s; longer videos are cut (default 10)")
+    db.add_argument("--max-yaw", type=float, default=35.0, help="head yaw limit, degrees (default 35)")
+    db.add_argument("--max-fit-nme", type=float, default=0.05, help="per-frame fit-error failsafe (default 0.05)")
+    db.add_argument("--descriptions", type=int, default=10, help="descriptions per clip (default 10)")
+    db.add_argument("--seed", type=int, default=0)
+    db.add_argument("--max-frames", type=int, default=None, help="capture at most N frames per video")
+    db.add_argument("--json", action="store_true")
+    db.add_argument("--quiet", action="store_true")
+    db.set_defaults(func=_cmd_dataset_build)
+    dr = dsub.add_parser("report", help="markdown/HTML report with plots and contact sheets",
+                         description="Write DATASET/report/report.md and report.html: clips removed per rule, "
+                         "attribute distribution, clip lengths, example descriptions, contact sheets.")
+    dr.add_argument("dataset")
+    dr.add_argument("--sheets", type=int, default=3, help="contact sheets to draw")
+    dr.set_defaults(func=_cmd_dataset_report)
 
     fm = sub.add_parser("facemodel", help="face-model tools: import OBJs, build the landmark correspondence")
     fsub = fm.add_subparsers(dest="fm_command", metavar="TOOL")

@@ -33,6 +33,8 @@ class DetectorConfig:
     yawn_min_s: float = 1.0
     talk_motion: float = 0.6
     """Mean absolute speed of the lip shapes (weights per second) above which the mouth is 'talking'."""
+    talk_reversals_per_s: float = 1.0
+    """Mouth-opening direction changes per second needed for 'talk' (speech is oscillatory)."""
     talk_voice_log_energy: float = -9.0
     """Speech log mean energy above which a frame is voiced (features are normalised to -20 dBFS)."""
     nod_deg: float = 4.0
@@ -139,6 +141,13 @@ def detect(seq, cfg: DetectorConfig | None = None) -> list[tuple[str, float, flo
     speed = np.abs(np.diff(seq.expression[:, idx], axis=0, prepend=seq.expression[:1, idx])).sum(1) * fps
     motion = uniform_filter1d(speed, size=max(3, int(0.5 * fps)), mode="nearest")
     talk = motion / cfg.talk_motion
+    # speech opens and closes the mouth several times a second; a smile or a yawn moves the lips once
+    v = np.diff(_mean(seq, ["jawOpen", "mouthLowerDown_L", "mouthLowerDown_R"]), prepend=0.0) * fps
+    moving = np.abs(v) > 0.15
+    flips = np.zeros(len(v))
+    flips[1:] = (np.sign(v[1:]) != np.sign(v[:-1])) & moving[1:] & moving[:-1]
+    rate = uniform_filter1d(flips, size=max(3, int(1.0 * fps)), mode="nearest") * fps  # reversals / s
+    talk = np.where(rate >= cfg.talk_reversals_per_s, talk, 0.0)
     if seq.speech is not None:
         voiced = uniform_filter1d((seq.speech[:, 13] > cfg.talk_voice_log_energy).astype(float),
                                   size=max(3, int(0.5 * fps)), mode="nearest") > 0.3

@@ -1,0 +1,75 @@
+"""Import CelebV-Text style attribute annotations.
+
+Accepted JSON (one file for many videos; unknown keys are ignored)::
+
+    {
+      "schema": "celebvtext-actions/1",                  (optional)
+      "clips": {
+        "<video file stem>": {
+          "gender": "female" | "male" | null,             (optional; else neutral subject words)
+          "actions":  [{"name": "talk",  "start": 0.0, "end": 5.2}, ...],   seconds
+          "emotions": [{"name": "happy", "start": 1.0, "end": 3.0}, ...]
+        }
+      }
+    }
+
+CelebV-Text's own per-clip lists ``[[name, start, end], ...]`` under "actions"/"emotions" are accepted too.
+:func:`load_annotations` validates and raises :class:`InputError` naming the first problem.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from anima.errors import InputError
+
+
+def _events(items, where: str) -> list[tuple[str, float, float]]:
+    out = []
+    if not isinstance(items, list):
+        raise InputError(f"{where}: expected a list of events")
+    for k, it in enumerate(items):
+        if isinstance(it, dict):
+            name, s, e = it.get("name"), it.get("start"), it.get("end")
+        elif isinstance(it, (list, tuple)) and len(it) == 3:
+            name, s, e = it
+        else:
+            raise InputError(f"{where}[{k}]: expected {{name, start, end}} or [name, start, end]")
+        try:
+            s, e = float(s), float(e)
+        except (TypeError, ValueError):
+            raise InputError(f"{where}[{k}]: start/end must be numbers (seconds)") from None
+        if not isinstance(name, str) or not name or e <= s or s < 0:
+            raise InputError(f"{where}[{k}]: need a name and 0 <= start < end")
+        out.append((name.lower(), s, e))
+    return out
+
+
+def load_annotations(path: str | Path, known_videos: list[str] | None = None) -> dict[str, dict]:
+    """``{video stem: {"gender": ..., "events": [(name, start, end), ...]}}``."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"annotation file not found: {path}")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        raise InputError(f"{path}: not valid JSON ({e.msg} at line {e.lineno})") from None
+    clips = data.get("clips") if isinstance(data, dict) else None
+    if not isinstance(clips, dict):
+        raise InputError(f"{path}: expected an object with a 'clips' mapping (see anima/dataset/annotations.py)")
+    out = {}
+    for stem, c in clips.items():
+        if not isinstance(c, dict):
+            raise InputError(f"{path}: clip {stem!r} must be an object")
+        ev = _events(c.get("actions", []), f"{path}: {stem}.actions") + \
+            _events(c.get("emotions", []), f"{path}: {stem}.emotions")
+        g = c.get("gender")
+        if g not in (None, "female", "male"):
+            raise InputError(f"{path}: {stem}.gender must be 'female', 'male' or null")
+        out[stem] = {"gender": g, "events": sorted(ev, key=lambda x: x[1])}
+    if known_videos is not None:
+        unknown = sorted(set(out) - set(known_videos))
+        if unknown:
+            raise InputError(f"{path}: annotations name clips that are not among the videos: {unknown[:5]}"
+                             + (" ..." if len(unknown) > 5 else ""))
+    return out

@@ -1,0 +1,65 @@
+"""Clip selection rules (seed 000 §5.1), each configurable and counted.
+
+1. ``length``: clips must last ``min_s``-``max_s`` seconds (default 5-10 s, as the seed); longer videos are
+   cut into equal consecutive clips inside the window; shorter ones are removed.
+2. ``action_keywords``: clips whose imported annotations contain "turn", "shake head" or "head wagging".
+3. ``head_yaw``: any tracked frame with |yaw| > 35 degrees (from the fitted head pose).
+4. ``fit_error``: the failsafe - any tracked frame whose fit NME exceeds ``max_fit_nme``.
+5. ``low_confidence``: less than ``min_tracked`` of the frames have a face, or too many low-confidence frames.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from anima.dataset.attributes import head_angles_deg
+from anima.io.sequence import FLAG_LOW_CONFIDENCE
+
+RULES = ["length", "action_keywords", "head_yaw", "fit_error", "low_confidence"]
+
+
+@dataclass
+class FilterConfig:
+    min_s: float = 5.0
+    max_s: float = 10.0
+    action_keywords: list[str] = field(default_factory=lambda: ["turn", "shake head", "head wagging"])
+    max_yaw_deg: float = 35.0
+    max_fit_nme: float = 0.05
+    min_tracked: float = 0.95
+    max_low_conf: float = 0.1
+    enabled: list[str] = field(default_factory=lambda: list(RULES))
+
+
+def cut_clips(n_frames: int, fps: float, cfg: FilterConfig) -> list[tuple[int, int]]:
+    """Frame ranges ``[a, b)`` of the clips of a video inside the length window ([] if too short)."""
+    dur = n_frames / fps
+    if "length" not in cfg.enabled:
+        return [(0, n_frames)]
+    if dur < cfg.min_s - 1e-6:
+        return []
+    k = max(1, int(np.ceil(dur / cfg.max_s - 1e-9)))
+    edges = np.round(np.linspace(0, n_frames, k + 1)).astype(int)
+    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if (b - a) / fps >= cfg.min_s - 1e-6]
+
+
+def clip_rejection(seq, a: int, b: int, events: list | None, cfg: FilterConfig) -> str | None:
+    """The first rule a clip ``[a, b)`` breaks, or None to keep it."""
+    tracked = seq.tracked[a:b]
+    if "low_confidence" in cfg.enabled:
+        low = ((seq.flags[a:b] & FLAG_LOW_CONFIDENCE) > 0).mean()
+        if tracked.mean() < cfg.min_tracked or low > cfg.max_low_conf:
+            return "low_confidence"
+    if "action_keywords" in cfg.enabled and events:
+        t0, t1 = a / seq.fps, b / seq.fps
+        if any(n in cfg.action_keywords and s < t1 and e > t0 for n, s, e in events):
+            return "action_keywords"
+    if "head_yaw" in cfg.enabled:
+        yaw = np.abs(head_angles_deg(seq)[a:b, 0])[tracked]
+        if len(yaw) and yaw.max() > cfg.max_yaw_deg:
+            return "head_yaw"
+    if "fit_error" in cfg.enabled:
+        nme = seq.fit_nme[a:b][tracked]
+        if len(nme) and np.nanmax(nme) > cfg.max_fit_nme:
+            return "fit_error"
+    return None
