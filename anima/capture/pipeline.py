@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -49,6 +50,11 @@ class CaptureConfig:
     """Gaussian smoothing of the skeleton, frames (seed 004 §4.3.1)."""
     fixed_bones: bool = False
     """Impose the clip's median bone lengths on every frame."""
+    body_3d: str = "mediapipe"
+    """Where the body's 3D comes from: ``mediapipe`` (Pose world landmarks) or ``lifter`` (anima's trained
+    2D->3D lifter on MediaPipe's 2D keypoints, :mod:`anima.pose3d`)."""
+    pose_model: str | None = None
+    """Lifter checkpoint for ``body_3d="lifter"`` (default: ``anima.pose3d.train.default_checkpoint()``)."""
     fit: FitConfig = field(default_factory=FitConfig)
 
 
@@ -298,6 +304,25 @@ def attach_speech(seq: TrackedSequence, audio_path: str) -> None:
                          "features": "13 MFCC + log mean energy + first derivatives (anima.audio.features)"}
 
 
+def _lift_body(body, frames, width: int, height: int, checkpoint: str | None) -> str:
+    """Replace the body's 3D by the lifter's (in place); returns a provenance string."""
+    import hashlib
+
+    from anima.pose3d.infer import lift_frames, replace_body
+    from anima.pose3d.train import default_checkpoint, load_checkpoint
+
+    path = Path(checkpoint) if checkpoint else default_checkpoint()
+    model, _ = load_checkpoint(path)
+    px = np.full((len(frames), 33, 2), np.nan)
+    vis = np.zeros((len(frames), 33))
+    for i, f in enumerate(frames):
+        if f.pose is not None:
+            px[i] = f.pose[:, :2] * [width, height]
+            vis[i] = f.pose[:, 3]
+    body.joints = replace_body(body.joints, lift_frames(model, px, vis))
+    return f"anima pose lifter {path.name} sha1:{hashlib.sha1(path.read_bytes()).hexdigest()[:12]}"
+
+
 def capture_video(video: str, cfg: CaptureConfig | None = None, audio: str | None = None, progress: bool = True,
                   timings: Timings | None = None) -> TrackedSequence:
     """One pass over ``video``: face (ICT fit), body and hands (55 joints, cleaned), speech features.
@@ -323,6 +348,11 @@ def capture_video(video: str, cfg: CaptureConfig | None = None, audio: str | Non
             stream.pool.shutdown()
         t1 = time.perf_counter()
         body = assemble(frames, info.width, info.height, info.fps)
+        tracker = "mediapipe.holistic (model_complexity=1)"
+        if cfg.body_3d == "lifter":
+            tracker += " + " + _lift_body(body, frames, info.width, info.height, cfg.pose_model)
+        elif cfg.body_3d != "mediapipe":
+            raise InputError(f"unknown body_3d {cfg.body_3d!r}: use 'mediapipe' or 'lifter'")
         if not found.any() and not body.valid[:, :13].all(1).any():
             raise InputError(f"no person found in {video} ({len(lm)} frames checked)")
         if info.n_frames and len(lm) < min(info.n_frames, cfg.max_frames or info.n_frames) - 1:
@@ -338,7 +368,7 @@ def capture_video(video: str, cfg: CaptureConfig | None = None, audio: str | Non
         seq.body_conf, seq.body_interpolated = cleaned.conf, cleaned.interpolated
         seq.body_image = body.image
         seq.meta["skeleton"] = {"joints": JOINT_NAMES, "parents": PARENTS.tolist(), "units": "m",
-                                "origin": "pelvis", "tracker": "mediapipe.holistic (model_complexity=1)",
+                                "origin": "pelvis", "tracker": tracker,
                                 "cleaning": {"min_conf": cfg.body_min_conf, "max_gap": cfg.max_gap,
                                              "sigma": cfg.body_sigma, "fixed_bones": cfg.fixed_bones}}
         if timings is not None:

@@ -12,7 +12,7 @@ os.environ.setdefault("GLOG_minloglevel", "2")
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
 from anima import __version__  # noqa: E402
-from anima.errors import AnimaError  # noqa: E402
+from anima.errors import AnimaError, InputError  # noqa: E402
 
 
 def _cmd_capture(a) -> int:
@@ -26,7 +26,10 @@ def _cmd_capture(a) -> int:
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     cfg = CaptureConfig(smooth_sigma=0.0 if a.no_smooth else a.sigma, max_frames=a.max_frames,
-                        face_only=a.face_only, max_gap=a.max_gap, fixed_bones=a.fixed_bones)
+                        face_only=a.face_only, max_gap=a.max_gap, fixed_bones=a.fixed_bones,
+                        body_3d=a.body_3d, pose_model=a.pose_model)
+    if a.body_3d == "lifter" and a.face_only:
+        raise InputError("--body-3d lifter needs the body: drop --face-only")
     tm = Timings()
     t0 = time.perf_counter()
     seq = capture_video(a.video, cfg, audio=a.audio, progress=not a.quiet, timings=tm)
@@ -275,6 +278,35 @@ def _cmd_audio_features(a) -> int:
     return 0
 
 
+def _cmd_train_pose(a) -> int:
+    import dataclasses
+
+    from anima.pose3d.train import TrainConfig, default_cache, default_checkpoint, summary_json, train
+
+    cfg = dataclasses.replace(TrainConfig(steps=a.steps, seed=a.seed, batch=a.batch),
+                              wild=not a.no_wild, projection=not a.no_projection, latent_2d=not a.no_latent_2d,
+                              bone=not a.no_bone, model={**TrainConfig().model, "width": a.width})
+    if a.steps < 1 or a.batch < 2 or a.width < 8:
+        raise InputError("--steps must be >= 1, --batch >= 2 and --width >= 8")
+    out = Path(a.out) if a.out else default_checkpoint()
+    _, info = train(cfg, out, Path(a.cache) if a.cache else default_cache(), progress=not a.quiet,
+                    resume=not a.no_resume)
+    print(summary_json(info) if a.json else f"wrote {out} ({info['seconds']:.0f} s, {cfg.steps} steps)")
+    return 0
+
+
+def _cmd_eval_pose(a) -> int:
+    from anima.eval.pose import ablation, evaluate
+    from anima.pose3d.train import default_cache, default_checkpoint
+
+    cache = Path(a.cache) if a.cache else default_cache()
+    r = evaluate(Path(a.model) if a.model else default_checkpoint(), cache, progress=not a.json)
+    if a.ablation:
+        r["ablation"] = ablation(Path(a.ablation), cache, a.ablation_steps, progress=not a.json)
+    print(json.dumps(r, indent=2))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="anima", description="Monocular video and speech to 3D avatar animation.")
     p.add_argument("--version", action="version", version=f"anima {__version__}")
@@ -299,6 +331,11 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--max-gap", type=int, default=8, help="longest hand/body drop-out filled by cubic "
                    "interpolation, frames (default 8)")
     c.add_argument("--fixed-bones", action="store_true", help="impose the clip's median bone lengths")
+    c.add_argument("--body-3d", choices=("mediapipe", "lifter"), default="mediapipe",
+                   help="3D body from MediaPipe's world landmarks (default) or from anima's trained 2D->3D lifter "
+                   "(train it first with `anima train pose`)")
+    c.add_argument("--pose-model", default=None, help="lifter checkpoint for --body-3d lifter (default: "
+                   "$ANIMA_HOME/models/pose_lifter.pt, where `anima train pose` writes)")
     c.add_argument("--json", action="store_true", help="print the summary as JSON")
     c.add_argument("--quiet", action="store_true", help="no progress bars")
     c.set_defaults(func=_cmd_capture)
@@ -361,6 +398,41 @@ def build_parser() -> argparse.ArgumentParser:
                          "attribute detectors on the labelled clips in anima/eval/labels/attributes/.")
     ea.add_argument("--json", action="store_true")
     ea.set_defaults(func=_cmd_eval_annotations)
+
+    ep = esub.add_parser("pose", help="3D body pose: lifter vs MediaPipe on Human3.6M S9 images, HumanEva; ablation",
+                         description="MPJPE, 3D PCK@150 mm and AUC under the unscaled, globally scaled and "
+                         "Procrustes protocols (seed 004 §3.4.1) for the lifter checkpoint and for MediaPipe's own "
+                         "world landmarks on the real S9 images; HumanEva-I validation from ground-truth 2D; with "
+                         "--ablation DIR, trains (resumable) and evaluates the rows of seed table 3.6.")
+    ep.add_argument("--model", default=None, help="lifter checkpoint (default: $ANIMA_HOME/models/pose_lifter.pt)")
+    ep.add_argument("--ablation", default=None, metavar="DIR", help="train/evaluate the ablation rows into DIR")
+    ep.add_argument("--ablation-steps", type=int, default=3000)
+    ep.add_argument("--cache", default=None, help="MediaPipe detection cache (default: $ANIMA_HOME/cache/pose3d)")
+    ep.add_argument("--json", action="store_true", help="no progress output (the result is JSON either way)")
+    ep.set_defaults(func=_cmd_eval_pose)
+
+    tr = sub.add_parser("train", help="train models")
+    trsub = tr.add_subparsers(dest="train_command", metavar="MODEL")
+    tp = trsub.add_parser("pose", help="the weakly supervised 2D->3D body pose lifter (seed 004 ch. 3)",
+                          description="Train the lifter on Human3.6M S1,S5,S6,S7,S8 mocap projected through the real "
+                          "cameras (3D labels) and MediaPipe 2D detections on the in-the-wild videos of the data "
+                          "folder (2D labels only), with the losses of seed 004 eqs. 3.3-3.8. Resumable: rerun the "
+                          "same command after an interruption. Never trains on S9/S11. The checkpoint carries its "
+                          "config; Human3.6M terms forbid redistributing it.")
+    tp.add_argument("--out", default=None, help="checkpoint (default: $ANIMA_HOME/models/pose_lifter.pt)")
+    tp.add_argument("--steps", type=int, default=6000)
+    tp.add_argument("--batch", type=int, default=256)
+    tp.add_argument("--width", type=int, default=1024, help="f_3D width (seed: 1024)")
+    tp.add_argument("--seed", type=int, default=0)
+    tp.add_argument("--no-wild", action="store_true", help="no 2D-only in-the-wild data")
+    tp.add_argument("--no-projection", action="store_true", help="no 3D-to-2D projection loss (eq. 3.7)")
+    tp.add_argument("--no-latent-2d", action="store_true", help="no explicit 2D latent loss (eq. 3.3)")
+    tp.add_argument("--no-bone", action="store_true", help="no bone loss (eqs. 3.5-3.6)")
+    tp.add_argument("--no-resume", action="store_true", help="start over even if --out exists")
+    tp.add_argument("--cache", default=None, help="MediaPipe detection cache (default: $ANIMA_HOME/cache/pose3d)")
+    tp.add_argument("--json", action="store_true")
+    tp.add_argument("--quiet", action="store_true")
+    tp.set_defaults(func=_cmd_train_pose)
 
     ds = sub.add_parser("dataset", help="build and report (text, motion) and (audio, motion) datasets")
     dsub = ds.add_subparsers(dest="dataset_command", metavar="TOOL")

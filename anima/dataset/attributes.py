@@ -38,7 +38,7 @@ class DetectorConfig:
     talk_voice_log_energy: float = -9.0
     """Speech log mean energy above which a frame is voiced (features are normalised to -20 dBFS)."""
     nod_deg: float = 4.0
-    shake_deg: float = 5.0
+    shake_deg: float = 7.0
     turn_deg: float = 20.0
     baseline_pct: float = 25.0
     """Brow and lid signals are measured above this percentile of the clip (the face's own neutral)."""

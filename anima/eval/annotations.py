@@ -36,7 +36,8 @@ def _ranges_mask(ranges, n):
 def capture_labelled(lab: dict):
     from anima.capture.pipeline import CaptureConfig, capture_video
 
-    return capture_video(str(asset(lab["clip"])), CaptureConfig(face_only=True), progress=False)
+    return capture_video(str(asset(lab["clip"])), CaptureConfig(face_only=True, max_frames=lab.get("frames")),
+                         progress=False)
 
 
 def score(seqs_and_labels, cfg: DetectorConfig | None = None) -> dict:

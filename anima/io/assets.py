@@ -52,3 +52,10 @@ def asset(rel: str | os.PathLike, must_exist: bool = True) -> Path:
 def package_data(name: str) -> Path:
     """Project-made small artifacts shipped inside the package (e.g. the landmark correspondence)."""
     return Path(__file__).resolve().parents[1] / "facemodel" / "data" / name
+
+
+def user_dir(*parts: str) -> Path:
+    """Where anima keeps what it computes for a user (trained checkpoints that may not be redistributed,
+    caches of detections): ``$ANIMA_HOME`` or ``~/.cache/anima``."""
+    root = Path(os.environ.get("ANIMA_HOME") or Path.home() / ".cache" / "anima").expanduser()
+    return root.joinpath(*parts)
