@@ -300,10 +300,39 @@ def _cmd_eval_pose(a) -> int:
     from anima.pose3d.train import default_cache, default_checkpoint
 
     cache = Path(a.cache) if a.cache else default_cache()
-    r = evaluate(Path(a.model) if a.model else default_checkpoint(), cache, progress=not a.json)
+    model = Path(a.model) if a.model else default_checkpoint()
+    if not model.exists() and (a.model or not a.ablation):
+        raise InputError(f"no pose lifter checkpoint at {model}: train one with `anima train pose`"
+                         + ("" if a.ablation else ", or pass --ablation DIR to train the ablation rows"))
+    r = evaluate(model if model.exists() else None, cache, progress=not a.json)
     if a.ablation:
-        r["ablation"] = ablation(Path(a.ablation), cache, a.ablation_steps, progress=not a.json)
+        r["ablation"] = ablation(Path(a.ablation), cache, a.ablation_steps, a.ablation_width, a.ablation_dropout,
+                                 progress=not a.json)
     print(json.dumps(r, indent=2))
+    return 0
+
+
+def _cmd_reenact(a) -> int:
+    from anima.reenact.pipeline import ReenactConfig
+    from anima.reenact.run import reenact_live, reenact_video
+
+    if not a.actor and a.live is None:
+        raise InputError("give --actor VIDEO or --live SOURCE")
+    for t in a.target:
+        if not Path(t).exists():
+            raise InputError(f"target video not found: {t}")
+    if a.actor and not Path(a.actor).exists():
+        raise InputError(f"actor video not found: {a.actor}")
+    if a.n < 1 or not 0 < a.a < 1 or a.smooth < 0:
+        raise InputError("--n must be >= 1, --a in (0, 1), --smooth >= 0")
+    cfg = ReenactConfig(n=a.n, a=a.a, smooth=a.smooth, map_expressions=not a.no_mapping)
+    if a.live is not None:
+        r = reenact_live(a.live, a.target, a.out, cfg, a.db, a.max_seconds, progress=not a.quiet)
+    else:
+        r = reenact_video(a.actor, a.target, a.out, cfg, a.side_by_side, a.db, progress=not a.quiet)
+        for n in r["notes"]:
+            print(f"anima: note: {n}", file=sys.stderr)
+    print(json.dumps(r, indent=2) if a.json else f"wrote {r['output']}")
     return 0
 
 
@@ -406,7 +435,10 @@ def build_parser() -> argparse.ArgumentParser:
                          "--ablation DIR, trains (resumable) and evaluates the rows of seed table 3.6.")
     ep.add_argument("--model", default=None, help="lifter checkpoint (default: $ANIMA_HOME/models/pose_lifter.pt)")
     ep.add_argument("--ablation", default=None, metavar="DIR", help="train/evaluate the ablation rows into DIR")
-    ep.add_argument("--ablation-steps", type=int, default=3000)
+    ep.add_argument("--ablation-steps", type=int, default=8000)
+    ep.add_argument("--ablation-width", type=int, default=256, help="network width of the ablation rows (256 "
+                    "keeps the five trainings to minutes on 2 cores; the seed's 1024 is the `train pose` default)")
+    ep.add_argument("--ablation-dropout", type=float, default=0.1)
     ep.add_argument("--cache", default=None, help="MediaPipe detection cache (default: $ANIMA_HOME/cache/pose3d)")
     ep.add_argument("--json", action="store_true", help="no progress output (the result is JSON either way)")
     ep.set_defaults(func=_cmd_eval_pose)
@@ -433,6 +465,29 @@ def build_parser() -> argparse.ArgumentParser:
     tp.add_argument("--json", action="store_true")
     tp.add_argument("--quiet", action="store_true")
     tp.set_defaults(func=_cmd_train_pose)
+
+    re_ = sub.add_parser("reenact", help="put an actor's lower-face expression on a target person's video",
+                         description="Seed 001: fit the ICT face model to actor and target, build a database of "
+                         "the target's lower-face vertex colours per frame, and for every actor frame synthesise "
+                         "the texture as the weighted median of the n most similar target frames, render the "
+                         "target's face with the actor's expression and blend it in (Laplacian pyramid). The "
+                         "actor's audio is muxed in. --live reads a camera index, a stream URL or a file (paced "
+                         "at its frame rate), dropping frames rather than falling behind.")
+    re_.add_argument("--actor", help="actor video (its audio is used)")
+    re_.add_argument("--live", default=None, metavar="SOURCE", help="camera index, stream URL or video file")
+    re_.add_argument("--target", nargs="+", required=True, help="target video(s) of one person; the first is "
+                     "the background")
+    re_.add_argument("--out", help="output MP4")
+    re_.add_argument("--db", default=None, help="database file: read if it exists, else written after building")
+    re_.add_argument("--side-by-side", action="store_true", help="actor | output")
+    re_.add_argument("--n", type=int, default=100, help="nearest target frames (seed: 100)")
+    re_.add_argument("--a", type=float, default=0.9, help="weight fraction of the n best (eq. 3.4; seed 0.9)")
+    re_.add_argument("--smooth", type=int, default=5, help="method 2 smoothing window T in frames (0 = method 1)")
+    re_.add_argument("--no-mapping", action="store_true", help="no actor->target expression normalisation")
+    re_.add_argument("--max-seconds", type=float, default=None, help="--live: stop after this long")
+    re_.add_argument("--json", action="store_true")
+    re_.add_argument("--quiet", action="store_true")
+    re_.set_defaults(func=_cmd_reenact)
 
     ds = sub.add_parser("dataset", help="build and report (text, motion) and (audio, motion) datasets")
     dsub = ds.add_subparsers(dest="dataset_command", metavar="TOOL")

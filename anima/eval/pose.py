@@ -49,31 +49,37 @@ def evaluate_model(model, cache: Path, progress: bool = False) -> dict:
     return {"h36m_s9_images": s9, "humaneva_validation_gt2d": hm}
 
 
-def evaluate(checkpoint: Path, cache: Path, progress: bool = False) -> dict:
+def evaluate(checkpoint: Path | None, cache: Path, progress: bool = False) -> dict:
+    """The lifter ``checkpoint`` (None: MediaPipe's baseline only) on S9 images and HumanEva."""
     from anima.pose3d.train import load_checkpoint
-    model, ck = load_checkpoint(checkpoint)
     e = s9_image_evidence(cache, progress)
     f = e["found"]
-    res = evaluate_model(model, cache, progress)
-    return {
-        "checkpoint": str(checkpoint), "config": ck["config"],
-        "s9_images": {"frames": int(len(f)), "person_found": int(f.sum()), "cameras": sorted(set(e["camera"].tolist())),
-                      "lifter": res["h36m_s9_images"],
-                      "mediapipe_world_landmarks": pose_metrics(e["world"][f], e["gt3d"][f])},
-        "humaneva_validation": {"frames": int(len(humaneva_validation()["uv"])),
-                                "input": "ground-truth 2D of the 3 colour cameras (no HumanEva images are available, "
-                                         "so MediaPipe cannot be run on it); nose masked (b_k = 0)",
-                                "lifter": res["humaneva_validation_gt2d"]},
-        "seed_published": SEED_PUBLISHED, "our_setting": OUR_SETTING,
-    }
+    out = {"s9_images": {"frames": int(len(f)), "person_found": int(f.sum()),
+                         "cameras": sorted(set(e["camera"].tolist())),
+                         "mediapipe_world_landmarks": pose_metrics(e["world"][f], e["gt3d"][f])},
+           "humaneva_validation": {"frames": int(len(humaneva_validation()["uv"])),
+                                   "input": "ground-truth 2D of the 3 colour cameras (no HumanEva images are "
+                                            "available, so MediaPipe cannot be run on it); nose masked (b_k = 0)"},
+           "seed_published": SEED_PUBLISHED, "our_setting": OUR_SETTING}
+    if checkpoint is not None:
+        model, ck = load_checkpoint(checkpoint)
+        res = evaluate_model(model, cache, progress)
+        out["checkpoint"] = {"path": str(checkpoint), "config": ck["config"], "step": ck["step"],
+                             "train_s": ck["extra"].get("seconds")}
+        out["s9_images"]["lifter"] = res["h36m_s9_images"]
+        out["humaneva_validation"]["lifter"] = res["humaneva_validation_gt2d"]
+    return out
 
 
-def ablation(work: Path, cache: Path, steps: int, progress: bool = True) -> dict:
-    """Train (or reuse, resumable) one lifter per row of :data:`ABLATION` and evaluate each."""
+def ablation(work: Path, cache: Path, steps: int, width: int = 256, dropout: float = 0.1,
+             progress: bool = True) -> dict:
+    """Train (or reuse, resumable) one lifter per row of :data:`ABLATION` and evaluate each. The rows share
+    everything but the flags (seed, data, steps, width)."""
     from anima.pose3d.train import TrainConfig, train, load_checkpoint
     rows = {}
     for name, flags in ABLATION.items():
-        cfg = dataclasses.replace(TrainConfig(steps=steps), **flags)
+        base = TrainConfig(steps=steps)
+        cfg = dataclasses.replace(base, model={**base.model, "width": width, "dropout": dropout}, **flags)
         slug = "".join(c if c.isalnum() else "_" for c in name).strip("_")
         ck = Path(work) / f"{slug}.pt"
         done = False

@@ -184,6 +184,9 @@ def humaneva_validation() -> dict[str, np.ndarray]:
                     continue
                 Kc, Rc, C = cv2.decomposeProjectionMatrix(Ps[key])[:3]
                 C = (C[:3] / C[3]).ravel()
+                Rc = np.sign(np.diag(Kc))[:, None] * Rc  # positive focal lengths: image x right, y down
+                if np.linalg.det(Rc) < 0:  # P is defined up to a (possibly negative) scale
+                    Rc = -Rc
                 Xc = (X.astype(np.float64) - C) @ Rc.T * 1000.0
                 u, c = humaneva_to_h36m(uv.astype(np.float64))
                 g, _ = humaneva_to_h36m(Xc)

@@ -129,9 +129,18 @@ def _bone_vec(P):
 
 
 def losses(model: Lifter, cfg: TrainConfig, b3d, bwild=None) -> dict[str, torch.Tensor]:
-    """The terms of eq. 3.8 (each already weighted) for one step."""
+    """The terms of eq. 3.8 (each already weighted) for one step. The 3D and the 2D-only samples go through
+    the network as one batch, so BatchNorm sees one mixed distribution in training as at test time."""
     uv, conf, clean, J = b3d
-    out = model(uv, conf)
+    B = len(uv)
+    use_wild = bwild is not None and (cfg.latent_2d or cfg.projection)
+    if use_wild:
+        uvw, cw, lengths = bwild
+        out_all = model(torch.cat([uv, uvw]), torch.cat([conf, cw]))
+        out = {k: v[:B] for k, v in out_all.items()}
+        ow = {k: v[B:] for k, v in out_all.items()}
+    else:
+        out = model(uv, conf)
     L = {"3d": cfg.w_3d * ((out["p3d"] - J) ** 2).sum(-1).mean()}
     if cfg.bone:
         L["bone"] = cfg.w_bone * ((_bone_vec(out["p3d"]) - _bone_vec(J)) ** 2).sum(-1).mean()
@@ -139,15 +148,13 @@ def losses(model: Lifter, cfg: TrainConfig, b3d, bwild=None) -> dict[str, torch.
         L["heat"] = cfg.w_heat * ((out["h2d"] - clean) ** 2).sum(-1).mean()
     if cfg.projection:
         L["2d"] = cfg.w_2d * ((out["proj"] - clean) ** 2).sum(-1).mean()
-    if bwild is not None and (cfg.latent_2d or cfg.projection):
-        uvw, cw, lengths = bwild
-        ow = model(uvw, cw)
-        m = (cw > 0).float()
-        denom = m.sum().clamp(min=1)
+    if use_wild:
+        m = (cw > 0).float()  # b_k
+        n = m.sum().clamp(min=1)
         if cfg.latent_2d:
-            L["heat_wild"] = cfg.w_heat * (m * ((ow["h2d"] - uvw) ** 2).sum(-1)).sum() / denom
+            L["heat_wild"] = cfg.w_heat * (m * ((ow["h2d"] - uvw) ** 2).sum(-1)).sum() / n
         if cfg.projection:
-            L["2d_wild"] = cfg.w_2d * (m * ((ow["proj"] - uvw) ** 2).sum(-1)).sum() / denom
+            L["2d_wild"] = cfg.w_2d * (m * ((ow["proj"] - uvw) ** 2).sum(-1)).sum() / n
             if cfg.bone:
                 bl = (_bone_vec(ow["p3d"]) ** 2).sum(-1)
                 L["bone_wild"] = cfg.w_bone_2d * ((bl - lengths ** 2) ** 2).mean()

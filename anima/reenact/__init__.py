@@ -1,0 +1,1 @@
+"""Re-enactment of an actor's lower-face expression on a target person's video (seed 001)."""

@@ -1,0 +1,141 @@
+"""The re-enactment loop (seed 001 §4.1.1 steps 1-7): per actor frame, the n nearest target frames by
+expression, adaptive sigma, weighted-median vertex colours, the target's identity with the actor's
+expression under the target's pose and camera, rasterization, Laplacian blend, optional smoothing."""
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from anima.core.rotations import rotvec_to_matrix
+from anima.reenact.database import ReenactDB
+from anima.reenact.render import composite, posed_uvz
+from anima.reenact.synth import adaptive_sigma, expression_mapping, nearest, weighted_median, weights
+
+
+@dataclass
+class ReenactConfig:
+    n: int = 100  # nearest target frames (seed: 100)
+    a: float = 0.9  # weight fraction the n best carry (eq. 3.4)
+    smooth: int = 0  # method 1: 0 (none); method 2: T frames (eq. 3.5) on vertices and colours
+    levels: int = 4  # Laplacian pyramid levels
+    erode: float = 0.04  # mask erosion, fraction of the region's height
+    blur: float = 0.10  # mask feather, fraction of the region's height
+    map_expressions: bool = True  # identity mismatch: per-person normalisation of expression statistics
+    hold_frames: int = 8  # actor face lost: hold the last expression this many frames ...
+    fade_frames: int = 8  # ... then fade to the target's own frame over these
+
+
+@dataclass
+class StageTimes:
+    texture_ms: list = field(default_factory=list)
+    geometry_ms: list = field(default_factory=list)
+    blend_ms: list = field(default_factory=list)  # rasterize + blend
+
+
+class Reenactor:
+    """Stateless per-frame operations on one database (the smoothing window lives in :class:`Smoother`)."""
+
+    def __init__(self, db: ReenactDB, cfg: ReenactConfig | None = None, model=None):
+        from anima.facemodel.ict import load_face_model
+        self.db, self.cfg = db, cfg or ReenactConfig()
+        model = model or load_face_model()
+        self.sub = model.subset(db.vertex_ids.astype(np.int64))
+        self.tris = self.sub.triangles()
+        self.deltas = np.ascontiguousarray(self.sub.expr_deltas.reshape(len(self.sub.expr_deltas), -1))
+        self._shapes = {}
+        self.times = StageTimes()
+
+    def shape(self, identity: np.ndarray) -> np.ndarray:
+        key = identity.tobytes()
+        if key not in self._shapes:
+            self._shapes[key] = self.sub.vertices(identity)
+        return self._shapes[key]
+
+    def texture(self, x: np.ndarray, n: int | None = None) -> np.ndarray:
+        """Weighted-median colours ``(V, 3)`` for expression ``x`` (seed eqs. 3.3-3.4, Listing 1)."""
+        t0 = time.perf_counter()
+        idx, d2 = nearest(self.db.expression, x, n or self.cfg.n)
+        sigma = adaptive_sigma(d2, idx, self.cfg.a)
+        out = weighted_median(self.db.colors_vnc, idx, weights(d2[idx], sigma))
+        self.times.texture_ms.append(1e3 * (time.perf_counter() - t0))
+        return out
+
+    def geometry(self, x: np.ndarray, identity: np.ndarray, scale: float, rotation: np.ndarray,
+                 translation: np.ndarray) -> np.ndarray:
+        """The target's identity with expression ``x`` under the target frame's pose and camera -> uvz."""
+        t0 = time.perf_counter()
+        V = self.shape(identity) + (np.asarray(x, np.float32) @ self.deltas).reshape(-1, 3)
+        uvz = posed_uvz(V, float(scale), rotvec_to_matrix(np.asarray(rotation, np.float64)), translation)
+        self.times.geometry_ms.append(1e3 * (time.perf_counter() - t0))
+        return uvz
+
+    def blend(self, target: np.ndarray, uvz: np.ndarray, colors: np.ndarray, alpha: float = 1.0) -> np.ndarray:
+        t0 = time.perf_counter()
+        c = self.cfg
+        out = composite(target, uvz, self.tris, colors, c.levels, c.erode, c.blur, alpha)
+        self.times.blend_ms.append(1e3 * (time.perf_counter() - t0))
+        return out
+
+
+class Smoother:
+    """eq. 3.5 as a centred window over (uvz, colours), streaming: frame k is emitted, averaged over frames
+    k - T//2 .. k + T//2 that exist, once frame k + T//2 has been pushed (latency T//2 frames); ``flush``
+    emits the tail. T <= 1 passes frames through (method 1)."""
+
+    def __init__(self, T: int):
+        self.half = max(int(T), 1) // 2
+        self.buf: deque = deque()  # (index, uvz, colors, payload)
+        self.count = 0
+        self.next = 0
+
+    def _emit(self, k: int):
+        while self.buf and self.buf[0][0] < k - self.half:
+            self.buf.popleft()
+        items = [b for b in self.buf if b[0] <= k + self.half]
+        center = next(b for b in items if b[0] == k)
+        if len(items) == 1:
+            return center[1], center[2], center[3]
+        return np.mean([b[1] for b in items], 0), np.mean([b[2] for b in items], 0), center[3]
+
+    def push(self, uvz, colors, payload) -> list:
+        self.buf.append((self.count, uvz, colors, payload))
+        self.count += 1
+        out = []
+        while self.next + self.half < self.count:
+            out.append(self._emit(self.next))
+            self.next += 1
+        return out
+
+    def flush(self) -> list:
+        out = []
+        while self.next < self.count:
+            out.append(self._emit(self.next))
+            self.next += 1
+        self.buf.clear()
+        return out
+
+
+def actor_expressions(actor_seq, db: ReenactDB, cfg: ReenactConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Actor expressions mapped into the target's space (when ``cfg.map_expressions``), and per-frame
+    blend alpha: 1 when the face is tracked; held then faded when the actor's face is lost."""
+    from anima.io.sequence import FLAG_NO_FACE
+    x = actor_seq.expression.astype(np.float32)
+    lost = (actor_seq.flags & FLAG_NO_FACE) > 0
+    if cfg.map_expressions:
+        f = expression_mapping(x[~lost] if (~lost).any() else x, db.expression)
+        x = f(x)
+    alpha = np.ones(len(x), np.float32)
+    last, run = None, 0
+    for i in range(len(x)):
+        if not lost[i]:
+            last, run = x[i].copy(), 0
+            continue
+        run += 1
+        if last is not None:
+            x[i] = last
+        if last is None or run > cfg.hold_frames:
+            alpha[i] = 0.0 if last is None else max(0.0, 1.0 - (run - cfg.hold_frames) / max(cfg.fade_frames, 1))
+    return x, alpha

@@ -1,0 +1,243 @@
+"""``anima reenact``: offline (actor video -> output video) and live (camera index, stream or a file paced at
+its real frame rate) re-enactment on a target database."""
+from __future__ import annotations
+
+import threading
+import time
+import warnings
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from anima.errors import InputError
+from anima.reenact.database import ReenactDB, build_database
+from anima.reenact.pipeline import ReenactConfig, Reenactor, Smoother, actor_expressions
+
+MAX_TARGET_BYTES = 1 << 30
+
+
+def pingpong(j: np.ndarray, n: int) -> np.ndarray:
+    """Map any frame index onto 0..n-1 going forth and back (no jump when the target is shorter)."""
+    if n <= 1:
+        return np.zeros_like(j)
+    p = 2 * (n - 1)
+    j = np.mod(j, p)
+    return np.where(j < n, j, p - j)
+
+
+def load_target_frames(path: str) -> tuple[np.ndarray, float]:
+    from anima.io.video import iter_frames, probe_video
+    info = probe_video(path)
+    cap = max(1, MAX_TARGET_BYTES // (info.width * info.height * 3))
+    frames = []
+    for i, f in enumerate(iter_frames(info)):
+        if i >= cap:
+            warnings.warn(f"target background limited to its first {cap} frames (memory)")
+            break
+        frames.append(f)
+    return np.stack(frames), info.fps
+
+
+def side_by_side(actor: np.ndarray, out: np.ndarray) -> np.ndarray:
+    h = out.shape[0]
+    a = cv2.resize(actor, (max(2, int(round(actor.shape[1] * h / actor.shape[0]))), h))
+    return np.concatenate([a, out], 1)
+
+
+def prepare(targets: list[str], db_path: str | None, progress: bool, max_frames: int | None = None):
+    """Database (built from ``targets``, or read from ``db_path`` if it exists) and the first target's
+    sequence (its pose per frame drives the background)."""
+    from anima.capture.pipeline import CaptureConfig, capture_face
+    from anima.reenact.database import read_database, write_database
+    if db_path and Path(db_path).exists():
+        db = read_database(db_path)
+        if db.meta["videos"][0]["path"] != str(targets[0]):
+            raise InputError(f"{db_path} was built from {db.meta['videos'][0]['path']}, not {targets[0]}: "
+                             "use another --db path")
+        seq0 = capture_face(str(targets[0]), CaptureConfig(max_frames=max_frames), progress=progress)
+        return db, seq0
+    db, seqs = build_database([str(t) for t in targets], max_frames, progress)
+    if db_path:
+        write_database(db, db_path)
+    return db, seqs[0]
+
+
+def reenact_video(actor: str, targets: list[str], out: str, cfg: ReenactConfig | None = None,
+                  sbs: bool = False, db_path: str | None = None, progress: bool = True) -> dict:
+    from tqdm import tqdm
+
+    from anima.capture.pipeline import capture_face
+    from anima.io.video import VideoWriter, iter_frames, probe_video
+    cfg = cfg or ReenactConfig()
+    ainfo = probe_video(actor)
+    db, tseq = prepare(targets, db_path, progress)
+    aseq = capture_face(actor, progress=progress)
+    x, alpha = actor_expressions(aseq, db, cfg)
+    tframes, tfps = load_target_frames(targets[0])
+    n_t = min(len(tframes), tseq.n_frames)
+    j_of_i = pingpong(np.round(np.arange(aseq.n_frames) / aseq.fps * tfps).astype(int), n_t)
+    rx = Reenactor(db, cfg)
+    vi0 = 0
+    identity = db.identity[vi0]
+    audio = actor if ainfo.has_audio else None
+    notes = [] if audio else ["the actor video has no audio track: the output is silent"]
+    if abs(ainfo.fps - tfps) > 0.01:
+        notes.append(f"frame rates differ (actor {ainfo.fps:.2f}, target {tfps:.2f}): target frames are "
+                     "picked by time at the actor's rate")
+    H, W = tframes.shape[1:3]
+    size = (W + (int(round(ainfo.width * H / ainfo.height)) if sbs else 0), H)
+    sm = Smoother(cfg.smooth)
+    t0 = time.perf_counter()
+    n_out = 0
+    with VideoWriter(out, aseq.fps, size, audio_path=audio) as vw:
+        def emit(items):
+            nonlocal n_out
+            for uvz, col, (j, a_rgb, al) in items:
+                frame = rx.blend(tframes[j], uvz, col, al)
+                vw.write(side_by_side(a_rgb, frame) if sbs else frame)
+                n_out += 1
+        for i, a_rgb in enumerate(tqdm(iter_frames(ainfo), total=aseq.n_frames, disable=not progress,
+                                       desc="re-enact", unit="frame")):
+            if i >= aseq.n_frames:
+                break
+            j = int(j_of_i[i])
+            col = rx.texture(x[i])
+            uvz = rx.geometry(x[i], identity, tseq.scale[j], tseq.rotation[j], tseq.translation[j])
+            emit(sm.push(uvz, col, (j, a_rgb if sbs else None, float(alpha[i]))))
+        emit(sm.flush())
+    wall = time.perf_counter() - t0
+    return {"output": str(out), "frames": n_out, "fps": aseq.fps, "size": list(size), "audio": bool(audio),
+            "database_frames": db.n, "render_wall_s": round(wall, 2), "notes": notes,
+            "mean_ms": {k: float(np.mean(v)) for k, v in vars(rx.times).items() if v}}
+
+
+class PacedReader:
+    """Frames of a camera / stream / file on a thread. A file is paced at its real frame rate; only the
+    newest frame is kept, so a slow consumer drops frames instead of falling behind (bounded latency)."""
+
+    def __init__(self, source: str):
+        self.cap = cv2.VideoCapture(int(source) if str(source).isdigit() else str(source))
+        if not self.cap.isOpened():
+            raise InputError(f"cannot open live source {source!r}")
+        self.fps = self.cap.get(cv2.CAP_PROP_FPS) or 30.0
+        self.is_file = not str(source).isdigit() and Path(str(source)).exists()
+        self.lock = threading.Lock()
+        self.latest = None  # (index, capture time, rgb)
+        self.done = False
+        self.read = 0
+        self.th = threading.Thread(target=self._run, daemon=True)
+        self.th.start()
+
+    def _run(self):
+        t0 = time.perf_counter()
+        i = 0
+        while True:
+            ok, bgr = self.cap.read()
+            if not ok:
+                break
+            if self.is_file:  # pace at the real frame rate
+                delay = t0 + i / self.fps - time.perf_counter()
+                if delay > 0:
+                    time.sleep(delay)
+            with self.lock:
+                self.latest = (i, time.perf_counter(), cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+            i += 1
+        self.read = i
+        self.done = True
+
+    def get(self, after: int):
+        """The newest frame with index > ``after`` (waits for one), or None at the end."""
+        while True:
+            with self.lock:
+                if self.latest is not None and self.latest[0] > after:
+                    return self.latest
+            if self.done:
+                return None
+            time.sleep(0.001)
+
+
+def reenact_live(source: str, targets: list[str], out: str | None, cfg: ReenactConfig | None = None,
+                 db_path: str | None = None, max_seconds: float | None = None, progress: bool = True) -> dict:
+    """Live loop: track the actor frame by frame (MediaPipe face mesh + per-frame fit with the identity of
+    the first frames), re-enact on the target, write what was produced. Frames that arrive while one is
+    being processed are dropped (reported), so latency stays bounded."""
+    from anima.capture.fit import LandmarkBasis, choose_keyframes, fit_frames, fit_identity
+    from anima.capture.mediapipe_face import FaceMeshTracker
+    from anima.capture.pipeline import CaptureConfig
+    from anima.core.camera import mediapipe_to_camera
+    from anima.facemodel.correspondence import load_correspondence
+    from anima.facemodel.ict import load_face_model
+    from anima.io.video import VideoWriter
+    from anima.reenact.synth import expression_mapping
+
+    cfg = cfg or ReenactConfig()
+    db, tseq = prepare(targets, db_path, progress)
+    tframes, tfps = load_target_frames(targets[0])
+    n_t = min(len(tframes), tseq.n_frames)
+    rx = Reenactor(db, cfg)
+    fcfg = CaptureConfig().fit
+    basis = LandmarkBasis.build(load_face_model(), load_correspondence(), fcfg.use_iris)
+    tracker = FaceMeshTracker(static_image_mode=False)
+    reader = PacedReader(source)
+    writer = None
+    warm, seen, identity_a, mapping = [], [], None, None
+    last_x, lost_run = None, 0
+    sm = Smoother(cfg.smooth)
+    latencies, processed, last_i = [], 0, -1
+    t_start = time.perf_counter()
+    try:
+        while True:
+            got = reader.get(last_i)
+            if got is None or (max_seconds and time.perf_counter() - t_start > max_seconds):
+                break
+            last_i, t_cap, rgb = got
+            H, W = rgb.shape[:2]
+            lm = tracker(rgb)
+            x, alpha = last_x, 1.0
+            if lm is not None:
+                P = mediapipe_to_camera(lm[basis.index][None], W, H)
+                if identity_a is None:
+                    warm.append(P[0])
+                    if len(warm) >= 10:
+                        Pw = np.stack(warm)
+                        identity_a = fit_identity(Pw[choose_keyframes(Pw, basis, min(8, len(Pw)))], basis, fcfg)
+                if identity_a is not None:
+                    fit = fit_frames(P, basis, identity_a, fcfg)
+                    xa = fit.expr[0].astype(np.float32)
+                    if len(seen) < 60:
+                        seen.append(xa)
+                    if mapping is None and cfg.map_expressions and len(seen) >= 30:
+                        mapping = expression_mapping(np.stack(seen), db.expression)  # actor statistics so far
+                    x = mapping(xa) if mapping else xa
+                    last_x, lost_run = x, 0
+            else:
+                lost_run += 1
+                if lost_run > cfg.hold_frames:
+                    alpha = max(0.0, 1.0 - (lost_run - cfg.hold_frames) / max(cfg.fade_frames, 1))
+            j = int(pingpong(np.array([int(round((time.perf_counter() - t_start) * tfps))]), n_t)[0])
+            if x is None:
+                frames = [(None, None, (j, t_cap, 0.0))]
+            else:
+                col = rx.texture(x)
+                uvz = rx.geometry(x, db.identity[0], tseq.scale[j], tseq.rotation[j], tseq.translation[j])
+                frames = sm.push(uvz, col, (j, t_cap, alpha))
+            for uvz, col, (jj, tc, al) in frames:
+                frame = tframes[jj] if uvz is None else rx.blend(tframes[jj], uvz, col, al)
+                if out and writer is None:
+                    writer = VideoWriter(out, reader.fps, (frame.shape[1], frame.shape[0]))
+                if writer:
+                    writer.write(frame)
+                latencies.append(1e3 * (time.perf_counter() - tc))
+                processed += 1
+    finally:
+        tracker.close()
+        if writer:
+            writer.close()
+    received = max(reader.read, last_i + 1)
+    lat = np.asarray(latencies) if latencies else np.zeros(1)
+    return {"source": str(source), "frames_received": int(received), "frames_processed": int(processed),
+            "frames_dropped": int(max(0, received - processed)), "source_fps": reader.fps,
+            "latency_ms": {"median": float(np.median(lat)), "p95": float(np.percentile(lat, 95)),
+                           "max": float(lat.max())},
+            "output": out}
