@@ -312,6 +312,14 @@ def _cmd_eval_pose(a) -> int:
     return 0
 
 
+def _cmd_eval_reenact(a) -> int:
+    from anima.eval.reenact import evaluate
+
+    r = evaluate(Path(a.out) if a.out else None, progress=not a.json)
+    print(json.dumps(r, indent=2))
+    return 0
+
+
 def _cmd_reenact(a) -> int:
     from anima.reenact.pipeline import ReenactConfig
     from anima.reenact.run import reenact_live, reenact_video
@@ -442,6 +450,14 @@ def build_parser() -> argparse.ArgumentParser:
     ep.add_argument("--cache", default=None, help="MediaPipe detection cache (default: $ANIMA_HOME/cache/pose3d)")
     ep.add_argument("--json", action="store_true", help="no progress output (the result is JSON either way)")
     ep.set_defaults(func=_cmd_eval_pose)
+
+    er = esub.add_parser("reenact", help="self-re-enactment metrics (seed 001 §4.2) on the Obama clips and d11",
+                         description="SSIM, LPIPS, lip NME, tOF, tLP on the face box; the base loss with the true "
+                         "vertex colours; SSIM against n; method 1 vs 2; n-best L2 curves with and without the "
+                         "actor->target expression mapping. --out DIR also writes plots and side-by-side frames.")
+    er.add_argument("--out", default=None, help="folder for plots and frames")
+    er.add_argument("--json", action="store_true", help="no progress output (the result is JSON either way)")
+    er.set_defaults(func=_cmd_eval_reenact)
 
     tr = sub.add_parser("train", help="train models")
     trsub = tr.add_subparsers(dest="train_command", metavar="MODEL")

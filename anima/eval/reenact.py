@@ -72,8 +72,11 @@ def video_metrics(out: list[np.ndarray], gt: list[np.ndarray], box) -> dict:
         fo = cv2.calcOpticalFlowFarneback(go[t], go[t + 1], None, 0.5, 3, 15, 3, 5, 1.2, 0)
         fg = cv2.calcOpticalFlowFarneback(gg[t], gg[t + 1], None, 0.5, 3, 15, 3, 5, 1.2, 0)
         tof.append(np.abs(fo - fg).sum(-1).mean())
-    lpo = np.concatenate([lpips(co[i:i + 32], co[i + 1:i + 33]) for i in range(0, len(co) - 1, 32)])
-    lpg = np.concatenate([lpips(cg[i:i + 32], cg[i + 1:i + 33]) for i in range(0, len(cg) - 1, 32)])
+    def consecutive(c):
+        a, b = c[:-1], c[1:]
+        return np.concatenate([lpips(a[i:i + 32], b[i:i + 32]) for i in range(0, len(a), 32)])
+
+    lpo, lpg = consecutive(co), consecutive(cg)
     n = min(len(lpo), len(lpg))
     return {"ssim": float(np.mean(s)), "lpips": float(np.mean(lp)),
             "nme_lips": float(np.mean(nme)) if nme else None, "nme_frames": len(nme),

@@ -63,8 +63,20 @@ def prepare(targets: list[str], db_path: str | None, progress: bool, max_frames:
     return db, seqs[0]
 
 
+def single_thread_blas():
+    """The per-frame maths are small matrices: multi-threaded BLAS only fights numba's threads for the two
+    cores (it made the per-frame fit 12x slower). One BLAS thread during the loop."""
+    from threadpoolctl import threadpool_limits
+    return threadpool_limits(1, user_api="blas")
+
+
 def reenact_video(actor: str, targets: list[str], out: str, cfg: ReenactConfig | None = None,
                   sbs: bool = False, db_path: str | None = None, progress: bool = True) -> dict:
+    with single_thread_blas():
+        return _reenact_video(actor, targets, out, cfg, sbs, db_path, progress)
+
+
+def _reenact_video(actor, targets, out, cfg, sbs, db_path, progress) -> dict:
     from tqdm import tqdm
 
     from anima.capture.pipeline import capture_face
@@ -159,6 +171,11 @@ class PacedReader:
 
 def reenact_live(source: str, targets: list[str], out: str | None, cfg: ReenactConfig | None = None,
                  db_path: str | None = None, max_seconds: float | None = None, progress: bool = True) -> dict:
+    with single_thread_blas():
+        return _reenact_live(source, targets, out, cfg, db_path, max_seconds, progress)
+
+
+def _reenact_live(source, targets, out, cfg, db_path, max_seconds, progress) -> dict:
     """Live loop: track the actor frame by frame (MediaPipe face mesh + per-frame fit with the identity of
     the first frames), re-enact on the target, write what was produced. Frames that arrive while one is
     being processed are dropped (reported), so latency stays bounded."""

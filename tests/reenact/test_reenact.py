@@ -1,0 +1,154 @@
+"""Re-enactment (seed 001): the maths of texture synthesis and blending, the database artifact on a real
+clip, the command end to end (audio, bad inputs) and the live loop on a file paced at its frame rate."""
+import json
+import subprocess
+import sys
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from anima.io.assets import asset
+from anima.reenact.pipeline import ReenactConfig, Smoother, actor_expressions
+from anima.reenact.render import laplacian_blend
+from anima.reenact.run import pingpong
+from anima.reenact.synth import (adaptive_sigma, nearest, weighted_median, weighted_median_listing1,
+                                 weights)
+
+OBAMA1 = "styletalk-samples/samples/source_video/video/Obama_clip1.mp4"
+ACTOR = "videoretalking-examples/examples/face/1.mp4"
+
+
+def test_adaptive_sigma_gives_the_weight_fraction():
+    rng = np.random.default_rng(0)
+    X = rng.random((800, 53)).astype(np.float32)
+    idx, d2 = nearest(X, X[3] + 0.02, 100)
+    assert idx[0] == 3 and np.all(np.diff(d2[idx]) >= 0)
+    s = adaptive_sigma(d2, idx, 0.9)
+    w = np.exp(-(d2 - d2.min()) / (2 * s * s))
+    assert abs(w[idx].sum() / w.sum() - 0.9) < 1e-3
+    # a database smaller than n / a: every frame counts, sigma is large
+    idx2, d22 = nearest(X[:105], X[0], 100)
+    assert adaptive_sigma(d22, idx2, 0.9) > np.sqrt(d22.max())
+
+
+def test_weighted_median_fast_matches_listing1():
+    rng = np.random.default_rng(1)
+    N, V = 300, 500
+    base = rng.integers(30, 220, (1, V, 3))
+    db = np.clip(base + rng.normal(0, 15, (N, V, 3)), 0, 255).astype(np.uint8)
+    vnc = np.ascontiguousarray(db.transpose(1, 0, 2))
+    idx = rng.choice(N, 100, replace=False)
+    w = rng.random(100) + 0.05
+    fast = weighted_median(vnc, idx, w)
+    ref = weighted_median_listing1(db[idx].astype(np.float32), w)
+    # the same definition; equal colours are merged into one rank here, ordered arbitrarily in the listing
+    assert np.abs(fast - ref).max() <= 1.5 and np.abs(fast - ref).mean() < 0.5
+    # one overwhelming weight: that frame's colours; equal weights: the ordinary median (odd n)
+    w1 = np.full(100, 1e-6)
+    w1[7] = 1.0
+    np.testing.assert_allclose(weighted_median(vnc, idx, w1), db[idx[7]], atol=0.01)
+    idx3 = idx[:99]
+    eq = weighted_median(vnc, idx3, np.ones(99))
+    lo, hi = np.percentile(db[idx3], 40, 0), np.percentile(db[idx3], 60, 0)
+    assert ((eq >= lo - 1e-3) & (eq <= hi + 1e-3)).all()
+
+
+def test_laplacian_blend_limits_and_smoother():
+    rng = np.random.default_rng(2)
+    a = rng.random((64, 48, 3)).astype(np.float32) * 255
+    b = rng.random((64, 48, 3)).astype(np.float32) * 255
+    np.testing.assert_allclose(laplacian_blend(a, b, np.ones((64, 48), np.float32), 4), a, atol=1e-3)
+    np.testing.assert_allclose(laplacian_blend(a, b, np.zeros((64, 48), np.float32), 4), b, atol=1e-3)
+    sm, out = Smoother(5), []
+    for i in range(6):
+        out += sm.push(np.array([float(i)]), np.array([float(i)]), i)
+    out += sm.flush()
+    assert [o[2] for o in out] == list(range(6))
+    np.testing.assert_allclose([o[0][0] for o in out], [1.0, 1.5, 2.0, 3.0, 3.5, 4.0])
+    np.testing.assert_array_equal(pingpong(np.arange(8), 4), [0, 1, 2, 3, 2, 1, 0, 1])
+
+
+def test_lost_actor_face_holds_then_fades():
+    F = 30
+    flags = np.zeros(F, np.uint8)
+    flags[10:] = 1  # face lost from frame 10 on
+    expr = np.tile(np.linspace(0, 1, F)[:, None], (1, 53)).astype(np.float32)
+    db = SimpleNamespace(expression=np.random.default_rng(0).random((200, 53)).astype(np.float32))
+    x, alpha = actor_expressions(SimpleNamespace(expression=expr, flags=flags), db,
+                                 ReenactConfig(map_expressions=False, hold_frames=4, fade_frames=4))
+    np.testing.assert_allclose(x[10:], np.repeat(expr[9:10], F - 10, 0))
+    assert (alpha[:14] == 1).all() and 0 < alpha[14] < 1 and (alpha[17:] == 0).all()  # 4 held, 4 fading
+
+
+@pytest.fixture(scope="module")
+def obama_db(tmp_path_factory):
+    from anima.reenact.database import build_database, write_database
+    db, seqs = build_database([str(asset(OBAMA1))], max_frames=160, progress=False)
+    path = write_database(db, tmp_path_factory.mktemp("db") / "obama.npz")
+    return db, seqs[0], path
+
+
+def test_database_on_a_real_clip(obama_db, tmp_path):
+    from anima.errors import SchemaError
+    from anima.io.video import read_video
+    from anima.reenact.database import read_database
+    from anima.reenact.pipeline import Reenactor
+    db, seq, path = obama_db
+    assert db.n >= 150 and db.colors.shape == (db.n, len(db.vertex_ids), 3) and db.colors.dtype == np.uint8
+    db2 = read_database(path)
+    np.testing.assert_array_equal(db2.colors, db.colors)
+    np.testing.assert_array_equal(db2.expression, db.expression)
+    # synthesis from the database reproduces a frame's own lower face closely (it is among the candidates)
+    frames, _ = read_video(asset(OBAMA1), max_frames=60)
+    rx = Reenactor(db2, ReenactConfig(n=20))
+    f = 50
+    col = rx.texture(seq.expression[f])
+    row = int(np.flatnonzero(db.frame == f)[0])
+    assert np.abs(col - db.colors[row]).mean() < 12
+    uvz = rx.geometry(seq.expression[f], db.identity[0], seq.scale[f], seq.rotation[f], seq.translation[f])
+    out = rx.blend(frames[f], uvz, col)
+    assert out.shape == frames[f].shape and np.abs(out.astype(int) - frames[f]).mean() < 6
+    # newer version: refused
+    d = dict(np.load(path))
+    meta = json.loads(str(d["meta"]))
+    meta["version"] = 9
+    d["meta"] = np.array(json.dumps(meta))
+    np.savez(tmp_path / "v9.npz", **d)
+    with pytest.raises(SchemaError, match="version 9"):
+        read_database(tmp_path / "v9.npz")
+
+
+def _anima(*args):
+    return subprocess.run([sys.executable, "-m", "anima", *args], capture_output=True, text=True)
+
+
+def test_reenact_command_end_to_end(obama_db, tmp_path):
+    from anima.io.video import probe_video
+    path = obama_db[2]
+    out = tmp_path / "re.mp4"
+    r = _anima("reenact", "--actor", str(asset(ACTOR)), "--target", str(asset(OBAMA1)), "--db", str(path),
+               "--out", str(out), "--side-by-side", "--json", "--quiet")
+    assert r.returncode == 0, r.stderr
+    info = probe_video(out)
+    assert info.has_audio and info.n_frames == probe_video(asset(ACTOR)).n_frames
+    assert info.width > info.height  # actor | output
+    assert "frame rates differ" in r.stderr  # 22 fps actor on a 30 fps target is handled and said
+
+
+def test_reenact_bad_inputs(tmp_path):
+    r = _anima("reenact", "--actor", str(asset(ACTOR)), "--target",
+               str(asset("liveportrait-examples/assets/examples/driving/d0.mp4")), "--out", str(tmp_path / "o.mp4"))
+    assert r.returncode == 2 and "at least 100" in r.stderr and "Traceback" not in r.stderr
+    r = _anima("reenact", "--actor", str(tmp_path / "missing.mp4"), "--target", str(asset(OBAMA1)),
+               "--out", str(tmp_path / "o.mp4"))
+    assert r.returncode == 2 and "not found" in r.stderr
+
+
+def test_live_loop_on_a_paced_file(obama_db):
+    from anima.reenact.run import reenact_live
+    r = reenact_live(str(asset(ACTOR)), [str(asset(OBAMA1))], None, ReenactConfig(smooth=0),
+                     db_path=str(obama_db[2]), max_seconds=8, progress=False)
+    assert r["frames_processed"] > 20
+    assert r["frames_received"] >= r["frames_processed"]
+    assert r["latency_ms"]["median"] < 1000
