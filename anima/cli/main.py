@@ -326,6 +326,8 @@ def _cmd_reenact(a) -> int:
 
     if not a.actor and a.live is None:
         raise InputError("give --actor VIDEO or --live SOURCE")
+    if a.actor and not a.out:
+        raise InputError("give --out OUT.mp4")
     for t in a.target:
         if not Path(t).exists():
             raise InputError(f"target video not found: {t}")

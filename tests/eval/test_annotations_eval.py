@@ -15,3 +15,12 @@ def test_labels_are_well_formed():
     for lab in labs:
         for attr, ranges in lab["labels"].items():
             assert all(0 <= a <= b < lab["frames"] for a, b in ranges), (lab["name"], attr)
+
+
+def test_head_motion_detectors_on_labelled_clips():
+    """TPSMM driving clip: two labelled nod episodes are found; d6 (exaggerated faces, head still): no
+    head shake or turn is reported."""
+    labs = {l["name"]: l for l in load_labels()}
+    r = score([(capture_labelled(labs[n]), labs[n]) for n in ("tpsmm_driving", "d6")])
+    assert r["nod"]["labelled_events"] == 2 and r["nod"]["recall"] == 1.0
+    assert r["shake head"]["detections"] == 0 and r["turn"]["detections"] == 0
