@@ -312,6 +312,27 @@ def _cmd_eval_pose(a) -> int:
     return 0
 
 
+def _cmd_gesture(a) -> int:
+    from anima.gesture.control import parse_control
+    from anima.gesture.database import from_dataset
+    from anima.gesture.run import synthesize, write_outputs
+
+    if not Path(a.speech).exists():
+        raise InputError(f"speech file not found: {a.speech}")
+    if a.k < 0:
+        raise InputError("--k must be >= 0")
+    controls = [parse_control(c) for c in a.control]
+    db = from_dataset(a.db, None if a.all_splits else "train")
+    J, info = synthesize(a.speech, db, a.k, controls, a.init, a.seed)
+    paths = write_outputs(J, a.speech, Path(a.out), info, render=not a.no_render)
+    for n in info["notes"]:
+        print(f"anima: note: {n}", file=sys.stderr)
+    info = {k: v for k, v in info.items() if k != "picks"} | {"database_windows": db.M,
+                                                              "written": [str(p) for p in paths]}
+    print(json.dumps(info, indent=2) if a.json else "wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
 def _cmd_eval_reenact(a) -> int:
     from anima.eval.reenact import evaluate
 
@@ -506,6 +527,26 @@ def build_parser() -> argparse.ArgumentParser:
     re_.add_argument("--json", action="store_true")
     re_.add_argument("--quiet", action="store_true")
     re_.set_defaults(func=_cmd_reenact)
+
+    ge = sub.add_parser("gesture", help="speech to 3D upper-body + hand gestures (controllable k-NN search)",
+                        description="Seed 004 Algorithm 1: every 8 frames (15 fps), the database windows of the "
+                        "dataset's (audio, motion) pairs are pre-selected by pose continuity and ranked by audio "
+                        "(cosine) + pose rank; the k-th best continues the motion. Controls restrict the search "
+                        "without retraining, in time ranges: e.g. --control 'left_wrist_height>=p85@0-5s' "
+                        "(names: left/right_wrist_height, left/right_wrist_speed, hand_symmetry; pXX = "
+                        "percentile of the database). Writes gesture.npz, gesture.bvh and skeleton.mp4 "
+                        "(with the speech).")
+    ge.add_argument("speech", help="speech audio (WAV/MP3/FLAC or a video's audio; resampled to 16 kHz)")
+    ge.add_argument("--db", required=True, help="dataset folder from `anima dataset build`")
+    ge.add_argument("--out", required=True)
+    ge.add_argument("--control", action="append", default=[], help="control, repeatable")
+    ge.add_argument("--k", type=int, default=0, help="take the k-th best candidate (variety; 0 = best)")
+    ge.add_argument("--init", default="mean", choices=("mean", "random"), help="initial pose feature")
+    ge.add_argument("--seed", type=int, default=0)
+    ge.add_argument("--all-splits", action="store_true", help="search all splits (default: train only)")
+    ge.add_argument("--no-render", action="store_true")
+    ge.add_argument("--json", action="store_true")
+    ge.set_defaults(func=_cmd_gesture)
 
     ds = sub.add_parser("dataset", help="build and report (text, motion) and (audio, motion) datasets")
     dsub = ds.add_subparsers(dest="dataset_command", metavar="TOOL")

@@ -1,0 +1,104 @@
+"""Controls for the k-NN search (seed 004 §5.3.2.1, §5.4.2): per-frame masks of the database from
+percentiles of wrist height, wrist speed and hand symmetry, applied in time ranges.
+
+Syntax: ``NAME OP VALUE[@START-ENDs]``, e.g. ``left_wrist_height>=p85@0-5s`` (VALUE ``pXX`` is a percentile of
+the database; a plain number is in the feature's units: metres, metres/second; symmetry is minus the
+distance between the left wrist and the mirrored right wrist, so higher is more symmetric).
+"""
+from __future__ import annotations
+
+import re
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from anima.core.skeleton import JOINT_NAMES
+from anima.errors import InputError
+from anima.gesture.features import FPS
+
+_LW, _RW = JOINT_NAMES.index("left_wrist"), JOINT_NAMES.index("right_wrist")
+
+
+def control_features(G: np.ndarray, fps: float = FPS) -> dict[str, np.ndarray]:
+    """G (M, T, 165) -> per-frame control features (M, T)."""
+    J = G.reshape(G.shape[0], G.shape[1], -1, 3)
+    lw, rw = J[..., _LW, :], J[..., _RW, :]
+    speed = lambda w: np.concatenate([np.zeros_like(w[:, :1, 0]),  # noqa: E731
+                                      np.linalg.norm(np.diff(w, axis=1), axis=-1) * fps], 1)
+    return {"left_wrist_height": lw[..., 1], "right_wrist_height": rw[..., 1],
+            "left_wrist_speed": speed(lw), "right_wrist_speed": speed(rw),
+            "hand_symmetry": -np.linalg.norm(lw - rw * np.array([-1.0, 1.0, 1.0]), axis=-1)}
+
+
+NAMES = tuple(control_features(np.zeros((1, 2, 165))).keys())
+_RE = re.compile(r"^\s*([a-z_]+)\s*(>=|<=|>|<)\s*(p?)([0-9.]+)\s*(?:@\s*([0-9.]+)\s*-\s*([0-9.]+)\s*s)?\s*$")
+
+
+@dataclass
+class Control:
+    name: str
+    op: str
+    value: float
+    percentile: bool
+    start_s: float = 0.0
+    end_s: float = float("inf")
+    text: str = ""
+
+    def threshold(self, feats: dict) -> float:
+        x = feats[self.name]
+        return float(np.percentile(x, self.value)) if self.percentile else self.value
+
+    def frame_mask(self, feats: dict, thr: float | None = None) -> np.ndarray:
+        x = feats[self.name]
+        t = self.threshold(feats) if thr is None else thr
+        return {">=": x >= t, "<=": x <= t, ">": x > t, "<": x < t}[self.op]
+
+
+def parse_control(text: str) -> Control:
+    m = _RE.match(text.lower())
+    if not m:
+        raise InputError(f"cannot read control {text!r}: expected e.g. 'left_wrist_height>=p85@0-5s'")
+    name, op, p, v, a, b = m.groups()
+    if name not in NAMES:
+        raise InputError(f"unknown control {name!r}; known: {', '.join(NAMES)}")
+    if p and not 0 <= float(v) <= 100:
+        raise InputError(f"percentile out of range in {text!r}")
+    return Control(name, op, float(v), bool(p), float(a) if a else 0.0, float(b) if b else float("inf"), text)
+
+
+def step_masks(db, controls: list[Control], n_steps: int, step_s: float) -> tuple[list, list[dict]]:
+    """Per search step, the window-start mask (None = no control) and a report per control: the threshold
+    used, and how far it was relaxed (towards the median) when no database window satisfied it."""
+    if not controls:
+        return [None] * n_steps, []
+    feats = control_features(db.G)
+    report = []
+    masks_by_control = []
+    for c in controls:
+        thr = c.threshold(feats)
+        fm = c.frame_mask(feats, thr)
+        relaxed_to = None
+        if not db.start_mask(fm).any():
+            med = float(np.median(feats[c.name]))
+            for f in np.linspace(0, 1, 21)[1:]:
+                t2 = thr + (med - thr) * f
+                fm = c.frame_mask(feats, t2)
+                if db.start_mask(fm).any():
+                    relaxed_to = t2
+                    break
+            warnings.warn(f"control {c.text!r}: no database window satisfies it; relaxed from {thr:.3f} to "
+                          f"{relaxed_to:.3f}" if relaxed_to is not None else f"control {c.text!r} cannot be met")
+        masks_by_control.append(fm)
+        report.append({"control": c.text, "threshold": thr, "relaxed_to": relaxed_to})
+    out = []
+    for k in range(n_steps):
+        t = k * step_s
+        active = [fm for c, fm in zip(controls, masks_by_control) if c.start_s <= t < c.end_s]
+        if not active:
+            out.append(None)
+            continue
+        fm = np.logical_and.reduce(active)
+        sm = db.start_mask(fm)
+        out.append(sm if sm.any() else db.start_mask(active[0]))
+    return out, report

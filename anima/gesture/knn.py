@@ -1,0 +1,202 @@
+"""Audio-to-gesture k-NN search with control (seed 004 §5.3.1.3, Algorithm 1, §5.3.2.1).
+
+Database: M windows of T_MATCH = 64 frames, each with audio features F (64, 112), pose features P (64, 96)
+and gestures G (64, 165). Every N = 8 frames: per database window, the frame r whose pose feature is closest
+(Euclidean) to the previous pose feature among the frames allowed by the control mask ("pose pre-selected");
+then the M candidates are ranked by audio (cosine distance of f at r to the input f_t) and by pose, the two
+ranks are added, and the k-th best candidate (0 = best) gives the next N frames.
+
+Two readings of the algorithm's text are made explicit here (both implementations follow them):
+* a window can only start where N frames fit (r <= T_MATCH - N), so that N output frames exist;
+* a database window with no frame allowed by the control is not a candidate (Algorithm 1 would keep its
+  frame 0, which breaks the control).
+Control masks look at the first and the last frame of each N-frame window (§5.3.2.1).
+
+:func:`search_literal` is Algorithm 1 with its loops; :func:`search` is the fast version (all windows and
+frames at once, float64 like the literal one) and returns identical output.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numba as nb
+import numpy as np
+
+from anima.gesture.features import N_STEP, T_MATCH
+
+
+@dataclass
+class MatchDB:
+    F: np.ndarray  # (M, T, 112)
+    P: np.ndarray  # (M, T, 96)
+    G: np.ndarray  # (M, T, 165)
+    source: list = field(default_factory=list)  # per window: (video, start_s)
+
+    _layout: tuple | None = None
+
+    @property
+    def M(self) -> int:
+        return len(self.F)
+
+    def search_layout(self) -> tuple:
+        """Made once for the fast search: the pose features with their dimensions reordered by decreasing
+        variance (the partial distance search stops early while reading rows sequentially), and their
+        projection on the 16 leading principal directions (a lower bound to skip most frames)."""
+        if self._layout is None:
+            sample = self.P.reshape(-1, self.P.shape[-1])[:: max(1, self.P.shape[0] * self.P.shape[1] // 20000)]
+            sample = sample.astype(np.float64)
+            dims = np.argsort(-sample.var(0), kind="stable")
+            _, _, Vt = np.linalg.svd(sample - sample.mean(0), full_matrices=False)
+            U = np.ascontiguousarray(Vt[:16].T)  # (96, 16) orthonormal columns
+            Q = self.P.astype(np.float64) @ U
+            # all 16 projections of a frame in one 64-byte cache line (float32): the second bound costs no
+            # extra memory access after the first
+            self._layout = (np.ascontiguousarray(self.P[..., dims]), dims, np.ascontiguousarray(Q, np.float32), U)
+        return self._layout
+
+    def start_mask(self, frame_mask: np.ndarray | None) -> np.ndarray:
+        """(M, T) frame eligibility -> (M, T) window-start eligibility: first and last frame of the N-frame
+        window allowed, and the window inside the database window."""
+        M, T = self.P.shape[:2]
+        ok = np.zeros((M, T), bool)
+        ok[:, 1:T - N_STEP + 1] = True  # s = 1 .. T - N (Algorithm 1 starts at s = 1)
+        if frame_mask is not None:
+            last = np.zeros_like(frame_mask)
+            last[:, :T - N_STEP + 1] = frame_mask[:, N_STEP - 1:]
+            ok &= frame_mask & last
+        return ok
+
+
+def _relrank(d: np.ndarray) -> np.ndarray:
+    r = np.empty(len(d), np.int64)
+    r[np.argsort(d, kind="stable")] = np.arange(len(d))
+    return r
+
+
+def _cosine(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    na = np.sqrt((a * a).sum(-1))
+    nb = np.sqrt((b * b).sum(-1))
+    return 1.0 - (a * b).sum(-1) / np.maximum(na * nb, 1e-12)
+
+
+def search_literal(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
+                   control: list | None = None) -> tuple[np.ndarray, list]:
+    """Algorithm 1 as written (Python loops). ``control``: per search step a (M, T) window-start mask or
+    None. Returns the gestures (T, 165) and the chosen (window, frame) per step."""
+    T = len(F_in)
+    G, picks = [], []
+    p_prev = np.asarray(p_init, np.float64)
+    t = 0
+    step = 0
+    while t < T:
+        mask = db.start_mask(None) if control is None or control[step] is None else control[step]
+        cand, pd, fd = [], [], []
+        for m in range(db.M):
+            r, pdist = -1, np.inf
+            for s in range(1, T_MATCH):
+                if mask[m, s]:
+                    d = float(np.sqrt(((db.P[m, s].astype(np.float64) - p_prev) ** 2).sum()))
+                    if d < pdist:
+                        pdist, r = d, s
+            if r < 0:
+                continue
+            cand.append((m, r))
+            pd.append(pdist)
+            fd.append(float(_cosine(db.F[m, r].astype(np.float64), F_in[t].astype(np.float64))))
+        if not cand:
+            raise ValueError("no database window satisfies the control")
+        comb = _relrank(np.array(fd)) + _relrank(np.array(pd))
+        order = np.argsort(comb, kind="stable")
+        m, r = cand[int(order[min(k, len(order) - 1)])]
+        n = min(N_STEP, T - t)
+        G.append(db.G[m, r:r + n])
+        p_prev = db.P[m, r + N_STEP - 1].astype(np.float64)
+        picks.append((m, r))
+        t += N_STEP
+        step += 1
+    return np.concatenate(G), picks
+
+
+@nb.njit(parallel=True, cache=True)
+def _preselect(P, Q, mask, p, q, lb, r_out, d_out):
+    """Per window m: the allowed frame s closest to ``p`` (squared Euclidean, float64), exactly, ties to the
+    smallest s (as the literal loop's strict ``<``). ``Q`` / ``q`` are the features projected on the 16
+    leading principal directions (orthonormal, so the projected distance is a lower bound of the true one;
+    all 16 floats of a frame share one cache line). The frame with the smallest bound is measured first;
+    frames whose bound exceeds the best distance so far are skipped, and full sums (dimensions stored
+    largest-variance first) stop once they exceed it. None of this can change the result. ``lb`` is an
+    (M, T) work array."""
+    M, T, D = P.shape
+    K = Q.shape[2]
+    for m in nb.prange(M):
+        s0 = -1
+        for s in range(T):
+            if mask[m, s]:
+                acc = 0.0
+                for j in range(K):
+                    diff = np.float64(Q[m, s, j]) - q[j]
+                    acc += diff * diff
+                lb[m, s] = acc
+                if s0 < 0 or acc < lb[m, s0]:
+                    s0 = s
+        if s0 < 0:
+            r_out[m] = -1
+            d_out[m] = np.inf
+            continue
+        best = 0.0
+        for j in range(D):
+            diff = np.float64(P[m, s0, j]) - p[j]
+            best += diff * diff
+        r = s0
+        for s in range(T):
+            if s == s0 or not mask[m, s] or lb[m, s] * (1.0 - 1e-4) - 1e-9 > best:  # margin: float32 storage
+                continue
+            acc = 0.0
+            for j in range(D):
+                diff = np.float64(P[m, s, j]) - p[j]
+                acc += diff * diff
+                if acc > best:
+                    break
+            if acc < best or (acc == best and s < r):
+                best = acc
+                r = s
+        r_out[m] = r
+        d_out[m] = np.sqrt(best)
+
+
+def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
+           control: list | None = None) -> tuple[np.ndarray, list]:
+    """The same search, fast: a numba pass over all windows and frames per step (partial distance search),
+    then the ranking on the M pre-selected candidates. Identical output to :func:`search_literal`."""
+    T = len(F_in)
+    Fdb = db.F
+    base = db.start_mask(None)
+    P, dims, Q, U = db.search_layout()
+    lb = np.empty(P.shape[:2])
+    G, picks = [], []
+    p_prev = np.asarray(p_init, np.float64)
+    t = 0
+    step = 0
+    rows = np.arange(db.M)
+    r = np.empty(db.M, np.int64)
+    pdist = np.empty(db.M, np.float64)
+    while t < T:
+        mask = base if control is None or control[step] is None else control[step]
+        _preselect(P, Q, np.ascontiguousarray(mask), p_prev[dims], p_prev @ U, lb, r, pdist)
+        keep = np.isfinite(pdist)
+        if not keep.any():
+            raise ValueError("no database window satisfies the control")
+        m_ok, r_ok = rows[keep], r[keep]
+        fd = _cosine(Fdb[m_ok, r_ok].astype(np.float64), F_in[t].astype(np.float64))
+        comb = _relrank(fd) + _relrank(pdist[keep])
+        key = comb * len(comb) + np.arange(len(comb))  # the stable order of comb, as unique keys
+        kk = min(k, len(key) - 1)
+        j = int(np.argpartition(key, kk)[kk])
+        m, rr = int(m_ok[j]), int(r_ok[j])
+        n = min(N_STEP, T - t)
+        G.append(db.G[m, rr:rr + n])
+        p_prev = db.P[m, rr + N_STEP - 1].astype(np.float64)
+        picks.append((m, rr))
+        t += N_STEP
+        step += 1
+    return np.concatenate(G), picks
