@@ -333,6 +333,15 @@ def _cmd_gesture(a) -> int:
     return 0
 
 
+def _cmd_eval_gesture(a) -> int:
+    from anima.eval.gesture import evaluate
+
+    if not Path(a.db).exists():
+        raise InputError(f"no dataset at {a.db}")
+    print(json.dumps(evaluate(a.db), indent=2))
+    return 0
+
+
 def _cmd_eval_reenact(a) -> int:
     from anima.eval.reenact import evaluate
 
@@ -481,6 +490,14 @@ def build_parser() -> argparse.ArgumentParser:
     er.add_argument("--out", default=None, help="folder for plots and frames")
     er.add_argument("--json", action="store_true", help="no progress output (the result is JSON either way)")
     er.set_defaults(func=_cmd_eval_reenact)
+
+    eg = esub.add_parser("gesture", help="k-NN gestures: control adherence, L1, diversity, jerk, beat consistency",
+                         description="Leave-one-video-out on the dataset's (audio, motion) windows (seed 004 "
+                         "ch. 5): control adherence as table 5.3, L1 to the captured motion, diversity over k, "
+                         "jerk, beat consistency; minutes of (audio, motion) per speaker.")
+    eg.add_argument("--db", required=True, help="dataset folder from `anima dataset build`")
+    eg.add_argument("--json", action="store_true", help="(the result is JSON either way)")
+    eg.set_defaults(func=_cmd_eval_gesture)
 
     tr = sub.add_parser("train", help="train models")
     trsub = tr.add_subparsers(dest="train_command", metavar="MODEL")

@@ -157,14 +157,21 @@ def _task(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | None) ->
 
 
 def _start_ray(address: str | None, num_workers: int | None):
-    os.environ.setdefault("RAY_AUTH_MODE", "disabled")
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    worker_env = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "GLOG_minloglevel": "2",
+                  "TF_CPP_MIN_LOG_LEVEL": "3"}
+    if not address:
+        # a private local instance, as documented. Settings inherited from a parent process that runs Ray
+        # itself (RAY_ADDRESS, RAY_AUTH_MODE=token set by its ray.init) would point this instance's workers
+        # at another cluster or make them fail authentication: reset them, for the driver and the workers.
+        os.environ.pop("RAY_ADDRESS", None)
+        os.environ["RAY_AUTH_MODE"] = "disabled"
+        worker_env["RAY_AUTH_MODE"] = "disabled"
     import ray
 
     if not ray.is_initialized():
-        env = {"env_vars": {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "GLOG_minloglevel": "2",
-                            "TF_CPP_MIN_LOG_LEVEL": "3", "RAY_AUTH_MODE": "disabled"}}
-        kw = dict(include_dashboard=False, log_to_driver=False, configure_logging=False, runtime_env=env)
+        kw = dict(include_dashboard=False, log_to_driver=False, configure_logging=False,
+                  runtime_env={"env_vars": worker_env})
         if address:
             ray.init(address=address, **kw)
         else:

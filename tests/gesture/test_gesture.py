@@ -101,3 +101,13 @@ def test_gesture_command_outputs_and_bad_inputs(ds, tmp_path):
     subprocess.run([FFMPEG, "-v", "error", "-y", "-i", str(wav44), "-t", "0.3", str(short)], check=True)
     r = _run(str(short), "--db", str(ds), "--out", str(tmp_path / "y"))
     assert r.returncode == 2 and "at least" in r.stderr
+
+
+def test_eval_gesture_leave_one_video_out(ds):
+    from anima.eval.gesture import evaluate
+    r = evaluate(str(ds))
+    assert r["videos"] == 3 and r["minutes_of_audio_motion"] > 0.2
+    assert set(r["minutes_per_speaker"]) == {"oliver", "seth"}
+    ca = r["control_adherence"]
+    assert ca["left_wrist_height>=p85"]["mean"] > ca["none"]["mean"] > ca["left_wrist_height<=p15"]["mean"]
+    assert r["knn"]["l1_cm"] > 0 and r["knn"]["diversity_cm"] > 0
