@@ -38,6 +38,13 @@ class MatchDB:
     def M(self) -> int:
         return len(self.F)
 
+    def audio_norms(self) -> np.ndarray:
+        """|f| per database frame, computed as the literal search computes it (float64, per row)."""
+        if getattr(self, "_fnorm", None) is None:
+            F = self.F.astype(np.float64)
+            self._fnorm = np.sqrt((F * F).sum(-1))
+        return self._fnorm
+
     def search_layout(self) -> tuple:
         """Made once for the fast search: the pose features with their dimensions reordered by decreasing
         variance (the partial distance search stops early while reading rows sequentially), and their
@@ -172,6 +179,7 @@ def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
     Fdb = db.F
     base = db.start_mask(None)
     P, dims, Q, U = db.search_layout()
+    F_norm = db.audio_norms()
     lb = np.empty(P.shape[:2])
     G, picks = [], []
     p_prev = np.asarray(p_init, np.float64)
@@ -187,7 +195,9 @@ def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
         if not keep.any():
             raise ValueError("no database window satisfies the control")
         m_ok, r_ok = rows[keep], r[keep]
-        fd = _cosine(Fdb[m_ok, r_ok].astype(np.float64), F_in[t].astype(np.float64))
+        a = Fdb[m_ok, r_ok].astype(np.float64)
+        b = F_in[t].astype(np.float64)
+        fd = 1.0 - (a * b).sum(-1) / np.maximum(F_norm[m_ok, r_ok] * np.sqrt((b * b).sum(-1)), 1e-12)
         comb = _relrank(fd) + _relrank(pdist[keep])
         key = comb * len(comb) + np.arange(len(comb))  # the stable order of comb, as unique keys
         kk = min(k, len(key) - 1)

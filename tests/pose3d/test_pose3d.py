@@ -196,3 +196,28 @@ def test_wild_evidence_is_mediapipe_2d_with_masks(tmp_path):
     assert len(w["uv"]) > 20 and w["uv"].shape[1:] == (K, 2)
     assert ((w["conf"] >= 0) & (w["conf"] <= 1)).all()
     assert len(w["videos"]) >= 20
+
+
+def test_frames_without_a_person_stay_empty(tiny_model):
+    """A frame where MediaPipe found no person gives NaN joints, not a made-up pose; a person half out of
+    frame (legs not visible) still gets a full 17-joint estimate."""
+    from anima.pose3d.infer import lift_frames
+    h = pdata.load_h36m(("S1",), every=2000)
+    mp_px = np.full((3, 33, 2), np.nan)
+    vis = np.zeros((3, 33))
+    # frames 0 and 2: a person placed at MediaPipe's indices from a real projected H3.6M pose
+    from anima.pose3d.joints import _MP
+    for f in (0, 2):
+        mp_px[f] = 0.0  # MediaPipe always returns all 33 landmarks for a found person
+        for name, j in _MP.items():
+            src = {"nose": 9, "l_eye": 10, "r_eye": 10, "l_ear": 10, "r_ear": 10, "mouth_l": 9, "mouth_r": 9}
+            k = src.get(name, None)
+            if k is None:
+                from anima.pose3d.joints import H36M_NAMES
+                k = H36M_NAMES.index(name)
+            mp_px[f, j] = h.uv[f, k]
+            vis[f, j] = 0.9
+    vis[2, [25, 26, 27, 28]] = 0.1  # frame 2: knees and ankles out of frame
+    out = lift_frames(tiny_model[0], mp_px, vis)
+    assert np.isnan(out[1]).all()
+    assert np.isfinite(out[0]).all() and np.isfinite(out[2]).all()
