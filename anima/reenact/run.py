@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 
 from anima.errors import InputError
-from anima.reenact.database import ReenactDB, build_database
+from anima.reenact.database import build_database
 from anima.reenact.pipeline import ReenactConfig, Reenactor, Smoother, actor_expressions
 
 MAX_TARGET_BYTES = 1 << 30
