@@ -38,6 +38,18 @@ def _beat_consistency(J: np.ndarray, onsets_s: np.ndarray) -> float:
     return float(np.exp(-d ** 2 / (2 * 0.1 ** 2)).mean())
 
 
+def _speaker(source: str) -> str:
+    """PATS clips are named after their speaker (oliver3_gt.mp4 -> oliver); other clips by their folder."""
+    p = source.replace("\\", "/").split("/")
+    if "pats-crops" in p:
+        return p[-1].split("_")[0].rstrip("0123456789")
+    generic = {"assets", "examples", "video", "videos", "source", "face", "driving", "source_video", "samples"}
+    for part in reversed(p[:-1]):
+        if part and part not in generic:
+            return part
+    return p[-1]
+
+
 def evaluate(folder: str, ks=(0, 1, 2, 3, 4)) -> dict:
     import librosa
 
@@ -109,7 +121,6 @@ def evaluate(folder: str, ks=(0, 1, 2, 3, 4)) -> dict:
                        "sync classifier"]}
     per = defaultdict(list)
     for src, st in starts.items():
-        name = src.split("/")[-1].split("_")[0].rstrip("0123456789") or src
-        per[name].append((src, st))
+        per[_speaker(src)].append((src, st))
     out["minutes_per_speaker"] = {k: minutes(v) for k, v in sorted(per.items())}
     return out
