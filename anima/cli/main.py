@@ -30,6 +30,9 @@ def _cmd_capture(a) -> int:
                         body_3d=a.body_3d, pose_model=a.pose_model)
     if a.body_3d == "lifter" and a.face_only:
         raise InputError("--body-3d lifter needs the body: drop --face-only")
+    if a.body_3d == "lifter":  # a missing or unreadable checkpoint fails now, not after tracking the video
+        from anima.pose3d.train import default_checkpoint, load_checkpoint
+        load_checkpoint(Path(a.pose_model) if a.pose_model else default_checkpoint())
     tm = Timings()
     t0 = time.perf_counter()
     seq = capture_video(a.video, cfg, audio=a.audio, progress=not a.quiet, timings=tm)
@@ -372,7 +375,13 @@ def _cmd_reenact(a) -> int:
         r = reenact_video(a.actor, a.target, a.out, cfg, a.side_by_side, a.db, progress=not a.quiet)
         for n in r["notes"]:
             print(f"anima: note: {n}", file=sys.stderr)
-    print(json.dumps(r, indent=2) if a.json else f"wrote {r['output']}")
+    if a.json:
+        print(json.dumps(r, indent=2))
+    elif a.live is not None:
+        print(f"processed {r['frames_processed']} of {r['frames_received']} frames "
+              f"(median latency {r['latency_ms']['median']:.0f} ms)" + (f", wrote {r['output']}" if r["output"] else ""))
+    else:
+        print(f"wrote {r['output']}")
     return 0
 
 

@@ -16,6 +16,19 @@ import numpy as np
 from anima.dataset.storage import check_dataset, read_table
 
 
+def _bar(plt, path: Path, labels, values, color: str, ylabel: str, size, rotation: int, title: str | None = None) -> str:
+    fig, ax = plt.subplots(figsize=size)
+    ax.bar(labels, values, color=color)
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title)
+    plt.setp(ax.get_xticklabels(), rotation=rotation, ha="right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path.name
+
+
 def _plots(out: Path, lengths: list[float], attr_frac: dict[str, float], removed: dict[str, int]) -> list[str]:
     import matplotlib
 
@@ -33,24 +46,11 @@ def _plots(out: Path, lengths: list[float], attr_frac: dict[str, float], removed
     plt.close(fig)
     files.append("clip_lengths.png")
     if attr_frac:
-        fig, ax = plt.subplots(figsize=(6, 3))
         names = sorted(attr_frac, key=lambda k: -attr_frac[k])
-        ax.bar(names, [attr_frac[n] for n in names], color="#ee7733")
-        ax.set_ylabel("fraction of clips")
-        ax.set_title("Attribute distribution")
-        plt.setp(ax.get_xticklabels(), rotation=40, ha="right")
-        fig.tight_layout()
-        fig.savefig(out / "attributes.png", dpi=110)
-        plt.close(fig)
-        files.append("attributes.png")
-    fig, ax = plt.subplots(figsize=(5, 3))
-    ax.bar(list(removed), list(removed.values()), color="#aa3377")
-    ax.set_ylabel("clips removed")
-    plt.setp(ax.get_xticklabels(), rotation=30, ha="right")
-    fig.tight_layout()
-    fig.savefig(out / "removed.png", dpi=110)
-    plt.close(fig)
-    files.append("removed.png")
+        files.append(_bar(plt, out / "attributes.png", names, [attr_frac[n] for n in names], "#ee7733",
+                          "fraction of clips", (6, 3), 40, "Attribute distribution"))
+    files.append(_bar(plt, out / "removed.png", list(removed), list(removed.values()), "#aa3377", "clips removed",
+                      (5, 3), 30))
     return files
 
 

@@ -52,6 +52,7 @@ def evaluate_model(model, cache: Path, progress: bool = False) -> dict:
 def evaluate(checkpoint: Path | None, cache: Path, progress: bool = False) -> dict:
     """The lifter ``checkpoint`` (None: MediaPipe's baseline only) on S9 images and HumanEva."""
     from anima.pose3d.train import load_checkpoint
+    loaded = load_checkpoint(checkpoint) if checkpoint is not None else None  # fail before the slow part
     e = s9_image_evidence(cache, progress)
     f = e["found"]
     out = {"s9_images": {"frames": int(len(f)), "person_found": int(f.sum()),
@@ -61,8 +62,8 @@ def evaluate(checkpoint: Path | None, cache: Path, progress: bool = False) -> di
                                    "input": "ground-truth 2D of the 3 colour cameras (no HumanEva images are "
                                             "available, so MediaPipe cannot be run on it); nose masked (b_k = 0)"},
            "seed_published": SEED_PUBLISHED, "our_setting": OUR_SETTING}
-    if checkpoint is not None:
-        model, ck = load_checkpoint(checkpoint)
+    if loaded is not None:
+        model, ck = loaded
         res = evaluate_model(model, cache, progress)
         out["checkpoint"] = {"path": str(checkpoint), "config": ck["config"], "step": ck["step"],
                              "train_s": ck["extra"].get("seconds")}

@@ -195,7 +195,6 @@ def train(cfg: TrainConfig, out: Path, cache: Path, progress: bool = True, resum
     """Train (or resume) to ``cfg.steps``; writes ``out`` (checkpoint) every 500 steps and at the end."""
     from tqdm import tqdm
     torch.manual_seed(cfg.seed)
-    torch.set_num_threads(max(1, torch.get_num_threads()))
     model = Lifter(LifterConfig(**cfg.model))
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     gamma = cfg.lr_decay ** (1.0 / max(cfg.steps, 1))

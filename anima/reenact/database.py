@@ -113,7 +113,7 @@ def build_database(videos: list[str], max_frames: int | None = None, progress: b
         seq = seqs[vi] if seqs else capture_face(str(path), CaptureConfig(max_frames=max_frames), progress=progress)
         out_seqs.append(seq)
         identities.append(seq.identity)
-        metas.append({"path": str(path), "fps": seq.fps, "width": seq.width, "height": seq.height,
+        metas.append({"path": str(Path(path).resolve()), "fps": seq.fps, "width": seq.width, "height": seq.height,
                       "n_frames": seq.n_frames})
         R = seq.rotation_matrices()
         good = seq.flags == 0

@@ -52,7 +52,7 @@ def prepare(targets: list[str], db_path: str | None, progress: bool, max_frames:
     from anima.reenact.database import read_database, write_database
     if db_path and Path(db_path).exists():
         db = read_database(db_path)
-        if db.meta["videos"][0]["path"] != str(targets[0]):
+        if Path(db.meta["videos"][0]["path"]).resolve() != Path(targets[0]).resolve():
             raise InputError(f"{db_path} was built from {db.meta['videos'][0]['path']}, not {targets[0]}: "
                              "use another --db path")
         seq0 = capture_face(str(targets[0]), CaptureConfig(max_frames=max_frames), progress=progress)
