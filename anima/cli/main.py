@@ -345,6 +345,76 @@ def _cmd_eval_gesture(a) -> int:
     return 0
 
 
+def _t2f_train_config(a):
+    from anima.text2face.train import TrainConfig
+
+    model = {}
+    if a.codebook is not None:
+        model["N_emb"] = a.codebook
+    if a.emb_dim is not None:
+        model["D_emb"] = a.emb_dim
+    if a.style:
+        model["style"] = True
+    if a.steps < 1 or a.batch < 1:
+        raise InputError("--steps and --batch must be >= 1")
+    if not 0 <= a.tf_drop < 1:
+        raise InputError("--tf-drop must be in [0, 1)")
+    return TrainConfig(kind=a.kind, preset=a.preset, model=model, scheme=a.scheme, steps=a.steps, batch=a.batch,
+                       lr=a.lr, seed=a.seed, encoder=a.encoder, tf_drop=a.tf_drop)
+
+
+def _cmd_train_text2face(a) -> int:
+    from anima.text2face.train import train
+    from anima.text2face.ship import ship
+
+    if not Path(a.dataset).exists():
+        raise InputError(f"no dataset at {a.dataset}")
+    cfg = _t2f_train_config(a)
+    command = "anima " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("anima") else ""
+    r = train(a.dataset, a.out, cfg, progress=not a.quiet, command=command or f"anima train text2face {a.dataset}")
+    msg = {"checkpoint": str(r["path"]), "steps": cfg.steps, "wall_s": round(r["info"]["wall_s"], 1),
+           "final_loss": float(sum(r["info"]["losses"][-50:]) / max(1, len(r["info"]["losses"][-50:])))}
+    if a.ship:
+        msg["shipped"] = [str(p) for p in ship(r["path"], a.ship, a.dataset, progress=not a.quiet)]
+    print(json.dumps(msg, indent=2) if a.json else "\n".join(f"{k}: {v}" for k, v in msg.items()))
+    return 0
+
+
+def _cmd_text2face(a) -> int:
+    import warnings
+
+    from anima.text2face.generate import Generator, write_outputs
+
+    gen = Generator(a.checkpoint)
+    n = gen.check_length(int(round(a.seconds * 30)) if a.seconds else a.length)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        from anima.text2face.encoders import clean_prompt
+        prompt = clean_prompt(a.prompt, gen.encoder)
+    for w in caught:
+        print(f"anima: warning: {w.message}", file=sys.stderr)
+    t = time.perf_counter()
+    motion = gen.generate([prompt], n, a.seed)[0]
+    dt = time.perf_counter() - t
+    info = {"frames": n, "fps": 30.0, "seed": a.seed, "checkpoint": str(gen.path), "kind": gen.kind,
+            "sampling_s": round(dt, 3)}
+    files = write_outputs(a.out, motion, prompt, info, video=not a.no_video, progress=not a.json)
+    info["written"] = [str(p) for p in files.values()]
+    print(json.dumps(info, indent=2) if a.json else f"{n} frames in {dt:.2f} s; wrote " + ", ".join(info["written"]))
+    return 0
+
+
+def _cmd_eval_text2face(a) -> int:
+    from anima.eval.text2face import evaluate
+
+    if not Path(a.dataset).exists():
+        raise InputError(f"no dataset at {a.dataset}")
+    r = evaluate(a.dataset, Path(a.work), reps=a.reps, ablations=not a.no_ablations, steps=a.steps,
+                 seed_preset=a.seed_preset, checkpoint=a.checkpoint, progress=not a.json)
+    print(json.dumps(r, indent=2))
+    return 0
+
+
 def _cmd_eval_reenact(a) -> int:
     from anima.eval.reenact import evaluate
 
@@ -508,6 +578,23 @@ def build_parser() -> argparse.ArgumentParser:
     eg.add_argument("--json", action="store_true", help="(the result is JSON either way)")
     eg.set_defaults(func=_cmd_eval_gesture)
 
+
+    et = esub.add_parser("text2face", help="text -> face: tables 7.1-7.3, attribute recall, R-precision",
+                         description="Trains (or reuses, in --work) the seed 000 model, its ablations and the MDM "
+                         "baseline on the dataset's training videos and scores them with the retrieval and mean "
+                         "baselines on 90-frame windows of the held-out videos: MAE/RMSE of mouth and eye vertices "
+                         "(mm), Diversity, each over --reps repetitions with 95%% confidence intervals; attribute "
+                         "recall with the dataset's detectors; R-precision with a contrastive text-motion evaluator.")
+    et.add_argument("dataset", help="dataset folder from `anima dataset build`")
+    et.add_argument("--work", default="runs/eval_text2face", help="folder for the trained models (reused)")
+    et.add_argument("--reps", type=int, default=20)
+    et.add_argument("--steps", type=int, default=2000, help="training steps per model")
+    et.add_argument("--no-ablations", action="store_true", help="only the model and the baselines")
+    et.add_argument("--seed-preset", action="store_true", help="also train the seed-size model (13.6 M parameters)")
+    et.add_argument("--checkpoint", default=None, help="score this checkpoint as 'ours' instead of training it")
+    et.add_argument("--json", action="store_true", help="(the result is JSON either way)")
+    et.set_defaults(func=_cmd_eval_text2face)
+
     tr = sub.add_parser("train", help="train models")
     trsub = tr.add_subparsers(dest="train_command", metavar="MODEL")
     tp = trsub.add_parser("pose", help="the weakly supervised 2D->3D body pose lifter (seed 004 ch. 3)",
@@ -530,6 +617,53 @@ def build_parser() -> argparse.ArgumentParser:
     tp.add_argument("--json", action="store_true")
     tp.add_argument("--quiet", action="store_true")
     tp.set_defaults(func=_cmd_train_pose)
+
+
+    tt = trsub.add_parser("text2face", help="text -> facial motion: the seed 000 model or the MDM baseline",
+                          description="Train on the (text, motion) clips of a dataset from `anima dataset build`: "
+                          "random crops re-described by the timeline grammar, the vertex-offset loss through the ICT "
+                          "face model, teacher forcing (seed 000 ch. 6-7). Resumable: rerun the same command. "
+                          "The checkpoint carries its config and normalisation.")
+    tt.add_argument("dataset", help="dataset folder")
+    tt.add_argument("--out", default="runs/text2face", help="run folder (checkpoint.pt is written there)")
+    tt.add_argument("--kind", choices=["text2face", "mdm"], default="text2face",
+                    help="text2face: cVQVAE + FaceFormer decoder; mdm: the diffusion baseline")
+    tt.add_argument("--preset", choices=["seed", "small"], default="seed",
+                    help="seed: the hyper-parameters of seed 000 §7.1; small: d_m 256, d_t 32 (the shipped model)")
+    tt.add_argument("--scheme", choices=["teacher", "autoregressive"], default="teacher")
+    tt.add_argument("--codebook", type=int, default=None, help="N_emb (codebook entries)")
+    tt.add_argument("--emb-dim", type=int, default=None, help="D_emb (codebook entry size)")
+    tt.add_argument("--style", action="store_true", help="ablation: add a random style vector to the decoder input")
+    tt.add_argument("--tf-drop", type=float, default=0.9,
+                    help="share of teacher-forced input frames replaced by the start frame (0 = the seed; see "
+                    "docs/text2face.md for why 0.9)")
+    tt.add_argument("--steps", type=int, default=2000)
+    tt.add_argument("--batch", type=int, default=8)
+    tt.add_argument("--lr", type=float, default=1e-4)
+    tt.add_argument("--seed", type=int, default=0)
+    tt.add_argument("--encoder", choices=["minilm", "clip"], default="minilm")
+    tt.add_argument("--ship", default=None, metavar="PATH",
+                    help="also write a compact (float16, no optimizer) copy and its manifest (command, data "
+                    "fingerprint, held-out metrics) to PATH")
+    tt.add_argument("--json", action="store_true")
+    tt.add_argument("--quiet", action="store_true")
+    tt.set_defaults(func=_cmd_train_text2face)
+
+
+    tf = sub.add_parser("text2face", help="generate facial motion from a sentence",
+                        description="Seed 000: a sentence -> 3D facial motion (ICT expression weights + head "
+                        "rotation, 30 fps). Writes motion.npz (a tracked sequence: `anima info`, `anima export`), "
+                        "face.mp4, arkit.csv (Live Link Face) and face.glb. Uses the shipped checkpoint unless "
+                        "--checkpoint is given.")
+    tf.add_argument("prompt", help='e.g. "a woman smiles, then blinks"')
+    tf.add_argument("--out", required=True, help="output folder")
+    tf.add_argument("--length", type=int, default=90, help="frames at 30 fps (default 90 = 3 s)")
+    tf.add_argument("--seconds", type=float, default=None, help="length in seconds (overrides --length)")
+    tf.add_argument("--seed", type=int, default=0, help="random code seed: other seeds give other motions")
+    tf.add_argument("--checkpoint", default=None, help="a checkpoint from `anima train text2face`")
+    tf.add_argument("--no-video", action="store_true", help="skip the MP4 render")
+    tf.add_argument("--json", action="store_true")
+    tf.set_defaults(func=_cmd_text2face)
 
     re_ = sub.add_parser("reenact", help="put an actor's lower-face expression on a target person's video",
                          description="Seed 001: fit the ICT face model to actor and target, build a database of "

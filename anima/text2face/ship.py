@@ -1,0 +1,38 @@
+"""Ship a trained text2face checkpoint: a compact copy (float16 weights, no optimizer state) and a manifest
+(command, data fingerprint, training time, held-out metrics, sha256) beside it, ``<name>.json``."""
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+from anima import __version__
+from anima.text2face.train import TrainConfig, load_checkpoint, save_checkpoint
+
+
+def ship(checkpoint: str | Path, dest: str | Path, dataset: str | Path, progress: bool = True) -> list[Path]:
+    from anima.eval.text2face import quick_metrics
+
+    ck = load_checkpoint(checkpoint)
+    dest = Path(dest)
+    cfg = TrainConfig(**ck["train_config"])
+    import numpy as np
+
+    save_checkpoint(dest, kind=ck["kind"], model=ck["model"], train_cfg=cfg,
+                    stats=(np.asarray(ck["mean"]), np.asarray(ck["std"])), gram=ck["gram"], step=ck["step"],
+                    info={k: v for k, v in ck["info"].items() if k != "losses"}, compact=True)
+    metrics = quick_metrics(dataset, dest)
+    info = ck["info"]
+    manifest = {
+        "checkpoint": dest.name, "sha256": hashlib.sha256(dest.read_bytes()).hexdigest(),
+        "bytes": dest.stat().st_size, "kind": ck["kind"], "anima_version": __version__,
+        "command": info.get("command"), "data_fingerprint": info.get("data_fingerprint"),
+        "dataset": info.get("dataset"), "train_clips": info.get("train_clips"), "train_crops": info.get("train_items"),
+        "steps": ck["step"], "train_wall_s": round(info.get("wall_s", 0.0), 1),
+        "final_loss": round(sum(info["losses"][-50:]) / max(1, len(info["losses"][-50:])), 4) if info.get("losses") else None,
+        "params": sum(p.numel() for p in ck["model"].parameters()), "model_config": ck["model_config"],
+        "heldout_metrics": metrics,
+    }
+    man = dest.with_suffix(".json")
+    man.write_text(json.dumps(manifest, indent=2) + "\n")
+    return [dest, man]

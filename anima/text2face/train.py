@@ -1,0 +1,232 @@
+"""Training of the text -> face models (seed 000 §6.3, §7.1) and their checkpoints.
+
+``train(dataset, out, TrainConfig(...))`` trains the seed's model (``kind="text2face"``, teacher forcing by
+default, ``scheme="autoregressive"`` for the FaceFormer ablation) or the MDM-style diffusion baseline
+(``kind="mdm"``) on the same crops, with the same loss: the z-normalised vertex-offset MSE of the face
+region (through the 53x53 Gram matrix of :class:`anima.text2face.data.FaceGeometry`) plus the MSE of the
+z-normalised head rotation, masked over padding (eq. 6.2), plus the VQ loss (eq. 6.3) for the cVQVAE.
+
+Checkpoint ``anima.text2face`` version 1 (one writer :func:`save_checkpoint`, one reader
+:func:`load_checkpoint`): format, version, kind, model and training config, normalisation (mean, std), the
+loss Gram matrix, step, weights, optimizer state (absent in a compact export, whose weights are float16),
+and info (data fingerprint, command, losses, wall time). Training resumes from ``out/checkpoint.pt``.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from anima.errors import InputError, SchemaError
+from anima.text2face.data import FaceGeometry, crop_pool, load_clips, motion_stats, split_clips
+from anima.text2face.diffusion import MDM, MDMConfig
+from anima.text2face.encoders import encode_cached, get_encoder
+from anima.text2face.model import Text2Face, preset
+
+FORMAT = "anima.text2face"
+VERSION = 1
+
+
+@dataclass
+class TrainConfig:
+    kind: str = "text2face"  # or "mdm"
+    preset: str = "seed"
+    model: dict = field(default_factory=dict)  # overrides of the model config
+    scheme: str = "teacher"  # or "autoregressive" (FaceFormer's)
+    steps: int = 2000
+    batch: int = 8
+    lr: float = 1e-4
+    w_rot: float = 1.0
+    per_clip: int = 30
+    min_len: int = 30
+    max_len: int = 300
+    seed: int = 0
+    ckpt_every: int = 250
+    restart_every: int = 50  # dead-code restart of the cVQVAE codebook (0: never; the seed does not say)
+    fresh_codes: bool = False  # draw the random code anew each step instead of fixing it per sample (§6.1)
+    tf_drop: float = 0.9
+    """Share of teacher-forced input frames replaced by the zero start frame. Not in the seed: with plain
+    teacher forcing the decoder learns to copy the previous frame (30 fps face motion is smooth), ignores
+    the text, and the sampled motion is the same for every prompt (docs/text2face.md). 0 = the seed."""
+    tf_noise: float = 0.0  # Gaussian noise (z units) on teacher-forced inputs against exposure bias
+    encoder: str = "minilm"
+    threads: int = 0  # 0: torch's default
+
+
+def fingerprint(clips) -> str:
+    h = hashlib.sha256()
+    for c in sorted(clips, key=lambda c: c.clip_id):
+        h.update(c.clip_id.encode())
+        h.update(np.ascontiguousarray(c.motion).tobytes())
+    return h.hexdigest()[:16]
+
+
+def build_model(kind: str, model_cfg: dict):
+    if kind == "text2face":
+        from anima.text2face.model import Text2FaceConfig
+        return Text2Face(Text2FaceConfig(**model_cfg))
+    if kind == "mdm":
+        return MDM(MDMConfig(**model_cfg))
+    raise SchemaError(f"unknown model kind {kind!r}")
+
+
+def model_config(cfg: TrainConfig, d_c: int) -> dict:
+    base = dict(d_c=d_c, max_len=cfg.max_len, min_len=cfg.min_len, encoder=cfg.encoder)
+    if cfg.kind == "text2face":
+        return preset(cfg.preset, **base, **cfg.model).to_dict()
+    return MDMConfig(**{**base, **cfg.model}).to_dict()
+
+
+def rec_loss(pred, target, mask, std, G, w_rot: float):
+    """Masked mean over frames of the z-normalised vertex-offset MSE + ``w_rot`` x head-rotation MSE."""
+    d = pred - target
+    de = d[..., :53] * std[:53]
+    vert = torch.einsum("bti,ij,btj->bt", de, G, de)
+    rot = d[..., 53:].pow(2).mean(-1)
+    per = vert + w_rot * rot
+    return (per * mask).sum() / mask.sum().clamp(min=1)
+
+
+# ---- checkpoints -----------------------------------------------------------------------------------
+
+def save_checkpoint(path: Path, *, kind, model, train_cfg: TrainConfig, stats, gram, step, opt=None,
+                    info=None, compact=False) -> Path:
+    state = {k: (v.half() if compact and v.is_floating_point() else v) for k, v in model.state_dict().items()}
+    obj = {"format": FORMAT, "version": VERSION, "kind": kind, "model_config": model.cfg.to_dict(),
+           "train_config": asdict(train_cfg), "mean": stats[0].tolist(), "std": stats[1].tolist(),
+           "gram": np.asarray(gram).tolist(), "step": step, "state": state,
+           "optim": None if compact or opt is None else opt.state_dict(), "info": info or {}}
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    torch.save(obj, tmp)
+    tmp.replace(path)
+    return path
+
+
+def load_checkpoint(path: str | Path) -> dict:
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"checkpoint not found: {p}")
+    try:
+        obj = torch.load(p, map_location="cpu", weights_only=True)
+    except Exception as e:  # noqa: BLE001 - corrupt or not a torch file
+        raise SchemaError(f"{p}: not a readable text2face checkpoint ({type(e).__name__})") from e
+    if not isinstance(obj, dict) or obj.get("format") != FORMAT:
+        raise SchemaError(f"{p}: not a text2face checkpoint (format {obj.get('format') if isinstance(obj, dict) else '?'!r})")
+    if obj.get("version") != VERSION:
+        raise SchemaError(f"{p}: text2face checkpoint version {obj.get('version')}, this anima reads {VERSION}; "
+                          "retrain with `anima train text2face`")
+    model = build_model(obj["kind"], obj["model_config"])
+    model.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in obj["state"].items()})
+    model.eval()
+    obj["model"] = model
+    return obj
+
+
+# ---- training --------------------------------------------------------------------------------------
+
+def prepare(dataset: str | Path, cfg: TrainConfig):
+    clips = load_clips(dataset)
+    train_clips, held = split_clips(clips)
+    pool = crop_pool(train_clips, cfg.per_clip, cfg.min_len, cfg.max_len, cfg.seed)
+    enc = get_encoder(cfg.encoder)
+    texts = sorted({it.text for it in pool})
+    emb = dict(zip(texts, encode_cached(enc, texts)))
+    E = np.stack([emb[it.text] for it in pool])
+    stats = motion_stats(pool)
+    gram = FaceGeometry().gram(np.concatenate([it.motion[:, :53] for it in pool]))
+    return clips, pool, E, stats, gram, enc
+
+
+def train(dataset: str | Path, out: str | Path, cfg: TrainConfig, progress: bool = True,
+          command: str = "", prepared=None) -> dict:
+    out = Path(out)
+    ck_path = out / "checkpoint.pt"
+    torch.manual_seed(cfg.seed)
+    if cfg.threads:
+        torch.set_num_threads(cfg.threads)
+    clips, pool, E, stats, gram, enc = prepared or prepare(dataset, cfg)
+    mcfg = model_config(cfg, enc.dim)
+    model = build_model(cfg.kind, mcfg)
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    step, losses, wall0 = 0, [], 0.0
+    if ck_path.is_file():
+        ck = torch.load(ck_path, map_location="cpu", weights_only=True)
+        same = {**ck.get("train_config", {}), "steps": cfg.steps, "ckpt_every": cfg.ckpt_every} == asdict(cfg)
+        if ck.get("format") == FORMAT and same and ck.get("optim") and ck["step"] <= cfg.steps:  # resume or extend
+            model.load_state_dict(ck["state"])
+            opt.load_state_dict(ck["optim"])
+            step, losses = ck["step"], ck["info"].get("losses", [])
+            wall0 = ck["info"].get("wall_s", 0.0)
+        else:
+            raise InputError(f"{ck_path} exists but was trained with another configuration (or further than "
+                             f"--steps); use another --out")
+    mean_t, std_t, G = torch.tensor(stats[0]), torch.tensor(stats[1]), torch.tensor(gram)
+    d_r = mcfg.get("d_r", 0)
+    codes = torch.from_numpy(np.random.default_rng(cfg.seed + 1).standard_normal((len(pool), max(d_r, 1))).astype(np.float32))
+    E_t = torch.from_numpy(E)
+    motions = [torch.from_numpy((it.motion - stats[0]) / stats[1]) for it in pool]
+    fp = fingerprint(clips)
+    t0 = time.time()
+    model.train()
+
+    def info():
+        return {"data_fingerprint": fp, "dataset": str(dataset), "command": command, "losses": losses,
+                "wall_s": wall0 + time.time() - t0, "train_items": len(pool),
+                "train_clips": sum(c.split == "train" for c in clips), "torch": str(torch.__version__)}
+
+    bar = tqdm(total=cfg.steps, initial=step, desc=f"train {cfg.kind}", unit="step", disable=not progress)
+    while step < cfg.steps:
+        # every step draws from its own seeds: a resumed run continues exactly as an uninterrupted one
+        rng = np.random.default_rng((cfg.seed, step))
+        torch.manual_seed(cfg.seed * 1_000_003 + step)
+        idx = rng.integers(0, len(pool), cfg.batch)
+        T = max(len(motions[i]) for i in idx)
+        x = torch.zeros(cfg.batch, T, motions[0].shape[1])
+        mask = torch.zeros(cfg.batch, T)
+        for b, i in enumerate(idx):
+            x[b, :len(motions[i])] = motions[i]
+            mask[b, :len(motions[i])] = 1
+        if cfg.kind == "text2face":
+            if cfg.restart_every and step % cfg.restart_every == 0:  # stateless: resumes exactly
+                with torch.no_grad():
+                    used = model.guide.quantize(model.guide.enc(E_t))[1]
+                model.guide.restart_codes(E_t, torch.bincount(used, minlength=model.cfg.N_emb),
+                                          torch.Generator().manual_seed(cfg.seed * 7919 + step))
+            code = torch.randn(len(idx), d_r) if cfg.fresh_codes else codes[idx, :d_r]
+            if cfg.scheme == "teacher":
+                xin = x + cfg.tf_noise * torch.randn_like(x) if cfg.tf_noise else x
+                if cfg.tf_drop:
+                    xin = xin * (torch.rand(x.shape[:2]) >= cfg.tf_drop)[..., None]
+                pred, vq = model(E_t[idx], code, xin)
+            else:
+                pred, vq = model._rollout(E_t[idx], code, T, cached=True)
+            loss = rec_loss(pred, x, mask, std_t, G, cfg.w_rot) + vq
+        else:
+            t = torch.from_numpy(rng.integers(0, model.cfg.steps, cfg.batch))
+            noise = torch.randn_like(x)
+            keep = torch.from_numpy((rng.random(cfg.batch) >= model.cfg.cond_drop).astype(np.float32))
+            x0 = model(model.q_sample(x, t, noise), t, E_t[idx], keep, pad_mask=mask == 0)
+            loss = rec_loss(x0, x, mask, std_t, G, cfg.w_rot)
+        opt.zero_grad()
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+        opt.step()
+        step += 1
+        losses.append(round(float(loss.detach()), 5))
+        bar.update(1)
+        if step % 20 == 0:
+            bar.set_postfix(loss=f"{np.mean(losses[-20:]):.3f}")
+        if step % cfg.ckpt_every == 0 or step == cfg.steps:
+            save_checkpoint(ck_path, kind=cfg.kind, model=model, train_cfg=cfg, stats=stats, gram=gram, step=step,
+                            opt=opt, info=info())
+    bar.close()
+    model.eval()
+    return {"model": model, "path": ck_path, "info": info(), "stats": stats}

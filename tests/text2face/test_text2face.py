@@ -1,0 +1,246 @@
+"""Text -> facial motion (seed 000 ch. 6-7): the encoder interface, the FaceFormer pieces, the exact
+vertex-offset loss, the cached sampler, the shipped checkpoint, training on a dataset built from real clips,
+and the command with its bad inputs."""
+import json
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+import torch
+
+from anima.errors import AssetNotFound, InputError, SchemaError
+from anima.io.assets import asset
+
+CLIPS = ["liveportrait-examples/assets/examples/driving/d0.mp4",
+         "liveportrait-examples/assets/examples/driving/d6.mp4"]
+
+
+@pytest.fixture(scope="module")
+def encoder():
+    from anima.text2face.encoders import get_encoder
+    return get_encoder("minilm")
+
+
+# ---- encoders ---------------------------------------------------------------------------------------
+
+def test_minilm_shape_determinism_and_any_language(encoder):
+    texts = ["a woman smiles, then blinks", "una mujer sonríe y luego parpadea", "女人微笑"]
+    a, b = encoder.encode(texts), encoder.encode(texts)
+    assert a.shape == (3, 384) and a.dtype == np.float32
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_allclose(np.linalg.norm(a, axis=1), 1, atol=1e-5)
+    assert np.isfinite(a).all() and not np.allclose(a[0], a[1])
+    # related sentences are closer than unrelated ones
+    c = encoder.encode(["a man smiles and then blinks", "the stock market fell sharply today"])
+    assert c[0] @ a[0] > c[1] @ a[0] + 0.3
+
+
+def test_clip_encoder_shape_and_determinism_or_a_clear_error():
+    from anima.text2face.encoders import OpenClipEncoder
+    try:
+        enc = OpenClipEncoder()
+    except AssetNotFound as e:
+        assert "minilm" in str(e)  # tells the user what to use instead
+        pytest.skip(f"CLIP unavailable here: {e}")
+    e1, e2 = enc.encode(["a person smiles"]), enc.encode(["a person smiles"])
+    assert e1.shape == (1, 512)
+    np.testing.assert_array_equal(e1, e2)
+
+
+def test_prompts_empty_refused_long_truncated(encoder):
+    from anima.text2face.encoders import clean_prompt
+    for bad in ["", "   ", None]:
+        with pytest.raises(InputError, match="empty"):
+            clean_prompt(bad, encoder)
+    long = " ".join(["the person smiles and then blinks"] * 80)
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        short = clean_prompt(long, encoder)
+    assert any("truncated" in str(x.message) for x in w)
+    assert encoder.n_tokens(short) <= encoder.max_tokens
+
+
+# ---- model maths --------------------------------------------------------------------------------------
+
+def test_temporal_and_alignment_biases_and_periodic_encoding():
+    from anima.text2face.model import alignment_bias, periodic_positional_encoding, temporal_bias
+    B = temporal_bias(4, 15, 40)
+    assert B.shape == (4, 40, 40)
+    assert torch.isinf(B[:, 3, 4:]).all() and torch.isfinite(B[:, 3, :4]).all()  # causal
+    assert (B[:, 20, 6:21] == 0).all() and (B[:, 20, 5] < 0).all()  # same period: no penalty
+    assert (B[0, 39, 0] < B[3, 39, 0])  # steeper slope on head 0
+    A = alignment_bias(5, 7)
+    assert (A.diagonal() == 0).all() and torch.isinf(A[0, 1:]).all()
+    pe = periodic_positional_encoding(32, 15, 60)
+    torch.testing.assert_close(pe[:15], pe[15:30])
+
+
+def _tiny(**over):
+    from anima.text2face.model import Text2Face, preset
+    torch.manual_seed(0)
+    m = Text2Face(preset("small", d_m=64, d_t=8, mlp_hidden=32, max_len=60, n_layers=2, **over))
+    for p in m.out.parameters():  # the output layer starts at zero; give it values for the tests
+        torch.nn.init.normal_(p, std=0.1)
+    return m.eval()
+
+
+def test_cached_sampler_equals_uncached_and_teacher_forcing_is_causal():
+    m = _tiny()
+    e, c = torch.randn(2, 384), torch.randn(2, 64)
+    a = m.sample(e, c, 40, cached=True)
+    b = m.sample(e, c, 40, cached=False)
+    torch.testing.assert_close(a, b, atol=1e-5, rtol=1e-4)
+    # teacher forcing on the sampled sequence reproduces it (same inputs at every step)
+    with torch.no_grad():
+        tf, _ = m(e, c, a)
+    torch.testing.assert_close(tf, a, atol=1e-5, rtol=1e-4)
+    # frame t of the prediction does not depend on frames >= t of the input
+    x = torch.randn(2, 40, 56)
+    y = x.clone()
+    y[:, 20:] += 1
+    with torch.no_grad():
+        p1, _ = m(e, c, x)
+        p2, _ = m(e, c, y)
+    torch.testing.assert_close(p1[:, :21], p2[:, :21])
+    assert not torch.allclose(p1[:, 21:], p2[:, 21:])
+    with pytest.raises(ValueError, match="trained range"):
+        m.sample(e, c, 61)
+
+
+def test_vq_straight_through_reaches_the_encoder_and_codebook_learns_from_vq_only():
+    m = _tiny().train()
+    e, c, x = torch.randn(4, 384), torch.randn(4, 64), torch.randn(4, 30, 56)
+    pred, vq = m(e, c, x)
+    (pred - x).pow(2).mean().backward(retain_graph=True)
+    assert m.guide.enc[0].weight.grad.abs().sum() > 0  # reconstruction gradient passes the quantiser
+    assert m.guide.codebook.weight.grad is None or m.guide.codebook.weight.grad.abs().sum() == 0
+    vq.backward()
+    assert m.guide.codebook.weight.grad.abs().sum() > 0
+
+
+def test_gram_loss_equals_explicit_z_normalised_vertex_offset_mse():
+    from anima.text2face.data import FaceGeometry
+    from anima.text2face.train import rec_loss
+    geom = FaceGeometry()
+    rng = np.random.default_rng(0)
+    expr = rng.random((500, 53)) ** 3
+    G = geom.gram(expr)
+    # explicit: offsets of every face vertex coordinate, z-normalised with the same per-coordinate std
+    O = expr @ geom.B
+    sd = O.std(0)
+    sd = np.maximum(sd, 0.05 * np.median(sd[sd > 0]))
+    std = np.ones(56, np.float32)
+    std[:53] = 1.0
+    p, t = rng.random((1, 3, 56)).astype(np.float32), rng.random((1, 3, 56)).astype(np.float32)
+    p[..., 53:] = t[..., 53:]
+    explicit = (((p[0, :, :53] - t[0, :, :53]) @ geom.B / sd) ** 2).mean()
+    got = rec_loss(torch.from_numpy(p), torch.from_numpy(t), torch.ones(1, 3), torch.from_numpy(std),
+                   torch.from_numpy(G), 1.0)
+    assert float(got) == pytest.approx(explicit, rel=2e-3)
+
+
+# ---- the shipped checkpoint ---------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def shipped():
+    from anima.text2face.generate import Generator, default_checkpoint
+    return Generator(default_checkpoint())
+
+
+def test_shipped_checkpoint_is_small_and_carries_its_manifest(shipped):
+    p = shipped.path
+    assert p.stat().st_size < 8e6
+    man = json.loads(p.with_suffix(".json").read_text())
+    assert man["command"].startswith("anima train text2face") and len(man["data_fingerprint"]) == 16
+    assert man["heldout_metrics"]["mae_mm"]["mean"] > 0 and man["train_wall_s"] < 1800
+    import hashlib
+    assert hashlib.sha256(p.read_bytes()).hexdigest() == man["sha256"]
+
+
+def test_shipped_model_generates_seeded_valid_motion(shipped):
+    a = shipped.generate(["a woman smiles, then blinks"], 90, seed=0)
+    b = shipped.generate(["a woman smiles, then blinks"], 90, seed=0)
+    c = shipped.generate(["a woman smiles, then blinks"], 90, seed=1)
+    assert a.shape == (1, 90, 56) and np.isfinite(a).all()
+    assert a[..., :53].min() >= 0 and a[..., :53].max() <= 1
+    np.testing.assert_array_equal(a, b)
+    assert not np.allclose(a, c)
+    assert a[0, :, :53].std(0).max() > 0.01  # it moves
+    with pytest.raises(InputError, match="trained range"):
+        shipped.generate(["a person smiles"], 10_000)
+
+
+def test_shipped_model_follows_the_prompt(shipped):
+    """The dataset's detectors on generated motion: a smile prompt smiles more than a neutral one."""
+    from anima.dataset.attributes import _mean
+    from anima.text2face.generate import motion_to_sequence
+    smile = shipped.generate(["The person smiles for a long time"] * 5, 90, seed=3)
+    neutral = shipped.generate(["The person keeps a neutral face for a long time"] * 5, 90, seed=3)
+    s = [_mean(motion_to_sequence(m), ["mouthSmile_L", "mouthSmile_R"]).mean() for m in smile]
+    n = [_mean(motion_to_sequence(m), ["mouthSmile_L", "mouthSmile_R"]).mean() for m in neutral]
+    assert np.mean(s) > np.mean(n) + 0.05, (s, n)
+
+
+def test_checkpoint_of_another_version_is_refused(tmp_path, shipped):
+    from anima.text2face.train import load_checkpoint
+    obj = torch.load(shipped.path, weights_only=True)
+    obj["version"] = 99
+    torch.save(obj, tmp_path / "v99.pt")
+    with pytest.raises(SchemaError, match="version 99"):
+        load_checkpoint(tmp_path / "v99.pt")
+    (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(SchemaError):
+        load_checkpoint(tmp_path / "junk.pt")
+
+
+# ---- training on real clips, and the command ------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def ds(tmp_path_factory):
+    out = tmp_path_factory.mktemp("t2fds") / "ds"
+    r = subprocess.run([sys.executable, "-m", "anima", "dataset", "build", *[str(asset(c)) for c in CLIPS],
+                        "--out", str(out), "--min-len", "2", "--max-len", "6", "--workers", "1", "--quiet", "--json"],
+                       capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return out
+
+
+def test_training_learns_resumes_exactly_and_carries_its_config(ds, tmp_path):
+    from anima.text2face.train import TrainConfig, load_checkpoint, train
+    cfg = TrainConfig(preset="small", model={"d_m": 64, "d_t": 8, "mlp_hidden": 32}, steps=60, ckpt_every=30,
+                      per_clip=8, min_len=30, max_len=180, lr=1e-3, batch=4)
+    full = train(ds, tmp_path / "a", cfg, progress=False)
+    losses = full["info"]["losses"]
+    assert np.mean(losses[-10:]) < np.mean(losses[:10])
+    import dataclasses
+    train(ds, tmp_path / "b", dataclasses.replace(cfg, steps=30), progress=False)
+    resumed = train(ds, tmp_path / "b", cfg, progress=False)  # extends the 30-step run to 60
+    for (k, v), w in zip(full["model"].state_dict().items(), resumed["model"].state_dict().values()):
+        torch.testing.assert_close(v, w, msg=k)
+    ck = load_checkpoint(tmp_path / "a" / "checkpoint.pt")
+    assert ck["model_config"]["d_m"] == 64 and ck["train_config"]["steps"] == 60 and ck["step"] == 60
+    with pytest.raises(InputError, match="another configuration"):
+        train(ds, tmp_path / "a", dataclasses.replace(cfg, lr=1e-2), progress=False)
+
+
+def _run(*args):
+    return subprocess.run([sys.executable, "-m", "anima", *args], capture_output=True, text=True, timeout=600)
+
+
+def test_text2face_command_writes_its_files_and_refuses_bad_input(tmp_path):
+    from anima.io.sequence import read_sequence
+    out = tmp_path / "gen"
+    r = _run("text2face", "a woman smiles, then blinks", "--out", str(out), "--length", "45", "--json")
+    assert r.returncode == 0, r.stderr[-2000:]
+    info = json.loads(r.stdout)
+    for f in ("motion.npz", "face.mp4", "arkit.csv", "face.glb", "info.json"):
+        assert (out / f).stat().st_size > 0, f
+    seq = read_sequence(out / "motion.npz")
+    assert seq.n_frames == 45 and seq.fps == 30 and info["frames"] == 45
+    assert len((out / "arkit.csv").read_text().splitlines()) == 46
+    for args, code, msg in [(("",), 2, "empty"), (("a person smiles", "--length", "5000"), 2, "trained range"),
+                            (("a person smiles", "--checkpoint", str(tmp_path / "none.pt")), 2, "not found")]:
+        r = _run("text2face", *args, "--out", str(tmp_path / "bad"), "--no-video")
+        assert r.returncode == code and msg in r.stderr and "Traceback" not in r.stderr, r.stderr
