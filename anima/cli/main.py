@@ -326,7 +326,11 @@ def _cmd_gesture(a) -> int:
         raise InputError("--k must be >= 0")
     controls = [parse_control(c) for c in a.control]
     db = from_dataset(a.db, None if a.all_splits else "train")
-    J, info = synthesize(a.speech, db, a.k, controls, a.init, a.seed)
+    refiner = None
+    if a.refiner:
+        from anima.gesture.refine import load_refiner
+        refiner = load_refiner(a.refiner)
+    J, info = synthesize(a.speech, db, a.k, controls, a.init, a.seed, refiner)
     paths = write_outputs(J, a.speech, Path(a.out), info, render=not a.no_render)
     for n in info["notes"]:
         print(f"anima: note: {n}", file=sys.stderr)
@@ -341,7 +345,31 @@ def _cmd_eval_gesture(a) -> int:
 
     if not Path(a.db).exists():
         raise InputError(f"no dataset at {a.db}")
-    print(json.dumps(evaluate(a.db), indent=2))
+    print(json.dumps(evaluate(a.db, refiner_folds=a.refiner_folds, refiner_steps=a.refiner_steps,
+                              progress=not a.json), indent=2))
+    return 0
+
+
+def _cmd_train_gesture(a) -> int:
+    from anima.gesture.database import from_dataset
+    from anima.gesture.refine import RefinerTrainConfig, knn_pairs, save_refiner, train_refiner
+    from tqdm import tqdm
+
+    if not Path(a.db).exists():
+        raise InputError(f"no dataset at {a.db}")
+    if a.steps < 1:
+        raise InputError("--steps must be >= 1")
+    db = from_dataset(a.db, None if a.all_splits else "train")
+    cfg = RefinerTrainConfig(steps=a.steps, seed=a.seed)
+    print(f"k-NN syntheses of {db.M} windows (each against the other videos)...", file=sys.stderr)
+    pairs = knn_pairs(db, cfg.ks)
+    bar = tqdm(total=cfg.steps, desc="train cGAN refiner", unit="step", disable=a.quiet)
+    ref, info = train_refiner(db, cfg, progress=lambda s: bar.update(1), pairs=pairs)
+    bar.close()
+    info["dataset"] = str(a.db)
+    save_refiner(a.out, ref, info)
+    msg = {"checkpoint": str(a.out), "pairs": info["pairs"], "windows": info["windows"], "wall_s": info["wall_s"]}
+    print(json.dumps(msg, indent=2) if a.json else "\n".join(f"{k}: {v}" for k, v in msg.items()))
     return 0
 
 
@@ -575,6 +603,9 @@ def build_parser() -> argparse.ArgumentParser:
                          "ch. 5): control adherence as table 5.3, L1 to the captured motion, diversity over k, "
                          "jerk, beat consistency; minutes of (audio, motion) per speaker.")
     eg.add_argument("--db", required=True, help="dataset folder from `anima dataset build`")
+    eg.add_argument("--refiner-folds", type=int, default=3,
+                    help="k-NN + cGAN rows: cross-validation folds by video (0 = skip the refiner)")
+    eg.add_argument("--refiner-steps", type=int, default=None, help="generator steps per fold (default 600)")
     eg.add_argument("--json", action="store_true", help="(the result is JSON either way)")
     eg.set_defaults(func=_cmd_eval_gesture)
 
@@ -665,6 +696,20 @@ def build_parser() -> argparse.ArgumentParser:
     tf.add_argument("--json", action="store_true")
     tf.set_defaults(func=_cmd_text2face)
 
+    tg = trsub.add_parser("gesture", help="the cGAN refiner of k-NN gestures (seed 004 §5.3.3)",
+                          description="Synthesises every training window's speech with the k-NN search over the "
+                          "other videos (k = 0..4), then trains a 1D U-Net generator against a WGAN-GP critic on "
+                          "(speech, gesture) pairs (5 critic steps per generator step, L1 to the k-NN output, "
+                          "parent-relative joints). Use the result with `anima gesture --refiner`.")
+    tg.add_argument("--db", required=True, help="dataset folder from `anima dataset build`")
+    tg.add_argument("--out", required=True, help="checkpoint path (.pt)")
+    tg.add_argument("--steps", type=int, default=600, help="generator steps")
+    tg.add_argument("--seed", type=int, default=0)
+    tg.add_argument("--all-splits", action="store_true", help="train on all splits (default: train only)")
+    tg.add_argument("--json", action="store_true")
+    tg.add_argument("--quiet", action="store_true")
+    tg.set_defaults(func=_cmd_train_gesture)
+
     re_ = sub.add_parser("reenact", help="put an actor's lower-face expression on a target person's video",
                          description="Seed 001: fit the ICT face model to actor and target, build a database of "
                          "the target's lower-face vertex colours per frame, and for every actor frame synthesise "
@@ -704,6 +749,7 @@ def build_parser() -> argparse.ArgumentParser:
     ge.add_argument("--init", default="mean", choices=("mean", "random"), help="initial pose feature")
     ge.add_argument("--seed", type=int, default=0)
     ge.add_argument("--all-splits", action="store_true", help="search all splits (default: train only)")
+    ge.add_argument("--refiner", default=None, help="cGAN refiner checkpoint from `anima train gesture`")
     ge.add_argument("--no-render", action="store_true")
     ge.add_argument("--json", action="store_true")
     ge.set_defaults(func=_cmd_gesture)

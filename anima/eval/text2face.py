@@ -107,6 +107,11 @@ def model_method(name, ckpt_path) -> Method:
     return Method(name, lambda E, T, seed: g.generate_from_embeddings(E, T, seed), info=info)
 
 
+def _slug(name: str) -> str:
+    import re
+    return re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
+
+
 def variants(steps: int, ablations: bool, seed_preset: bool) -> dict[str, TrainConfig]:
     small = TrainConfig(preset="small", steps=steps)
     v = {"ours": small, "mdm": TrainConfig(kind="mdm", steps=steps)}
@@ -164,7 +169,7 @@ def evaluate(dataset, work: Path, reps: int = 20, ablations: bool = True, steps:
         if name == "ours" and checkpoint:
             methods.append(model_method(name, checkpoint))
             continue
-        r = train(dataset, work / name.replace(" ", "_"), cfg, progress=progress, prepared=prepared,
+        r = train(dataset, work / _slug(name), cfg, progress=progress, prepared=prepared,
                   command=f"anima eval text2face {dataset} --work {work}")
         methods.append(model_method(name, r["path"]))
 

@@ -14,7 +14,7 @@ from anima.gesture.knn import MatchDB
 def from_dataset(folder: str | Path, split: str | None = "train") -> MatchDB:
     from anima.dataset.storage import read_table
     t = read_table(folder, "audio_motion", split)
-    F, P, G, src = [], [], [], []
+    F, P, G, src, SS = [], [], [], [], []
     for body, speech, source, start in zip(t["body"].to_pylist(), t["speech"].to_pylist(),
                                            t["source"].to_pylist(), t["start_s"].to_pylist()):
         J = np.asarray(body, np.float32).reshape(-1, 55, 3)
@@ -25,7 +25,8 @@ def from_dataset(folder: str | Path, split: str | None = "train") -> MatchDB:
         P.append(pose_features(J))
         G.append(J.reshape(T_MATCH, -1))
         src.append((source, start))
+        SS.append(S)
     if not F:
         raise InputError(f"no usable (audio, motion) windows in {folder} (split {split}): build the dataset from "
                          "videos where the upper body and hands are visible and there is speech")
-    return MatchDB(np.stack(F), np.stack(P), np.stack(G), src)
+    return MatchDB(np.stack(F), np.stack(P), np.stack(G), src, np.stack(SS))

@@ -31,6 +31,7 @@ class MatchDB:
     P: np.ndarray  # (M, T, 96)
     G: np.ndarray  # (M, T, 165)
     source: list = field(default_factory=list)  # per window: (video, start_s)
+    S: np.ndarray | None = None  # (M, T, 28) per-frame speech features (for the cGAN refiner)
 
     _layout: tuple | None = None
 

@@ -13,7 +13,8 @@ from anima.gesture.features import FPS, N_STEP
 
 
 def synthesize(speech_path: str, db, k: int = 0, controls: list | None = None, init: str = "mean",
-               seed: int = 0) -> tuple[np.ndarray, dict]:
+               seed: int = 0, refiner=None) -> tuple[np.ndarray, dict]:
+    """k-NN search (and, with ``refiner`` from ``anima.gesture.refine.load_refiner``, the cGAN refinement)."""
     from anima.audio.features import read_audio, speech_features
     from anima.gesture.control import step_masks
     from anima.gesture.features import audio_features
@@ -42,8 +43,11 @@ def synthesize(speech_path: str, db, k: int = 0, controls: list | None = None, i
     if T > db.M * db.P.shape[1]:
         notes.append("the speech is longer than the database: database windows are reused")
     G, picks = search(db, F_in, k, p0, masks)
-    return G.reshape(len(G), -1, 3), {"frames": len(G), "fps": FPS, "controls": report, "notes": notes,
-                                      "picks": [(int(m), int(r)) for m, r in picks]}
+    J = G.reshape(len(G), -1, 3)
+    if refiner is not None:
+        J = refiner.refine(feats.features[:len(J)], J)
+    return J, {"frames": len(G), "fps": FPS, "controls": report, "notes": notes, "refined": refiner is not None,
+               "picks": [(int(m), int(r)) for m, r in picks]}
 
 
 def write_outputs(J: np.ndarray, speech_path: str, out: Path, info: dict, render: bool = True) -> list[Path]:

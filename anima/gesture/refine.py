@@ -1,0 +1,274 @@
+"""The cGAN refiner of seed 004 §5.3.3: a generator turns a k-NN gesture (with its speech) into a refined
+gesture; a critic judges (speech, gesture) pairs; WGAN-GP (gradient penalty 10), the critic updated 5 times
+per generator step, plus an L1 term that keeps the refined gesture near the k-NN output. Gestures are in
+the parent-relative representation (each joint minus its parent), which the seed found more stable.
+
+* Generator: 1D U-Net on [speech (28) ; k-NN gesture (165)]: 8 [Conv-BN-ReLU] encoder blocks (kernel 3) with
+  max-pooling after every second block except the last, 8 decoder blocks mirroring them with skip
+  connections and nearest upsampling after every second block, the last a single convolution. It predicts a
+  correction added to the k-NN gesture (starts as the identity).
+* Critic: 6 [Conv, InstanceNorm, LeakyReLU] blocks with average pooling after every second block, then a
+  linear layer to one score (no sigmoid).
+
+Training pairs (:func:`knn_pairs`): for every training window, the k-NN synthesis of its own speech from a
+database without its video (k = 0..K for variety), beside the captured gesture (the "real" pair).
+Checkpoint ``anima.gesture_refiner`` version 1 (:func:`save_refiner` / :func:`load_refiner`).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from anima.core.skeleton import PARENTS
+from anima.errors import InputError, SchemaError
+
+FORMAT = "anima.gesture_refiner"
+VERSION = 1
+SPEECH_DIM = 28
+G_DIM = 165
+
+
+# ---- representation (pure) ------------------------------------------------------------------------
+
+def to_parent_relative(J: np.ndarray | torch.Tensor):
+    """``[..., 55, 3]`` pelvis-relative positions -> joint minus parent (the root keeps its position)."""
+    par = np.where(PARENTS < 0, 0, PARENTS)
+    R = J - J[..., par, :]
+    R[..., PARENTS < 0, :] = J[..., PARENTS < 0, :]
+    return R
+
+
+def from_parent_relative(R: np.ndarray | torch.Tensor):
+    """Inverse of :func:`to_parent_relative` (parents come before their children)."""
+    cols = []
+    for j, p in enumerate(PARENTS):
+        cols.append(R[..., j, :] if p < 0 else cols[p] + R[..., j, :])
+    if isinstance(R, torch.Tensor):
+        return torch.stack(cols, -2)
+    return np.stack(cols, -2)
+
+
+# ---- networks ---------------------------------------------------------------------------------------
+
+@dataclass
+class RefinerConfig:
+    # the seed's figure 5.4 gives the block layout; widths here are halved for a 2-core CPU and 2 minutes
+    # of training data
+    widths: tuple = (32, 32, 64, 64, 128, 128, 128, 128)
+    critic_widths: tuple = (32, 32, 64, 64, 128, 128)
+
+    def to_dict(self) -> dict:
+        return {k: list(v) for k, v in asdict(self).items()}
+
+
+def _block(cin, cout):
+    return nn.Sequential(nn.Conv1d(cin, cout, 3, padding=1), nn.BatchNorm1d(cout), nn.ReLU())
+
+
+class RefinerG(nn.Module):
+    def __init__(self, cfg: RefinerConfig):
+        super().__init__()
+        w = list(cfg.widths)
+        self.enc = nn.ModuleList(_block(SPEECH_DIM + G_DIM if i == 0 else w[i - 1], w[i]) for i in range(len(w)))
+        # pool after blocks 1, 3, 5 (every second block except the last)
+        self.pool_after = {i for i in range(1, len(w) - 1, 2)}
+        dec = []
+        cin = w[-1]
+        for i in reversed(range(len(w) - 1)):
+            dec.append(_block(cin + w[i], w[i]))
+            cin = w[i]
+        self.dec = nn.ModuleList(dec)
+        self.final = nn.Conv1d(cin, G_DIM, 1)
+        nn.init.zeros_(self.final.weight)
+        nn.init.zeros_(self.final.bias)
+
+    def forward(self, speech, g):
+        """``speech [B, T, 28]``, ``g [B, T, 165]`` (normalised parent-relative) -> refined ``[B, T, 165]``.
+        T must be a multiple of 8 (three poolings)."""
+        x = torch.cat([speech, g], -1).transpose(1, 2)
+        skips = []
+        for i, b in enumerate(self.enc):
+            x = b(x)
+            skips.append(x)
+            if i in self.pool_after:
+                x = F.max_pool1d(x, 2)
+        for i, b in zip(reversed(range(len(self.enc) - 1)), self.dec):
+            s = skips[i]
+            if x.shape[-1] != s.shape[-1]:
+                x = F.interpolate(x, size=s.shape[-1], mode="nearest")
+            x = b(torch.cat([x, s], 1))
+        return g + self.final(x).transpose(1, 2)
+
+
+class Critic(nn.Module):
+    def __init__(self, cfg: RefinerConfig):
+        super().__init__()
+        w = list(cfg.critic_widths)
+        layers = []
+        for i in range(len(w)):
+            layers += [nn.Conv1d(SPEECH_DIM + G_DIM if i == 0 else w[i - 1], w[i], 3, padding=1),
+                       nn.InstanceNorm1d(w[i], affine=True), nn.LeakyReLU(0.2)]
+            if i % 2 == 1:
+                layers.append(nn.AvgPool1d(2))
+        self.body = nn.Sequential(*layers)
+        self.fc = nn.Linear(w[-1], 1)
+
+    def forward(self, speech, g):
+        h = self.body(torch.cat([speech, g], -1).transpose(1, 2))
+        return self.fc(h.mean(-1)).squeeze(-1)
+
+
+def gradient_penalty(critic, speech, real, fake):
+    a = torch.rand(len(real), 1, 1)
+    x = (a * real + (1 - a) * fake).requires_grad_(True)
+    g, = torch.autograd.grad(critic(speech, x).sum(), x, create_graph=True)
+    return ((g.flatten(1).norm(dim=1) - 1) ** 2).mean()
+
+
+# ---- data -------------------------------------------------------------------------------------------
+
+def knn_pairs(db, ks=(0, 1, 2, 3, 4), windows=None):
+    """(speech [N, 64, 28], k-NN gesture [N, 64, 55, 3], captured gesture [N, 64, 55, 3], window index [N]):
+    each window's speech matched against a database without its own video."""
+    from anima.gesture.knn import MatchDB, search
+    if db.S is None:
+        raise InputError("the database has no per-frame speech features (build it with from_dataset)")
+    videos = sorted({s for s, _ in db.source})
+    idx = range(db.M) if windows is None else windows
+    S, K, R, W = [], [], [], []
+    for i in idx:
+        own = db.source[i][0]
+        rest = np.array([j for j in range(db.M) if db.source[j][0] != own])
+        if len(rest) == 0:
+            continue
+        sub = MatchDB(db.F[rest], db.P[rest], db.G[rest])
+        p0 = sub.P.reshape(-1, sub.P.shape[-1]).mean(0)
+        for k in ks:
+            g = search(sub, db.F[i], min(k, len(rest) - 1), p0)[0]
+            S.append(db.S[i])
+            K.append(g.reshape(len(g), -1, 3))
+            R.append(db.G[i].reshape(len(g), -1, 3))
+            W.append(i)
+    if not S:
+        raise InputError(f"the k-NN refiner needs windows from at least two videos (got {len(videos)})")
+    return np.stack(S), np.stack(K), np.stack(R), np.array(W)
+
+
+# ---- training and checkpoints --------------------------------------------------------------------------
+
+@dataclass
+class RefinerTrainConfig:
+    steps: int = 600  # generator steps
+    critic_steps: int = 5
+    batch: int = 16
+    lr: float = 1e-4
+    gp: float = 10.0
+    l1: float = 10.0  # weight of |G_syn - G_kNN|_1 (normalised units) against the critic term
+    ks: tuple = (0, 1, 2, 3, 4)
+    seed: int = 0
+    model: dict = field(default_factory=dict)
+
+
+class Refiner:
+    """Normalisation + generator: ``refine(speech [T, 28], J [T, 55, 3]) -> [T, 55, 3]`` for any T."""
+
+    def __init__(self, G: RefinerG, stats: dict):
+        self.G = G.eval()
+        self.stats = {k: np.asarray(v, np.float32) for k, v in stats.items()}
+
+    def _norm(self, speech, J):
+        s = (speech - self.stats["s_mean"]) / self.stats["s_std"]
+        g = (to_parent_relative(J).reshape(len(J), -1) - self.stats["g_mean"]) / self.stats["g_std"]
+        return s.astype(np.float32), g.astype(np.float32)
+
+    @torch.inference_mode()
+    def refine(self, speech: np.ndarray, J: np.ndarray) -> np.ndarray:
+        T = len(J)
+        pad = (-T) % 8
+        s, g = self._norm(np.pad(speech, ((0, pad), (0, 0)), mode="edge"),
+                          np.pad(J, ((0, pad), (0, 0), (0, 0)), mode="edge"))
+        out = self.G(torch.from_numpy(s)[None], torch.from_numpy(g)[None])[0].numpy()[:T]
+        R = (out * self.stats["g_std"] + self.stats["g_mean"]).reshape(T, -1, 3)
+        return from_parent_relative(R).astype(np.float32)
+
+
+def train_refiner(db, cfg: RefinerTrainConfig, progress=None, pairs=None) -> tuple[Refiner, dict]:
+    torch.manual_seed(cfg.seed)
+    rng = np.random.default_rng(cfg.seed)
+    S, K, R, W = pairs if pairs is not None else knn_pairs(db, cfg.ks)
+    rel_k = to_parent_relative(K).reshape(len(K), K.shape[1], -1)
+    rel_r = to_parent_relative(R).reshape(len(R), R.shape[1], -1)
+    allg = np.concatenate([rel_k, rel_r]).reshape(-1, G_DIM)
+    stats = {"s_mean": S.reshape(-1, SPEECH_DIM).mean(0), "s_std": S.reshape(-1, SPEECH_DIM).std(0) + 1e-4,
+             "g_mean": allg.mean(0), "g_std": allg.std(0) + 1e-4}
+    s_t = torch.from_numpy(((S - stats["s_mean"]) / stats["s_std"]).astype(np.float32))
+    k_t = torch.from_numpy(((rel_k - stats["g_mean"]) / stats["g_std"]).astype(np.float32))
+    r_t = torch.from_numpy(((rel_r - stats["g_mean"]) / stats["g_std"]).astype(np.float32))
+    mcfg = RefinerConfig(**{k: tuple(v) for k, v in cfg.model.items()})
+    G, D = RefinerG(mcfg), Critic(mcfg)
+    opt_g = torch.optim.Adam(G.parameters(), lr=cfg.lr, betas=(0.5, 0.9))
+    opt_d = torch.optim.Adam(D.parameters(), lr=cfg.lr, betas=(0.5, 0.9))
+    n = len(s_t)
+    log = {"critic": [], "generator_adv": [], "l1": []}
+    t0 = time.time()
+    for step in range(cfg.steps):
+        for _ in range(cfg.critic_steps):
+            i = torch.from_numpy(rng.integers(0, n, cfg.batch))
+            with torch.no_grad():
+                fake = G(s_t[i], k_t[i])
+            loss_d = D(s_t[i], fake).mean() - D(s_t[i], r_t[i]).mean() + cfg.gp * gradient_penalty(D, s_t[i], r_t[i], fake)
+            opt_d.zero_grad()
+            loss_d.backward()
+            opt_d.step()
+        i = torch.from_numpy(rng.integers(0, n, cfg.batch))
+        fake = G(s_t[i], k_t[i])
+        adv = -D(s_t[i], fake).mean()
+        l1 = (fake - k_t[i]).abs().mean()
+        loss_g = adv + cfg.l1 * l1
+        opt_g.zero_grad()
+        loss_g.backward()
+        opt_g.step()
+        log["critic"].append(round(float(loss_d.detach()), 4))
+        log["generator_adv"].append(round(float(adv.detach()), 4))
+        log["l1"].append(round(float(l1.detach()), 4))
+        if progress is not None:
+            progress(step)
+    info = {"pairs": n, "windows": int(len(np.unique(W))), "wall_s": round(time.time() - t0, 1),
+            "train_config": {**asdict(cfg), "ks": list(cfg.ks)}, "model_config": mcfg.to_dict(), "log": log}
+    return Refiner(G, stats), info
+
+
+def save_refiner(path: str | Path, ref: Refiner, info: dict) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    obj = {"format": FORMAT, "version": VERSION, "model_config": info["model_config"],
+           "stats": {k: v.tolist() for k, v in ref.stats.items()}, "state": ref.G.state_dict(),
+           "info": {k: v for k, v in info.items() if k != "model_config"}}
+    tmp = path.with_name(path.name + ".tmp")
+    torch.save(obj, tmp)
+    tmp.replace(path)
+    return path
+
+
+def load_refiner(path: str | Path) -> Refiner:
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"refiner checkpoint not found: {p} (train one with `anima train gesture`)")
+    try:
+        obj = torch.load(p, map_location="cpu", weights_only=True)
+    except Exception as e:  # noqa: BLE001
+        raise SchemaError(f"{p}: not a readable refiner checkpoint ({type(e).__name__})") from e
+    if not isinstance(obj, dict) or obj.get("format") != FORMAT:
+        raise SchemaError(f"{p}: not a gesture refiner checkpoint")
+    if obj.get("version") != VERSION:
+        raise SchemaError(f"{p}: refiner checkpoint version {obj.get('version')}, this anima reads {VERSION}; "
+                          "retrain with `anima train gesture`")
+    G = RefinerG(RefinerConfig(**{k: tuple(v) for k, v in obj["model_config"].items()}))
+    G.load_state_dict(obj["state"])
+    return Refiner(G, obj["stats"])
