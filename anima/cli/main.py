@@ -619,7 +619,7 @@ def build_parser() -> argparse.ArgumentParser:
     et.add_argument("dataset", help="dataset folder from `anima dataset build`")
     et.add_argument("--work", default="runs/eval_text2face", help="folder for the trained models (reused)")
     et.add_argument("--reps", type=int, default=20)
-    et.add_argument("--steps", type=int, default=2000, help="training steps per model")
+    et.add_argument("--steps", type=int, default=1000, help="training steps per model (the shipped model's)")
     et.add_argument("--no-ablations", action="store_true", help="only the model and the baselines")
     et.add_argument("--seed-preset", action="store_true", help="also train the seed-size model (13.6 M parameters)")
     et.add_argument("--checkpoint", default=None, help="score this checkpoint as 'ours' instead of training it")

@@ -149,7 +149,7 @@ def score(method: Method, items, item_E, geom, reps, progress) -> dict:
             "generated": gens, "score_s": round(time.perf_counter() - t0, 1)}
 
 
-def evaluate(dataset, work: Path, reps: int = 20, ablations: bool = True, steps: int = 2000,
+def evaluate(dataset, work: Path, reps: int = 20, ablations: bool = True, steps: int = 1000,
              seed_preset: bool = False, checkpoint: str | None = None, progress: bool = True) -> dict:
     work = Path(work)
     base = TrainConfig(preset="small", steps=steps)
