@@ -105,7 +105,7 @@ def test_gesture_command_outputs_and_bad_inputs(ds, tmp_path):
 
 def test_eval_gesture_leave_one_video_out(ds):
     from anima.eval.gesture import evaluate
-    r = evaluate(str(ds), refiner_folds=3, refiner_steps=15)
+    r = evaluate(str(ds), refiner_folds=3, refiner_steps=15, sync_steps=10)
     assert r["videos"] == 3 and r["minutes_of_audio_motion"] > 0.2
     assert set(r["minutes_per_speaker"]) == {"oliver", "seth"}
     ca = r["control_adherence"]
@@ -115,6 +115,9 @@ def test_eval_gesture_leave_one_video_out(ds):
     assert len(cg["folds"]) == 3 and sum(f["test_windows"] for f in cg["folds"]) == r["windows"]
     assert cg["metrics"]["l1_cm"] > 0 and np.isfinite(cg["metrics"]["jerk"])
     assert set(cg["control_adherence"]) == set(ca)
+    sync = r["sync_classifier"]
+    assert set(sync) == {"16_frames", "32_frames", "64_frames"}
+    assert all(0 <= v["accuracy"] <= 1 and sum(v["test_windows"]) == r["windows"] for v in sync.values())
 
 
 def test_parent_relative_representation_roundtrips(db):
@@ -152,3 +155,16 @@ def test_refiner_trains_with_wgan_gp_and_the_command_uses_it(ds, db, tmp_path):
     torch.save({"format": "anima.gesture_refiner", "version": 7}, bad)
     r = _run(str(wav), "--db", str(ds), "--out", str(tmp_path / "h"), "--refiner", str(bad), "--no-render")
     assert r.returncode == 4 and "version 7" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_sync_pairs_take_off_sync_gestures_from_other_windows():
+    from anima.gesture.sync import SyncClassifier, make_pairs
+    M, T = 5, 64
+    S = np.repeat(np.arange(M, dtype=np.float32)[:, None, None], T, 1).repeat(28, 2)
+    G = np.repeat(np.arange(M, dtype=np.float32)[:, None, None], T, 1).repeat(165, 2)
+    s, g, y = make_pairs(S, G, 16, 50, np.random.default_rng(0))
+    assert s.shape == (100, 16, 28) and g.shape == (100, 16, 165) and y.sum() == 50
+    same = s[:, 0, 0] == g[:, 0, 0]
+    assert same[y == 1].all() and not same[y == 0].any()
+    import torch
+    assert SyncClassifier()(torch.from_numpy(s[:4]), torch.from_numpy(g[:4])).shape == (4,)
