@@ -614,7 +614,7 @@ def build_parser() -> argparse.ArgumentParser:
                          description="Trains (or reuses, in --work) the seed 000 model, its ablations and the MDM "
                          "baseline on the dataset's training videos and scores them with the retrieval and mean "
                          "baselines on 90-frame windows of the held-out videos: MAE/RMSE of mouth and eye vertices "
-                         "(mm), Diversity, each over --reps repetitions with 95%% confidence intervals; attribute "
+                         "(mm), Diversity, each over --reps repetitions with 95% confidence intervals; attribute "
                          "recall with the dataset's detectors; R-precision with a contrastive text-motion evaluator.")
     et.add_argument("dataset", help="dataset folder from `anima dataset build`")
     et.add_argument("--work", default="runs/eval_text2face", help="folder for the trained models (reused)")
