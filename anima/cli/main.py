@@ -398,8 +398,8 @@ def _cmd_train_text2face(a) -> int:
     if not Path(a.dataset).exists():
         raise InputError(f"no dataset at {a.dataset}")
     cfg = _t2f_train_config(a)
-    command = "anima " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("anima") else ""
-    r = train(a.dataset, a.out, cfg, progress=not a.quiet, command=command or f"anima train text2face {a.dataset}")
+    import shlex
+    r = train(a.dataset, a.out, cfg, progress=not a.quiet, command="anima " + shlex.join(a.argv))
     msg = {"checkpoint": str(r["path"]), "steps": cfg.steps, "wall_s": round(r["info"]["wall_s"], 1),
            "final_loss": float(sum(r["info"]["losses"][-50:]) / max(1, len(r["info"]["losses"][-50:])))}
     if a.ship:
@@ -825,7 +825,9 @@ def _silence_native_stderr() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
     a = parser.parse_args(argv)
+    a.argv = argv  # recorded in manifests (the command that made an artifact)
     if not a.debug and not os.environ.get("ANIMA_NATIVE_LOGS"):
         _silence_native_stderr()
     if not getattr(a, "func", None):

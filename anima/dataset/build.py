@@ -28,6 +28,7 @@ from anima.dataset.attributes import DetectorConfig
 from anima.dataset.filters import RULES, FilterConfig
 from anima.dataset.storage import SCHEMA, VERSION, check_dataset, read_table
 from anima.errors import InputError
+from anima.io.atomic import atomic_path
 
 VIDEO_EXT = (".mp4", ".mov", ".mkv", ".webm", ".avi", ".m4v")
 
@@ -138,10 +139,8 @@ def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | 
 
 
 def _write_json(path: Path, obj) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(obj, indent=1))
-    tmp.replace(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(obj, indent=1))
 
 
 def _task(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | None) -> dict:

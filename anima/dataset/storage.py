@@ -29,6 +29,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from anima.errors import InputError, SchemaError
+from anima.io.atomic import atomic_path
 
 SCHEMA = "anima.dataset"
 VERSION = 1
@@ -57,10 +58,8 @@ def write_shard(rows: list[dict], path: Path, kind: str) -> Path:
         if pa.types.is_list(f.type) and f.type.value_type == pa.float32():
             cols[f.name] = [np.asarray(v, np.float32).ravel() for v in cols[f.name]]
     table = pa.Table.from_pydict(cols, schema=schema)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    pq.write_table(table, tmp)
-    tmp.replace(path)
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp)
     return path
 
 

@@ -27,6 +27,7 @@ from torch import nn
 
 from anima.core.skeleton import PARENTS
 from anima.errors import InputError, SchemaError
+from anima.io.atomic import atomic_path
 
 FORMAT = "anima.gesture_refiner"
 VERSION = 1
@@ -245,15 +246,12 @@ def train_refiner(db, cfg: RefinerTrainConfig, progress=None, pairs=None) -> tup
 
 
 def save_refiner(path: str | Path, ref: Refiner, info: dict) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     obj = {"format": FORMAT, "version": VERSION, "model_config": info["model_config"],
            "stats": {k: v.tolist() for k, v in ref.stats.items()}, "state": ref.G.state_dict(),
            "info": {k: v for k, v in info.items() if k != "model_config"}}
-    tmp = path.with_name(path.name + ".tmp")
-    torch.save(obj, tmp)
-    tmp.replace(path)
-    return path
+    with atomic_path(path) as tmp:
+        torch.save(obj, tmp)
+    return Path(path)
 
 
 def load_refiner(path: str | Path) -> Refiner:

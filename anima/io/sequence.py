@@ -43,6 +43,7 @@ import numpy as np
 
 from anima.core.rotations import matrix_to_euler, rotvec_to_matrix
 from anima.errors import InputError, SchemaError
+from anima.io.atomic import atomic_path
 
 SCHEMA = "anima.tracked_sequence"
 VERSION = 2
@@ -126,8 +127,6 @@ class TrackedSequence:
 
 def write_sequence(seq: TrackedSequence, path: str | Path) -> Path:
     """Write atomically (temp file + rename), so an interrupted run never leaves a corrupt artifact."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     meta = dict(seq.meta)
     meta.update(schema=SCHEMA, version=VERSION, fps=float(seq.fps), n_frames=seq.n_frames, width=int(seq.width),
                 height=int(seq.height), expr_names=list(seq.expr_names), camera="weak_perspective",
@@ -140,10 +139,9 @@ def write_sequence(seq: TrackedSequence, path: str | Path) -> Path:
         elif arrays[k].dtype.kind == "b":
             arrays[k] = arrays[k].astype(np.uint8)
     arrays["flags"] = arrays["flags"].astype(np.uint8)
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez_compressed(tmp, meta=np.asarray(json.dumps(meta)), **arrays)
-    tmp.replace(path)
-    return path
+    with atomic_path(path, ".tmp.npz") as tmp:
+        np.savez_compressed(tmp, meta=np.asarray(json.dumps(meta)), **arrays)
+    return Path(path)
 
 
 def read_sequence(path: str | Path) -> TrackedSequence:

@@ -25,6 +25,7 @@ import numpy as np
 import torch
 
 from anima.errors import InputError, SchemaError
+from anima.io.atomic import atomic_path
 from anima.pose3d.data import (TEST_SUBJECTS, TRAIN_SUBJECTS, load_h36m, normalise_2d, subject_bone_lengths,
                                wild_evidence)
 from anima.pose3d.joints import BONES, FLIP, K
@@ -162,13 +163,10 @@ def losses(model: Lifter, cfg: TrainConfig, b3d, bwild=None) -> dict[str, torch.
 
 
 def save_checkpoint(path: Path, model: Lifter, cfg: TrainConfig, step: int, opt=None, extra: dict | None = None):
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    torch.save({"format": FORMAT, "version": VERSION, "config": asdict(cfg), "step": step,
-                "state_dict": model.state_dict(), "optimizer": opt.state_dict() if opt else None,
-                "extra": extra or {}}, tmp)
-    tmp.replace(path)
+    with atomic_path(path) as tmp:
+        torch.save({"format": FORMAT, "version": VERSION, "config": asdict(cfg), "step": step,
+                    "state_dict": model.state_dict(), "optimizer": opt.state_dict() if opt else None,
+                    "extra": extra or {}}, tmp)
 
 
 def load_checkpoint(path: Path) -> tuple[Lifter, dict]:

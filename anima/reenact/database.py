@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from anima.errors import InputError, SchemaError
+from anima.io.atomic import atomic_path
 
 SCHEMA = "anima.reenact_db"
 VERSION = 1
@@ -149,15 +150,12 @@ def build_database(videos: list[str], max_frames: int | None = None, progress: b
 
 
 def write_database(db: ReenactDB, path: str | Path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     meta = dict(db.meta, schema=SCHEMA, version=VERSION)
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez(tmp, expression=db.expression, rotation=db.rotation, scale=db.scale, translation=db.translation,
-             video=db.video, frame=db.frame, identity=db.identity, colors=db.colors, vertex_ids=db.vertex_ids,
-             meta=np.array(json.dumps(meta)))
-    tmp.replace(path)
-    return path
+    with atomic_path(path, ".tmp.npz") as tmp:
+        np.savez(tmp, expression=db.expression, rotation=db.rotation, scale=db.scale, translation=db.translation,
+                 video=db.video, frame=db.frame, identity=db.identity, colors=db.colors, vertex_ids=db.vertex_ids,
+                 meta=np.array(json.dumps(meta)))
+    return Path(path)
 
 
 def read_database(path: str | Path) -> ReenactDB:

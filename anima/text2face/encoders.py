@@ -146,6 +146,7 @@ def encode_cached(encoder: TextEncoder, texts: list[str]) -> np.ndarray:
     import hashlib
 
     from anima.io.assets import user_dir
+    from anima.io.atomic import atomic_path
 
     path = user_dir("cache", "text_embeddings", f"{encoder.name}.npz")
     keys = [hashlib.sha1(t.encode("utf-8")).hexdigest() for t in texts]
@@ -160,8 +161,6 @@ def encode_cached(encoder: TextEncoder, texts: list[str]) -> np.ndarray:
     if missing:
         E = encoder.encode([t for _, t in missing])
         cache.update(zip([k for k, _ in missing], E))
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp.npz")
-        np.savez(tmp, keys=np.asarray(list(cache)), emb=np.stack(list(cache.values())).astype(np.float32))
-        tmp.replace(path)
+        with atomic_path(path, ".tmp.npz") as tmp:
+            np.savez(tmp, keys=np.asarray(list(cache)), emb=np.stack(list(cache.values())).astype(np.float32))
     return np.stack([cache[k] for k in keys]).astype(np.float32)

@@ -9,7 +9,7 @@ read it), ``face.mp4`` (the neutral ICT face animated), ``arkit.csv`` (Live Link
 from __future__ import annotations
 
 import json
-import time
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -73,17 +73,24 @@ class Generator:
         return self.generate_from_embeddings(self.embed(prompts), length, seed)
 
 
+@lru_cache(maxsize=1)
+def _skin_height() -> tuple[float, float, tuple[str, ...]]:
+    """(lowest, highest) y of the neutral skin mesh (cm) and the expression names; computed once (the
+    evaluation frames thousands of generated windows)."""
+    from anima.facemodel.ict import load_face_model
+    fm = load_face_model()
+    ys = fm.skin().neutral[:, 1]
+    return float(ys.min()), float(ys.max()), tuple(fm.expr_names)
+
+
 def motion_to_sequence(motion: np.ndarray, fps: float = FPS, size: int = 512, meta: dict | None = None):
     """A tracked-sequence object for generated motion: the neutral identity, framed in a ``size`` square."""
-    from anima.facemodel.ict import load_face_model
     from anima.io.sequence import TrackedSequence
 
-    fm = load_face_model()
+    lo, hi, names = _skin_height()
     F = len(motion)
-    skin = fm.skin()
-    ys = skin.neutral[:, 1]
-    scale = 0.8 * size / float(ys.max() - ys.min())  # pixels per cm: the head fills 80 % of the frame
-    cy = float(ys.max() + ys.min()) / 2
+    scale = 0.8 * size / (hi - lo)  # pixels per cm: the head fills 80 % of the frame
+    cy = (hi + lo) / 2
     return TrackedSequence(
         fps=fps, width=size, height=size, identity=np.zeros(100, np.float32),
         expression=np.ascontiguousarray(motion[:, :53], np.float32),
@@ -91,7 +98,7 @@ def motion_to_sequence(motion: np.ndarray, fps: float = FPS, size: int = 512, me
         scale=np.full(F, scale, np.float32),
         translation=np.tile(np.array([size / 2, -size / 2 - cy * scale, 0], np.float32), (F, 1)),
         fit_error_px=np.zeros(F, np.float32), fit_nme=np.zeros(F, np.float32), flags=np.zeros(F, np.uint8),
-        landmarks=np.full((F, 478, 3), np.nan, np.float32), expr_names=list(fm.expr_names), meta=meta or {})
+        landmarks=np.full((F, 478, 3), np.nan, np.float32), expr_names=list(names), meta=meta or {})
 
 
 def write_outputs(out: str | Path, motion: np.ndarray, prompt: str, info: dict, video: bool = True,
@@ -112,9 +119,3 @@ def write_outputs(out: str | Path, motion: np.ndarray, prompt: str, info: dict, 
     (out / "info.json").write_text(json.dumps({"prompt": prompt, **info,
                                                "files": {k: str(v) for k, v in files.items()}}, indent=2))
     return files
-
-
-def timed_generate(gen: Generator, prompt: str, length: int, seed: int) -> tuple[np.ndarray, float]:
-    t = time.perf_counter()
-    m = gen.generate([prompt], length, seed)[0]
-    return m, time.perf_counter() - t

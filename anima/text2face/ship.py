@@ -6,6 +6,8 @@ import hashlib
 import json
 from pathlib import Path
 
+import numpy as np
+
 from anima import __version__
 from anima.text2face.train import TrainConfig, load_checkpoint, save_checkpoint
 
@@ -16,8 +18,6 @@ def ship(checkpoint: str | Path, dest: str | Path, dataset: str | Path, progress
     ck = load_checkpoint(checkpoint)
     dest = Path(dest)
     cfg = TrainConfig(**ck["train_config"])
-    import numpy as np
-
     save_checkpoint(dest, kind=ck["kind"], model=ck["model"], train_cfg=cfg,
                     stats=(np.asarray(ck["mean"]), np.asarray(ck["std"])), gram=ck["gram"], step=ck["step"],
                     info={k: v for k, v in ck["info"].items() if k != "losses"}, compact=True)

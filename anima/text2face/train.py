@@ -24,6 +24,7 @@ import torch
 from tqdm import tqdm
 
 from anima.errors import InputError, SchemaError
+from anima.io.atomic import atomic_path
 from anima.text2face.data import FaceGeometry, crop_pool, load_clips, motion_stats, split_clips
 from anima.text2face.diffusion import MDM, MDMConfig
 from anima.text2face.encoders import encode_cached, get_encoder
@@ -102,12 +103,9 @@ def save_checkpoint(path: Path, *, kind, model, train_cfg: TrainConfig, stats, g
            "train_config": asdict(train_cfg), "mean": stats[0].tolist(), "std": stats[1].tolist(),
            "gram": np.asarray(gram).tolist(), "step": step, "state": state,
            "optim": None if compact or opt is None else opt.state_dict(), "info": info or {}}
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    torch.save(obj, tmp)
-    tmp.replace(path)
-    return path
+    with atomic_path(path) as tmp:
+        torch.save(obj, tmp)
+    return Path(path)
 
 
 def load_checkpoint(path: str | Path) -> dict:
