@@ -318,6 +318,7 @@ def _cmd_eval_pose(a) -> int:
 def _cmd_gesture(a) -> int:
     from anima.gesture.control import parse_control
     from anima.gesture.database import from_dataset
+    from anima.gesture.keywords import parse_keyword
     from anima.gesture.run import synthesize, write_outputs
 
     if not Path(a.speech).exists():
@@ -325,17 +326,72 @@ def _cmd_gesture(a) -> int:
     if a.k < 0:
         raise InputError("--k must be >= 0")
     controls = [parse_control(c) for c in a.control]
+    if a.generator:
+        return _gesture_from_generator(a)
+    if not a.db:
+        raise InputError("give --db DATASET (k-NN search) or --generator CHECKPOINT")
     db = from_dataset(a.db, None if a.all_splits else "train")
     refiner = None
     if a.refiner:
         from anima.gesture.refine import load_refiner
         refiner = load_refiner(a.refiner)
-    J, info = synthesize(a.speech, db, a.k, controls, a.init, a.seed, refiner)
+    keywords = [parse_keyword(k) for k in a.keyword]
+    kw_dbs = {}
+    for spec in a.keyword_db:
+        word, sep, folder = spec.partition("=")
+        if not sep or not word or not folder:
+            raise InputError(f"--keyword-db {spec!r}: expected WORD=DATASET")
+        if not Path(folder).exists():
+            raise InputError(f"--keyword-db {spec!r}: no dataset at {folder}")
+        kw_dbs[word.lower()] = from_dataset(folder, None)
+    J, info = synthesize(a.speech, db, a.k, controls, a.init, a.seed, refiner, keywords, kw_dbs)
     paths = write_outputs(J, a.speech, Path(a.out), info, render=not a.no_render)
     for n in info["notes"]:
         print(f"anima: note: {n}", file=sys.stderr)
     info = {k: v for k, v in info.items() if k != "picks"} | {"database_windows": db.M,
                                                               "written": [str(p) for p in paths]}
+    print(json.dumps(info, indent=2) if a.json else "wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def _train_generator(a) -> int:
+    import numpy as np
+
+    from anima.eval.gesture import load_windows
+    from anima.gesture.generator import GeneratorConfig, GeneratorTrainConfig, save_generator, train_generator
+    from tqdm import tqdm
+
+    w = load_windows(a.db)
+    keep = np.ones(len(w["source"]), bool) if a.all_splits else np.array([s == "train" for s in w["split"]])
+    if not keep.any():
+        raise InputError(f"no training windows in {a.db}")
+    kind = {"generator": "adversarial"}.get(a.model, a.model)
+    cfg = GeneratorTrainConfig(steps=a.steps or 1000, seed=a.seed)
+    bar = tqdm(total=cfg.steps, desc=f"train {a.model}", unit="step", disable=a.quiet)
+    gen, info = train_generator(w["speech"][keep], w["body"][keep], w["face"][keep], GeneratorConfig(kind=kind), cfg,
+                                progress=lambda s: bar.update(1))
+    bar.close()
+    info["dataset"] = str(a.db)
+    info["command"] = "anima " + " ".join(getattr(a, "argv", []))
+    save_generator(a.out, gen, info)
+    msg = {"checkpoint": str(a.out), "kind": kind, "windows": info["windows"], "body_windows": info["body_windows"],
+           "loss_weights": info["loss_weights"], "wall_s": info["wall_s"]}
+    print(json.dumps(msg, indent=2) if a.json else "\n".join(f"{k}: {v}" for k, v in msg.items()))
+    return 0
+
+
+def _gesture_from_generator(a) -> int:
+    from anima.gesture.generator import load_generator
+    from anima.gesture.run import generate, write_outputs
+
+    if a.control or a.refiner or a.keyword:
+        raise InputError("--control, --refiner and --keyword apply to the k-NN search (--db), not to --generator")
+    gen = load_generator(a.generator)
+    J, face, info = generate(a.speech, gen)
+    paths = write_outputs(J, a.speech, Path(a.out), info, render=not a.no_render, face=face)
+    for n in info["notes"]:
+        print(f"anima: note: {n}", file=sys.stderr)
+    info = info | {"written": [str(p) for p in paths]}
     print(json.dumps(info, indent=2) if a.json else "wrote " + ", ".join(str(p) for p in paths))
     return 0
 
@@ -346,7 +402,7 @@ def _cmd_eval_gesture(a) -> int:
     if not Path(a.db).exists():
         raise InputError(f"no dataset at {a.db}")
     print(json.dumps(evaluate(a.db, refiner_folds=a.refiner_folds, refiner_steps=a.refiner_steps,
-                              progress=not a.json), indent=2))
+                              progress=not a.json, generator_steps=a.generator_steps), indent=2))
     return 0
 
 
@@ -357,8 +413,11 @@ def _cmd_train_gesture(a) -> int:
 
     if not Path(a.db).exists():
         raise InputError(f"no dataset at {a.db}")
-    if a.steps < 1:
+    if a.steps is not None and a.steps < 1:
         raise InputError("--steps must be >= 1")
+    if a.model != "refiner":
+        return _train_generator(a)
+    a.steps = a.steps or 600
     db = from_dataset(a.db, None if a.all_splits else "train")
     cfg = RefinerTrainConfig(steps=a.steps, seed=a.seed)
     print(f"k-NN syntheses of {db.M} windows (each against the other videos)...", file=sys.stderr)
@@ -598,14 +657,18 @@ def build_parser() -> argparse.ArgumentParser:
     er.add_argument("--json", action="store_true", help="no progress output (the result is JSON either way)")
     er.set_defaults(func=_cmd_eval_reenact)
 
-    eg = esub.add_parser("gesture", help="k-NN gestures: control adherence, L1, diversity, jerk, beat consistency",
-                         description="Leave-one-video-out on the dataset's (audio, motion) windows (seed 004 "
-                         "ch. 5): control adherence as table 5.3, L1 to the captured motion, diversity over k, "
-                         "jerk, beat consistency; minutes of (audio, motion) per speaker.")
+    eg = esub.add_parser("gesture", help="gestures from speech: control adherence, L1, FGD, lip error, jerk, beats",
+                         description="On the dataset's (audio, motion) windows (seed 004 ch. 4-5): k-NN "
+                         "leave-one-video-out with control adherence as table 5.3; k-NN + cGAN, the §4.4 generator, "
+                         "direct regression and the LSTM baseline cross-validated by video; L1 to the captured "
+                         "motion, FGD, lip keypoint error (table 4.3), diversity, jerk, beat consistency; the sync "
+                         "classifier (table 4.4); lip sync on FaceGood's recordings; minutes per speaker.")
     eg.add_argument("--db", required=True, help="dataset folder from `anima dataset build`")
     eg.add_argument("--refiner-folds", type=int, default=3,
                     help="k-NN + cGAN rows: cross-validation folds by video (0 = skip the refiner)")
     eg.add_argument("--refiner-steps", type=int, default=None, help="generator steps per fold (default 600)")
+    eg.add_argument("--generator-steps", type=int, default=None,
+                    help="§4.4 generator and baselines: training steps per fold (default 1000)")
     eg.add_argument("--json", action="store_true", help="(the result is JSON either way)")
     eg.set_defaults(func=_cmd_eval_gesture)
 
@@ -696,14 +759,18 @@ def build_parser() -> argparse.ArgumentParser:
     tf.add_argument("--json", action="store_true")
     tf.set_defaults(func=_cmd_text2face)
 
-    tg = trsub.add_parser("gesture", help="the cGAN refiner of k-NN gestures (seed 004 §5.3.3)",
-                          description="Synthesises every training window's speech with the k-NN search over the "
-                          "other videos (k = 0..4), then trains a 1D U-Net generator against a WGAN-GP critic on "
-                          "(speech, gesture) pairs (5 critic steps per generator step, L1 to the k-NN output, "
-                          "parent-relative joints). Use the result with `anima gesture --refiner`.")
+    tg = trsub.add_parser("gesture", help="the cGAN refiner of k-NN gestures (§5.3.3) or the §4.4 generator",
+                          description="--model refiner (default): synthesises every training window's speech with "
+                          "the k-NN search over the other videos (k = 0..4), then trains a 1D U-Net generator "
+                          "against a WGAN-GP critic on (speech, gesture) pairs (5 critic steps per generator step, "
+                          "L1 to the k-NN output, parent-relative joints); use it with `anima gesture --refiner`. "
+                          "--model generator: the §4.4 speech-to-gesture U-Net (face, body and hand decoders) with "
+                          "its audio+pose discriminator; regression: the same without the adversarial term; lstm: "
+                          "the LSTM baseline. Use those with `anima gesture --generator`.")
     tg.add_argument("--db", required=True, help="dataset folder from `anima dataset build`")
     tg.add_argument("--out", required=True, help="checkpoint path (.pt)")
-    tg.add_argument("--steps", type=int, default=600, help="generator steps")
+    tg.add_argument("--model", default="refiner", choices=("refiner", "generator", "regression", "lstm"))
+    tg.add_argument("--steps", type=int, default=None, help="generator steps (default 600 refiner, 1000 others)")
     tg.add_argument("--seed", type=int, default=0)
     tg.add_argument("--all-splits", action="store_true", help="train on all splits (default: train only)")
     tg.add_argument("--json", action="store_true")
@@ -742,7 +809,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "percentile of the database). Writes gesture.npz, gesture.bvh and skeleton.mp4 "
                         "(with the speech).")
     ge.add_argument("speech", help="speech audio (WAV/MP3/FLAC or a video's audio; resampled to 16 kHz)")
-    ge.add_argument("--db", required=True, help="dataset folder from `anima dataset build`")
+    ge.add_argument("--db", default=None, help="dataset folder from `anima dataset build` (k-NN search)")
+    ge.add_argument("--generator", default=None,
+                    help="instead of the search: a §4.4 generator checkpoint from `anima train gesture --model "
+                    "generator` (also writes the face: face.npz with 53 ICT expression weights + head rotation)")
     ge.add_argument("--out", required=True)
     ge.add_argument("--control", action="append", default=[], help="control, repeatable")
     ge.add_argument("--k", type=int, default=0, help="take the k-th best candidate (variety; 0 = best)")
@@ -750,6 +820,11 @@ def build_parser() -> argparse.ArgumentParser:
     ge.add_argument("--seed", type=int, default=0)
     ge.add_argument("--all-splits", action="store_true", help="search all splits (default: train only)")
     ge.add_argument("--refiner", default=None, help="cGAN refiner checkpoint from `anima train gesture`")
+    ge.add_argument("--keyword", action="append", default=[], metavar="WORD@START-ENDs",
+                    help="a keyword spoken at that time (e.g. from a speech recogniser): while it is spoken, "
+                    "gestures come from its --keyword-db (repeatable)")
+    ge.add_argument("--keyword-db", action="append", default=[], metavar="WORD=DATASET",
+                    help="the gesture database of a keyword: a dataset folder (repeatable)")
     ge.add_argument("--no-render", action="store_true")
     ge.add_argument("--json", action="store_true")
     ge.set_defaults(func=_cmd_gesture)

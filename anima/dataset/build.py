@@ -74,6 +74,23 @@ def expand_videos(inputs: list[str]) -> list[Path]:
     return uniq
 
 
+def paired_audio(path: str | Path) -> Path:
+    """The audio of a video: its own track, or, for a video without one, a WAV of the same name beside it or
+    in a sibling ``wav/`` folder (the layout of talking-head sets that ship speech separately)."""
+    from anima.audio.features import NoAudio, read_audio
+    p = Path(path)
+    try:
+        read_audio(p, sr=8000)  # cheap probe; raises NoAudio without a track
+        return p
+    except NoAudio:
+        for q in (p.with_suffix(".wav"), p.parent.parent / "wav" / f"{p.stem}.wav"):
+            if q.is_file():
+                return q
+        return p
+    except Exception:  # noqa: BLE001 - unreadable files are reported by the capture
+        return p
+
+
 def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | None = None) -> dict:
     """Everything for one video; writes shards and ``videos/<id>.json``. Returns that result."""
     from anima.audio.features import read_audio, speech_features
@@ -87,7 +104,8 @@ def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | 
     out = Path(out_dir)
     vid = video_id(path)
     t0 = time.perf_counter()
-    seq = capture_video(path, CaptureConfig(max_frames=cfg.max_frames), progress=False)
+    audio = paired_audio(path)
+    seq = capture_video(path, CaptureConfig(max_frames=cfg.max_frames), audio=str(audio), progress=False)
     auto = detect(seq, cfg.detector)
     events = annotation["events"] if annotation else auto
     gender = annotation.get("gender") if annotation else None
@@ -95,6 +113,7 @@ def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | 
     prov = json.dumps({"tracker": seq.meta.get("tracker"), "skeleton_tracker": seq.meta.get("skeleton", {}).get("tracker"),
                        "face_model": {k: v for k, v in seq.meta.get("face_model", {}).items() if k != "correspondence"},
                        "anima_version": __version__, "annotations": "imported" if annotation else "automatic",
+                       "audio": str(audio) if audio != Path(path) else "video track",
                        "fps_source": seq.fps})
     counts = {r: 0 for r in RULES}
     clips = cut_clips(seq.n_frames, seq.fps, cfg.filters)
@@ -115,8 +134,8 @@ def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | 
                      "start_s": t0c, "end_s": t1c, "fps": 30.0, "n_frames": len(motion), "motion": motion,
                      "texts": texts, "attributes": json.dumps(rel), "gender": gender, "provenance": prov})
     windows = []
-    if seq.body_joints is not None and seq.speech is not None:
-        x = read_audio(path)
+    if seq.speech is not None:
+        x = read_audio(audio)
         n15 = int(np.floor(seq.n_frames / seq.fps * GESTURE_FPS))
         sp = speech_features(x, GESTURE_FPS, n15)
         for w in audio_motion_windows(seq, sp.features, sp.valid, cfg.window, cfg.hop):
@@ -128,6 +147,7 @@ def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | 
     result = {"video_id": vid, "source": str(path), "status": "ok", "split": split, "frames": seq.n_frames,
               "fps": seq.fps, "duration_s": seq.n_frames / seq.fps, "clips_total": len(clips) or 1,
               "clips_kept": len(rows), "removed": counts, "windows": len(windows),
+              "face_only_windows": int(sum(not np.isfinite(w["body"]).all() for w in windows)),
               "has_body": seq.body_joints is not None, "has_speech": seq.speech is not None,
               "auto_events": [[n, round(s, 3), round(e, 3)] for n, s, e in auto],
               "seconds": round(time.perf_counter() - t0, 2), "worker_pid": os.getpid()}
@@ -257,5 +277,8 @@ def compute_stats(out: Path) -> dict:
         stats["audio_motion"] = {}
         for k, d in (("body", 165), ("face", 56), ("speech", 28)):
             x = np.concatenate([np.asarray(v, np.float32).reshape(-1, d) for v in am[k].to_pylist()])
+            x = x[np.isfinite(x).all(1)]  # face-only windows have no body
+            if not len(x):
+                continue
             stats["audio_motion"][k] = {"mean": x.mean(0).tolist(), "std": np.maximum(x.std(0), 1e-6).tolist()}
     return stats

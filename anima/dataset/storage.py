@@ -15,7 +15,8 @@ n_frames x 56: 53 ICT expression weights + head axis-angle), texts (list<string>
 events [name, start_s, end_s] relative to the clip), gender, provenance (JSON: tracker, face model, anima
 version, capture settings).
 ``audio_motion`` rows (one per 64-frame window at 15 fps): window_id, video_id, split, source, start_s, fps,
-n_frames, body (64 x 165), face (64 x 56), speech (64 x 28), provenance.
+n_frames, body (64 x 165), face (64 x 56), speech (64 x 28), provenance. Face-only windows (the face and speech
+are tracked, the body or hands are not) have an all-NaN body.
 Both read with pyarrow, pandas, ``ray.data.read_parquet(folder/shards/<kind>)`` or the torch datasets of
 ``anima.dataset.torch_data``.
 """

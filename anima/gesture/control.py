@@ -67,20 +67,23 @@ def parse_control(text: str) -> Control:
     return Control(name, op, float(v), bool(p), float(a) if a else 0.0, float(b) if b else float("inf"), text)
 
 
-def step_masks(db, controls: list[Control], n_steps: int, step_s: float) -> tuple[list, list[dict]]:
+def step_masks(db, controls: list[Control], n_steps: int, step_s: float,
+               threshold_rows: np.ndarray | None = None) -> tuple[list, list[dict]]:
     """Per search step, the window-start mask (None = no control) and a report per control: the threshold
-    used, and how far it was relaxed (towards the median) when no database window satisfied it."""
+    used, and how far it was relaxed (towards the median) when no database window satisfied it. Percentiles
+    are taken over the database windows ``threshold_rows`` (default: all)."""
     if not controls:
         return [None] * n_steps, []
     feats = control_features(db.G)
+    ref = feats if threshold_rows is None else {k: v[threshold_rows] for k, v in feats.items()}
     report = []
     masks_by_control = []
     for c in controls:
-        thr = c.threshold(feats)
+        thr = c.threshold(ref)
         fm = c.frame_mask(feats, thr)
         relaxed_to = None
         if not db.start_mask(fm).any():
-            med = float(np.median(feats[c.name]))
+            med = float(np.median(ref[c.name]))
             for f in np.linspace(0, 1, 21)[1:]:
                 t2 = thr + (med - thr) * f
                 fm = c.frame_mask(feats, t2)

@@ -49,17 +49,29 @@ class MatchDB:
     def search_layout(self) -> tuple:
         """Made once for the fast search: the pose features with their dimensions reordered by decreasing
         variance (the partial distance search stops early while reading rows sequentially), and their
-        projection on the 16 leading principal directions (a lower bound to skip most frames)."""
+        centred projection on the 32 leading principal directions quantised to int16 per direction, split in
+        two arrays: directions 1-16 (a lower bound read for every frame: 32 bytes per frame, so a
+        600,000-frame database's bounds stay in a 32 MB cache) and 17-32 (a tighter bound, read only for the
+        frames the first one keeps). ``delta16`` / ``delta32``: the largest distance between a dequantised
+        projection and the exact one, which keeps both bounds rigorous."""
         if self._layout is None:
             sample = self.P.reshape(-1, self.P.shape[-1])[:: max(1, self.P.shape[0] * self.P.shape[1] // 20000)]
             sample = sample.astype(np.float64)
             dims = np.argsort(-sample.var(0), kind="stable")
-            _, _, Vt = np.linalg.svd(sample - sample.mean(0), full_matrices=False)
-            U = np.ascontiguousarray(Vt[:16].T)  # (96, 16) orthonormal columns
-            Q = self.P.astype(np.float64) @ U
-            # all 16 projections of a frame in one 64-byte cache line (float32): the second bound costs no
-            # extra memory access after the first
-            self._layout = (np.ascontiguousarray(self.P[..., dims]), dims, np.ascontiguousarray(Q, np.float32), U)
+            mu = sample.mean(0)
+            _, _, Vt = np.linalg.svd(sample - mu, full_matrices=False)
+            U = np.ascontiguousarray(Vt[:32].T)  # (96, 32) orthonormal columns
+            Q = (self.P.astype(np.float64) - mu) @ U
+            flat = Q.reshape(-1, Q.shape[-1])
+            lo, hi = flat.min(0), flat.max(0)
+            scale = np.maximum(hi - lo, 1e-12) / 65535.0
+            Qi = np.round((Q - lo) / scale - 32768).clip(-32768, 32767).astype(np.int16)
+            err2 = ((Qi.astype(np.float64) + 32768) * scale + lo - Q) ** 2
+            delta16 = float(np.sqrt(err2[..., :16].sum(-1)).max())
+            delta32 = float(np.sqrt(err2.sum(-1)).max())
+            # q' = (q - lo) / scale - 32768 in the search, so that the bound is sum(scale^2 (Qi - q')^2)
+            self._layout = (np.ascontiguousarray(self.P[..., dims]), dims, np.ascontiguousarray(Qi[..., :16]),
+                            np.ascontiguousarray(Qi[..., 16:]), U, mu, (delta16, delta32), lo, scale)
         return self._layout
 
     def start_mask(self, frame_mask: np.ndarray | None) -> np.ndarray:
@@ -126,16 +138,18 @@ def search_literal(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
 
 
 @nb.njit(parallel=True, cache=True)
-def _preselect(P, Q, mask, p, q, lb, r_out, d_out):
+def _preselect(P, Q, Q2, mask, p, q, scale2, delta16, delta32, lb, r_out, d_out):
     """Per window m: the allowed frame s closest to ``p`` (squared Euclidean, float64), exactly, ties to the
-    smallest s (as the literal loop's strict ``<``). ``Q`` / ``q`` are the features projected on the 16
-    leading principal directions (orthonormal, so the projected distance is a lower bound of the true one;
-    all 16 floats of a frame share one cache line). The frame with the smallest bound is measured first;
-    frames whose bound exceeds the best distance so far are skipped, and full sums (dimensions stored
-    largest-variance first) stop once they exceed it. None of this can change the result. ``lb`` is an
-    (M, T) work array."""
+    smallest s (as the literal loop's strict ``<``). ``Q`` / ``Q2`` are the centred features projected on the
+    principal directions 1-16 / 17-32 (orthonormal, so a projected distance is a lower bound of the true
+    one), stored quantised (int16, per-direction ``scale2`` = step^2, ``q`` in the same units); ``delta16`` /
+    ``delta32`` bound the rounding, so |q - Q_s| - delta is still a lower bound. The frame with the smallest
+    16-direction bound is measured first; frames whose 16- or 32-direction bound exceeds the best distance
+    so far are skipped, and full sums (dimensions stored largest-variance first) stop once they exceed it.
+    None of this can change the result. ``lb`` is an (M, T) work array."""
     M, T, D = P.shape
     K = Q.shape[2]
+    K2 = Q2.shape[2]
     for m in nb.prange(M):
         s0 = -1
         for s in range(T):
@@ -143,7 +157,7 @@ def _preselect(P, Q, mask, p, q, lb, r_out, d_out):
                 acc = 0.0
                 for j in range(K):
                     diff = np.float64(Q[m, s, j]) - q[j]
-                    acc += diff * diff
+                    acc += scale2[j] * diff * diff
                 lb[m, s] = acc
                 if s0 < 0 or acc < lb[m, s0]:
                     s0 = s
@@ -156,8 +170,19 @@ def _preselect(P, Q, mask, p, q, lb, r_out, d_out):
             diff = np.float64(P[m, s0, j]) - p[j]
             best += diff * diff
         r = s0
+        # skip s when sqrt(lb) - delta > sqrt(best), i.e. lb > (sqrt(best) + delta)^2 (with a margin for
+        # the float64 arithmetic)
+        sb = np.sqrt(best)
+        cut16 = (sb + delta16) ** 2 * (1.0 + 1e-9) + 1e-12
+        cut32 = (sb + delta32) ** 2 * (1.0 + 1e-9) + 1e-12
         for s in range(T):
-            if s == s0 or not mask[m, s] or lb[m, s] * (1.0 - 1e-4) - 1e-9 > best:  # margin: float32 storage
+            if s == s0 or not mask[m, s] or lb[m, s] > cut16:
+                continue
+            acc = lb[m, s]
+            for j in range(K2):
+                diff = np.float64(Q2[m, s, j]) - q[K + j]
+                acc += scale2[K + j] * diff * diff
+            if acc > cut32:
                 continue
             acc = 0.0
             for j in range(D):
@@ -168,6 +193,9 @@ def _preselect(P, Q, mask, p, q, lb, r_out, d_out):
             if acc < best or (acc == best and s < r):
                 best = acc
                 r = s
+                sb = np.sqrt(best)
+                cut16 = (sb + delta16) ** 2 * (1.0 + 1e-9) + 1e-12
+                cut32 = (sb + delta32) ** 2 * (1.0 + 1e-9) + 1e-12
         r_out[m] = r
         d_out[m] = np.sqrt(best)
 
@@ -179,7 +207,8 @@ def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
     T = len(F_in)
     Fdb = db.F
     base = db.start_mask(None)
-    P, dims, Q, U = db.search_layout()
+    P, dims, Q, Q2, U, mu, (delta16, delta32), q_lo, q_scale = db.search_layout()
+    scale2 = q_scale ** 2
     F_norm = db.audio_norms()
     lb = np.empty(P.shape[:2])
     G, picks = [], []
@@ -191,7 +220,8 @@ def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
     pdist = np.empty(db.M, np.float64)
     while t < T:
         mask = base if control is None or control[step] is None else control[step]
-        _preselect(P, Q, np.ascontiguousarray(mask), p_prev[dims], p_prev @ U, lb, r, pdist)
+        q = ((p_prev - mu) @ U - q_lo) / q_scale - 32768
+        _preselect(P, Q, Q2, np.ascontiguousarray(mask), p_prev[dims], q, scale2, delta16, delta32, lb, r, pdist)
         keep = np.isfinite(pdist)
         if not keep.any():
             raise ValueError("no database window satisfies the control")

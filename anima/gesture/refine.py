@@ -72,39 +72,58 @@ def _block(cin, cout):
     return nn.Sequential(nn.Conv1d(cin, cout, 3, padding=1), nn.BatchNorm1d(cout), nn.ReLU())
 
 
+# the 1D U-Net of seed 004 fig. 5.4, shared by the §4.4 generator (anima.gesture.generator) and this refiner
+
+def unet_encoder(cin: int, widths) -> nn.ModuleList:
+    """8 [Conv-BN-ReLU] blocks (kernel 3); :func:`unet_encode` max-pools after every second one but the last."""
+    w = list(widths)
+    return nn.ModuleList(_block(cin if i == 0 else w[i - 1], w[i]) for i in range(len(w)))
+
+
+def unet_decoder(widths) -> nn.ModuleList:
+    """Blocks mirroring the encoder, each fed the upsampled features and the skip of the same depth."""
+    w = list(widths)
+    dec, c = [], w[-1]
+    for i in reversed(range(len(w) - 1)):
+        dec.append(_block(c + w[i], w[i]))
+        c = w[i]
+    return nn.ModuleList(dec)
+
+
+def unet_encode(enc: nn.ModuleList, x):
+    """``x [B, C, T]`` (T a multiple of 8) -> (deepest features, skips)."""
+    skips = []
+    for i, b in enumerate(enc):
+        x = b(x)
+        skips.append(x)
+        if i % 2 == 1 and i < len(enc) - 1:
+            x = F.max_pool1d(x, 2)
+    return x, skips
+
+
+def unet_decode(dec: nn.ModuleList, x, skips):
+    for i, b in zip(reversed(range(len(skips) - 1)), dec):
+        s = skips[i]
+        if x.shape[-1] != s.shape[-1]:
+            x = F.interpolate(x, size=s.shape[-1], mode="nearest")
+        x = b(torch.cat([x, s], 1))
+    return x
+
+
 class RefinerG(nn.Module):
     def __init__(self, cfg: RefinerConfig):
         super().__init__()
-        w = list(cfg.widths)
-        self.enc = nn.ModuleList(_block(SPEECH_DIM + G_DIM if i == 0 else w[i - 1], w[i]) for i in range(len(w)))
-        # pool after blocks 1, 3, 5 (every second block except the last)
-        self.pool_after = {i for i in range(1, len(w) - 1, 2)}
-        dec = []
-        cin = w[-1]
-        for i in reversed(range(len(w) - 1)):
-            dec.append(_block(cin + w[i], w[i]))
-            cin = w[i]
-        self.dec = nn.ModuleList(dec)
-        self.final = nn.Conv1d(cin, G_DIM, 1)
+        self.enc = unet_encoder(SPEECH_DIM + G_DIM, cfg.widths)
+        self.dec = unet_decoder(cfg.widths)
+        self.final = nn.Conv1d(cfg.widths[0], G_DIM, 1)
         nn.init.zeros_(self.final.weight)
         nn.init.zeros_(self.final.bias)
 
     def forward(self, speech, g):
         """``speech [B, T, 28]``, ``g [B, T, 165]`` (normalised parent-relative) -> refined ``[B, T, 165]``.
         T must be a multiple of 8 (three poolings)."""
-        x = torch.cat([speech, g], -1).transpose(1, 2)
-        skips = []
-        for i, b in enumerate(self.enc):
-            x = b(x)
-            skips.append(x)
-            if i in self.pool_after:
-                x = F.max_pool1d(x, 2)
-        for i, b in zip(reversed(range(len(self.enc) - 1)), self.dec):
-            s = skips[i]
-            if x.shape[-1] != s.shape[-1]:
-                x = F.interpolate(x, size=s.shape[-1], mode="nearest")
-            x = b(torch.cat([x, s], 1))
-        return g + self.final(x).transpose(1, 2)
+        x, skips = unet_encode(self.enc, torch.cat([speech, g], -1).transpose(1, 2))
+        return g + self.final(unet_decode(self.dec, x, skips)).transpose(1, 2)
 
 
 class Critic(nn.Module):

@@ -18,9 +18,9 @@ from anima.gesture.refine import G_DIM, SPEECH_DIM
 
 
 class SyncClassifier(nn.Module):
-    def __init__(self, widths=(32, 32, 64, 64, 128, 128)):
+    def __init__(self, widths=(32, 32, 64, 64, 128, 128), in_dim: int = SPEECH_DIM + G_DIM):
         super().__init__()
-        layers, cin = [], SPEECH_DIM + G_DIM
+        layers, cin = [], in_dim
         for i, w in enumerate(widths):
             layers += [nn.Conv1d(cin, w, 3, padding=1), nn.BatchNorm1d(w), nn.ReLU()]
             if i % 2 == 1 and i < len(widths) - 1:
@@ -30,7 +30,8 @@ class SyncClassifier(nn.Module):
         self.fc = nn.Linear(cin, 1)
 
     def forward(self, speech, g):
-        """``speech [B, L, 28]``, ``g [B, L, 165]`` (normalised) -> in-sync logit ``[B]``."""
+        """``speech [B, L, 28]``, ``g [B, L, D]`` (normalised) -> in-sync (or "real") logit ``[B]``. The same
+        network is the §4.4 generator's discriminator (``anima.gesture.generator``)."""
         return self.fc(self.body(torch.cat([speech, g], -1).transpose(1, 2)).mean(-1)).squeeze(-1)
 
 

@@ -10,8 +10,6 @@ import pytest
 from anima.io.assets import asset
 from anima.io.video import FFMPEG
 
-CLIPS = ["gesture-video/pats-crops/oliver1_gt.mp4", "gesture-video/pats-crops/oliver3_gt.mp4",
-         "gesture-video/pats-crops/seth3_gt.mp4"]
 SPEECH = "gesture-video/pats-crops/oliver2_gt.mp4"
 
 
@@ -24,22 +22,6 @@ def test_feature_layout():
     np.testing.assert_array_equal(f[15, -14:], S[19, :14])  # past the end: the last frame
     J = np.random.default_rng(0).random((10, 55, 3)).astype(np.float32)
     assert pose_features(J).shape == (10, 96)
-
-
-@pytest.fixture(scope="module")
-def ds(tmp_path_factory):
-    out = tmp_path_factory.mktemp("gds") / "ds"
-    r = subprocess.run([sys.executable, "-m", "anima", "dataset", "build", *[str(asset(c)) for c in CLIPS],
-                        "--out", str(out), "--min-len", "2", "--quiet", "--json"], capture_output=True, text=True,
-                       timeout=900)
-    assert r.returncode == 0, r.stderr[-2000:]
-    return out
-
-
-@pytest.fixture(scope="module")
-def db(ds):
-    from anima.gesture.database import from_dataset
-    return from_dataset(ds, None)
 
 
 def test_fast_search_equals_algorithm_1(db):
@@ -105,7 +87,7 @@ def test_gesture_command_outputs_and_bad_inputs(ds, tmp_path):
 
 def test_eval_gesture_leave_one_video_out(ds):
     from anima.eval.gesture import evaluate
-    r = evaluate(str(ds), refiner_folds=3, refiner_steps=15, sync_steps=10)
+    r = evaluate(str(ds), refiner_folds=3, refiner_steps=15, sync_steps=10, generator_steps=10)
     assert r["videos"] == 3 and r["minutes_of_audio_motion"] > 0.2
     assert set(r["minutes_per_speaker"]) == {"oliver", "seth"}
     ca = r["control_adherence"]
@@ -115,6 +97,15 @@ def test_eval_gesture_leave_one_video_out(ds):
     assert len(cg["folds"]) == 3 and sum(f["test_windows"] for f in cg["folds"]) == r["windows"]
     assert cg["metrics"]["l1_cm"] > 0 and np.isfinite(cg["metrics"]["jerk"])
     assert set(cg["control_adherence"]) == set(ca)
+    gen = r["generator"]  # the §4.4 generator and its baselines on the same windows, with FGD and lip error
+    assert set(gen["rows"]) == {"adversarial", "regression", "lstm"} and gen["windows_judged"] == r["windows"]
+    assert gen["lip_windows"] > r["windows"]  # the talking head's face-only windows are judged too
+    assert gen["face_only_windows_per_speaker"] == {"styletalk-samples": gen["lip_windows"] - r["windows"]}
+    for row in gen["rows"].values():
+        assert row["l1_cm"] > 0 and row["lip_error_mm"] > 0 and np.isfinite(row["fgd"])
+    assert set(gen["fgd"]) >= {"knn", "knn_cgan", "adversarial", "captured_half_vs_half"}
+    fg = gen["facegood_lip_sync"]
+    assert fg["recordings"] == 7 and set(fg["rows"]) == set(gen["rows"])
     sync = r["sync_classifier"]
     assert set(sync) == {"16_frames", "32_frames", "64_frames"}
     assert all(0 <= v["accuracy"] <= 1 and sum(v["test_windows"]) == r["windows"] for v in sync.values())
