@@ -402,7 +402,8 @@ def _cmd_eval_gesture(a) -> int:
     if not Path(a.db).exists():
         raise InputError(f"no dataset at {a.db}")
     print(json.dumps(evaluate(a.db, refiner_folds=a.refiner_folds, refiner_steps=a.refiner_steps,
-                              progress=not a.json, generator_steps=a.generator_steps), indent=2))
+                              progress=not a.json, generator_steps=a.generator_steps, speaker=a.speaker),
+                     indent=2))
     return 0
 
 
@@ -667,6 +668,8 @@ def build_parser() -> argparse.ArgumentParser:
     eg.add_argument("--refiner-folds", type=int, default=3,
                     help="k-NN + cGAN rows: cross-validation folds by video (0 = skip the refiner)")
     eg.add_argument("--refiner-steps", type=int, default=None, help="generator steps per fold (default 600)")
+    eg.add_argument("--speaker", default=None,
+                    help="only this speaker's windows (the seed's subject-specific protocol), e.g. oliver")
     eg.add_argument("--generator-steps", type=int, default=None,
                     help="§4.4 generator and baselines: training steps per fold (default 1000)")
     eg.add_argument("--json", action="store_true", help="(the result is JSON either way)")

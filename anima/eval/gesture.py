@@ -1,6 +1,7 @@
-"""``anima eval gesture`` (so far: the k-NN search of seed 004 ch. 5). Leave-one-video-out on the dataset's
-(audio, motion) windows: each video's windows are synthesised from its speech with a database of the other
-videos' windows, and compared with the captured motion.
+"""``anima eval gesture``: seed 004 ch. 4-5 on the dataset's (audio, motion) windows. The k-NN search is
+evaluated leave-one-video-out (each video's windows synthesised from its speech with a database of the other
+videos' windows) and compared with the captured motion; the learned models (k-NN + cGAN refiner, the §4.4
+generator, direct regression, the LSTM baseline, the sync classifier) are cross-validated by video in 3 folds.
 
 * control adherence (table 5.3): for each control (high / low left-wrist height, high / low left-wrist speed
   at the database's 85th / 15th percentile), the mean and standard deviation of the controlled feature over
@@ -9,7 +10,13 @@ videos' windows, and compared with the captured motion.
 * diversity: mean L1 (cm) between syntheses of the same speech with k = 0..4;
 * jerk: mean magnitude of the third time derivative of the wrists (m/s^3), synthesised vs captured;
 * beat consistency (Li et al. 2021): mean over motion beats (local minima of the wrists' speed) of
-  exp(-d^2 / (2 * 0.1^2)), d the distance in seconds to the nearest audio onset (librosa).
+  exp(-d^2 / (2 * 0.1^2)), d the distance in seconds to the nearest audio onset (librosa);
+* FGD (Yoon et al. 2020): Fréchet distance in the feature space of a motion autoencoder trained on the
+  training split's captured windows;
+* lip keypoint error (table 4.3): mm between the 20 lip landmarks of the ICT face with the predicted and the
+  captured expression, neutral head pose; the sanity row pairs each window with a random other video's face;
+* lip sync on FaceGood's (Mandarin speech, blendshape) recordings: correlation of the predicted mouth opening
+  with FaceGood's jaw-open curve, at lag 0 and at the best lag.
 """
 from __future__ import annotations
 
@@ -18,6 +25,7 @@ from collections import defaultdict
 import numpy as np
 
 from anima.core.skeleton import JOINT_NAMES
+from anima.errors import InputError
 from anima.gesture.features import FPS, T_MATCH
 
 _W = [JOINT_NAMES.index("left_wrist"), JOINT_NAMES.index("right_wrist")]
@@ -26,6 +34,12 @@ _W = [JOINT_NAMES.index("left_wrist"), JOINT_NAMES.index("right_wrist")]
 def _jerk(J: np.ndarray) -> float:
     w = J[:, _W]
     return float(np.linalg.norm(np.diff(w, 3, axis=0) * FPS ** 3, axis=-1).mean()) if len(w) > 3 else float("nan")
+
+
+def _wrist_motion(J: np.ndarray) -> float:
+    """Expressiveness: the wrists' temporal standard deviation (cm, mean over wrists and axes); a model that
+    regresses to the mean pose scores near 0."""
+    return float(J[:, _W].std(0).mean() * 100)
 
 
 def _beat_consistency(J: np.ndarray, onsets_s: np.ndarray) -> float:
@@ -39,10 +53,16 @@ def _beat_consistency(J: np.ndarray, onsets_s: np.ndarray) -> float:
 
 
 def _speaker(source: str) -> str:
-    """PATS clips are named after their speaker (oliver3_gt.mp4 -> oliver); other clips by their folder."""
+    """The speaker of a clip, from the naming of the shared sets: PATS (oliver3_gt.mp4 -> oliver), StyleTalk
+    (Obama_clip2.mp4 -> obama), TANGO (speaker7_....mp4 -> speaker7); other clips by their folder."""
     p = source.replace("\\", "/").split("/")
+    stem = p[-1].rsplit(".", 1)[0]
     if "pats-crops" in p:
-        return p[-1].split("_")[0].rstrip("0123456789")
+        return stem.split("_")[0].rstrip("0123456789")
+    if "styletalk-samples" in p:
+        return stem.split("_")[0].lower()
+    if "tango-interviews" in p and stem.startswith("speaker"):
+        return stem.split("_")[0]
     generic = {"assets", "examples", "video", "videos", "source", "face", "driving", "source_video", "samples"}
     for part in reversed(p[:-1]):
         if part and part not in generic:
@@ -51,18 +71,27 @@ def _speaker(source: str) -> str:
 
 
 def evaluate(folder: str, ks=(0, 1, 2, 3, 4), refiner_folds: int = 3, refiner_steps: int | None = None,
-             progress: bool = False, sync_steps: int = 300, generator_steps: int | None = None) -> dict:
+             progress: bool = False, sync_steps: int = 300, generator_steps: int | None = None,
+             speaker: str | None = None) -> dict:
+    """``speaker``: evaluate on that speaker's windows only (databases, training and tests), the seed's
+    subject-specific protocol; default: all speakers together."""
     import librosa
 
     from anima.gesture.control import control_features, parse_control, step_masks
     from anima.gesture.database import from_dataset
     from anima.gesture.knn import MatchDB, search
     db = from_dataset(folder, None)
+    if speaker is not None:
+        keep = [i for i, (s, _) in enumerate(db.source) if _speaker(s) == speaker]
+        if not keep:
+            known = sorted({_speaker(s) for s, _ in db.source})
+            raise InputError(f"no (audio, motion) windows of speaker {speaker!r}; speakers: {', '.join(known)}")
+        db = MatchDB(db.F[keep], db.P[keep], db.G[keep], [db.source[i] for i in keep], db.S[keep])
     by_video = defaultdict(list)
     for i, (src, _) in enumerate(db.source):
         by_video[src].append(i)
     if len(by_video) < 2:
-        raise ValueError("leave-one-video-out needs windows from at least two videos")
+        raise InputError("leave-one-video-out needs windows from at least two videos")
     ctrl_text = ["left_wrist_height>=p85", "left_wrist_height<=p15", "left_wrist_speed>=p85", "left_wrist_speed<=p15"]
     res = defaultdict(list)
     adherence = {c: {"values": []} for c in ["none"] + ctrl_text}
@@ -85,6 +114,8 @@ def evaluate(folder: str, ks=(0, 1, 2, 3, 4), refiner_folds: int = 3, refiner_st
                                                       for b in outs[j + 1:]])))
             res["jerk"].append(_jerk(g))
             res["jerk_captured"].append(_jerk(gt))
+            res["wrist_motion_cm"].append(_wrist_motion(g))
+            res["wrist_motion_cm_captured"].append(_wrist_motion(gt))
             # audio onsets: peaks of the rise of the log energy (speech feature 13) at 15 fps
             env = np.maximum(np.diff(db.F[i][:, 13], prepend=db.F[i][0, 13]), 0)
             on = librosa.onset.onset_detect(onset_envelope=env, sr=int(FPS), hop_length=1, units="time")
@@ -101,35 +132,37 @@ def evaluate(folder: str, ks=(0, 1, 2, 3, 4), refiner_folds: int = 3, refiner_st
     refined = _refiner_rows(db, kept, ks, refiner_folds, refiner_steps, progress) if refiner_folds else None
 
 
-    def minutes(items):  # union of the (overlapping) windows' time ranges
-        total = 0.0
-        for _, starts in items:
-            iv = sorted(starts)
-            end = -1.0
-            for a in iv:
-                b = a + T_MATCH / FPS
-                total += b - max(a, end) if b > end else 0.0
-                end = max(end, b)
-        return round(total / 60, 2)
-
     starts = defaultdict(list)
     for src, st in db.source:
         starts[src].append(st)
-    out = {"protocol": __doc__.split("\n\n", 1)[1].strip(), "videos": len(by_video), "windows": db.M,
-           "minutes_of_audio_motion": minutes(starts.items()),
+    out = {"protocol": __doc__.split("\n\n", 1)[1].strip(), "speaker": speaker or "all",
+           "videos": len(by_video), "windows": db.M,
+           "minutes_of_audio_motion": _minutes(starts.items()),
            "knn": {k: float(np.nanmean(v)) for k, v in res.items()}, "control_adherence": table}
     if refined is not None:
         out["knn_cgan"] = refined
     if refiner_folds:
         out["generator"] = _generator_rows(folder, kept, db, max(2, min(refiner_folds, len(by_video))),
-                                           generator_steps, progress, kept.get("refined"))
+                                           generator_steps, progress, kept.get("refined"), speaker)
     if refiner_folds:
         out["sync_classifier"] = _sync_rows(db, max(2, min(refiner_folds, len(by_video))), steps=sync_steps)
     per = defaultdict(list)
     for src, st in starts.items():
         per[_speaker(src)].append((src, st))
-    out["minutes_per_speaker"] = {k: minutes(v) for k, v in sorted(per.items())}
+    out["minutes_per_speaker"] = {k: _minutes(v) for k, v in sorted(per.items())}
     return out
+
+
+def _minutes(items) -> float:
+    """Minutes covered by (source, [window start s]) items: the union of the (overlapping) windows' ranges."""
+    total = 0.0
+    for _, starts in items:
+        end = -1.0
+        for a in sorted(starts):
+            b = a + T_MATCH / FPS
+            total += b - max(a, end) if b > end else 0.0
+            end = max(end, b)
+    return round(total / 60, 2)
 
 
 def _adherence_table(adherence: dict) -> dict:
@@ -187,6 +220,7 @@ def _refiner_rows(db, kept: dict, ks, folds: int, steps: int | None, progress: b
                                                       for b in outs[j + 1:]])))
             res["jerk"].append(_jerk(g))
             res["jerk_knn"].append(_jerk(kept["outs"][i][0]))
+            res["wrist_motion_cm"].append(_wrist_motion(g))
             res["jerk_captured"].append(_jerk(gt))
             res["beat_consistency"].append(_beat_consistency(g, kept["onsets"][i]))
             adherence["none"]["values"].append(control_features(g.reshape(1, T_MATCH, -1)))
@@ -319,7 +353,7 @@ def _facegood_sync(generators: dict, max_lag: int = 8) -> dict | None:
 
 
 def _generator_rows(folder: str, kept: dict, knn_db, folds: int, steps: int | None, progress: bool,
-                    refined_outs: dict | None) -> dict:
+                    refined_outs: dict | None, speaker: str | None = None) -> dict:
     """The §4.4 generator (adversarial), direct regression (no adversarial term) and the LSTM baseline,
     cross-validated by video with the refiner's folds; FGD for every method; lip error (table 4.3)."""
     from tqdm import tqdm
@@ -328,6 +362,9 @@ def _generator_rows(folder: str, kept: dict, knn_db, folds: int, steps: int | No
     from anima.gesture.fgd import train_fgd
     from anima.gesture.generator import KINDS, GeneratorConfig, GeneratorTrainConfig, train_generator
     w = load_windows(folder)
+    if speaker is not None:
+        keep = np.array([_speaker(s) == speaker for s in w["source"]])
+        w = {k: (v[keep] if isinstance(v, np.ndarray) else [x for x, y in zip(v, keep) if y]) for k, v in w.items()}
     model = load_face_model()
     key = {(s, round(st, 3)): n for n, (s, st) in enumerate(zip(w["source"], w["start_s"]))}
     # the refiner's folds over the body videos, then the face-only videos
@@ -375,6 +412,7 @@ def _generator_rows(folder: str, kept: dict, knn_db, folds: int, steps: int | No
             g, gt = gen_windows[kind][n], knn_db.G[i].reshape(T_MATCH, -1, 3)
             res[kind]["l1_cm"].append(float(np.abs(g - gt).mean() * 100))
             res[kind]["jerk"].append(_jerk(g))
+            res[kind]["wrist_motion_cm"].append(_wrist_motion(g))
             res[kind]["beat_consistency"].append(_beat_consistency(g, kept["onsets"][i]))
     train_rows = [i for i, (s, _) in enumerate(knn_db.source) if w["split"][key[(s, round(knn_db.source[i][1], 3))]] == "train"]
     fgd = train_fgd(knn_db.G[train_rows].reshape(len(train_rows), T_MATCH, -1))
@@ -384,20 +422,23 @@ def _generator_rows(folder: str, kept: dict, knn_db, folds: int, steps: int | No
     fgd_rows["knn"] = fgd.distance(real, np.stack([kept["outs"][i][0].reshape(T_MATCH, -1) for i, _ in judged]))
     if refined_outs:
         fgd_rows["knn_cgan"] = fgd.distance(real, np.stack([refined_outs[i].reshape(T_MATCH, -1) for i, _ in judged]))
-    # two halves of the captured windows against each other: the floor that sampling noise alone gives
+    # two random halves of the captured windows against each other: what sampling noise alone gives
     half = len(real) // 2
-    fgd_rows["captured_half_vs_half"] = fgd.distance(real[:half], real[half:2 * half]) if half >= 2 else float("nan")
+    perm = np.random.default_rng(0).permutation(len(real))
+    fgd_rows["captured_half_vs_half"] = (fgd.distance(real[perm[:half]], real[perm[half:2 * half]]) if half >= 2
+                                         else float("nan"))
     rows = {kind: {**{k: float(np.nanmean(v)) for k, v in res[kind].items()}, "diversity_cm": 0.0,
                    "lip_error_mm": float(np.mean(lip[kind])), "fgd": fgd_rows[kind], "folds": info[kind]}
             for kind in KINDS}
-    face_only = defaultdict(float)
-    for s_, h in zip(w["source"], w["has_body"]):
+    face_only = defaultdict(lambda: defaultdict(list))
+    for s_, st, h in zip(w["source"], w["start_s"], w["has_body"]):
         if not h:
-            face_only[_speaker(s_)] += 1
+            face_only[_speaker(s_)][s_].append(st)
     return {"protocol": f"{folds}-fold cross-validation by video (the refiner's folds; face-only windows from "
                         f"talking-head clips train the face decoder); {cfg.steps} steps, batch {cfg.batch}, Adam "
                         f"{cfg.lr}, adversarial weight {cfg.adv_weight}; deterministic, so diversity is 0",
             "windows_judged": len(judged), "lip_windows": len(lip["adversarial"]), "rows": rows,
             "lip_error_mm_random_other_video": float(np.mean(lip_random)),
-            "face_only_windows_per_speaker": {k: int(v) for k, v in sorted(face_only.items())},
+            "face_only_windows_per_speaker": {k: sum(len(x) for x in v.values()) for k, v in sorted(face_only.items())},
+            "face_only_minutes_per_speaker": {k: _minutes(v.items()) for k, v in sorted(face_only.items())},
             "fgd": fgd_rows, "fgd_autoencoder": fgd.info, "facegood_lip_sync": _facegood_sync(gens)}

@@ -50,7 +50,7 @@ class MatchDB:
         """Made once for the fast search: the pose features with their dimensions reordered by decreasing
         variance (the partial distance search stops early while reading rows sequentially), and their
         centred projection on the 32 leading principal directions quantised to int16 per direction, split in
-        two arrays: directions 1-16 (a lower bound read for every frame: 32 bytes per frame, so a
+        two arrays: directions 1-16, stored [M, 16, T] (a lower bound read for every frame: 32 bytes per frame, so a
         600,000-frame database's bounds stay in a 32 MB cache) and 17-32 (a tighter bound, read only for the
         frames the first one keeps). ``delta16`` / ``delta32``: the largest distance between a dequantised
         projection and the exact one, which keeps both bounds rigorous."""
@@ -70,7 +70,8 @@ class MatchDB:
             delta16 = float(np.sqrt(err2[..., :16].sum(-1)).max())
             delta32 = float(np.sqrt(err2.sum(-1)).max())
             # q' = (q - lo) / scale - 32768 in the search, so that the bound is sum(scale^2 (Qi - q')^2)
-            self._layout = (np.ascontiguousarray(self.P[..., dims]), dims, np.ascontiguousarray(Qi[..., :16]),
+            self._layout = (np.ascontiguousarray(self.P[..., dims]), dims,
+                            np.ascontiguousarray(Qi[..., :16].transpose(0, 2, 1)),
                             np.ascontiguousarray(Qi[..., 16:]), U, mu, (delta16, delta32), lo, scale)
         return self._layout
 
@@ -148,19 +149,23 @@ def _preselect(P, Q, Q2, mask, p, q, scale2, delta16, delta32, lb, r_out, d_out)
     so far are skipped, and full sums (dimensions stored largest-variance first) stop once they exceed it.
     None of this can change the result. ``lb`` is an (M, T) work array."""
     M, T, D = P.shape
-    K = Q.shape[2]
+    K = Q.shape[1]
     K2 = Q2.shape[2]
     for m in nb.prange(M):
+        # Q is stored direction-major per window ([M, 16, T]): the bound of all T frames is accumulated
+        # one direction at a time, a loop over contiguous frames that the compiler vectorises
+        for s in range(T):
+            lb[m, s] = 0.0
+        for j in range(K):
+            qj = q[j]
+            sj = scale2[j]
+            for s in range(T):
+                diff = np.float64(Q[m, j, s]) - qj
+                lb[m, s] += sj * diff * diff
         s0 = -1
         for s in range(T):
-            if mask[m, s]:
-                acc = 0.0
-                for j in range(K):
-                    diff = np.float64(Q[m, s, j]) - q[j]
-                    acc += scale2[j] * diff * diff
-                lb[m, s] = acc
-                if s0 < 0 or acc < lb[m, s0]:
-                    s0 = s
+            if mask[m, s] and (s0 < 0 or lb[m, s] < lb[m, s0]):
+                s0 = s
         if s0 < 0:
             r_out[m] = -1
             d_out[m] = np.inf
@@ -178,7 +183,7 @@ def _preselect(P, Q, Q2, mask, p, q, scale2, delta16, delta32, lb, r_out, d_out)
         for s in range(T):
             if s == s0 or not mask[m, s] or lb[m, s] > cut16:
                 continue
-            acc = lb[m, s]
+            acc = lb[m, s]  # the 32-direction bound: directions 17-32 added
             for j in range(K2):
                 diff = np.float64(Q2[m, s, j]) - q[K + j]
                 acc += scale2[K + j] * diff * diff
@@ -200,6 +205,15 @@ def _preselect(P, Q, Q2, mask, p, q, scale2, delta16, delta32, lb, r_out, d_out)
         d_out[m] = np.sqrt(best)
 
 
+@nb.njit(parallel=True, cache=True)
+def _audio_products(F, m_ok, r_ok, b, out):
+    """``out[i] = float64(F[m_ok[i], r_ok[i]]) * b``: the cosine's products for the pre-selected frames,
+    written in place (numpy then sums each row exactly as the literal search's ``(a * b).sum(-1)``)."""
+    for i in nb.prange(len(m_ok)):
+        for j in range(F.shape[2]):
+            out[i, j] = np.float64(F[m_ok[i], r_ok[i], j]) * b[j]
+
+
 def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
            control: list | None = None) -> tuple[np.ndarray, list]:
     """The same search, fast: a numba pass over all windows and frames per step (partial distance search),
@@ -218,18 +232,23 @@ def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
     rows = np.arange(db.M)
     r = np.empty(db.M, np.int64)
     pdist = np.empty(db.M, np.float64)
+    prod = np.empty((db.M, Fdb.shape[2]), np.float64)
     while t < T:
         mask = base if control is None or control[step] is None else control[step]
         q = ((p_prev - mu) @ U - q_lo) / q_scale - 32768
         _preselect(P, Q, Q2, np.ascontiguousarray(mask), p_prev[dims], q, scale2, delta16, delta32, lb, r, pdist)
         keep = np.isfinite(pdist)
-        if not keep.any():
+        if keep.all():
+            m_ok, r_ok, pd = rows, r, pdist
+        elif keep.any():
+            m_ok, r_ok, pd = rows[keep], r[keep], pdist[keep]
+        else:
             raise ValueError("no database window satisfies the control")
-        m_ok, r_ok = rows[keep], r[keep]
-        a = Fdb[m_ok, r_ok].astype(np.float64)
         b = F_in[t].astype(np.float64)
-        fd = 1.0 - (a * b).sum(-1) / np.maximum(F_norm[m_ok, r_ok] * np.sqrt((b * b).sum(-1)), 1e-12)
-        comb = _relrank(fd) + _relrank(pdist[keep])
+        a_b = prod[:len(m_ok)]
+        _audio_products(Fdb, m_ok, r_ok, b, a_b)
+        fd = 1.0 - a_b.sum(-1) / np.maximum(F_norm[m_ok, r_ok] * np.sqrt((b * b).sum(-1)), 1e-12)
+        comb = _relrank(fd) + _relrank(pd)
         key = comb * len(comb) + np.arange(len(comb))  # the stable order of comb, as unique keys
         kk = min(k, len(key) - 1)
         j = int(np.argpartition(key, kk)[kk])

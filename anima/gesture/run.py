@@ -91,11 +91,16 @@ def write_outputs(J: np.ndarray, speech_path: str, out: Path, info: dict, render
     np.savez(paths[0], joints=J.astype(np.float32), fps=np.float32(FPS), joint_names=np.array(JOINT_NAMES),
              parents=PARENTS, info=np.array(json.dumps({k: v for k, v in info.items() if k != "picks"})))
     write_bvh(paths[1], J, JOINT_NAMES, PARENTS, FPS)
-    if face is not None:
-        from anima.facemodel.ict import load_face_model
-        paths.append(out / "face.npz")
-        np.savez(paths[-1], expression=face[:, :53].astype(np.float32), head_rotation=face[:, 53:56].astype(np.float32),
-                 fps=np.float32(FPS), expr_names=np.array(load_face_model().expr_names))
+    if face is not None:  # the generator's face: the neutral ICT face animated, as `anima text2face` writes it
+        from anima.capture.export import export_arkit_csv
+        from anima.io.sequence import write_sequence
+        from anima.render.videos import render_videos
+        from anima.text2face.generate import motion_to_sequence
+        seq = motion_to_sequence(face, fps=FPS, meta={"generated_by": "anima gesture --generator"})
+        paths += [write_sequence(seq, out / "face.npz"), export_arkit_csv(seq, out / "arkit.csv")]
+        if render:
+            render_videos(seq, None, None, out / "face.mp4", progress=False, audio=str(speech_path))
+            paths.append(out / "face.mp4")
     if render:
         size = 512
         p = out / "skeleton.mp4"

@@ -28,16 +28,17 @@ class SequenceMesh:
 
 
 def render_videos(seq: TrackedSequence, video: str | None, overlay_path: str | Path | None,
-                  mesh_path: str | Path | None, progress: bool = True, alpha: float = 0.55) -> None:
+                  mesh_path: str | Path | None, progress: bool = True, alpha: float = 0.55,
+                  audio: str | None = None) -> None:
     """Write the overlay (mesh over the input frames, needs ``video``) and/or the mesh-only render.
-    The source's audio track, if any, is muxed into both."""
+    The source's audio track, if any (else ``audio``, e.g. the speech a face was generated from), is muxed
+    into both."""
     mesh = SequenceMesh(seq)
     size = (seq.width, seq.height)
-    audio = None
     frames = None
     if video is not None:
         info = probe_video(video)
-        audio = video if info.has_audio else None
+        audio = video if info.has_audio else audio
         frames = iter_frames(info)
     w_over = VideoWriter(overlay_path, seq.fps, size, audio) if overlay_path and frames is not None else None
     w_mesh = VideoWriter(mesh_path, seq.fps, size, audio) if mesh_path else None

@@ -147,8 +147,10 @@ def test_generator_commands(ds, wav, tmp_path):
     info = json.loads(r.stdout)
     n = info["frames"]
     assert abs(n - 75) <= 1 and info["model"] == "adversarial"  # 5 s at 15 fps
-    face = np.load(out / "face.npz")
-    assert face["expression"].shape == (n, 53) and np.load(out / "gesture.npz")["joints"].shape == (n, 55, 3)
+    from anima.io.sequence import read_sequence
+    face = read_sequence(out / "face.npz")
+    assert face.expression.shape == (n, 53) and np.load(out / "gesture.npz")["joints"].shape == (n, 55, 3)
+    assert (out / "arkit.csv").read_text().startswith("Timecode")
     r = _run("gesture", str(wav), "--generator", str(ck), "--out", str(tmp_path / "h"), "--control",
              "left_wrist_height>=p85")
     assert r.returncode == 2 and "k-NN search" in r.stderr
