@@ -60,7 +60,7 @@ class MatchDB:
             dims = np.argsort(-sample.var(0), kind="stable")
             mu = sample.mean(0)
             _, _, Vt = np.linalg.svd(sample - mu, full_matrices=False)
-            U = np.ascontiguousarray(Vt[:32].T)  # (96, 32) orthonormal columns
+            U = np.ascontiguousarray(Vt[:48].T)  # (96, 48) orthonormal columns
             Q = (self.P.astype(np.float64) - mu) @ U
             flat = Q.reshape(-1, Q.shape[-1])
             lo, hi = flat.min(0), flat.max(0)
@@ -68,11 +68,12 @@ class MatchDB:
             Qi = np.round((Q - lo) / scale - 32768).clip(-32768, 32767).astype(np.int16)
             err2 = ((Qi.astype(np.float64) + 32768) * scale + lo - Q) ** 2
             delta16 = float(np.sqrt(err2[..., :16].sum(-1)).max())
-            delta32 = float(np.sqrt(err2.sum(-1)).max())
+            delta32 = float(np.sqrt(err2[..., :32].sum(-1)).max())
+            delta48 = float(np.sqrt(err2.sum(-1)).max())
             # q' = (q - lo) / scale - 32768 in the search, so that the bound is sum(scale^2 (Qi - q')^2)
             self._layout = (np.ascontiguousarray(self.P[..., dims]), dims,
                             np.ascontiguousarray(Qi[..., :16].transpose(0, 2, 1)),
-                            np.ascontiguousarray(Qi[..., 16:]), U, mu, (delta16, delta32), lo, scale)
+                            np.ascontiguousarray(Qi[..., 16:]), U, mu, (delta16, delta32, delta48), lo, scale)
         return self._layout
 
     def start_mask(self, frame_mask: np.ndarray | None) -> np.ndarray:
@@ -139,7 +140,7 @@ def search_literal(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
 
 
 @nb.njit(parallel=True, cache=True)
-def _preselect(P, Q, Q2, mask, p, q, scale2, delta16, delta32, lb, r_out, d_out):
+def _preselect(P, Q, Q2, mask, p, q, scale2, delta16, delta32, delta48, lb, r_out, d_out):
     """Per window m: the allowed frame s closest to ``p`` (squared Euclidean, float64), exactly, ties to the
     smallest s (as the literal loop's strict ``<``). ``Q`` / ``Q2`` are the centred features projected on the
     principal directions 1-16 / 17-32 (orthonormal, so a projected distance is a lower bound of the true
@@ -180,14 +181,21 @@ def _preselect(P, Q, Q2, mask, p, q, scale2, delta16, delta32, lb, r_out, d_out)
         sb = np.sqrt(best)
         cut16 = (sb + delta16) ** 2 * (1.0 + 1e-9) + 1e-12
         cut32 = (sb + delta32) ** 2 * (1.0 + 1e-9) + 1e-12
+        cut48 = (sb + delta48) ** 2 * (1.0 + 1e-9) + 1e-12
         for s in range(T):
             if s == s0 or not mask[m, s] or lb[m, s] > cut16:
                 continue
-            acc = lb[m, s]  # the 32-direction bound: directions 17-32 added
-            for j in range(K2):
+            acc = lb[m, s]  # the 32- then the 48-direction bound: directions 17-32, then 33-48 added
+            half = K2 // 2
+            for j in range(half):
                 diff = np.float64(Q2[m, s, j]) - q[K + j]
                 acc += scale2[K + j] * diff * diff
             if acc > cut32:
+                continue
+            for j in range(half, K2):
+                diff = np.float64(Q2[m, s, j]) - q[K + j]
+                acc += scale2[K + j] * diff * diff
+            if acc > cut48:
                 continue
             acc = 0.0
             for j in range(D):
@@ -201,17 +209,57 @@ def _preselect(P, Q, Q2, mask, p, q, scale2, delta16, delta32, lb, r_out, d_out)
                 sb = np.sqrt(best)
                 cut16 = (sb + delta16) ** 2 * (1.0 + 1e-9) + 1e-12
                 cut32 = (sb + delta32) ** 2 * (1.0 + 1e-9) + 1e-12
+                cut48 = (sb + delta48) ** 2 * (1.0 + 1e-9) + 1e-12
         r_out[m] = r
         d_out[m] = np.sqrt(best)
 
 
+@nb.njit(inline="always")
+def _pairwise_dot(F, m, r, b):
+    """sum_j float64(F[m, r, j]) * b[j], added in numpy's pairwise order for rows of 8 to 128 values (eight
+    running sums, combined as ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7)), then the remainder), so the
+    result is bit-identical to the literal search's ``(a * b).sum(-1)``."""
+    n = b.shape[0]
+    acc = np.empty(8)
+    for j in range(8):
+        acc[j] = np.float64(F[m, r, j]) * b[j]
+    i = 8
+    stop = n - (n % 8)
+    while i < stop:
+        for j in range(8):
+            acc[j] += np.float64(F[m, r, i + j]) * b[i + j]
+        i += 8
+    res = ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]))
+    while i < n:
+        res += np.float64(F[m, r, i]) * b[i]
+        i += 1
+    return res
+
+
 @nb.njit(parallel=True, cache=True)
-def _audio_products(F, m_ok, r_ok, b, out):
-    """``out[i] = float64(F[m_ok[i], r_ok[i]]) * b``: the cosine's products for the pre-selected frames,
-    written in place (numpy then sums each row exactly as the literal search's ``(a * b).sum(-1)``)."""
+def _audio_distance(F, F_norm, m_ok, r_ok, b, b_norm, out):
+    """Cosine distance of each pre-selected frame's audio feature to ``b``, as the literal search computes
+    it (``1 - a.b / max(|a| |b|, 1e-12)``, float64)."""
     for i in nb.prange(len(m_ok)):
-        for j in range(F.shape[2]):
-            out[i, j] = np.float64(F[m_ok[i], r_ok[i], j]) * b[j]
+        m, r = m_ok[i], r_ok[i]
+        out[i] = 1.0 - _pairwise_dot(F, m, r, b) / max(F_norm[m, r] * b_norm, 1e-12)
+
+
+@nb.njit(parallel=True, cache=True)
+def _rank_sum(a, b, out):
+    """``out = relrank(a) + relrank(b)``: positions in the stable orders of ``a`` and ``b`` (both sorted at
+    once, one per core)."""
+    n = len(a)
+    ra = np.empty(n, np.int64)
+    rb = np.empty(n, np.int64)
+    for w in nb.prange(2):
+        x = a if w == 0 else b
+        order = np.argsort(x, kind="mergesort")
+        dst = ra if w == 0 else rb
+        for i in range(n):
+            dst[order[i]] = i
+    for i in range(n):
+        out[i] = ra[i] + rb[i]
 
 
 def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
@@ -221,7 +269,7 @@ def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
     T = len(F_in)
     Fdb = db.F
     base = db.start_mask(None)
-    P, dims, Q, Q2, U, mu, (delta16, delta32), q_lo, q_scale = db.search_layout()
+    P, dims, Q, Q2, U, mu, (delta16, delta32, delta48), q_lo, q_scale = db.search_layout()
     scale2 = q_scale ** 2
     F_norm = db.audio_norms()
     lb = np.empty(P.shape[:2])
@@ -232,11 +280,13 @@ def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
     rows = np.arange(db.M)
     r = np.empty(db.M, np.int64)
     pdist = np.empty(db.M, np.float64)
-    prod = np.empty((db.M, Fdb.shape[2]), np.float64)
+    fd_buf = np.empty(db.M, np.float64)
+    comb_buf = np.empty(db.M, np.int64)
     while t < T:
         mask = base if control is None or control[step] is None else control[step]
         q = ((p_prev - mu) @ U - q_lo) / q_scale - 32768
-        _preselect(P, Q, Q2, np.ascontiguousarray(mask), p_prev[dims], q, scale2, delta16, delta32, lb, r, pdist)
+        _preselect(P, Q, Q2, np.ascontiguousarray(mask), p_prev[dims], q, scale2, delta16, delta32, delta48, lb,
+                   r, pdist)
         keep = np.isfinite(pdist)
         if keep.all():
             m_ok, r_ok, pd = rows, r, pdist
@@ -245,10 +295,10 @@ def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
         else:
             raise ValueError("no database window satisfies the control")
         b = F_in[t].astype(np.float64)
-        a_b = prod[:len(m_ok)]
-        _audio_products(Fdb, m_ok, r_ok, b, a_b)
-        fd = 1.0 - a_b.sum(-1) / np.maximum(F_norm[m_ok, r_ok] * np.sqrt((b * b).sum(-1)), 1e-12)
-        comb = _relrank(fd) + _relrank(pd)
+        fd = fd_buf[:len(m_ok)]
+        _audio_distance(Fdb, F_norm, m_ok, r_ok, b, float(np.sqrt((b * b).sum(-1))), fd)
+        comb = comb_buf[:len(m_ok)]
+        _rank_sum(fd, pd, comb)
         key = comb * len(comb) + np.arange(len(comb))  # the stable order of comb, as unique keys
         kk = min(k, len(key) - 1)
         j = int(np.argpartition(key, kk)[kk])
