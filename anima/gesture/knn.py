@@ -18,11 +18,31 @@ frames at once, float64 like the literal one) and returns identical output.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
 from anima.gesture.features import N_STEP, T_MATCH
+
+
+N_PROJ = 48  # principal directions of the pose feature used for the lower bounds
+N_FIRST = 24  # of which the first bound reads the first 24 for every frame
+
+
+class _Layout(NamedTuple):
+    P: np.ndarray  # (M, T, 96) pose features, dimensions in ``dims`` order
+    dims: np.ndarray
+    U: np.ndarray  # (96, 48) principal directions
+    mu: np.ndarray  # (96,) mean pose feature
+    Qa: np.ndarray  # (M, 24, T) int8: directions 1-24, value = Qa * step_a[m] + lo_a[m]
+    lo_a: np.ndarray  # (M, 24)
+    step_a: np.ndarray  # (M, 24)
+    err_a: np.ndarray  # (M,) largest rounding distance over directions 1-24 of the window's frames
+    Qb: np.ndarray  # (M, T, 24) int8: directions 25-48
+    lo_b: np.ndarray
+    step_b: np.ndarray
+    err: np.ndarray  # (M,) largest rounding distance over directions 1-48
 
 
 @dataclass
@@ -33,7 +53,7 @@ class MatchDB:
     source: list = field(default_factory=list)  # per window: (video, start_s)
     S: np.ndarray | None = None  # (M, T, 28) per-frame speech features (for the cGAN refiner)
 
-    _layout: tuple | None = None
+    _layout: _Layout | None = None
 
     @property
     def M(self) -> int:
@@ -46,34 +66,43 @@ class MatchDB:
             self._fnorm = np.sqrt((F * F).sum(-1))
         return self._fnorm
 
-    def search_layout(self) -> tuple:
+    def search_layout(self) -> "_Layout":
         """Made once for the fast search: the pose features with their dimensions reordered by decreasing
         variance (the partial distance search stops early while reading rows sequentially), and their
-        centred projection on the 32 leading principal directions quantised to int16 per direction, split in
-        two arrays: directions 1-16, stored [M, 16, T] (a lower bound read for every frame: 32 bytes per frame, so a
-        600,000-frame database's bounds stay in a 32 MB cache) and 17-32 (a tighter bound, read only for the
-        frames the first one keeps). ``delta16`` / ``delta32``: the largest distance between a dequantised
-        projection and the exact one, which keeps both bounds rigorous."""
+        centred projection on the 48 leading principal directions, quantised to int8 per window and
+        direction (a window's 64 frames span a small part of each direction's range, so 256 levels are
+        fine: the rounding moves a frame by about 0.002 where the nearest frame is about 0.9 away). The
+        first 24 directions are stored [M, 24, T], a lower bound read for every frame (24 bytes per frame),
+        the other 24 [M, T, 24], read only for the frames the first bound keeps."""
         if self._layout is None:
-            sample = self.P.reshape(-1, self.P.shape[-1])[:: max(1, self.P.shape[0] * self.P.shape[1] // 20000)]
-            sample = sample.astype(np.float64)
+            P = self.P
+            sample = P.reshape(-1, P.shape[-1])[:: max(1, P.shape[0] * P.shape[1] // 20000)].astype(np.float64)
             dims = np.argsort(-sample.var(0), kind="stable")
             mu = sample.mean(0)
             _, _, Vt = np.linalg.svd(sample - mu, full_matrices=False)
-            U = np.ascontiguousarray(Vt[:48].T)  # (96, 48) orthonormal columns
-            Q = (self.P.astype(np.float64) - mu) @ U
-            flat = Q.reshape(-1, Q.shape[-1])
-            lo, hi = flat.min(0), flat.max(0)
-            scale = np.maximum(hi - lo, 1e-12) / 65535.0
-            Qi = np.round((Q - lo) / scale - 32768).clip(-32768, 32767).astype(np.int16)
-            err2 = ((Qi.astype(np.float64) + 32768) * scale + lo - Q) ** 2
-            delta16 = float(np.sqrt(err2[..., :16].sum(-1)).max())
-            delta32 = float(np.sqrt(err2[..., :32].sum(-1)).max())
-            delta48 = float(np.sqrt(err2.sum(-1)).max())
-            # q' = (q - lo) / scale - 32768 in the search, so that the bound is sum(scale^2 (Qi - q')^2)
-            self._layout = (np.ascontiguousarray(self.P[..., dims]), dims,
-                            np.ascontiguousarray(Qi[..., :16].transpose(0, 2, 1)),
-                            np.ascontiguousarray(Qi[..., 16:]), U, mu, (delta16, delta32, delta48), lo, scale)
+            U = np.ascontiguousarray(Vt[:N_PROJ].T)  # (96, 48) orthonormal columns
+            lo = np.empty((self.M, N_PROJ))
+            step = np.empty((self.M, N_PROJ))
+            Qi = np.empty(P.shape[:2] + (N_PROJ,), np.int8)
+            err_a = np.empty(self.M)
+            err = np.empty(self.M)
+            for c in range(0, self.M, 4096):  # in chunks: the float64 projection of 600,000 frames is 230 MB
+                X = (P[c:c + 4096].astype(np.float64) - mu) @ U
+                lo_c = X.min(1)
+                step_c = np.maximum(X.max(1) - lo_c, 1e-12) / 255
+                q = np.round((X - lo_c[:, None]) / step_c[:, None] - 128).clip(-128, 127)
+                e2 = ((q + 128) * step_c[:, None] + lo_c[:, None] - X) ** 2
+                err_a[c:c + 4096] = np.sqrt(e2[..., :N_FIRST].sum(-1)).max(1)
+                err[c:c + 4096] = np.sqrt(e2.sum(-1)).max(1)
+                Qi[c:c + 4096] = q
+                lo[c:c + 4096] = lo_c + 128 * step_c  # value = integer * step + lo
+                step[c:c + 4096] = step_c
+            self._layout = _Layout(
+                np.ascontiguousarray(P[..., dims]), dims, U, mu,
+                np.ascontiguousarray(Qi[..., :N_FIRST].transpose(0, 2, 1)), np.ascontiguousarray(lo[:, :N_FIRST]),
+                np.ascontiguousarray(step[:, :N_FIRST]), err_a,
+                np.ascontiguousarray(Qi[..., N_FIRST:]), np.ascontiguousarray(lo[:, N_FIRST:]),
+                np.ascontiguousarray(step[:, N_FIRST:]), err)
         return self._layout
 
     def start_mask(self, frame_mask: np.ndarray | None) -> np.ndarray:
@@ -140,28 +169,29 @@ def search_literal(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
 
 
 @nb.njit(parallel=True, cache=True)
-def _preselect(P, Q, Q2, mask, p, q, scale2, delta16, delta32, delta48, lb, r_out, d_out):
+def _preselect(P, Qa, lo_a, step_a, err_a, Qb, lo_b, step_b, err, mask, p, proj, lb, qb_work, r_out, d_out):
     """Per window m: the allowed frame s closest to ``p`` (squared Euclidean, float64), exactly, ties to the
-    smallest s (as the literal loop's strict ``<``). ``Q`` / ``Q2`` are the centred features projected on the
-    principal directions 1-16 / 17-32 (orthonormal, so a projected distance is a lower bound of the true
-    one), stored quantised (int16, per-direction ``scale2`` = step^2, ``q`` in the same units); ``delta16`` /
-    ``delta32`` bound the rounding, so |q - Q_s| - delta is still a lower bound. The frame with the smallest
-    16-direction bound is measured first; frames whose 16- or 32-direction bound exceeds the best distance
-    so far are skipped, and full sums (dimensions stored largest-variance first) stop once they exceed it.
-    None of this can change the result. ``lb`` is an (M, T) work array."""
+    smallest s (as the literal loop's strict ``<``). The centred features' projections on orthonormal
+    principal directions give lower bounds of the true distance (``proj``: the query's); stored rounded
+    (see :meth:`MatchDB.search_layout`), they are still bounds once the rounding distance (``err_a`` over
+    directions 1-24, ``err`` over 1-48) is taken off. The frame with the smallest 24-direction bound is
+    measured first; frames whose 24- or 48-direction bound exceeds the best distance so far are skipped,
+    and full sums (dimensions stored largest-variance first) stop once they exceed it. None of this can
+    change the result. ``lb`` (M, T) and ``qb_work`` (M, 2, 24) are work arrays."""
     M, T, D = P.shape
-    K = Q.shape[1]
-    K2 = Q2.shape[2]
+    KA = Qa.shape[1]
+    KB = Qb.shape[2]
     for m in nb.prange(M):
-        # Q is stored direction-major per window ([M, 16, T]): the bound of all T frames is accumulated
-        # one direction at a time, a loop over contiguous frames that the compiler vectorises
+        # Qa is direction-major per window: the bound of all T frames is accumulated one direction at a
+        # time, a loop over contiguous frames that the compiler vectorises
         for s in range(T):
             lb[m, s] = 0.0
-        for j in range(K):
-            qj = q[j]
-            sj = scale2[j]
+        for j in range(KA):
+            sj = step_a[m, j]
+            qj = (proj[j] - lo_a[m, j]) / sj
+            sj = sj * sj
             for s in range(T):
-                diff = np.float64(Q[m, j, s]) - qj
+                diff = np.float64(Qa[m, j, s]) - qj
                 lb[m, s] += sj * diff * diff
         s0 = -1
         for s in range(T):
@@ -176,26 +206,27 @@ def _preselect(P, Q, Q2, mask, p, q, scale2, delta16, delta32, delta48, lb, r_ou
             diff = np.float64(P[m, s0, j]) - p[j]
             best += diff * diff
         r = s0
-        # skip s when sqrt(lb) - delta > sqrt(best), i.e. lb > (sqrt(best) + delta)^2 (with a margin for
+        # skip s when sqrt(bound) - err > sqrt(best), i.e. bound > (sqrt(best) + err)^2 (with a margin for
         # the float64 arithmetic)
+        ea, eb = err_a[m], err[m]
         sb = np.sqrt(best)
-        cut16 = (sb + delta16) ** 2 * (1.0 + 1e-9) + 1e-12
-        cut32 = (sb + delta32) ** 2 * (1.0 + 1e-9) + 1e-12
-        cut48 = (sb + delta48) ** 2 * (1.0 + 1e-9) + 1e-12
+        cut_a = (sb + ea) ** 2 * (1.0 + 1e-9) + 1e-12
+        cut_b = (sb + eb) ** 2 * (1.0 + 1e-9) + 1e-12
+        qb, s2 = qb_work[m, 0], qb_work[m, 1]
+        ready = False
         for s in range(T):
-            if s == s0 or not mask[m, s] or lb[m, s] > cut16:
+            if s == s0 or not mask[m, s] or lb[m, s] > cut_a:
                 continue
-            acc = lb[m, s]  # the 32- then the 48-direction bound: directions 17-32, then 33-48 added
-            half = K2 // 2
-            for j in range(half):
-                diff = np.float64(Q2[m, s, j]) - q[K + j]
-                acc += scale2[K + j] * diff * diff
-            if acc > cut32:
-                continue
-            for j in range(half, K2):
-                diff = np.float64(Q2[m, s, j]) - q[K + j]
-                acc += scale2[K + j] * diff * diff
-            if acc > cut48:
+            if not ready:  # the query in directions 25-48, in this window's units
+                for j in range(KB):
+                    qb[j] = (proj[KA + j] - lo_b[m, j]) / step_b[m, j]
+                    s2[j] = step_b[m, j] * step_b[m, j]
+                ready = True
+            acc = lb[m, s]
+            for j in range(KB):
+                diff = np.float64(Qb[m, s, j]) - qb[j]
+                acc += s2[j] * diff * diff
+            if acc > cut_b:
                 continue
             acc = 0.0
             for j in range(D):
@@ -207,9 +238,8 @@ def _preselect(P, Q, Q2, mask, p, q, scale2, delta16, delta32, delta48, lb, r_ou
                 best = acc
                 r = s
                 sb = np.sqrt(best)
-                cut16 = (sb + delta16) ** 2 * (1.0 + 1e-9) + 1e-12
-                cut32 = (sb + delta32) ** 2 * (1.0 + 1e-9) + 1e-12
-                cut48 = (sb + delta48) ** 2 * (1.0 + 1e-9) + 1e-12
+                cut_a = (sb + ea) ** 2 * (1.0 + 1e-9) + 1e-12
+                cut_b = (sb + eb) ** 2 * (1.0 + 1e-9) + 1e-12
         r_out[m] = r
         d_out[m] = np.sqrt(best)
 
@@ -220,16 +250,27 @@ def _pairwise_dot(F, m, r, b):
     running sums, combined as ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7)), then the remainder), so the
     result is bit-identical to the literal search's ``(a * b).sum(-1)``."""
     n = b.shape[0]
-    acc = np.empty(8)
-    for j in range(8):
-        acc[j] = np.float64(F[m, r, j]) * b[j]
+    a0 = np.float64(F[m, r, 0]) * b[0]
+    a1 = np.float64(F[m, r, 1]) * b[1]
+    a2 = np.float64(F[m, r, 2]) * b[2]
+    a3 = np.float64(F[m, r, 3]) * b[3]
+    a4 = np.float64(F[m, r, 4]) * b[4]
+    a5 = np.float64(F[m, r, 5]) * b[5]
+    a6 = np.float64(F[m, r, 6]) * b[6]
+    a7 = np.float64(F[m, r, 7]) * b[7]
     i = 8
     stop = n - (n % 8)
     while i < stop:
-        for j in range(8):
-            acc[j] += np.float64(F[m, r, i + j]) * b[i + j]
+        a0 += np.float64(F[m, r, i]) * b[i]
+        a1 += np.float64(F[m, r, i + 1]) * b[i + 1]
+        a2 += np.float64(F[m, r, i + 2]) * b[i + 2]
+        a3 += np.float64(F[m, r, i + 3]) * b[i + 3]
+        a4 += np.float64(F[m, r, i + 4]) * b[i + 4]
+        a5 += np.float64(F[m, r, i + 5]) * b[i + 5]
+        a6 += np.float64(F[m, r, i + 6]) * b[i + 6]
+        a7 += np.float64(F[m, r, i + 7]) * b[i + 7]
         i += 8
-    res = ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]))
+    res = ((a0 + a1) + (a2 + a3)) + ((a4 + a5) + (a6 + a7))
     while i < n:
         res += np.float64(F[m, r, i]) * b[i]
         i += 1
@@ -245,21 +286,23 @@ def _audio_distance(F, F_norm, m_ok, r_ok, b, b_norm, out):
         out[i] = 1.0 - _pairwise_dot(F, m, r, b) / max(F_norm[m, r] * b_norm, 1e-12)
 
 
-@nb.njit(parallel=True, cache=True)
-def _rank_sum(a, b, out):
-    """``out = relrank(a) + relrank(b)``: positions in the stable orders of ``a`` and ``b`` (both sorted at
-    once, one per core)."""
-    n = len(a)
-    ra = np.empty(n, np.int64)
-    rb = np.empty(n, np.int64)
-    for w in nb.prange(2):
-        x = a if w == 0 else b
-        order = np.argsort(x, kind="mergesort")
-        dst = ra if w == 0 else rb
-        for i in range(n):
-            dst[order[i]] = i
-    for i in range(n):
-        out[i] = ra[i] + rb[i]
+def _stable_argsort(x: np.ndarray) -> np.ndarray:
+    """``np.argsort(x, kind="stable")``, faster: numpy's (vectorised) quicksort, whose order differs from the
+    stable one only among equal values; those (and NaN) are rare, and then the stable sort is used."""
+    order = np.argsort(x)
+    v = x[order]
+    if len(v) > 1 and ((v[1:] == v[:-1]).any() or np.isnan(v[-1])):
+        return np.argsort(x, kind="stable")
+    return order
+
+
+def _rank_sum(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """``out = relrank(a) + relrank(b)``: positions in the stable orders of ``a`` and ``b``."""
+    idx = np.arange(len(a))
+    out[_stable_argsort(a)] = idx
+    rb = np.empty_like(out)
+    rb[_stable_argsort(b)] = idx
+    out += rb
 
 
 def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
@@ -269,10 +312,10 @@ def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
     T = len(F_in)
     Fdb = db.F
     base = db.start_mask(None)
-    P, dims, Q, Q2, U, mu, (delta16, delta32, delta48), q_lo, q_scale = db.search_layout()
-    scale2 = q_scale ** 2
+    L = db.search_layout()
+    qb_work = np.empty((db.M, 2, N_PROJ - N_FIRST))
     F_norm = db.audio_norms()
-    lb = np.empty(P.shape[:2])
+    lb = np.empty(L.P.shape[:2])
     G, picks = [], []
     p_prev = np.asarray(p_init, np.float64)
     t = 0
@@ -280,14 +323,13 @@ def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
     rows = np.arange(db.M)
     r = np.empty(db.M, np.int64)
     pdist = np.empty(db.M, np.float64)
-    fd_buf = np.empty(db.M, np.float64)
+    fdist = np.empty(db.M, np.float64)
     comb_buf = np.empty(db.M, np.int64)
     while t < T:
         mask = base if control is None or control[step] is None else control[step]
-        q = ((p_prev - mu) @ U - q_lo) / q_scale - 32768
-        _preselect(P, Q, Q2, np.ascontiguousarray(mask), p_prev[dims], q, scale2, delta16, delta32, delta48, lb,
-                   r, pdist)
-        keep = np.isfinite(pdist)
+        _preselect(L.P, L.Qa, L.lo_a, L.step_a, L.err_a, L.Qb, L.lo_b, L.step_b, L.err, np.ascontiguousarray(mask),
+                   p_prev[L.dims], (p_prev - L.mu) @ L.U, lb, qb_work, r, pdist)
+        keep = r >= 0
         if keep.all():
             m_ok, r_ok, pd = rows, r, pdist
         elif keep.any():
@@ -295,7 +337,7 @@ def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
         else:
             raise ValueError("no database window satisfies the control")
         b = F_in[t].astype(np.float64)
-        fd = fd_buf[:len(m_ok)]
+        fd = fdist[:len(m_ok)]
         _audio_distance(Fdb, F_norm, m_ok, r_ok, b, float(np.sqrt((b * b).sum(-1))), fd)
         comb = comb_buf[:len(m_ok)]
         _rank_sum(fd, pd, comb)

@@ -24,6 +24,19 @@ def test_feature_layout():
     assert pose_features(J).shape == (10, 96)
 
 
+def test_fast_rank_sum_keeps_the_stable_order_of_ties():
+    from anima.gesture.knn import _rank_sum, _relrank
+    rng = np.random.default_rng(1)
+    for n in (1, 2, 5, 300):
+        for decimals in (None, 1):  # all distinct, then many ties
+            a, b = rng.random(n), rng.random(n)
+            if decimals is not None:
+                a, b = np.round(a, decimals), np.round(b, decimals)
+            out = np.empty(n, np.int64)
+            _rank_sum(a, b, out)
+            np.testing.assert_array_equal(out, _relrank(a) + _relrank(b))
+
+
 def test_fast_search_equals_algorithm_1(db):
     from anima.audio.features import features_for_file
     from anima.gesture.control import parse_control, step_masks
