@@ -55,6 +55,23 @@ def test_fast_search_equals_algorithm_1(db):
     assert pa == pb and np.array_equal(a, b)
 
 
+def test_fast_search_equals_algorithm_1_on_a_larger_perturbed_database(db):
+    """Many near-duplicate windows (the real ones with noise) make many near-ties in the pose
+    pre-selection: the quantised, float32 bounds must still never skip the exact best frame."""
+    from anima.audio.features import features_for_file
+    from anima.gesture.features import audio_features
+    from anima.gesture.knn import MatchDB, search, search_literal
+    rng = np.random.default_rng(3)
+    pick = rng.integers(0, db.M, 150)
+    P = db.P[pick] + rng.normal(0, 0.01, db.P[pick].shape).astype(np.float32)
+    F = db.F[pick] * (1 + rng.normal(0, 0.05, db.F[pick].shape)).astype(np.float32)
+    big = MatchDB(F, P, db.G[pick])
+    F_in = audio_features(features_for_file(asset(SPEECH), 15.0).features)[:64]
+    a, pa = search_literal(big, F_in, 1, db.P[0, 5].astype(np.float64))
+    b, pb = search(big, F_in, 1, db.P[0, 5].astype(np.float64))
+    assert pa == pb and np.array_equal(a, b)
+
+
 def test_control_holds_on_first_and_last_frame_of_each_window(db):
     from anima.audio.features import features_for_file
     from anima.gesture.control import control_features, parse_control, step_masks
