@@ -298,6 +298,14 @@ def mouth_opening_mm(face56: np.ndarray, model=None) -> np.ndarray:
     return np.linalg.norm(k[..., 14, :] - k[..., 18, :], axis=-1)
 
 
+def _load_py2_npy(path) -> np.ndarray:
+    """FaceGood's arrays were saved by Python 2 (latin-1 pickles): numpy reads them but warns each time."""
+    import warnings
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Reading `.npy` or `.npz` file required additional header")
+        return np.load(path, allow_pickle=True, encoding="latin1")
+
+
 def _facegood_sync(generators: dict, max_lag: int = 8) -> dict | None:
     """Lip sync on FaceGood's real (Mandarin speech, blendshape) recordings, never seen in training: the
     Pearson correlation between the predicted mouth opening and FaceGood's ``mouth_stretch_c`` curve (its
@@ -314,12 +322,12 @@ def _facegood_sync(generators: dict, max_lag: int = 8) -> dict | None:
     wavs = sorted(glob.glob(str(root / "wav" / "*.wav")))
     if not wavs or not names_p.is_file():
         return None
-    names = list(np.load(names_p, allow_pickle=True, encoding="latin1"))
+    names = list(_load_py2_npy(names_p))
     ch = names.index("mouth_stretch_c")
     recs = []
     for w in wavs:
         stem = w.rsplit("/", 1)[-1][:-4]
-        bs = np.load(root / "bs_value" / f"bs_value_{stem}.npy", allow_pickle=True, encoding="latin1")[:, ch]
+        bs = _load_py2_npy(root / "bs_value" / f"bs_value_{stem}.npy")[:, ch]
         x = read_audio(w)
         T = min(int(len(bs) / 30 * FPS), int(len(x) / 16000 * FPS))
         ref = np.interp(np.arange(T) / FPS, np.arange(len(bs)) / 30.0, bs)
