@@ -115,6 +115,23 @@ def test_gesture_command_outputs_and_bad_inputs(ds, tmp_path):
     assert r.returncode == 2 and "at least" in r.stderr
 
 
+def test_silent_speech_and_speech_longer_than_the_database(db, tmp_path):
+    from anima.gesture.knn import MatchDB
+    from anima.gesture.run import synthesize
+    silent = tmp_path / "silent.wav"
+    subprocess.run([FFMPEG, "-v", "error", "-y", "-f", "lavfi", "-i", "anullsrc=r=16000:cl=mono", "-t", "3",
+                    str(silent)], check=True)
+    J, info = synthesize(str(silent), db)
+    assert abs(len(J) - 45) <= 1 and J.shape[1:] == (55, 3) and np.isfinite(J).all()  # 3 s at 15 fps
+    assert any("silent" in n for n in info["notes"])
+    one = MatchDB(db.F[:1], db.P[:1], db.G[:1])  # 64 frames (4.3 s) of database for 8 s of speech
+    speech = tmp_path / "speech.wav"
+    subprocess.run([FFMPEG, "-v", "error", "-y", "-i", str(asset(SPEECH)), "-t", "8", "-vn", str(speech)], check=True)
+    J, info = synthesize(str(speech), one)
+    assert abs(len(J) - 120) <= 1 and np.isfinite(J).all()
+    assert any("longer than the database" in n for n in info["notes"])
+
+
 def test_eval_gesture_leave_one_video_out(ds):
     from anima.eval.gesture import evaluate
     r = evaluate(str(ds), refiner_folds=3, refiner_steps=15, sync_steps=10, generator_steps=10)
