@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.errors import AnimaError
 from anima.eval.gesture import _jerk, _wrist_motion, load_windows
 from anima.gesture.generator import GeneratorConfig, GeneratorTrainConfig, train_generator
 
@@ -54,4 +55,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except AnimaError as e:  # a missing or empty dataset: its message, not a traceback
+        raise SystemExit(f"{Path(__file__).name}: {e}")

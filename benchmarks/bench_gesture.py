@@ -25,6 +25,7 @@ import numpy as np
 
 from anima.audio.features import features_for_file
 from anima.core.skeleton import JOINT_NAMES
+from anima.errors import AnimaError
 from anima.gesture.database import from_dataset
 from anima.gesture.features import T_MATCH, audio_features, pose_features
 from anima.gesture.knn import MatchDB, search, search_literal
@@ -100,4 +101,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except AnimaError as e:  # a missing or empty dataset: its message, not a traceback
+        raise SystemExit(f"{Path(__file__).name}: {e}")

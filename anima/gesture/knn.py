@@ -13,7 +13,8 @@ Two readings of the algorithm's text are made explicit here (both implementation
 Control masks look at the first and the last frame of each N-frame window (§5.3.2.1).
 
 :func:`search_literal` is Algorithm 1 with its loops; :func:`search` is the fast version (all windows and
-frames at once, float64 like the literal one) and returns identical output.
+frames at once; exact distances in float64 like the literal one, float32 only inside a lower bound with its
+error margin) and returns identical output.
 """
 from __future__ import annotations
 
@@ -66,7 +67,7 @@ class MatchDB:
             self._fnorm = np.sqrt((F * F).sum(-1))
         return self._fnorm
 
-    def search_layout(self) -> "_Layout":
+    def search_layout(self) -> _Layout:
         """Made once for the fast search: the pose features with their dimensions reordered by decreasing
         variance (the partial distance search stops early while reading rows sequentially), and their
         centred projection on the 48 leading principal directions, quantised to int8 per window and
