@@ -1,4 +1,5 @@
-"""User-facing errors. The CLI prints their message (no traceback) and exits with ``exit_code``."""
+"""User-facing errors. The CLI prints their message as one line (no traceback) and exits with ``exit_code``:
+2 bad input, 3 missing asset, 4 incompatible or unsafe file (schema, checkpoint)."""
 
 
 class AnimaError(Exception):
@@ -10,7 +11,7 @@ class AssetNotFound(AnimaError):
 
 
 class InputError(AnimaError):
-    """Bad user input: missing/corrupt file, no face, unsupported format."""
+    """Bad user input: missing/corrupt file, no face, unsupported format, out-of-range option."""
 
     exit_code = 2
 
@@ -19,3 +20,8 @@ class SchemaError(AnimaError):
     """An artifact of an unknown or incompatible schema version."""
 
     exit_code = 4
+
+
+class CheckpointError(SchemaError):
+    """A checkpoint that cannot be loaded: not a checkpoint, unsafe (a pickle that would run code), another
+    model kind or version, or weights that do not fit its config."""

@@ -9,14 +9,16 @@ speakers move theirs ~2.9) and wrist jerk (m/s^3). Writes benchmarks/results/ges
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
 
+from anima.dataset.windows import read_windows
 from anima.errors import AnimaError
-from anima.eval.gesture import _jerk, _wrist_motion, load_windows
+from anima.eval.gesture.metrics import jerk as jerk_of
+from anima.eval.gesture.metrics import wrist_motion
 from anima.gesture.generator import GeneratorConfig, GeneratorTrainConfig, train_generator
+from anima.io.atomic import write_json
 
 
 def main() -> None:
@@ -26,36 +28,35 @@ def main() -> None:
     ap.add_argument("--folds", type=int, default=3)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "gesture_adv_ablation.json"))
     a = ap.parse_args()
-    w = load_windows(a.db)
-    body_videos = sorted({s for s, h in zip(w["source"], w["has_body"]) if h})
-    other = sorted(set(w["source"]) - set(body_videos))
+    w = read_windows(a.db)
+    body_videos = sorted({s for s, h in zip(w.source, w.has_body) if h})
+    other = sorted(set(w.source) - set(body_videos))
     fold_of = {v: n % a.folds for n, v in enumerate(body_videos)}
     fold_of.update({v: n % a.folds for n, v in enumerate(other)})
-    fold = np.array([fold_of[s] for s in w["source"]])
+    fold = np.array([fold_of[s] for s in w.source])
     res = {}
     for weight in a.weights:
         kind = "adversarial" if weight > 0 else "regression"
         l1, motion, jerk = [], [], []
         for f in range(a.folds):
             tr = fold != f
-            gen, _ = train_generator(w["speech"][tr], w["body"][tr], w["face"][tr], GeneratorConfig(kind=kind),
+            gen, _ = train_generator(w.speech[tr], w.body[tr], w.face[tr], GeneratorConfig(kind=kind, fps=w.fps),
                                      GeneratorTrainConfig(adv_weight=weight))
-            for n in np.flatnonzero((fold == f) & w["has_body"]):
-                J, _ = gen.generate(w["speech"][n])
-                l1.append(float(np.abs(J - w["body"][n].reshape(J.shape)).mean() * 100))
-                motion.append(_wrist_motion(J))
-                jerk.append(_jerk(J))
+            for n in np.flatnonzero((fold == f) & w.has_body):
+                J, _ = gen.generate(w.speech[n])
+                l1.append(float(np.abs(J - w.body[n].reshape(J.shape)).mean() * 100))
+                motion.append(wrist_motion(J))
+                jerk.append(jerk_of(J, w.fps))
         res[str(weight)] = {"l1_cm": float(np.mean(l1)), "wrist_motion_cm": float(np.mean(motion)),
                             "jerk": float(np.mean(jerk)), "windows": len(l1)}
         print(weight, res[str(weight)], flush=True)
-    res["wrist_motion_cm_captured"] = float(np.mean([_wrist_motion(w["body"][n].reshape(-1, 55, 3))
-                                                     for n in np.flatnonzero(w["has_body"])]))
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(res, indent=2))
+    res["wrist_motion_cm_captured"] = float(np.mean([wrist_motion(w.body[n].reshape(-1, 55, 3))
+                                                     for n in np.flatnonzero(w.has_body)]))
+    write_json(a.out, res)
 
 
 if __name__ == "__main__":
     try:
         main()
     except AnimaError as e:  # a missing or empty dataset: its message, not a traceback
-        raise SystemExit(f"{Path(__file__).name}: {e}")
+        raise SystemExit(f"{Path(__file__).name}: {e}") from None

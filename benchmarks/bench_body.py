@@ -18,12 +18,12 @@ from pathlib import Path
 
 os.environ.setdefault("GLOG_minloglevel", "2")
 
-from anima.capture.holistic import HolisticTracker  # noqa: E402
-from anima.capture.pipeline import CaptureConfig, capture_video  # noqa: E402
-from anima.facemodel.correspondence import load_correspondence  # noqa: E402
-from anima.facemodel.ict import load_face_model  # noqa: E402
-from anima.io.assets import asset  # noqa: E402
-from anima.io.video import iter_frames, probe_video  # noqa: E402
+from anima.capture.holistic import HolisticTracker
+from anima.capture.pipeline import CaptureConfig, capture_video
+from anima.facemodel.correspondence import load_correspondence
+from anima.facemodel.ict import load_face_model
+from anima.io.assets import asset
+from anima.io.video import iter_frames, probe_video
 
 
 def raw_holistic(path: str) -> float:

@@ -18,14 +18,14 @@ from pathlib import Path
 
 os.environ.setdefault("GLOG_minloglevel", "2")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from anima.capture.mediapipe_face import FaceMeshTracker  # noqa: E402
-from anima.capture.pipeline import CaptureConfig, capture_face, fit_landmark_sequence  # noqa: E402
-from anima.facemodel.correspondence import load_correspondence  # noqa: E402
-from anima.facemodel.ict import load_face_model  # noqa: E402
-from anima.io.assets import asset  # noqa: E402
-from anima.io.video import iter_frames, probe_video  # noqa: E402
+from anima.capture.mediapipe_face import FaceMeshTracker
+from anima.capture.pipeline import CaptureConfig, capture_face, fit_landmark_sequence
+from anima.facemodel.correspondence import load_correspondence
+from anima.facemodel.ict import load_face_model
+from anima.io.assets import asset
+from anima.io.video import iter_frames, probe_video
 
 
 def raw_mediapipe(path: str, n: int) -> tuple[float, np.ndarray]:

@@ -104,4 +104,4 @@ if __name__ == "__main__":
     try:
         main()
     except AnimaError as e:  # a missing or empty dataset: its message, not a traceback
-        raise SystemExit(f"{Path(__file__).name}: {e}")
+        raise SystemExit(f"{Path(__file__).name}: {e}") from None

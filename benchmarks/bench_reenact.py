@@ -25,8 +25,8 @@ import numpy as np
 
 os.environ.setdefault("GLOG_minloglevel", "2")
 
-from anima.io.assets import asset  # noqa: E402
-from anima.io.video import FFMPEG, read_video  # noqa: E402
+from anima.io.assets import asset
+from anima.io.video import FFMPEG, read_video
 
 OBAMA = [f"styletalk-samples/samples/source_video/video/Obama_clip{i}.mp4" for i in (1, 2, 3)]
 ACTOR = "liveportrait-examples/assets/examples/driving/d12.mp4"

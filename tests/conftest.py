@@ -1,5 +1,6 @@
 import os
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -8,8 +9,8 @@ import pytest
 os.environ.setdefault("GLOG_minloglevel", "2")
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
-from anima.io.assets import asset  # noqa: E402
-from anima.io.video import FFMPEG  # noqa: E402
+from anima.io.assets import asset
+from anima.io.video import FFMPEG
 
 D0 = "liveportrait-examples/assets/examples/driving/d0.mp4"
 REPO = Path(__file__).resolve().parents[1]
@@ -25,6 +26,21 @@ def face_model():
     from anima.facemodel.ict import load_face_model
 
     return load_face_model()
+
+
+def anima_cli(*args, timeout: float = 900, env: dict | None = None) -> subprocess.CompletedProcess:
+    """Run the ``anima`` command as a user does, in a new process; whatever happens, stderr holds no
+    traceback (errors are one line)."""
+    r = subprocess.run([sys.executable, "-m", "anima", *map(str, args)], capture_output=True, text=True,
+                       timeout=timeout, env=env)
+    assert "Traceback" not in r.stderr, r.stderr[-3000:]
+    return r
+
+
+@pytest.fixture(scope="session")
+def cli():
+    """The one command runner of the suite: ``cli("capture", video, "--out", out)``."""
+    return anima_cli
 
 
 def ffmpeg(*args: str) -> None:
@@ -79,3 +95,14 @@ def videos(tmp_path_factory, d0_path) -> dict:
 
 def synthetic_rng(seed: int = 0) -> np.random.Generator:
     return np.random.default_rng(seed)
+
+
+# Fixtures that run MediaPipe, the command line or training on real clips: a test that uses one is `slow`
+# (`./dev test -m "not slow"` is the quick loop; CI runs everything).
+SLOW_FIXTURES = {"cli", "d0_capture", "videos", "ds", "db", "obama_db", "tiny_model", "windows", "shipped"}
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if SLOW_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.slow)

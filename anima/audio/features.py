@@ -19,6 +19,7 @@ import librosa
 import numpy as np
 
 from anima.errors import InputError
+from anima.io.atomic import atomic_path
 from anima.io.video import FFMPEG
 
 SR = 16000
@@ -122,3 +123,22 @@ def speech_features(x: np.ndarray, fps: float, n_frames: int | None = None, sr: 
 
 def features_for_file(path: str | Path, fps: float, n_frames: int | None = None) -> SpeechFeatures:
     return speech_features(read_audio(path), fps, n_frames)
+
+
+def write_speech_features(path: str | Path, fps: float, n_frames: int | None = None,
+                          out: str | Path | None = None) -> dict:
+    """``anima audio features``: the features of ``path`` written to ``out`` (default ``<path>.speech.npz``:
+    ``features [F, 28]``, ``valid [F]``, ``fps``, ``names``). Returns a summary."""
+    x = read_audio(path)
+    longest = 2 * int(np.ceil(len(x) / SR * fps)) + 1
+    if n_frames is not None and not 1 <= n_frames <= longest:
+        raise InputError(f"--frames {n_frames}: the audio is {len(x) / SR:.2f} s, so at most {longest} frames at "
+                         f"{fps:g} fps (2 x its length)")
+    f = speech_features(x, fps, n_frames)
+    dest = Path(out) if out else Path(path).with_suffix(".speech.npz")
+    with atomic_path(dest) as tmp:
+        np.savez_compressed(tmp, features=f.features, valid=f.valid, fps=np.float32(f.fps),
+                            names=np.asarray(FEATURE_NAMES))
+    return {"file": str(path), "out": str(dest), "frames": int(len(f.features)), "fps": f.fps,
+            "duration_s": round(f.duration_s, 3), "silent": f.silent, "gain_db": round(f.gain_db, 2),
+            "frames_outside_audio": int((~f.valid).sum())}

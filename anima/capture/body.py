@@ -21,9 +21,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from anima.core.filters import gaussian_smooth, valid_runs
-from anima.core.skeleton import (BODY_JOINTS, LEFT_HAND, MP_POSE, N_JOINTS, RIGHT_HAND, bone_lengths,
-                                 fix_bone_lengths)
+from anima.core.filters import gaussian_smooth, resample_joints, valid_runs
+from anima.core.skeleton import BODY_JOINTS, LEFT_HAND, MP_POSE, N_JOINTS, RIGHT_HAND, bone_lengths, fix_bone_lengths
 
 _UPPER = [0, 7, 8, 11, 12, 13, 14, 15, 16, 23, 24]
 
@@ -187,24 +186,11 @@ def clean(track: BodyTrack, min_conf: float = 0.5, max_gap: int = 8, sigma: floa
     fps = track.fps
     conf = np.where(np.isfinite(J).all(-1), np.maximum(track.conf, interp * min_conf), 0.0)
     if resample_fps and abs(resample_fps - fps) > 1e-6:
-        J, conf, interp = resample(J, conf, interp, fps, resample_fps)
+        J, conf, interp = resample_joints(J, conf, interp, fps, resample_fps)
         fps = resample_fps
     if fixed_bones:
         J = fix_bone_lengths(J)
     return BodyTrack(J, conf, fps, interp)
-
-
-def resample(J, conf, interp, fps: float, new_fps: float):
-    """Linear resampling of joints to ``new_fps`` (a frame is missing if either neighbour is)."""
-    F = len(J)
-    t_new = np.arange(int(np.floor((F - 1) / fps * new_fps)) + 1) / new_fps
-    x = t_new * fps
-    i0 = np.clip(np.floor(x).astype(int), 0, F - 1)
-    i1 = np.clip(i0 + 1, 0, F - 1)
-    w = (x - i0)[:, None, None]
-    Jn = (1 - w) * J[i0] + w * J[i1]
-    near = np.where(w[:, 0, 0] < 0.5, i0, i1)
-    return Jn, np.minimum(conf[i0], conf[i1]), interp[near]
 
 
 def bone_length_cv(J: np.ndarray) -> float:

@@ -69,14 +69,14 @@ class LandmarkBasis:
     outer_eyes: tuple[int, int]  # positions in `index` of landmarks 33 and 263 (inter-ocular distance)
 
     @classmethod
-    def build(cls, model: FaceModel, corr: Correspondence, use_iris: bool = True) -> "LandmarkBasis":
+    def build(cls, model: FaceModel, corr: Correspondence, use_iris: bool = True) -> LandmarkBasis:
         key = (id(model), id(corr), use_iris)
         if key not in _BASIS_CACHE:
             _BASIS_CACHE[key] = cls._build(model, corr, use_iris)
         return _BASIS_CACHE[key]
 
     @classmethod
-    def _build(cls, model: FaceModel, corr: Correspondence, use_iris: bool) -> "LandmarkBasis":
+    def _build(cls, model: FaceModel, corr: Correspondence, use_iris: bool) -> LandmarkBasis:
         keep = corr.valid.copy()
         if not use_iris:
             keep[468:] = False

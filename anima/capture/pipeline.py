@@ -1,36 +1,51 @@
 """Monocular face capture: decode -> MediaPipe face mesh (video mode) -> ICT fit -> smoothing -> artifact."""
 from __future__ import annotations
 
+import hashlib
 import time
-from pathlib import Path
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
 from anima import __version__
-from anima.capture.fit import (FitConfig, FrameFit, LandmarkBasis, choose_keyframes, fit_frames, fit_identity,
-                               landmark_error)
+from anima.audio.features import NoAudio, read_audio, speech_features
+from anima.capture.body import assemble, clean
+from anima.capture.fit import (
+    FitConfig,
+    FrameFit,
+    LandmarkBasis,
+    choose_keyframes,
+    fit_frames,
+    fit_identity,
+    landmark_error,
+)
+from anima.capture.holistic import HolisticTracker
+from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.core.camera import mediapipe_to_camera
 from anima.core.filters import gaussian_smooth
 from anima.core.rotations import matrix_to_rotvec
+from anima.core.skeleton import JOINT_NAMES, PARENTS
 from anima.errors import InputError
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
 from anima.io.sequence import FLAG_LOW_CONFIDENCE, FLAG_NO_FACE, TrackedSequence
 from anima.io.video import VideoInfo, iter_frames, probe_video
+from anima.pose3d.config import default_checkpoint
+from anima.pose3d.infer import lift_frames, replace_body
 
 MIN_SIZE = 32  # px; smaller videos cannot hold a trackable face
 
 
 @dataclass
 class CaptureConfig:
-    smooth_sigma: float = 1.0
+    smooth_sigma: float = field(default=1.0, metadata={"flag": "--sigma", "range": (0.0, 100.0)})
     """Gaussian temporal smoothing of the fitted parameters, in frames (0 = off). Zero-phase, so no lag.
     1.0 frame (33-40 ms at 25-30 fps) removes ~2/3 of MediaPipe's landmark jitter while the landmark
     error grows < 10 % (``anima eval stability``); seed 004 used 1.5 frames on 15 fps gesture data."""
-    max_frames: int | None = None
-    """Stop after this many frames (None = whole video)."""
+    max_frames: int | None = field(default=None, metadata={"range": (1, None)})
+    """Only the first N frames (default: the whole video)."""
     low_conf_nme: float = 0.05
     """Frames whose fit NME exceeds this are flagged low-confidence."""
     min_face_px: float = 40.0
@@ -44,17 +59,18 @@ class CaptureConfig:
     """Track the face only (MediaPipe face mesh: the fast path); otherwise Holistic: face, body and hands."""
     body_min_conf: float = 0.5
     """Body joints with a pose visibility below this are dropped before interpolation."""
-    max_gap: int = 8
-    """Longest drop-out (frames) filled by cubic interpolation; longer gaps stay missing and flagged."""
+    max_gap: int = field(default=8, metadata={"range": (0, 10_000)})
+    """Longest hand/body drop-out (frames) filled by cubic interpolation; longer gaps stay missing and flagged."""
     body_sigma: float = 1.5
     """Gaussian smoothing of the skeleton, frames (seed 004 §4.3.1)."""
     fixed_bones: bool = False
     """Impose the clip's median bone lengths on every frame."""
-    body_3d: str = "mediapipe"
+    body_3d: str = field(default="mediapipe", metadata={"choices": ("mediapipe", "lifter")})
     """Where the body's 3D comes from: ``mediapipe`` (Pose world landmarks) or ``lifter`` (anima's trained
     2D->3D lifter on MediaPipe's 2D keypoints, :mod:`anima.pose3d`)."""
     pose_model: str | None = None
-    """Lifter checkpoint for ``body_3d="lifter"`` (default: ``anima.pose3d.train.default_checkpoint()``)."""
+    """Lifter checkpoint for --body-3d lifter (default: $ANIMA_HOME/models/pose_lifter.pt, where
+    ``anima train pose`` writes)."""
     fit: FitConfig = field(default_factory=FitConfig)
 
 
@@ -69,8 +85,6 @@ def track_landmarks(info: VideoInfo, max_frames: int | None = None, progress: bo
                     warnings_out: list[str] | None = None, on_frame=None) -> np.ndarray:
     """Run MediaPipe face mesh over the video; ``[F, 478, 3]`` normalised landmarks, NaN where no face.
     ``on_frame(landmarks)`` is called after each frame (used to fit while tracking)."""
-    from anima.capture.mediapipe_face import FaceMeshTracker
-
     total = info.n_frames if max_frames is None else min(info.n_frames, max_frames)
     out = []
     errs: list[str] = []
@@ -250,8 +264,6 @@ def track_holistic(info: VideoInfo, max_frames: int | None = None, progress: boo
                    warnings_out: list[str] | None = None, on_face=None):
     """Run MediaPipe Holistic over the video. Returns (face landmarks ``[F, 478, 3]`` NaN where no face,
     list of :class:`HolisticFrame`)."""
-    from anima.capture.holistic import HolisticTracker
-
     total = info.n_frames if max_frames is None else min(info.n_frames, max_frames)
     lms, frames = [], []
     errs: list[str] = []
@@ -286,8 +298,6 @@ def empty_face_sequence(n: int, width: int, height: int, fps: float, meta: dict)
 
 def attach_speech(seq: TrackedSequence, audio_path: str) -> None:
     """Speech features at the sequence's frame times, or ``meta.audio`` saying why there are none."""
-    from anima.audio.features import NoAudio, read_audio, speech_features
-
     try:
         x = read_audio(audio_path)
     except NoAudio as e:
@@ -306,10 +316,7 @@ def attach_speech(seq: TrackedSequence, audio_path: str) -> None:
 
 def _lift_body(body, frames, width: int, height: int, checkpoint: str | None) -> str:
     """Replace the body's 3D by the lifter's (in place); returns a provenance string."""
-    import hashlib
-
-    from anima.pose3d.infer import lift_frames, replace_body
-    from anima.pose3d.train import default_checkpoint, load_checkpoint
+    from anima.pose3d.train import load_checkpoint  # lazy: torch
 
     path = Path(checkpoint) if checkpoint else default_checkpoint()
     model, _ = load_checkpoint(path)
@@ -328,9 +335,6 @@ def capture_video(video: str, cfg: CaptureConfig | None = None, audio: str | Non
     """One pass over ``video``: face (ICT fit), body and hands (55 joints, cleaned), speech features.
     ``cfg.face_only`` keeps the fast face-mesh path. ``audio``: a separate audio file (default: the
     video's own track). Raises InputError when neither a face nor a body is found."""
-    from anima.capture.body import assemble, clean
-    from anima.core.skeleton import JOINT_NAMES, PARENTS
-
     cfg = cfg or CaptureConfig()
     if cfg.face_only:
         seq = capture_face(video, cfg, progress, timings)

@@ -66,3 +66,16 @@ class OneEuroFilter:
         a = self._alpha(cutoff, self.freq)
         self._x = a * x + (1 - a) * self._x
         return self._x.copy()
+
+
+def resample_joints(J, conf, interp, fps: float, new_fps: float):
+    """Linear resampling of joints to ``new_fps`` (a frame is missing if either neighbour is)."""
+    F = len(J)
+    t_new = np.arange(int(np.floor((F - 1) / fps * new_fps)) + 1) / new_fps
+    x = t_new * fps
+    i0 = np.clip(np.floor(x).astype(int), 0, F - 1)
+    i1 = np.clip(i0 + 1, 0, F - 1)
+    w = (x - i0)[:, None, None]
+    Jn = (1 - w) * J[i0] + w * J[i1]
+    near = np.where(w[:, 0, 0] < 0.5, i0, i1)
+    return Jn, np.minimum(conf[i0], conf[i1]), interp[near]

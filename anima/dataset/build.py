@@ -24,9 +24,15 @@ from pathlib import Path
 import numpy as np
 
 from anima import __version__
-from anima.dataset.attributes import DetectorConfig
-from anima.dataset.filters import RULES, FilterConfig
-from anima.dataset.storage import SCHEMA, VERSION, check_dataset, read_table
+from anima.audio.features import NoAudio, read_audio, speech_features
+from anima.capture.pipeline import CaptureConfig, capture_video
+from anima.core.contract import HOP, WINDOW
+from anima.dataset.annotations import load_annotations
+from anima.dataset.attributes import DetectorConfig, detect
+from anima.dataset.describe import describe_many, segment_timeline
+from anima.dataset.filters import RULES, FilterConfig, clip_rejection, cut_clips
+from anima.dataset.pairs import GESTURE_FPS, audio_motion_windows, text_motion_clip
+from anima.dataset.storage import SCHEMA, VERSION, check_dataset, read_table, write_shard
 from anima.errors import InputError
 from anima.io.atomic import atomic_path
 
@@ -37,12 +43,14 @@ VIDEO_EXT = (".mp4", ".mov", ".mkv", ".webm", ".avi", ".m4v")
 class BuildConfig:
     filters: FilterConfig = field(default_factory=FilterConfig)
     detector: DetectorConfig = field(default_factory=DetectorConfig)
-    n_descriptions: int = 10
+    n_descriptions: int = field(default=10, metadata={"flag": "--descriptions", "range": (1, 1000)})
+    """Descriptions per clip."""
     seed: int = 0
-    window: int = 64
-    hop: int = 32
-    max_frames: int | None = None
-    """Capture at most this many frames per video (tests)."""
+    """Random seed of the descriptions."""
+    window: int = WINDOW
+    hop: int = HOP
+    max_frames: int | None = field(default=None, metadata={"range": (1, None)})
+    """Capture at most N frames per video."""
 
 
 def video_id(path: str | Path) -> str:
@@ -77,7 +85,6 @@ def expand_videos(inputs: list[str]) -> list[Path]:
 def paired_audio(path: str | Path) -> Path:
     """The audio of a video: its own track, or, for a video without one, a WAV of the same name beside it or
     in a sibling ``wav/`` folder (the layout of talking-head sets that ship speech separately)."""
-    from anima.audio.features import NoAudio, read_audio
     p = Path(path)
     try:
         read_audio(p, sr=8000)  # cheap probe; raises NoAudio without a track
@@ -87,19 +94,12 @@ def paired_audio(path: str | Path) -> Path:
             if q.is_file():
                 return q
         return p
-    except Exception:  # noqa: BLE001 - unreadable files are reported by the capture
+    except Exception:
         return p
 
 
 def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | None = None) -> dict:
     """Everything for one video; writes shards and ``videos/<id>.json``. Returns that result."""
-    from anima.audio.features import read_audio, speech_features
-    from anima.capture.pipeline import CaptureConfig, capture_video
-    from anima.dataset.attributes import detect
-    from anima.dataset.describe import describe_many, segment_timeline
-    from anima.dataset.filters import clip_rejection, cut_clips
-    from anima.dataset.pairs import GESTURE_FPS, audio_motion_windows, text_motion_clip
-    from anima.dataset.storage import write_shard
 
     out = Path(out_dir)
     vid = video_id(path)
@@ -167,7 +167,7 @@ def _task(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | None) ->
     """Ray task body: never raises; failures are recorded."""
     try:
         return process_video(path, out_dir, cfg, annotation)
-    except Exception as e:  # noqa: BLE001 - recorded per video, the build goes on
+    except Exception as e:
         msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         res = {"video_id": video_id(path), "source": str(path), "status": "error", "error": msg,
                "kind": type(e).__name__, "traceback": traceback.format_exc(limit=4)}
@@ -198,12 +198,18 @@ def _start_ray(address: str | None, num_workers: int | None):
     return ray
 
 
+def build_summary(m: dict) -> dict:
+    """The lines ``anima dataset build`` prints of a manifest."""
+    keys = ["videos", "videos_done", "clips_total", "clips_kept", "removed_by_rule", "windows", "frames",
+            "seconds_of_video", "compute_s", "last_run"]
+    return {k: m[k] for k in keys} | {"videos_failed": len(m["videos_failed"])}
+
+
 def build_dataset(inputs: list[str], out_dir: str | Path, cfg: BuildConfig | None = None,
                   annotations: str | None = None, address: str | None = None, num_workers: int | None = None,
-                  progress: bool = True) -> dict:
+                  progress: bool = True, command: str | None = None) -> dict:
     from tqdm import tqdm
 
-    from anima.dataset.annotations import load_annotations
 
     cfg = cfg or BuildConfig()
     out = Path(out_dir)
@@ -234,7 +240,7 @@ def build_dataset(inputs: list[str], out_dir: str | Path, cfg: BuildConfig | Non
     _write_json(out / "stats.json", stats)
     manifest = _manifest(out, videos, cfg, status="complete")
     manifest["last_run"] = {"videos_processed": len(pending), "wall_s": round(wall, 2),
-                            "workers": num_workers or os.cpu_count(), "address": address}
+                            "workers": num_workers or os.cpu_count(), "address": address, "command": command}
     _write_json(out / "manifest.json", manifest)
     return manifest
 

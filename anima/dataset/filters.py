@@ -21,11 +21,15 @@ RULES = ["length", "action_keywords", "head_yaw", "fit_error", "low_confidence"]
 
 @dataclass
 class FilterConfig:
-    min_s: float = 5.0
-    max_s: float = 10.0
+    min_s: float = field(default=5.0, metadata={"flag": "--min-len", "range": (0.1, 3600.0)})
+    """Shortest clip, s."""
+    max_s: float = field(default=10.0, metadata={"flag": "--max-len", "range": (0.1, 3600.0)})
+    """Longest clip, s; longer videos are cut."""
     action_keywords: list[str] = field(default_factory=lambda: ["turn", "shake head", "head wagging"])
-    max_yaw_deg: float = 35.0
-    max_fit_nme: float = 0.05
+    max_yaw_deg: float = field(default=35.0, metadata={"flag": "--max-yaw", "range": (0.0, 180.0)})
+    """Head yaw limit, degrees."""
+    max_fit_nme: float = field(default=0.05, metadata={"range": (0.0, 1.0)})
+    """Per-frame fit-error failsafe (NME)."""
     min_tracked: float = 0.95
     max_low_conf: float = 0.1
     enabled: list[str] = field(default_factory=lambda: list(RULES))

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from anima.core.rotations import matrix_to_rotvec, rotvec_to_matrix
+from anima.io.sequence import FLAG_NO_FACE
 
 TEXT_FPS = 30.0
 GESTURE_FPS = 15.0
@@ -94,7 +95,6 @@ def audio_motion_windows(seq, speech15: np.ndarray, speech_valid15: np.ndarray,
     is tracked and whose speech is valid but whose body or hands are not (a head-and-shoulders clip, a long
     hand occlusion) is kept as a face-only window: its ``body`` is all NaN (``has_body`` False); the face
     head of the speech-to-gesture generator trains on it."""
-    from anima.io.sequence import FLAG_NO_FACE
     t = np.arange(len(speech15)) / GESTURE_FPS
     speech_ok = speech_valid15 & np.isfinite(speech15).all(1)
     idx = np.clip(np.round(t * seq.fps).astype(int), 0, seq.n_frames - 1)

@@ -13,7 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.capture.pipeline import CaptureConfig, capture_video
 from anima.dataset.storage import check_dataset, read_table
+from anima.io.video import read_video
+from anima.render.face import render_mesh
+from anima.render.videos import SequenceMesh
 
 
 def _bar(plt, path: Path, labels, values, color: str, ylabel: str, size, rotation: int, title: str | None = None) -> str:
@@ -58,14 +62,10 @@ def contact_sheet(source: str, start_s: float, end_s: float, path: Path, n: int 
     """Frames of a clip with the fitted face mesh over them (captures the clip's frames again, face only)."""
     import cv2
 
-    from anima.capture.pipeline import CaptureConfig, capture_video
-    from anima.io.video import read_video
-    from anima.render.face import render_mesh
-    from anima.render.videos import SequenceMesh
 
     try:
         frames, info = read_video(source, max_frames=int(end_s * 30) + 2)
-    except Exception:  # noqa: BLE001 - a sheet is optional
+    except Exception:
         return False
     a, b = int(start_s * info.fps), min(int(end_s * info.fps), len(frames))
     if b - a < 2:
@@ -105,7 +105,7 @@ def write_report(folder: str | Path, n_examples: int = 4, sheets: int = 3) -> Pa
           f"{manifest['compute_s']} s",
           f"- clips: {manifest['clips_total']} cut, **{manifest['clips_kept']} kept**; (audio, motion) windows: "
           f"**{manifest['windows']}**",
-          f"- splits (videos): " + ", ".join(f"{k} {len(v)}" for k, v in manifest["splits"].items()), "",
+          "- splits (videos): " + ", ".join(f"{k} {len(v)}" for k, v in manifest["splits"].items()), "",
           "## Clips removed by each rule", "", "| rule | clips |", "|---|---|"]
     md += [f"| {k} | {v} |" for k, v in manifest["removed_by_rule"].items()]
     md += ["", "![removed](removed.png)", "", "## Attribute distribution (fraction of kept clips)", "",

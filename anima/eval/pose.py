@@ -6,10 +6,11 @@ Protocols, metrics: :mod:`anima.pose3d.metrics` (17 H36M joints, root-relative; 
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 
-import numpy as np
-
+from anima.errors import InputError
+from anima.pose3d.config import TrainConfig, default_cache, default_checkpoint
 from anima.pose3d.data import humaneva_validation, s9_image_evidence
 from anima.pose3d.joints import HUMANEVA_EVAL
 from anima.pose3d.metrics import pose_metrics
@@ -40,7 +41,7 @@ ABLATION = {
 
 
 def evaluate_model(model, cache: Path, progress: bool = False) -> dict:
-    from anima.pose3d.train import predict
+    from anima.pose3d.train import predict  # lazy: torch
     e = s9_image_evidence(cache, progress)
     f = e["found"]
     s9 = pose_metrics(predict(model, e["uv"][f], e["conf"][f]), e["gt3d"][f])
@@ -51,7 +52,7 @@ def evaluate_model(model, cache: Path, progress: bool = False) -> dict:
 
 def evaluate(checkpoint: Path | None, cache: Path, progress: bool = False) -> dict:
     """The lifter ``checkpoint`` (None: MediaPipe's baseline only) on S9 images and HumanEva."""
-    from anima.pose3d.train import load_checkpoint
+    from anima.pose3d.train import load_checkpoint  # lazy: torch
     loaded = load_checkpoint(checkpoint) if checkpoint is not None else None  # fail before the slow part
     e = s9_image_evidence(cache, progress)
     f = e["found"]
@@ -76,7 +77,7 @@ def ablation(work: Path, cache: Path, steps: int, width: int = 256, dropout: flo
              progress: bool = True) -> dict:
     """Train (or reuse, resumable) one lifter per row of :data:`ABLATION` and evaluate each. The rows share
     everything but the flags (seed, data, steps, width)."""
-    from anima.pose3d.train import TrainConfig, train, load_checkpoint
+    from anima.pose3d.train import load_checkpoint, train  # lazy: torch
     rows = {}
     for name, flags in ABLATION.items():
         base = TrainConfig(steps=steps)
@@ -86,7 +87,7 @@ def ablation(work: Path, cache: Path, steps: int, width: int = 256, dropout: flo
         done = False
         if ck.exists():
             _, meta = load_checkpoint(ck)
-            done = meta["step"] >= steps and meta["config"] == dataclasses.asdict(cfg)
+            done = meta["step"] >= steps and meta["config"] == json.loads(json.dumps(dataclasses.asdict(cfg)))
         if done:
             model, meta = load_checkpoint(ck)
             seconds = meta["extra"].get("seconds")
@@ -96,3 +97,20 @@ def ablation(work: Path, cache: Path, steps: int, width: int = 256, dropout: flo
         r = evaluate_model(model, cache)
         rows[name] = {"flags": flags, "steps": steps, "train_s": seconds, **r}
     return rows
+
+
+def evaluate_pose(model: str | None = None, cache: str | None = None, ablation_dir: str | None = None,
+                  ablation_steps: int = 8000, ablation_width: int = 256, ablation_dropout: float = 0.1,
+                  progress: bool = True) -> dict:
+    """``anima eval pose``: the lifter (default checkpoint unless ``model``) and, with ``ablation_dir``, the
+    rows of seed table 3.6 trained there."""
+    cache_p = Path(cache) if cache else default_cache()
+    model_p = Path(model) if model else default_checkpoint()
+    if not model_p.exists() and (model or not ablation_dir):
+        raise InputError(f"no pose lifter checkpoint at {model_p}: train one with `anima train pose`"
+                         + ("" if ablation_dir else ", or pass --ablation DIR to train the ablation rows"))
+    r = evaluate(model_p if model_p.exists() else None, cache_p, progress=progress)
+    if ablation_dir:
+        r["ablation"] = ablation(Path(ablation_dir), cache_p, ablation_steps, ablation_width, ablation_dropout,
+                                 progress=progress)
+    return r

@@ -23,7 +23,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from anima.capture.mediapipe_face import FaceMeshTracker
+from anima.capture.pipeline import capture_face
 from anima.io.assets import asset
+from anima.io.video import read_video
+from anima.reenact.database import build_database, sample_colors
+from anima.reenact.pipeline import ReenactConfig, Reenactor, Smoother
+from anima.reenact.synth import expression_mapping
 
 OBAMA = [f"styletalk-samples/samples/source_video/video/Obama_clip{i}.mp4" for i in (1, 2, 3)]
 CHILD = ["liveportrait-examples/assets/examples/driving/d11.mp4"]
@@ -33,7 +39,7 @@ CROSS_ACTOR = "videoretalking-examples/examples/face/1.mp4"
 def ssim(a: np.ndarray, b: np.ndarray) -> float:
     a, b = a.astype(np.float64), b.astype(np.float64)
     C1, C2 = (0.01 * 255) ** 2, (0.03 * 255) ** 2
-    blur = lambda x: cv2.GaussianBlur(x, (11, 11), 1.5)  # noqa: E731
+    blur = lambda x: cv2.GaussianBlur(x, (11, 11), 1.5)
     mu_a, mu_b = blur(a), blur(b)
     s_aa, s_bb, s_ab = blur(a * a) - mu_a ** 2, blur(b * b) - mu_b ** 2, blur(a * b) - mu_a * mu_b
     m = ((2 * mu_a * mu_b + C1) * (2 * s_ab + C2)) / ((mu_a ** 2 + mu_b ** 2 + C1) * (s_aa + s_bb + C2))
@@ -46,7 +52,6 @@ def _lips():
 
 
 def video_metrics(out: list[np.ndarray], gt: list[np.ndarray], box) -> dict:
-    from anima.capture.mediapipe_face import FaceMeshTracker
     from anima.eval.lpips import lpips
     x0, y0, w, h = box
     co = np.stack([o[y0:y0 + h, x0:x0 + w] for o in out])
@@ -84,8 +89,6 @@ def video_metrics(out: list[np.ndarray], gt: list[np.ndarray], box) -> dict:
 
 
 def _render(rx, db, seq, gt, cfg, n=None, true_colors=False):
-    from anima.reenact.database import sample_colors
-    from anima.reenact.pipeline import Smoother
     sm = Smoother(cfg.smooth)
     out, boxes = [], []
     for i, g in enumerate(gt):
@@ -102,9 +105,6 @@ def _render(rx, db, seq, gt, cfg, n=None, true_colors=False):
 
 def self_reenactment(clips: list[str], actor_frames: int, ns=(1, 10, 50, 100, 200), progress: bool = False,
                      save_dir: Path | None = None) -> dict:
-    from anima.io.video import read_video
-    from anima.reenact.database import build_database
-    from anima.reenact.pipeline import ReenactConfig, Reenactor
     paths = [str(asset(c)) for c in clips]
     db, seqs = build_database(paths, progress=progress, exclude={0: (0, actor_frames)})
     seq = seqs[0]
@@ -146,9 +146,6 @@ def nbest_curves(actor: str, clips: list[str], n: int = 100, progress: bool = Fa
                  save_dir: Path | None = None) -> dict:
     """Identity mismatch (seed §4.2 figs. 4.2-4.3): sorted L2 distances of the n best database frames for
     a cross-person actor, raw and with per-person expression normalisation."""
-    from anima.capture.pipeline import capture_face
-    from anima.reenact.database import build_database
-    from anima.reenact.synth import expression_mapping
     db, _ = build_database([str(asset(c)) for c in clips], progress=progress)
     a = capture_face(str(asset(actor)), progress=progress).expression
     f = expression_mapping(a, db.expression)

@@ -26,15 +26,17 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import torch
 from tqdm import tqdm
 
+from anima.core.contract import TEXT_FPS
 from anima.dataset.attributes import ATTRIBUTES, detect
+from anima.errors import InputError
+from anima.export.framing import generated_sequence
 from anima.text2face.data import EVAL_LEN, FaceGeometry, eval_items, split_clips
 from anima.text2face.encoders import encode_cached
-from anima.text2face.evaluator import r_precision, train_evaluator
-from anima.text2face.generate import Generator, motion_to_sequence
-from anima.text2face.train import TrainConfig, prepare, train
+from anima.text2face.evaluator import load_evaluator, r_precision, save_evaluator, train_evaluator
+from anima.text2face.generate import SHIPPED, Generator
+from anima.text2face.train import TrainConfig, load_checkpoint, prepare, train
 
 
 def ci(values) -> dict:
@@ -57,7 +59,7 @@ def diversity(motions: np.ndarray, geom: FaceGeometry, rng: np.random.Generator)
 
 
 def attribute_sets(motions: np.ndarray) -> list[set[str]]:
-    return [{e[0] for e in detect(motion_to_sequence(m))} for m in motions]
+    return [{e[0] for e in detect(generated_sequence(TEXT_FPS, face=m))} for m in motions]
 
 
 def recall_table(label_sets: list[set[str]], detected: list[list[set[str]]], attributes: list[str]) -> dict:
@@ -152,13 +154,14 @@ def score(method: Method, items, item_E, geom, reps, progress) -> dict:
 def evaluate(dataset, work: Path, reps: int = 20, ablations: bool = True, steps: int = 1000,
              seed_preset: bool = False, checkpoint: str | None = None, progress: bool = True) -> dict:
     work = Path(work)
+    if checkpoint:
+        load_checkpoint(checkpoint)  # a bad checkpoint fails before any training
     base = TrainConfig(preset="small", steps=steps)
     prepared = prepare(dataset, base)
     clips, pool, pool_E, stats, gram, enc = prepared
     _, held = split_clips(clips)
     items = eval_items(held)
     if not items:
-        from anima.errors import InputError
         raise InputError("no held-out clip is 90 frames long: the dataset's validation/test split is empty")
     texts = [t for it in items for t in it.texts]
     item_E = encode_cached(enc, texts).reshape(len(items), len(items[0].texts), -1)
@@ -173,24 +176,19 @@ def evaluate(dataset, work: Path, reps: int = 20, ablations: bool = True, steps:
                   command=f"anima eval text2face {dataset} --work {work}")
         methods.append(model_method(name, r["path"]))
 
-    from anima.text2face.generate import SHIPPED
     if SHIPPED.is_file() and not checkpoint:
         methods.append(model_method("shipped", SHIPPED))
 
     # R-precision evaluator on the training crops (cached beside the models)
     ev_path = work / "evaluator.pt"
     norm = [(it.motion - stats[0]) / stats[1] for it in pool]
-    from anima.text2face.evaluator import MotionTextEvaluator
     if ev_path.is_file():
-        ev = MotionTextEvaluator(pool_E.shape[1])
-        ev.load_state_dict(torch.load(ev_path, weights_only=True))
-        ev.eval()
+        ev = load_evaluator(ev_path)
     else:
         bar = tqdm(total=1500, desc="train R-precision evaluator", disable=not progress, leave=False)
         ev = train_evaluator(norm, pool_E, progress=lambda s, l: bar.update(1))
         bar.close()
-        work.mkdir(parents=True, exist_ok=True)
-        torch.save(ev.state_dict(), ev_path)
+        save_evaluator(ev_path, ev)
 
     real = np.stack([it.motion for it in items])
     labels = [{e[0] for e in it.events} for it in items]
@@ -227,7 +225,7 @@ TABLE_73 = ["codebook D256 N256", "codebook D256 N64", "codebook D128 N128", "co
 
 
 def _row(name, r):
-    f = lambda d: f"{d['mean']:.3f} ± {d['ci95']:.3f}"  # noqa: E731
+    f = lambda d: f"{d['mean']:.3f} ± {d['ci95']:.3f}"
     rp = r.get("r_precision", [])
     return f"| {name} | {f(r['mae_mm'])} | {f(r['rmse_mm'])} | {f(r['diversity_mm'])} | " + \
         " / ".join(f"{x:.2f}" for x in rp) + " |"

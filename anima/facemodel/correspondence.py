@@ -24,11 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.core.camera import mediapipe_to_camera, umeyama
+from anima.core.camera import umeyama
 from anima.core.geometry import closest_points_on_mesh
-from anima.errors import AssetNotFound
+from anima.errors import AssetNotFound, InputError
 from anima.facemodel.ict import FaceModel
 from anima.io.assets import package_data
+from anima.io.atomic import atomic_path
 
 FILENAME = "mediapipe_ict_correspondence.npz"
 ANCHORS_MP = np.array([33, 133, 362, 263, 1, 61, 291, 152])
@@ -75,18 +76,11 @@ def mediapipe_triangles() -> np.ndarray:
     return np.array(sorted(tris), np.int32)
 
 
-def mediapipe_template(images: list[np.ndarray]) -> np.ndarray:
-    """Generalised-Procrustes mean of MediaPipe landmarks (camera space) over RGB images."""
-    from anima.capture.mediapipe_face import FaceMeshTracker
-
-    shapes = []
-    with FaceMeshTracker(static_image_mode=True) as tr:
-        for im in images:
-            lm = tr(im)
-            if lm is not None:
-                shapes.append(mediapipe_to_camera(lm, im.shape[1], im.shape[0]))
+def procrustes_mean(shapes: list[np.ndarray]) -> np.ndarray:
+    """Generalised-Procrustes mean of MediaPipe landmark sets in camera space ``[478, 3]`` each (the
+    template of step 1; ``anima.capture.correspondence`` runs MediaPipe on the portraits)."""
     if len(shapes) < 3:
-        raise RuntimeError(f"need at least 3 faces for the template, found {len(shapes)}")
+        raise InputError(f"need at least 3 faces for the template, found {len(shapes)}")
     S = np.stack(shapes)
     ref = S[0]
     for _ in range(5):
@@ -155,9 +149,10 @@ def build_correspondence(template: np.ndarray, model: FaceModel, n_iter: int = 1
 
 
 def save_correspondence(c: Correspondence, path: str | Path) -> None:
-    np.savez_compressed(path, vertex_ids=c.vertex_ids, bary=c.bary, dist_cm=c.dist_cm, valid=c.valid,
-                        ibug_mp_ids=c.ibug_mp_ids, ibug_mp_bary=c.ibug_mp_bary, template=c.template,
-                        meta=np.asarray(json.dumps(c.meta)))
+    with atomic_path(path) as tmp:
+        np.savez_compressed(tmp, vertex_ids=c.vertex_ids, bary=c.bary, dist_cm=c.dist_cm, valid=c.valid,
+                            ibug_mp_ids=c.ibug_mp_ids, ibug_mp_bary=c.ibug_mp_bary, template=c.template,
+                            meta=np.asarray(json.dumps(c.meta)))
 
 
 @lru_cache(maxsize=1)

@@ -19,6 +19,7 @@ import numpy as np
 
 from anima.errors import InputError
 from anima.io.assets import asset
+from anima.io.atomic import atomic_path
 from anima.io.obj import read_obj
 
 N_ID = 100
@@ -95,7 +96,7 @@ class FaceModel:
             raise ValueError("regions are defined on the full model; call region() before subset()")
         return region_vertices(self, name)
 
-    def subset(self, vertex_idx: np.ndarray) -> "FaceModel":
+    def subset(self, vertex_idx: np.ndarray) -> FaceModel:
         """Restrict to ``vertex_idx``; keeps polygons whose corners are all inside. Landmarks must be in."""
         vertex_idx = np.asarray(vertex_idx, np.int64)
         remap = -np.ones(self.n_vertices + 1, np.int64)
@@ -112,7 +113,7 @@ class FaceModel:
             vertex_indices=self.vertex_indices, vertex_ids=vertex_idx,
         )
 
-    def skin(self) -> "FaceModel":
+    def skin(self) -> FaceModel:
         """The face + head/neck skin surface only (11,248 of 26,719 vertices): fast path for fitting and
         rendering."""
         return self.subset(np.concatenate([self.region(r) for r in SKIN_REGIONS]))
@@ -228,3 +229,12 @@ def import_ict_obj(folder: str | Path, vertex_indices_json: str | Path | None = 
         "landmarks68": np.asarray(vi["idx_to_landmark_verts"], np.int32),
     }
 
+
+
+def write_face_model(folder: str | Path, out: str | Path) -> dict:
+    """``anima facemodel import``: the upstream OBJ folder -> an npz with the keys of ``ict_facekit_light.npz``
+    (written atomically); returns a summary."""
+    d = import_ict_obj(folder)
+    with atomic_path(out) as tmp:
+        np.savez_compressed(tmp, **d)
+    return {"out": str(out), "identity_shapes": len(d["id_names"]), "expression_shapes": len(d["expr_names"])}

@@ -2,7 +2,7 @@
 
 ICT ships 68 landmark vertices (and jawline substitutes); annotation conventions differ (where exactly a
 brow or jaw point sits), so anima calibrates them once on 68-point annotated faces that are *not* test
-images (``anima.eval.landmark_sets``): each point becomes the ICT face vertex, within ``radius_cm`` of the
+images (``anima.capture.landmark_sets``): each point becomes the ICT face vertex, within ``radius_cm`` of the
 upstream definition, whose projection under the fitted model is closest on average to the annotations.
 The result is shipped as ``anima/facemodel/data/ibug68_vertices.json`` (project-made; rebuild with
 ``anima facemodel landmarks68``). Without it the upstream definition (+ jaw substitutes) is used.

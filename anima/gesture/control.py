@@ -24,7 +24,7 @@ def control_features(G: np.ndarray, fps: float = FPS) -> dict[str, np.ndarray]:
     """G (M, T, 165) -> per-frame control features (M, T)."""
     J = G.reshape(G.shape[0], G.shape[1], -1, 3)
     lw, rw = J[..., _LW, :], J[..., _RW, :]
-    speed = lambda w: np.concatenate([np.zeros_like(w[:, :1, 0]),  # noqa: E731
+    speed = lambda w: np.concatenate([np.zeros_like(w[:, :1, 0]),
                                       np.linalg.norm(np.diff(w, axis=1), axis=-1) * fps], 1)
     return {"left_wrist_height": lw[..., 1], "right_wrist_height": rw[..., 1],
             "left_wrist_speed": speed(lw), "right_wrist_speed": speed(rw),
@@ -91,7 +91,7 @@ def step_masks(db, controls: list[Control], n_steps: int, step_s: float,
                     relaxed_to = t2
                     break
             warnings.warn(f"control {c.text!r}: no database window satisfies it; relaxed from {thr:.3f} to "
-                          f"{relaxed_to:.3f}" if relaxed_to is not None else f"control {c.text!r} cannot be met")
+                          f"{relaxed_to:.3f}" if relaxed_to is not None else f"control {c.text!r} cannot be met", stacklevel=2)
         masks_by_control.append(fm)
         report.append({"control": c.text, "threshold": thr, "relaxed_to": relaxed_to})
     out = []

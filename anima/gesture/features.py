@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from anima.core.contract import GESTURE_FPS, SPEECH_STATIC_DIM, WINDOW
 from anima.core.skeleton import JOINT_NAMES
 
-FPS = 15.0
-T_MATCH = 64
+FPS = GESTURE_FPS  # the rate the matching features are defined at (offsets below are frames at this rate)
+T_MATCH = WINDOW
 N_STEP = 8
 AUDIO_OFFSETS = tuple(range(0, 15, 2))
 POSE_OFFSETS = (0, 2, 4, 6)
@@ -31,7 +32,7 @@ def _ahead(x: np.ndarray, offsets) -> np.ndarray:
 
 def audio_features(speech: np.ndarray) -> np.ndarray:
     """speech (T, 28) anima speech features -> (T, 112)."""
-    return _ahead(np.asarray(speech, np.float32)[:, :14], AUDIO_OFFSETS).reshape(len(speech), -1)
+    return _ahead(np.asarray(speech, np.float32)[:, :SPEECH_STATIC_DIM], AUDIO_OFFSETS).reshape(len(speech), -1)
 
 
 def pose_features(joints: np.ndarray) -> np.ndarray:

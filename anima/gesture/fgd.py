@@ -14,7 +14,9 @@ import scipy.linalg
 import torch
 from torch import nn
 
-G_DIM = 165
+from anima.core.contract import BODY_DIM
+
+G_DIM = BODY_DIM
 
 
 def frechet_distance(a: np.ndarray, b: np.ndarray) -> float:

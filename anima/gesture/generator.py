@@ -33,16 +33,16 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from anima.core.contract import GESTURE_FPS, HEAD_ROT_DIM, N_BODY_JOINTS, N_EXPR, N_HAND_JOINTS, N_JOINTS, SPEECH_DIM
 from anima.core.skeleton import BODY
-from anima.errors import InputError, SchemaError
+from anima.errors import InputError
 from anima.gesture.refine import unet_decode, unet_decoder, unet_encode, unet_encoder
 from anima.gesture.sync import SyncClassifier
-from anima.io.atomic import atomic_path
+from anima.io.checkpoint import load_checkpoint, load_state, save_checkpoint
 
-FORMAT = "anima.gesture_generator"
-VERSION = 1
-SPEECH_DIM = 28
-PARTS = {"face": 53, "body": 42, "hands": 126}
+KIND = "gesture_generator"
+VERSION = 2  # 1: its own envelope; 2: anima.io.checkpoint
+PARTS = {"face": N_EXPR, "body": 3 * N_BODY_JOINTS + HEAD_ROT_DIM, "hands": 3 * 2 * N_HAND_JOINTS}
 KINDS = ("adversarial", "regression", "lstm")
 
 
@@ -51,16 +51,19 @@ KINDS = ("adversarial", "regression", "lstm")
 def split_parts(body165: np.ndarray, face56: np.ndarray) -> dict[str, np.ndarray]:
     """Dataset window arrays ``[..., T, 165]`` (55 joints) and ``[..., T, 56]`` (53 expressions + head
     rotation) -> the generator's three parts."""
-    J = body165.reshape(*body165.shape[:-1], 55, 3)
-    body = np.concatenate([J[..., BODY, :].reshape(*J.shape[:-2], 39), face56[..., 53:56]], -1)
-    return {"face": face56[..., :53], "body": body, "hands": J[..., 13:, :].reshape(*J.shape[:-2], 126)}
+    J = body165.reshape(*body165.shape[:-1], N_JOINTS, 3)
+    body = np.concatenate([J[..., BODY, :].reshape(*J.shape[:-2], 3 * N_BODY_JOINTS), face56[..., N_EXPR:]], -1)
+    return {"face": face56[..., :N_EXPR], "body": body,
+            "hands": J[..., N_BODY_JOINTS:, :].reshape(*J.shape[:-2], PARTS["hands"])}
 
 
 def join_parts(parts: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Inverse of :func:`split_parts`: -> joints ``[..., T, 55, 3]``, face ``[..., T, 56]``."""
     b, h = parts["body"], parts["hands"]
-    J = np.concatenate([b[..., :39].reshape(*b.shape[:-1], 13, 3), h.reshape(*h.shape[:-1], 42, 3)], -2)
-    return J, np.concatenate([parts["face"], b[..., 39:42]], -1)
+    nb = 3 * N_BODY_JOINTS
+    J = np.concatenate([b[..., :nb].reshape(*b.shape[:-1], N_BODY_JOINTS, 3),
+                        h.reshape(*h.shape[:-1], 2 * N_HAND_JOINTS, 3)], -2)
+    return J, np.concatenate([parts["face"], b[..., nb:]], -1)
 
 
 def part_losses(pred: dict, target: dict) -> dict:
@@ -80,12 +83,13 @@ class GeneratorConfig:
     disc_widths: tuple = (32, 32, 64, 64, 128, 128)
     lstm_hidden: int = 128
     lstm_delay: int = 4  # frames of look-ahead for the LSTM baseline (0.27 s at 15 fps)
+    fps: float = GESTURE_FPS  # the frame rate of its training windows (the speech features are taken at it)
 
     def to_dict(self) -> dict:
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "GeneratorConfig":
+    def from_dict(cls, d: dict) -> GeneratorConfig:
         return cls(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items()})
 
 
@@ -130,6 +134,10 @@ class GestureGenerator:
         self.net = net.eval()
         self.cfg = cfg
         self.stats = {k: np.asarray(v, np.float32) for k, v in stats.items()}
+
+    @property
+    def fps(self) -> float:
+        return float(self.cfg.fps)
 
     @torch.inference_mode()
     def generate(self, speech: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -243,27 +251,14 @@ def train_generator(S: np.ndarray, body: np.ndarray, face: np.ndarray, model: Ge
 
 
 def save_generator(path, gen: GestureGenerator, info: dict):
-    obj = {"format": FORMAT, "version": VERSION, "model_config": gen.cfg.to_dict(),
-           "stats": {k: v.tolist() for k, v in gen.stats.items()}, "state": gen.net.state_dict(), "info": info}
-    with atomic_path(path) as tmp:
-        torch.save(obj, tmp)
-    return path
+    config = {"model": gen.cfg.to_dict(), "stats": {k: v.tolist() for k, v in gen.stats.items()}}
+    return save_checkpoint(path, KIND, VERSION, config, {"state": gen.net.state_dict()}, info)
 
 
 def load_generator(path) -> GestureGenerator:
-    from pathlib import Path
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"generator checkpoint not found: {p} (train one with `anima train gesture --model generator`)")
-    try:
-        obj = torch.load(p, map_location="cpu", weights_only=True)
-    except Exception as e:  # noqa: BLE001
-        raise SchemaError(f"{p}: not a readable generator checkpoint ({type(e).__name__})") from e
-    if not isinstance(obj, dict) or obj.get("format") != FORMAT:
-        raise SchemaError(f"{p}: not a speech-to-gesture generator checkpoint")
-    if obj.get("version") != VERSION:
-        raise SchemaError(f"{p}: generator checkpoint version {obj.get('version')}, this anima reads {VERSION}")
-    cfg = GeneratorConfig.from_dict(obj["model_config"])
+    ck = load_checkpoint(path, KIND, (1, VERSION),
+                         train_hint="train one with `anima train gesture --model generator`")
+    cfg = GeneratorConfig.from_dict(ck.config["model"])
     net = build_model(cfg)
-    net.load_state_dict(obj["state"])
-    return GestureGenerator(net, cfg, obj["stats"])
+    load_state(net, ck)
+    return GestureGenerator(net, cfg, ck.config["stats"])

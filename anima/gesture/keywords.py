@@ -43,9 +43,11 @@ def union(main: MatchDB, extra: dict[str, MatchDB]) -> tuple[MatchDB, np.ndarray
     names = ["<standard>"] + list(extra)
     dbs = [main] + [extra[n] for n in names[1:]]
     has_s = all(d.S is not None for d in dbs)
+    if any(abs(d.fps - main.fps) > 1e-6 for d in dbs):
+        raise InputError(f"keyword databases at {sorted({d.fps for d in dbs})} fps: all must be at one frame rate")
     u = MatchDB(np.concatenate([d.F for d in dbs]), np.concatenate([d.P for d in dbs]),
                 np.concatenate([d.G for d in dbs]), sum((list(d.source) for d in dbs), []),
-                np.concatenate([d.S for d in dbs]) if has_s else None)
+                np.concatenate([d.S for d in dbs]) if has_s else None, main.fps)
     part = np.concatenate([np.full(d.M, i) for i, d in enumerate(dbs)])
     return u, part, names
 

@@ -24,8 +24,8 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from anima.core.contract import GESTURE_FPS
 from anima.gesture.features import N_STEP, T_MATCH
-
 
 N_PROJ = 48  # principal directions of the pose feature used for the lower bounds
 N_FIRST = 24  # of which the first bound reads the first 24 for every frame
@@ -53,12 +53,19 @@ class MatchDB:
     G: np.ndarray  # (M, T, 165)
     source: list = field(default_factory=list)  # per window: (video, start_s)
     S: np.ndarray | None = None  # (M, T, 28) per-frame speech features (for the cGAN refiner)
+    fps: float = GESTURE_FPS  # the windows' frame rate (from the data)
 
     _layout: _Layout | None = None
 
     @property
     def M(self) -> int:
         return len(self.F)
+
+    def subset(self, idx) -> MatchDB:
+        """The windows ``idx`` (indices or a boolean mask) as a new database."""
+        idx = np.flatnonzero(idx) if np.asarray(idx).dtype == bool else np.asarray(idx, int)
+        return MatchDB(self.F[idx], self.P[idx], self.G[idx], [self.source[i] for i in idx] if self.source else [],
+                       None if self.S is None else self.S[idx], self.fps)
 
     def audio_norms(self) -> np.ndarray:
         """|f| per database frame, computed as the literal search computes it (float64, per row)."""

@@ -25,14 +25,15 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from anima.core.contract import BODY_DIM, SPEECH_DIM
 from anima.core.skeleton import PARENTS
-from anima.errors import InputError, SchemaError
-from anima.io.atomic import atomic_path
+from anima.errors import InputError
+from anima.gesture.knn import search
+from anima.io.checkpoint import load_checkpoint, load_state, save_checkpoint
 
-FORMAT = "anima.gesture_refiner"
-VERSION = 1
-SPEECH_DIM = 28
-G_DIM = 165
+KIND = "gesture_refiner"
+VERSION = 2  # 1: its own envelope; 2: anima.io.checkpoint
+G_DIM = BODY_DIM
 
 
 # ---- representation (pure) ------------------------------------------------------------------------
@@ -156,7 +157,6 @@ def gradient_penalty(critic, speech, real, fake):
 def knn_pairs(db, ks=(0, 1, 2, 3, 4), windows=None):
     """(speech [N, 64, 28], k-NN gesture [N, 64, 55, 3], captured gesture [N, 64, 55, 3], window index [N]):
     each window's speech matched against a database without its own video."""
-    from anima.gesture.knn import MatchDB, search
     if db.S is None:
         raise InputError("the database has no per-frame speech features (build it with from_dataset)")
     videos = sorted({s for s, _ in db.source})
@@ -167,7 +167,7 @@ def knn_pairs(db, ks=(0, 1, 2, 3, 4), windows=None):
         rest = np.array([j for j in range(db.M) if db.source[j][0] != own])
         if len(rest) == 0:
             continue
-        sub = MatchDB(db.F[rest], db.P[rest], db.G[rest])
+        sub = db.subset(rest)
         p0 = sub.P.reshape(-1, sub.P.shape[-1]).mean(0)
         for k in ks:
             g = search(sub, db.F[i], min(k, len(rest) - 1), p0)[0]
@@ -265,27 +265,13 @@ def train_refiner(db, cfg: RefinerTrainConfig, progress=None, pairs=None) -> tup
 
 
 def save_refiner(path: str | Path, ref: Refiner, info: dict) -> Path:
-    obj = {"format": FORMAT, "version": VERSION, "model_config": info["model_config"],
-           "stats": {k: v.tolist() for k, v in ref.stats.items()}, "state": ref.G.state_dict(),
-           "info": {k: v for k, v in info.items() if k != "model_config"}}
-    with atomic_path(path) as tmp:
-        torch.save(obj, tmp)
-    return Path(path)
+    config = {"model": info["model_config"], "stats": {k: v.tolist() for k, v in ref.stats.items()}}
+    return save_checkpoint(path, KIND, VERSION, config, {"state": ref.G.state_dict()},
+                           {k: v for k, v in info.items() if k != "model_config"})
 
 
 def load_refiner(path: str | Path) -> Refiner:
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"refiner checkpoint not found: {p} (train one with `anima train gesture`)")
-    try:
-        obj = torch.load(p, map_location="cpu", weights_only=True)
-    except Exception as e:  # noqa: BLE001
-        raise SchemaError(f"{p}: not a readable refiner checkpoint ({type(e).__name__})") from e
-    if not isinstance(obj, dict) or obj.get("format") != FORMAT:
-        raise SchemaError(f"{p}: not a gesture refiner checkpoint")
-    if obj.get("version") != VERSION:
-        raise SchemaError(f"{p}: refiner checkpoint version {obj.get('version')}, this anima reads {VERSION}; "
-                          "retrain with `anima train gesture`")
-    G = RefinerG(RefinerConfig(**{k: tuple(v) for k, v in obj["model_config"].items()}))
-    G.load_state_dict(obj["state"])
-    return Refiner(G, obj["stats"])
+    ck = load_checkpoint(path, KIND, (1, VERSION), train_hint="train one with `anima train gesture`")
+    G = RefinerG(RefinerConfig(**{k: tuple(v) for k, v in ck.config["model"].items()}))
+    load_state(G, ck)
+    return Refiner(G, ck.config["stats"])

@@ -1,27 +1,56 @@
-"""``anima gesture``: speech -> 3D upper-body + hands gestures by controllable k-NN search, written as a
-sequence file, a BVH and a skeleton video with the speech muxed in."""
+"""``anima gesture``: speech -> 3D upper-body + hands gestures, by controllable k-NN search over a dataset's
+(audio, motion) windows (optionally refined by the cGAN) or by the §4.4 generator (which also gives the face).
+The result is a tracked sequence (``gesture.npz``) written by the one motion writer with its BVH and videos
+(the speech muxed in), so ``anima info`` and ``anima export`` read it like a capture.
+"""
 from __future__ import annotations
 
-import json
 import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from anima.audio.features import read_audio, speech_features
 from anima.errors import InputError
-from anima.gesture.features import FPS, N_STEP
+from anima.export.framing import generated_sequence
+from anima.export.motion import write_motion_outputs
+from anima.gesture.control import parse_control, step_masks
+from anima.gesture.database import from_dataset
+from anima.gesture.features import N_STEP, audio_features
+from anima.gesture.keywords import keyword_masks, parse_keyword, union
+from anima.gesture.knn import search
+from anima.io.outdir import OutputFolder
+
+
+@dataclass
+class GestureConfig:
+    k: int = field(default=0, metadata={"range": (0, 1000)})
+    """Take the k-th best candidate at every step (variety; 0 = the best)."""
+    init: str = field(default="mean", metadata={"choices": ("mean", "random")})
+    """Initial pose feature: the database mean, or a random database frame (seeded)."""
+    seed: int = 0
+    """Random seed (``--init random``)."""
+    all_splits: bool = False
+    """Search the windows of every split (default: the training split only)."""
+    control: list = field(default_factory=list, metadata={"metavar": "CONTROL", "repeat": True})
+    """A control, repeatable: NAME OP VALUE[@START-ENDs], e.g. left_wrist_height>=p85@0-5s (names:
+    left/right_wrist_height, left/right_wrist_speed, hand_symmetry; pXX = percentile of the database)."""
+    keyword: list = field(default_factory=list, metadata={"metavar": "WORD@START-ENDs", "repeat": True})
+    """A keyword spoken at that time (e.g. from a speech recogniser): while it is spoken, gestures come from
+    its --keyword-db (repeatable)."""
+    keyword_db: list = field(default_factory=list, metadata={"metavar": "WORD=DATASET", "repeat": True})
+    """The gesture database of a keyword: a dataset folder (repeatable)."""
 
 
 def synthesize(speech_path: str, db, k: int = 0, controls: list | None = None, init: str = "mean",
                seed: int = 0, refiner=None, keywords: list | None = None,
                keyword_dbs: dict | None = None) -> tuple[np.ndarray, dict]:
-    """k-NN search (and, with ``refiner`` from ``anima.gesture.refine.load_refiner``, the cGAN refinement).
-    ``keywords`` (``anima.gesture.keywords.Keyword``) switch the search to ``keyword_dbs[word]`` (MatchDB)
-    while the word is spoken."""
-    from anima.gesture.control import step_masks
-    from anima.gesture.features import audio_features
-    from anima.gesture.knn import search
-    feats, notes = _read_speech(speech_path)
+    """k-NN search (and, with ``refiner`` from ``anima.gesture.refine.load_refiner``, the cGAN refinement)
+    at the database's frame rate. ``keywords`` (``anima.gesture.keywords.Keyword``) switch the search to
+    ``keyword_dbs[word]`` (MatchDB) while the word is spoken."""
+    fps = db.fps
+    feats, notes = read_speech(speech_path, fps)
     T = len(feats.features)
     F_in = audio_features(feats.features)
     if init == "mean":
@@ -34,16 +63,14 @@ def synthesize(speech_path: str, db, k: int = 0, controls: list | None = None, i
     n_steps = -(-T // N_STEP)
     part = None
     if keywords or keyword_dbs:
-        from anima.gesture.keywords import keyword_masks, union
         db, part, names = union(db, keyword_dbs or {})
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        masks, report = step_masks(db, controls or [], n_steps, N_STEP / FPS,
-                                   None if part is None else part == 0)
+        masks, report = step_masks(db, controls or [], n_steps, N_STEP / fps, None if part is None else part == 0)
     notes += [str(w.message) for w in caught]
     used = None
     if part is not None:
-        masks, used = keyword_masks(db, part, names, keywords or [], n_steps, N_STEP / FPS,
+        masks, used = keyword_masks(db, part, names, keywords or [], n_steps, N_STEP / fps,
                                     masks if controls else None)
     if T > db.M * db.P.shape[1]:
         notes.append("the speech is longer than the database: database windows are reused")
@@ -51,66 +78,73 @@ def synthesize(speech_path: str, db, k: int = 0, controls: list | None = None, i
     J = G.reshape(len(G), -1, 3)
     if refiner is not None:
         J = refiner.refine(feats.features[:len(J)], J)
-    info = {"frames": len(G), "fps": FPS, "controls": report, "notes": notes, "refined": refiner is not None,
+    info = {"frames": len(G), "fps": fps, "controls": report, "notes": notes, "refined": refiner is not None,
             "picks": [(int(m), int(r)) for m, r in picks]}
     if used is not None:
         info["database_per_step"] = used
     return J, info
 
 
-def _read_speech(speech_path: str):
-    from anima.audio.features import read_audio, speech_features
-    x = read_audio(speech_path)  # any rate -> 16 kHz mono
-    feats = speech_features(x, FPS)
+def read_speech(speech_path: str, fps: float):
+    """Speech features at ``fps`` (any audio rate, resampled to 16 kHz mono), and notes for the user."""
+    x = read_audio(speech_path)
+    feats = speech_features(x, fps)
     if len(feats.features) < N_STEP:
-        raise InputError(f"speech is {len(x) / 16000:.2f} s long: at least {N_STEP / FPS:.2f} s is needed")
+        raise InputError(f"speech is {len(x) / 16000:.2f} s long: at least {N_STEP / fps:.2f} s is needed")
     notes = ["the speech is silent (below -60 dBFS): gestures follow the database's quiet moments"] if feats.silent else []
     return feats, notes
 
 
 def generate(speech_path: str, gen) -> tuple[np.ndarray, np.ndarray, dict]:
     """The §4.4 generator (``anima.gesture.generator.load_generator``): speech -> joints [T, 55, 3] and face
-    [T, 56] (53 ICT expression weights + head rotation), one pass for any length."""
-    feats, notes = _read_speech(speech_path)
+    [T, 56] (53 ICT expression weights + head rotation) at the generator's frame rate, one pass for any
+    length."""
+    feats, notes = read_speech(speech_path, gen.fps)
     if feats.silent:
         notes = ["the speech is silent (below -60 dBFS): expect a near-rest pose and a closed mouth"]
     J, face = gen.generate(feats.features)
-    return J, face, {"frames": len(J), "fps": FPS, "notes": notes, "model": gen.cfg.kind}
+    return J, face, {"frames": len(J), "fps": gen.fps, "notes": notes, "model": gen.cfg.kind}
 
 
-def write_outputs(J: np.ndarray, speech_path: str, out: Path, info: dict, render: bool = True,
-                  face: np.ndarray | None = None) -> list[Path]:
-    import cv2
-
-    from anima.core.skeleton import JOINT_NAMES, PARENTS
-    from anima.io.bvh import write_bvh
-    from anima.io.video import VideoWriter
-    from anima.render.skeleton import _project_3d, draw_skeleton
-    out.mkdir(parents=True, exist_ok=True)
-    paths = [out / "gesture.npz", out / "gesture.bvh"]
-    np.savez(paths[0], joints=J.astype(np.float32), fps=np.float32(FPS), joint_names=np.array(JOINT_NAMES),
-             parents=PARENTS, info=np.array(json.dumps({k: v for k, v in info.items() if k != "picks"})))
-    write_bvh(paths[1], J, JOINT_NAMES, PARENTS, FPS)
-    if face is not None:  # the generator's face: the neutral ICT face animated, as `anima text2face` writes it
-        from anima.capture.export import export_arkit_csv
-        from anima.io.sequence import write_sequence
-        from anima.render.videos import render_videos
-        from anima.text2face.generate import motion_to_sequence
-        seq = motion_to_sequence(face, fps=FPS, meta={"generated_by": "anima gesture --generator"})
-        paths += [write_sequence(seq, out / "face.npz"), export_arkit_csv(seq, out / "arkit.csv")]
-        if render:
-            render_videos(seq, None, None, out / "face.mp4", progress=False, audio=str(speech_path))
-            paths.append(out / "face.mp4")
-    if render:
-        size = 512
-        p = out / "skeleton.mp4"
-        with VideoWriter(p, FPS, (2 * size, size), audio_path=str(speech_path)) as vw:
-            for f in range(len(J)):
-                canvas = np.full((size, 2 * size, 3), 28, np.uint8)
-                for i, yaw in enumerate((0.0, np.deg2rad(-60))):
-                    canvas[:, i * size:(i + 1) * size] = draw_skeleton(canvas[:, i * size:(i + 1) * size],
-                                                                       _project_3d(J[f], size, yaw), 3)
-                cv2.putText(canvas, f"{f / FPS:5.2f} s", (10, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (230, 230, 230), 1)
-                vw.write(canvas)
-        paths.append(p)
-    return paths
+def gesture_to_folder(speech: str, out: str | Path, cfg: GestureConfig, db: str | None = None,
+                      generator: str | None = None, refiner: str | None = None, render: bool = True,
+                      command: str | None = None, progress: bool = False) -> dict:
+    """``anima gesture``: check every input, then search (``db``) or generate (``generator``) and write the
+    result folder. Returns the run's info (notes, controls, files written)."""
+    if not Path(speech).is_file():
+        raise InputError(f"speech file not found: {speech}")
+    controls = [parse_control(c) for c in cfg.control]
+    keywords = [parse_keyword(k) for k in cfg.keyword]
+    if generator and (cfg.control or refiner or cfg.keyword):
+        raise InputError("--control, --refiner and --keyword apply to the k-NN search (--db), not to --generator")
+    if not generator and not db:
+        raise InputError("give --db DATASET (k-NN search) or --generator CHECKPOINT")
+    kw_folders = {}
+    for spec in cfg.keyword_db:
+        word, sep, folder = spec.partition("=")
+        if not sep or not word or not folder:
+            raise InputError(f"--keyword-db {spec!r}: expected WORD=DATASET")
+        if not Path(folder).exists():
+            raise InputError(f"--keyword-db {spec!r}: no dataset at {folder}")
+        kw_folders[word.lower()] = folder
+    with OutputFolder(out, kind="gesture", command=command) as od:
+        if generator:
+            from anima.gesture.generator import load_generator  # lazy: torch
+            J, face, info = generate(speech, load_generator(generator))
+        else:
+            ref = None
+            if refiner:  # checkpoints first: a bad one fails before the database loads
+                from anima.gesture.refine import load_refiner  # lazy: torch
+                ref = load_refiner(refiner)
+            match_db = from_dataset(db, None if cfg.all_splits else "train")
+            kw_dbs = {w: from_dataset(f, None) for w, f in kw_folders.items()}
+            J, info = synthesize(speech, match_db, cfg.k, controls, cfg.init, cfg.seed, ref, keywords, kw_dbs)
+            face = None
+            info = {k: v for k, v in info.items() if k != "picks"} | {"database_windows": match_db.M}
+        seq = generated_sequence(info["fps"], face=face, body=J,
+                                 meta={"generated_by": "anima gesture", "speech": str(speech),
+                                       **{k: v for k, v in info.items() if k != "notes"}})
+        od.info = info
+        files = write_motion_outputs(seq, od, "gesture.npz", audio=str(speech), render=render, info=info,
+                                     progress=progress)
+    return info | {"written": [str(p) for p in files.values()]}

@@ -14,7 +14,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from anima.gesture.refine import G_DIM, SPEECH_DIM
+from anima.core.contract import BODY_DIM as G_DIM
+from anima.core.contract import SPEECH_DIM
 
 
 class SyncClassifier(nn.Module):

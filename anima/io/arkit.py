@@ -8,9 +8,12 @@ ICT names map to ARKit by dropping ``_L/_R`` for ``Left/Right``; ICT splits ``br
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
 
 import numpy as np
+
+from anima.io.atomic import write_text
 
 LIVE_LINK_COLUMNS = [
     "EyeBlinkLeft", "EyeLookDownLeft", "EyeLookInLeft", "EyeLookOutLeft", "EyeLookUpLeft", "EyeSquintLeft",
@@ -60,20 +63,18 @@ def timecode(i: int, fps: float) -> str:
 def write_live_link_csv(path: str | Path, expression: np.ndarray, expr_names: list[str], fps: float,
                         head_ypr: np.ndarray | None = None) -> Path:
     """Write the CSV. head_ypr ``[F, 3]`` radians (yaw, pitch, roll), or None for zeros."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     ark = ict_to_arkit(np.asarray(expression), expr_names)
     F = ark.shape[0]
     head = np.zeros((F, len(HEAD_COLUMNS)))
     if head_ypr is not None:
         head[:, :3] = head_ypr
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["Timecode", "BlendShapeCount", *LIVE_LINK_COLUMNS, *HEAD_COLUMNS])
-        n = len(LIVE_LINK_COLUMNS) + len(HEAD_COLUMNS)
-        for i in range(F):
-            w.writerow([timecode(i, fps), n, *(f"{v:.6f}" for v in ark[i]), *(f"{v:.6f}" for v in head[i])])
-    return path
+    fh = io.StringIO(newline="")
+    w = csv.writer(fh)
+    w.writerow(["Timecode", "BlendShapeCount", *LIVE_LINK_COLUMNS, *HEAD_COLUMNS])
+    n = len(LIVE_LINK_COLUMNS) + len(HEAD_COLUMNS)
+    for i in range(F):
+        w.writerow([timecode(i, fps), n, *(f"{v:.6f}" for v in ark[i]), *(f"{v:.6f}" for v in head[i])])
+    return write_text(path, fh.getvalue())
 
 
 def read_live_link_csv(path: str | Path) -> tuple[list[str], np.ndarray]:

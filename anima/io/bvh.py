@@ -17,10 +17,16 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.core.bvh_math import (axis_matrix, forward_kinematics, local_rotations, matrix_to_euler_zxy,
-                                 positions_to_rotations)
+from anima.core.bvh_math import (
+    axis_matrix,
+    forward_kinematics,
+    local_rotations,
+    matrix_to_euler_zxy,
+    positions_to_rotations,
+)
 from anima.core.skeleton import fix_bone_lengths
 from anima.errors import InputError
+from anima.io.atomic import write_text
 
 M_TO_CM = 100.0
 
@@ -199,10 +205,7 @@ def write_bvh(path: str | Path, joints_m: np.ndarray, names: list[str], parents:
     for f in range(len(P)):
         row = [*P[f, root]] + [v for j in order for v in eul[f, j]]
         lines.append(" ".join(f"{v:.5f}" for v in row))
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n")
-    return path
+    return write_text(path, "\n".join(lines) + "\n")
 
 
 def bvh_to_anima_order(b: BVH, names: list[str]) -> np.ndarray:

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.io.atomic import write_bytes
+
 CM_TO_M = 0.01
 FLOAT, UINT = 5126, 5125
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
@@ -43,8 +45,6 @@ def write_glb(path: str | Path, neutral_cm: np.ndarray, tris: np.ndarray, expr_d
               rotations_xyzw: np.ndarray | None = None) -> Path:
     """neutral ``[V, 3]`` cm, tris ``[T, 3]``, expr_deltas ``[53, V, 3]`` cm, weights ``[F, 53]`` (optional
     animation), rotations ``[F, 4]`` (x, y, z, w) head rotation per frame (optional)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     buf = _Buffer()
     pos = buf.add((neutral_cm * CM_TO_M).astype(np.float32), FLOAT, "VEC3", ARRAY_BUFFER, minmax=True)
     idx = buf.add(tris.astype(np.uint32).ravel(), UINT, "SCALAR", ELEMENT_ARRAY_BUFFER)
@@ -81,8 +81,5 @@ def write_glb(path: str | Path, neutral_cm: np.ndarray, tris: np.ndarray, expr_d
     js = json.dumps(gltf, separators=(",", ":")).encode()
     js += b" " * ((4 - len(js) % 4) % 4)
     total = 12 + 8 + len(js) + 8 + len(buf.data)
-    with open(path, "wb") as fh:
-        fh.write(struct.pack("<III", 0x46546C67, 2, total))
-        fh.write(struct.pack("<II", len(js), 0x4E4F534A) + js)
-        fh.write(struct.pack("<II", len(buf.data), 0x004E4942) + bytes(buf.data))
-    return path
+    return write_bytes(path, struct.pack("<III", 0x46546C67, 2, total) + struct.pack("<II", len(js), 0x4E4F534A) + js
+                       + struct.pack("<II", len(buf.data), 0x004E4942) + bytes(buf.data))

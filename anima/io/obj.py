@@ -15,7 +15,7 @@ def read_obj(path: str | Path, max_corners: int = 4, dtype=np.float32) -> dict:
     if not path.is_file():
         raise InputError(f"OBJ file not found: {path}")
     v, vt, f, ft = [], [], [], []
-    with open(path, "r", encoding="utf-8", errors="replace") as fh:
+    with open(path, encoding="utf-8", errors="replace") as fh:
         for line in fh:
             if line.startswith("v "):
                 v.append(line.split()[1:4])

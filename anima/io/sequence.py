@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from anima.core.rotations import matrix_to_euler, rotvec_to_matrix
+from anima.core.skeleton import LEFT_HAND, RIGHT_HAND
 from anima.errors import InputError, SchemaError
 from anima.io.atomic import atomic_path
 
@@ -110,7 +111,6 @@ class TrackedSequence:
             "source": self.meta.get("source", {}).get("path"),
         }
         if self.body_joints is not None:
-            from anima.core.skeleton import LEFT_HAND, RIGHT_HAND
 
             raw = np.isfinite(self.body_joints_raw).all(-1) if self.body_joints_raw is not None else None
             fin = np.isfinite(self.body_joints).all(-1)

@@ -14,14 +14,15 @@ import queue
 import subprocess
 import threading
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
 
 import imageio_ffmpeg
 import numpy as np
 
 from anima.errors import InputError
+from anima.io.atomic import commit, temp_sibling
 
 FFMPEG = imageio_ffmpeg.get_ffmpeg_exe()
 
@@ -128,13 +129,13 @@ def iter_frames(info: VideoInfo, prefetch: int = 8, errors: list[str] | None = N
                 if stop.is_set():
                     break
                 q.put(np.frombuffer(buf, np.uint8).reshape(h, w, 3))
-        except Exception as e:  # noqa: BLE001 - reported to the caller as a warning, frames are kept
+        except Exception as e:
             q.put(("__error__", str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__))
         finally:
             if gen is not None:
                 try:
                     gen.close()
-                except Exception:  # noqa: BLE001
+                except Exception:
                     pass
             q.put(sentinel)
 
@@ -150,7 +151,7 @@ def iter_frames(info: VideoInfo, prefetch: int = 8, errors: list[str] | None = N
                 if errors is not None:
                     errors.append(msg)
                 else:
-                    warnings.warn(msg)
+                    warnings.warn(msg, stacklevel=2)
                 continue
             yield item
     finally:
@@ -177,16 +178,21 @@ def read_video(path: str | os.PathLike, max_frames: int | None = None) -> tuple[
 
 
 class VideoWriter:
-    """H.264 MP4 writer; ``audio_path`` (any file with an audio track) is muxed in as AAC."""
+    """H.264 MP4 writer; ``audio_path`` (any file with an audio track) is muxed in as AAC.
+
+    Atomic: frames go to a unique temporary sibling of ``path``, which replaces ``path`` only when
+    :meth:`close` finishes the encode. A run killed or failing mid-render (:meth:`abort`, or leaving a
+    ``with`` block by an exception) leaves the previous file, or none, never a truncated video."""
 
     def __init__(self, path: str | os.PathLike, fps: float, size: tuple[int, int], audio_path: str | None = None,
                  quality: int = 7):
         self.path = str(path)
         Path(self.path).parent.mkdir(parents=True, exist_ok=True)
+        self._tmp = temp_sibling(self.path)
         w, h = size
         self.size = (int(w) + (int(w) % 2), int(h) + (int(h) % 2))
         self._gen = imageio_ffmpeg.write_frames(
-            self.path, self.size, fps=fps, quality=quality, codec="libx264", macro_block_size=2,
+            str(self._tmp), self.size, fps=fps, quality=quality, codec="libx264", macro_block_size=2,
             audio_path=audio_path, audio_codec="aac" if audio_path else None,
             output_params=["-movflags", "+faststart"], ffmpeg_log_level="error")
         self._gen.send(None)
@@ -205,12 +211,39 @@ class VideoWriter:
         self.n += 1
 
     def close(self) -> None:
-        if self._gen is not None:
+        """Finish the encode and put the video in place."""
+        if self._gen is None:
+            return
+        try:
             self._gen.close()
+        except BaseException:
             self._gen = None
+            self._remove_tmp()
+            raise
+        self._gen = None
+        commit(self._tmp, self.path)
+
+    def abort(self) -> None:
+        """Stop without touching ``path`` (the temporary file is removed)."""
+        if self._gen is not None:
+            try:
+                self._gen.close()
+            except Exception:
+                pass
+            self._gen = None
+        self._remove_tmp()
+
+    def _remove_tmp(self) -> None:
+        try:
+            Path(self._tmp).unlink()
+        except FileNotFoundError:
+            pass
 
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
-        self.close()
+    def __exit__(self, exc_type, *exc):
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()

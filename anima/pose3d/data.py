@@ -19,10 +19,15 @@ import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
+from tqdm import tqdm
 
 from anima.io.assets import asset
-from anima.pose3d.joints import K, humaneva_to_h36m, mediapipe_to_h36m
+from anima.io.atomic import atomic_path
+from anima.io.safe_npz import load_object_member
+from anima.io.video import iter_frames, probe_video
+from anima.pose3d.joints import BONES, K, humaneva_to_h36m, mediapipe_to_h36m
 
 TRAIN_SUBJECTS = ("S1", "S5", "S6", "S7", "S8")
 TEST_SUBJECTS = ("S9", "S11")
@@ -93,7 +98,6 @@ def load_h36m(subjects=TRAIN_SUBJECTS, every: int = 1) -> H36MSet:
 
 def subject_bone_lengths(subjects=TRAIN_SUBJECTS) -> dict[str, np.ndarray]:
     """Per training subject, median length (mm) of each of the 16 H36M bones (for eq. 3.6)."""
-    from anima.pose3d.joints import BONES
     d = np.load(asset(H36M_MOCAP))
     J = d["joints17_world_mm"]
     out = {}
@@ -134,8 +138,6 @@ def _cache_file(cache: Path, name: str, key: str) -> Path:
 def s9_image_evidence(cache: Path, progress: bool = False) -> dict[str, np.ndarray]:
     """MediaPipe on every staged S9 image, with the ground truth of each: uv/conf (17), MediaPipe world
     joints (17, mm, camera-aligned axes), gt camera-frame joints (mm) and gt 2D. Cached."""
-    import cv2
-    from tqdm import tqdm
     folder = asset(H36M_S9_IMAGES)
     files = sorted(p for p in folder.glob("*.jpg") if p.stat().st_size > 0)
     f = _cache_file(cache, "s9_mediapipe", "|".join(p.name for p in files) + "|complexity1")
@@ -159,17 +161,16 @@ def s9_image_evidence(cache: Path, progress: bool = False) -> dict[str, np.ndarr
             rows[k].append(v)
     det.close()
     out = {k: np.stack(v) if k != "camera" else np.array(v) for k, v in rows.items()}
-    f.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(f, **out)
+    with atomic_path(f) as tmp:
+        np.savez_compressed(tmp, **out)
     return out
 
 
 def humaneva_validation() -> dict[str, np.ndarray]:
     """HumanEva-I validation chunks, all subjects and colour cameras: ground-truth 2D (mapped to H36M-17,
     nose masked) and camera-frame 3D (mm) from the DLT cameras (decomposed with OpenCV)."""
-    import cv2
-    d3 = np.load(asset(HUMANEVA_3D), allow_pickle=True)["positions_3d"].item()
-    d2 = np.load(asset(HUMANEVA_2D), allow_pickle=True)["positions_2d"].item()
+    d3 = load_object_member(asset(HUMANEVA_3D), "positions_3d")
+    d2 = load_object_member(asset(HUMANEVA_2D), "positions_2d")
     cams = np.load(asset(HUMANEVA_CAMS))
     Ps = {k: P for k, P in zip(cams["key"], cams["P_world_m_to_px"])}
     uv_all, conf_all, gt_all, act = [], [], [], []
@@ -201,8 +202,6 @@ def wild_evidence(cache: Path, every: int = 2, max_frames_per_video: int = 600,
                   progress: bool = False) -> dict[str, np.ndarray]:
     """2D-only training data: MediaPipe Pose (video mode) on the in-the-wild videos of the shared data, every
     ``every``-th frame. Frames with no person are skipped. Cached."""
-    from tqdm import tqdm
-    from anima.io.video import iter_frames, probe_video
     videos = sorted(p for root in WILD_VIDEOS for p in asset(root).rglob("*.mp4"))
     f = _cache_file(cache, "wild_mediapipe", "|".join(str(v.name) for v in videos) + f"|{every}|{max_frames_per_video}")
     if f.exists():
@@ -223,6 +222,6 @@ def wild_evidence(cache: Path, every: int = 2, max_frames_per_video: int = 600,
             det.close()
     out = {"uv": np.asarray(uv_all, np.float32), "conf": np.asarray(conf_all, np.float32),
            "video": np.asarray(vid), "videos": np.array([str(v.relative_to(asset("."))) for v in videos])}
-    f.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(f, **out)
+    with atomic_path(f) as tmp:
+        np.savez_compressed(tmp, **out)
     return out

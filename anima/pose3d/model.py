@@ -16,24 +16,10 @@ Seed -> here:
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-
 import torch
 from torch import nn
 
-from anima.pose3d.joints import K
-
-
-@dataclass
-class LifterConfig:
-    joints: int = K
-    width: int = 1024
-    latent: int = 128
-    dropout: float = 0.25
-    pose_scale: float = 1000.0  # network units -> mm
-
-    def to_dict(self) -> dict:
-        return asdict(self)
+from anima.pose3d.config import LifterConfig
 
 
 class _Res(nn.Module):

@@ -18,50 +18,31 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from anima.errors import InputError, SchemaError
-from anima.io.atomic import atomic_path
-from anima.pose3d.data import (TEST_SUBJECTS, TRAIN_SUBJECTS, load_h36m, normalise_2d, subject_bone_lengths,
-                               wild_evidence)
+from anima.errors import CheckpointError
+from anima.io.checkpoint import load_checkpoint as load_checkpoint_file
+from anima.io.checkpoint import load_state
+from anima.io.checkpoint import save_checkpoint as save_checkpoint_file
+from anima.pose3d.config import LifterConfig, TrainConfig
+from anima.pose3d.data import (
+    TEST_SUBJECTS,
+    TRAIN_SUBJECTS,
+    load_h36m,
+    normalise_2d,
+    subject_bone_lengths,
+    wild_evidence,
+)
 from anima.pose3d.joints import BONES, FLIP, K
-from anima.pose3d.model import Lifter, LifterConfig
+from anima.pose3d.model import Lifter
 
-FORMAT = "anima.pose_lifter"
-VERSION = 1
+KIND = "pose_lifter"
+VERSION = 2  # 1: the pose lifter's own envelope (loaded with pickles); 2: anima.io.checkpoint
 LEGS = np.array([2, 3, 5, 6])
-
-
-class CheckpointError(SchemaError):
-    """Not a pose-lifter checkpoint, or one of another version."""
-
-
-@dataclass
-class TrainConfig:
-    steps: int = 6000
-    batch: int = 256
-    batch_wild: int = 128
-    lr: float = 1e-3
-    lr_decay: float = 0.1  # total exponential decay over the run
-    seed: int = 0
-    every: int = 1  # keep every n-th mocap pose
-    w_3d: float = 10.0
-    w_heat: float = 0.1
-    w_2d: float = 10.0
-    w_bone: float = 10.0
-    w_bone_2d: float = 100.0
-    latent_2d: bool = True  # L_2Dheatmap on h_2D
-    projection: bool = True  # L_2Dpose
-    bone: bool = True
-    wild: bool = True  # 2D-only in-the-wild data
-    noise_max: float = 0.06  # per-sample noise level (torso units), uniform in [0, noise_max]
-    drop_joint: float = 0.05
-    drop_legs: float = 0.15
-    model: dict = field(default_factory=lambda: LifterConfig().to_dict())
 
 
 def _corrupt(uv: np.ndarray, rng: np.random.Generator, cfg: TrainConfig, torso: np.ndarray):
@@ -108,7 +89,7 @@ class _Batches:
         uv_n[flip], clean[flip] = _flip2d(uv_n[flip]), _flip2d(clean[flip])
         J[flip] = J[flip][:, FLIP] * [-1, 1, 1]
         conf[flip] = conf[flip][:, FLIP]
-        f = lambda a: torch.as_tensor(a, dtype=torch.float32)  # noqa: E731
+        f = lambda a: torch.as_tensor(a, dtype=torch.float32)
         return f(uv_n), f(conf), f(clean), f(J)
 
     def wild_batch(self):
@@ -121,7 +102,7 @@ class _Batches:
         conf[flip] = conf[flip][:, FLIP]
         conf = np.where(conf >= 0.5, conf, 0.0).astype(np.float32)  # b_k: unreliable joints are masked
         L = self.bones[r.integers(0, len(self.bones), c.batch_wild)]
-        f = lambda a: torch.as_tensor(a, dtype=torch.float32)  # noqa: E731
+        f = lambda a: torch.as_tensor(a, dtype=torch.float32)
         return f(uv_n), f(conf), f(L)
 
 
@@ -163,29 +144,21 @@ def losses(model: Lifter, cfg: TrainConfig, b3d, bwild=None) -> dict[str, torch.
 
 
 def save_checkpoint(path: Path, model: Lifter, cfg: TrainConfig, step: int, opt=None, extra: dict | None = None):
-    with atomic_path(path) as tmp:
-        torch.save({"format": FORMAT, "version": VERSION, "config": asdict(cfg), "step": step,
-                    "state_dict": model.state_dict(), "optimizer": opt.state_dict() if opt else None,
-                    "extra": extra or {}}, tmp)
+    tensors = {"state": model.state_dict()}
+    if opt is not None:
+        tensors["optimizer"] = opt.state_dict()
+    save_checkpoint_file(path, KIND, VERSION, asdict(cfg), tensors, {"step": step, "extra": extra or {}})
 
 
 def load_checkpoint(path: Path) -> tuple[Lifter, dict]:
-    path = Path(path)
-    if not path.exists():
-        raise InputError(f"no pose lifter checkpoint at {path}: train one with `anima train pose --out {path}`")
-    try:
-        ck = torch.load(path, map_location="cpu", weights_only=False)
-    except Exception as e:  # noqa: BLE001
-        raise CheckpointError(f"{path} is not a readable checkpoint ({type(e).__name__})") from e
-    if not isinstance(ck, dict) or ck.get("format") != FORMAT:
-        raise CheckpointError(f"{path} is not an anima pose lifter checkpoint")
-    if ck.get("version") != VERSION:
-        raise CheckpointError(f"{path} is a pose lifter checkpoint of version {ck.get('version')}; this anima reads "
-                              f"version {VERSION}: retrain with `anima train pose`")
-    model = Lifter(LifterConfig(**ck["config"]["model"]))
-    model.load_state_dict(ck["state_dict"])
+    """(model, checkpoint dict with ``config``, ``step``, ``state_dict``, ``optimizer``, ``extra``)."""
+    ck = load_checkpoint_file(path, KIND, (1, VERSION), train_hint=f"train one with `anima train pose --out {path}`")
+    model = Lifter(LifterConfig(**ck.config["model"]))
+    load_state(model, ck)
     model.eval()
-    return model, ck
+    return model, {"format": KIND, "version": ck.version, "config": ck.config, "step": ck.info.get("step", 0),
+                   "state_dict": ck.state, "optimizer": ck.tensors.get("optimizer"),
+                   "extra": ck.info.get("extra", {})}
 
 
 def train(cfg: TrainConfig, out: Path, cache: Path, progress: bool = True, resume: bool = True,
@@ -200,8 +173,8 @@ def train(cfg: TrainConfig, out: Path, cache: Path, progress: bool = True, resum
     out = Path(out)
     if resume and out.exists():
         _, ck = load_checkpoint(out)
-        same = {k: v for k, v in ck["config"].items() if k != "steps"} == {k: v for k, v in asdict(cfg).items()
-                                                                           if k != "steps"}
+        mine = json.loads(json.dumps(asdict(cfg)))
+        same = {k: v for k, v in ck["config"].items() if k != "steps"} == {k: v for k, v in mine.items() if k != "steps"}
         if not same:
             raise CheckpointError(f"{out} was trained with another configuration; use a new --out or --no-resume")
         model.load_state_dict(ck["state_dict"])
@@ -254,15 +227,3 @@ def predict(model: Lifter, uv_px: np.ndarray, conf: np.ndarray, batch: int = 409
 
 def summary_json(info: dict) -> str:
     return json.dumps({k: v for k, v in info.items() if k != "history"}, indent=2)
-
-
-def default_checkpoint() -> Path:
-    """Where ``anima train pose`` writes and ``anima capture --body-3d lifter`` reads by default (a user
-    folder: a model trained on Human3.6M may not be redistributed, so none ships with anima)."""
-    from anima.io.assets import user_dir
-    return user_dir("models", "pose_lifter.pt")
-
-
-def default_cache() -> Path:
-    from anima.io.assets import user_dir
-    return user_dir("cache", "pose3d")

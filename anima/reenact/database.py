@@ -35,8 +35,12 @@ from pathlib import Path
 
 import numpy as np
 
+from anima import __version__
+from anima.capture.pipeline import CaptureConfig, capture_face
 from anima.errors import InputError, SchemaError
+from anima.facemodel.ict import load_face_model
 from anima.io.atomic import atomic_path
+from anima.io.video import iter_frames, probe_video
 
 SCHEMA = "anima.reenact_db"
 VERSION = 1
@@ -100,10 +104,6 @@ def build_database(videos: list[str], max_frames: int | None = None, progress: b
     (self-re-enactment). Returns (database, the target sequences)."""
     from tqdm import tqdm
 
-    from anima import __version__
-    from anima.capture.pipeline import CaptureConfig, capture_face
-    from anima.facemodel.ict import load_face_model
-    from anima.io.video import iter_frames, probe_video
 
     model = load_face_model()
     vid = region_ids(model)
@@ -165,7 +165,7 @@ def read_database(path: str | Path) -> ReenactDB:
     try:
         d = np.load(path, allow_pickle=False)
         meta = json.loads(str(d["meta"]))
-    except Exception as e:  # noqa: BLE001
+    except Exception as e:
         raise InputError(f"{path} is not a readable re-enactment database ({type(e).__name__})") from e
     if meta.get("schema") != SCHEMA:
         raise SchemaError(f"{path} is not an {SCHEMA} file")

@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from anima.core.rotations import rotvec_to_matrix
+from anima.facemodel.ict import load_face_model
+from anima.io.sequence import FLAG_NO_FACE
 from anima.reenact.database import ReenactDB
 from anima.reenact.render import composite, posed_uvz
 from anima.reenact.synth import adaptive_sigma, expression_mapping, nearest, weighted_median, weights
@@ -17,13 +19,17 @@ from anima.reenact.synth import adaptive_sigma, expression_mapping, nearest, wei
 
 @dataclass
 class ReenactConfig:
-    n: int = 100  # nearest target frames (seed: 100)
-    a: float = 0.9  # weight fraction the n best carry (eq. 3.4)
-    smooth: int = 0  # method 1: 0 (none); method 2: T frames (eq. 3.5) on vertices and colours
+    n: int = field(default=100, metadata={"range": (1, 100_000)})
+    """Nearest target frames (seed: 100)."""
+    a: float = field(default=0.9, metadata={"range": (1e-6, 1 - 1e-6)})
+    """Weight fraction the n best carry (eq. 3.4; seed 0.9)."""
+    smooth: int = field(default=5, metadata={"range": (0, 1000)})
+    """Method 2 smoothing window T in frames on vertices and colours (eq. 3.5); 0 = method 1."""
     levels: int = 4  # Laplacian pyramid levels
     erode: float = 0.04  # mask erosion, fraction of the region's height
     blur: float = 0.10  # mask feather, fraction of the region's height
-    map_expressions: bool = True  # identity mismatch: per-person normalisation of expression statistics
+    map_expressions: bool = field(default=True, metadata={"flag": "--no-mapping"})
+    """Identity mismatch: normalise the actor's expression statistics to the target's (off: --no-mapping)."""
     hold_frames: int = 8  # actor face lost: hold the last expression this many frames ...
     fade_frames: int = 8  # ... then fade to the target's own frame over these
 
@@ -39,7 +45,6 @@ class Reenactor:
     """Stateless per-frame operations on one database (the smoothing window lives in :class:`Smoother`)."""
 
     def __init__(self, db: ReenactDB, cfg: ReenactConfig | None = None, model=None):
-        from anima.facemodel.ict import load_face_model
         self.db, self.cfg = db, cfg or ReenactConfig()
         model = model or load_face_model()
         self.sub = model.subset(db.vertex_ids.astype(np.int64))
@@ -121,7 +126,6 @@ class Smoother:
 def actor_expressions(actor_seq, db: ReenactDB, cfg: ReenactConfig) -> tuple[np.ndarray, np.ndarray]:
     """Actor expressions mapped into the target's space (when ``cfg.map_expressions``), and per-frame
     blend alpha: 1 when the face is tracked; held then faded when the actor's face is lost."""
-    from anima.io.sequence import FLAG_NO_FACE
     x = actor_seq.expression.astype(np.float32)
     lost = (actor_seq.flags & FLAG_NO_FACE) > 0
     if cfg.map_expressions:

@@ -10,9 +10,17 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from anima.capture.fit import LandmarkBasis, choose_keyframes, fit_frames, fit_identity
+from anima.capture.mediapipe_face import FaceMeshTracker
+from anima.capture.pipeline import CaptureConfig, capture_face
+from anima.core.camera import mediapipe_to_camera
 from anima.errors import InputError
-from anima.reenact.database import build_database
+from anima.facemodel.correspondence import load_correspondence
+from anima.facemodel.ict import load_face_model
+from anima.io.video import VideoWriter, iter_frames, probe_video
+from anima.reenact.database import build_database, read_database, write_database
 from anima.reenact.pipeline import ReenactConfig, Reenactor, Smoother, actor_expressions
+from anima.reenact.synth import expression_mapping
 
 MAX_TARGET_BYTES = 1 << 30
 
@@ -27,13 +35,12 @@ def pingpong(j: np.ndarray, n: int) -> np.ndarray:
 
 
 def load_target_frames(path: str) -> tuple[np.ndarray, float]:
-    from anima.io.video import iter_frames, probe_video
     info = probe_video(path)
     cap = max(1, MAX_TARGET_BYTES // (info.width * info.height * 3))
     frames = []
     for i, f in enumerate(iter_frames(info)):
         if i >= cap:
-            warnings.warn(f"target background limited to its first {cap} frames (memory)")
+            warnings.warn(f"target background limited to its first {cap} frames (memory)", stacklevel=2)
             break
         frames.append(f)
     return np.stack(frames), info.fps
@@ -48,8 +55,6 @@ def side_by_side(actor: np.ndarray, out: np.ndarray) -> np.ndarray:
 def prepare(targets: list[str], db_path: str | None, progress: bool, max_frames: int | None = None):
     """Database (built from ``targets``, or read from ``db_path`` if it exists) and the first target's
     sequence (its pose per frame drives the background)."""
-    from anima.capture.pipeline import CaptureConfig, capture_face
-    from anima.reenact.database import read_database, write_database
     if db_path and Path(db_path).exists():
         db = read_database(db_path)
         if Path(db.meta["videos"][0]["path"]).resolve() != Path(targets[0]).resolve():
@@ -79,8 +84,6 @@ def reenact_video(actor: str, targets: list[str], out: str, cfg: ReenactConfig |
 def _reenact_video(actor, targets, out, cfg, sbs, db_path, progress) -> dict:
     from tqdm import tqdm
 
-    from anima.capture.pipeline import capture_face
-    from anima.io.video import VideoWriter, iter_frames, probe_video
     cfg = cfg or ReenactConfig()
     ainfo = probe_video(actor)
     db, tseq = prepare(targets, db_path, progress)
@@ -179,14 +182,6 @@ def _reenact_live(source, targets, out, cfg, db_path, max_seconds, progress) -> 
     """Live loop: track the actor frame by frame (MediaPipe face mesh + per-frame fit with the identity of
     the first frames), re-enact on the target, write what was produced. Frames that arrive while one is
     being processed are dropped (reported), so latency stays bounded."""
-    from anima.capture.fit import LandmarkBasis, choose_keyframes, fit_frames, fit_identity
-    from anima.capture.mediapipe_face import FaceMeshTracker
-    from anima.capture.pipeline import CaptureConfig
-    from anima.core.camera import mediapipe_to_camera
-    from anima.facemodel.correspondence import load_correspondence
-    from anima.facemodel.ict import load_face_model
-    from anima.io.video import VideoWriter
-    from anima.reenact.synth import expression_mapping
 
     cfg = cfg or ReenactConfig()
     db, tseq = prepare(targets, db_path, progress)
@@ -258,3 +253,21 @@ def _reenact_live(source, targets, out, cfg, db_path, max_seconds, progress) -> 
             "latency_ms": {"median": float(np.median(lat)), "p95": float(np.percentile(lat, 95)),
                            "max": float(lat.max())},
             "output": out}
+
+
+def run_reenact(targets: list[str], out: str | None, cfg: ReenactConfig, actor: str | None = None,
+                live: str | None = None, sbs: bool = False, db_path: str | None = None,
+                max_seconds: float | None = None, progress: bool = True) -> dict:
+    """``anima reenact``: check every input, then re-enact an actor video (or a live source) on the targets."""
+    if not actor and live is None:
+        raise InputError("give --actor VIDEO or --live SOURCE")
+    if actor and not out:
+        raise InputError("give --out OUT.mp4")
+    for t in targets:
+        if not Path(t).exists():
+            raise InputError(f"target video not found: {t}")
+    if actor and not Path(actor).exists():
+        raise InputError(f"actor video not found: {actor}")
+    if live is not None:
+        return reenact_live(live, targets, out, cfg, db_path, max_seconds, progress=progress)
+    return reenact_video(actor, targets, out, cfg, sbs, db_path, progress=progress)

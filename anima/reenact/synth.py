@@ -59,7 +59,7 @@ def weighted_median_listing1(colrs, weights):
             sorted_weights = weights[ind_sorted]
             Sn = np.cumsum(sorted_weights)
             Pn = (Sn - 0.5 * sorted_weights) / Sn[-1]
-            I = np.searchsorted(Pn, 0.5)  # noqa: E741
+            I = np.searchsorted(Pn, 0.5)
             out[i, j] = ((sorted_data[I] - sorted_data[I - 1])
                          / (Pn[I] - Pn[I - 1])) * (0.5 - Pn[I - 1]) + sorted_data[I - 1]
     return out

@@ -1,6 +1,7 @@
 """Videos people look at: the fitted mesh over the input, and the fitted mesh alone."""
 from __future__ import annotations
 
+from contextlib import ExitStack
 from pathlib import Path
 
 import numpy as np
@@ -40,9 +41,12 @@ def render_videos(seq: TrackedSequence, video: str | None, overlay_path: str | P
         info = probe_video(video)
         audio = video if info.has_audio else audio
         frames = iter_frames(info)
-    w_over = VideoWriter(overlay_path, seq.fps, size, audio) if overlay_path and frames is not None else None
-    w_mesh = VideoWriter(mesh_path, seq.fps, size, audio) if mesh_path else None
-    try:
+    with ExitStack() as stack:
+        if frames is not None:
+            stack.callback(frames.close)
+        w_over = stack.enter_context(VideoWriter(overlay_path, seq.fps, size, audio)) \
+            if overlay_path and frames is not None else None
+        w_mesh = stack.enter_context(VideoWriter(mesh_path, seq.fps, size, audio)) if mesh_path else None
         for f in tqdm(range(seq.n_frames), desc="render", unit="fr", disable=not progress, leave=False):
             frame = next(frames, None) if frames is not None else None
             no_face = bool(seq.flags[f] & FLAG_NO_FACE)
@@ -53,9 +57,3 @@ def render_videos(seq: TrackedSequence, video: str | None, overlay_path: str | P
             if w_mesh is not None:
                 img = render_mesh(X, mesh.tris, size)
                 w_mesh.write(put_label(img, "no face (interpolated)") if no_face else img)
-    finally:
-        for w in (w_over, w_mesh):
-            if w is not None:
-                w.close()
-        if frames is not None:
-            frames.close()

@@ -16,19 +16,18 @@
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from anima.core.contract import N_EXPR, TEXT_FPS
 from anima.dataset.describe import describe, segment_timeline
-from anima.dataset.storage import read_table
+from anima.dataset.windows import read_clips
 from anima.errors import InputError
 from anima.facemodel.ict import load_face_model, region_vertices
 
-FPS = 30.0
-N_EXPR = 53
+FPS = TEXT_FPS
 EVAL_LEN = 90
 EVAL_HOP = 45
 
@@ -42,6 +41,7 @@ class Clip:
     texts: list[str]
     events: list[tuple[str, float, float]]
     gender: str | None
+    fps: float = TEXT_FPS
 
 
 @dataclass
@@ -54,19 +54,10 @@ class Item:
 
 
 def load_clips(folder: str | Path) -> list[Clip]:
-    t = read_table(folder, "text_motion").to_pydict()
-    if not t["clip_id"]:
+    rows = read_clips(folder)
+    if not rows:
         raise InputError(f"{folder}: the dataset has no (text, motion) clips; build it with `anima dataset build`")
-    out = []
-    for i in range(len(t["clip_id"])):
-        n = int(t["n_frames"][i])
-        ev = json.loads(t["attributes"][i]) if t["attributes"][i] else []
-        ev = ev.get("events", []) if isinstance(ev, dict) else ev
-        g = t["gender"][i]
-        out.append(Clip(t["clip_id"][i], t["video_id"][i], t["split"][i],
-                        np.asarray(t["motion"][i], np.float32).reshape(n, -1), list(t["texts"][i]),
-                        [(str(a), float(s), float(e)) for a, s, e in ev], g if g in ("female", "male") else None))
-    return out
+    return [Clip(r.clip_id, r.video_id, r.split, r.motion, r.texts, r.events, r.gender, r.fps) for r in rows]
 
 
 def crop_events(events, a: int, b: int, fps: float = FPS):
@@ -90,14 +81,16 @@ def crop_pool(clips: list[Clip], per_clip: int, min_len: int, max_len: int, seed
     for c in clips:
         n = len(c.motion)
         whole = c.motion[:max_len]
-        ev = crop_events(c.events, 0, len(whole))
-        text = c.texts[rng.integers(len(c.texts))] if len(whole) == n else describe_window(ev, len(whole), rng, c.gender)
+        ev = crop_events(c.events, 0, len(whole), c.fps)
+        text = (c.texts[rng.integers(len(c.texts))] if len(whole) == n
+                else describe_window(ev, len(whole), rng, c.gender, c.fps))
         items.append(Item(whole, text, ev, c.clip_id))
         for _ in range(per_clip):
             L = int(rng.integers(min_len, min(n, max_len) + 1))
             a = int(rng.integers(0, n - L + 1))
-            ev = crop_events(c.events, a, a + L)
-            items.append(Item(c.motion[a:a + L], describe_window(ev, L, rng, c.gender), ev, f"{c.clip_id}@{a}+{L}"))
+            ev = crop_events(c.events, a, a + L, c.fps)
+            items.append(Item(c.motion[a:a + L], describe_window(ev, L, rng, c.gender, c.fps), ev,
+                              f"{c.clip_id}@{a}+{L}"))
     return items
 
 
@@ -108,8 +101,8 @@ def eval_items(clips: list[Clip], length: int = EVAL_LEN, hop: int = EVAL_HOP, s
     out = []
     for c in clips:
         for a in range(0, len(c.motion) - length + 1, hop):
-            ev = crop_events(c.events, a, a + length)
-            texts = [describe_window(ev, length, rng, c.gender) for _ in range(n_texts)]
+            ev = crop_events(c.events, a, a + length, c.fps)
+            texts = [describe_window(ev, length, rng, c.gender, c.fps) for _ in range(n_texts)]
             out.append(Item(c.motion[a:a + length], texts[0], ev, f"{c.clip_id}@{a}", texts))
     return out
 

@@ -13,6 +13,7 @@ warning (the encoder would silently drop the tail otherwise).
 """
 from __future__ import annotations
 
+import hashlib
 import os
 import warnings
 from functools import lru_cache
@@ -21,6 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from anima.errors import AssetNotFound, InputError
+from anima.io.assets import user_dir
+from anima.io.atomic import atomic_path
 
 MAX_CHARS = 20_000  # longer text is cut before tokenising (a prompt, not a book)
 
@@ -86,7 +89,6 @@ class OpenClipEncoder(TextEncoder):
                                 "and ViT-B/32 weights; use --encoder minilm") from e
         w = weights or os.environ.get("ANIMA_CLIP_WEIGHTS")
         if not w:
-            from anima.io.assets import user_dir
             w = user_dir() / "models" / "clip-vit-b-32.pt"
         if not Path(w).is_file():
             raise AssetNotFound(f"CLIP weights not found at {w} (set ANIMA_CLIP_WEIGHTS); use --encoder minilm")
@@ -143,11 +145,6 @@ def clean_prompt(text: str, encoder: TextEncoder) -> str:
 def encode_cached(encoder: TextEncoder, texts: list[str]) -> np.ndarray:
     """``encoder.encode`` with an on-disk cache (``$ANIMA_HOME/cache/text_embeddings/<encoder>.npz``): the
     encoder is frozen, so a text's embedding never changes. Long descriptions cost ~20 ms each on 2 cores."""
-    import hashlib
-
-    from anima.io.assets import user_dir
-    from anima.io.atomic import atomic_path
-
     path = user_dir("cache", "text_embeddings", f"{encoder.name}.npz")
     keys = [hashlib.sha1(t.encode("utf-8")).hexdigest() for t in texts]
     cache: dict[str, np.ndarray] = {}
@@ -155,12 +152,12 @@ def encode_cached(encoder: TextEncoder, texts: list[str]) -> np.ndarray:
         try:
             with np.load(path, allow_pickle=False) as z:
                 cache = dict(zip(z["keys"].tolist(), z["emb"]))
-        except Exception:  # noqa: BLE001 - a damaged cache is rebuilt
+        except Exception:
             cache = {}
     missing = sorted({(k, t) for k, t in zip(keys, texts) if k not in cache})
     if missing:
         E = encoder.encode([t for _, t in missing])
         cache.update(zip([k for k, _ in missing], E))
-        with atomic_path(path, ".tmp.npz") as tmp:
+        with atomic_path(path) as tmp:
             np.savez(tmp, keys=np.asarray(list(cache)), emb=np.stack(list(cache.values())).astype(np.float32))
     return np.stack([cache[k] for k in keys]).astype(np.float32)

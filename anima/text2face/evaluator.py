@@ -9,6 +9,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from anima.io.checkpoint import load_checkpoint, load_state, save_checkpoint
+
 
 class MotionTextEvaluator(nn.Module):
     def __init__(self, d_c: int = 384, motion_dim: int = 56, width: int = 128, dim: int = 128):
@@ -78,3 +80,19 @@ def r_precision(ev: MotionTextEvaluator, motions: np.ndarray, E: np.ndarray, top
     s = (m @ t.T).numpy()
     rank = (s > np.diag(s)[:, None]).sum(1)  # texts scoring strictly higher than the true one
     return [float((rank < k).mean()) for k in range(1, top + 1)]
+
+
+EVALUATOR_KIND = "text_motion_evaluator"
+EVALUATOR_VERSION = 1
+
+
+def save_evaluator(path, ev: MotionTextEvaluator) -> None:
+    save_checkpoint(path, EVALUATOR_KIND, EVALUATOR_VERSION, {"d_c": ev.text[0].in_features}, {"state": ev.state_dict()})
+
+
+def load_evaluator(path) -> MotionTextEvaluator:
+    ck = load_checkpoint(path, EVALUATOR_KIND, EVALUATOR_VERSION)
+    ev = MotionTextEvaluator(int(ck.config["d_c"]))
+    load_state(ev, ck)
+    ev.eval()
+    return ev

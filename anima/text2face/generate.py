@@ -2,24 +2,28 @@
 
 ``Generator(checkpoint)`` loads a text2face or MDM checkpoint with its text encoder; ``generate(prompts,
 length, seed)`` returns raw motion ``[B, T, 56]`` (53 ICT expression weights in [0, 1], head axis-angle).
-:func:`write_outputs` writes ``motion.npz`` (a tracked-sequence file, so ``anima info`` / ``anima export``
-read it), ``face.mp4`` (the neutral ICT face animated), ``arkit.csv`` (Live Link Face), ``face.glb``
-(morph-target animation) and ``info.json``.
+:func:`text_to_folder` is ``anima text2face``: the motion written by the one motion writer (``motion.npz``, a
+tracked-sequence file that ``anima info`` / ``anima export`` read, ``face.mp4``, ``arkit.csv``, ``face.glb``,
+``info.json``).
 """
 from __future__ import annotations
 
-import json
-from functools import lru_cache
+import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from anima.core.contract import N_EXPR
 from anima.errors import InputError
+from anima.export.framing import generated_sequence
+from anima.export.motion import write_motion_outputs
+from anima.io.outdir import OutputFolder
+from anima.text2face.config import PromptConfig
 from anima.text2face.encoders import clean_prompt, get_encoder
 from anima.text2face.train import load_checkpoint
 
-FPS = 30.0
 SHIPPED = Path(__file__).parent / "checkpoints" / "text2face.pt"
 
 
@@ -34,6 +38,7 @@ class Generator:
         self.path = Path(checkpoint) if checkpoint else default_checkpoint()
         ck = load_checkpoint(self.path)
         self.ck, self.model, self.kind = ck, ck["model"], ck["kind"]
+        self.fps = ck["fps"]
         self.cfg = self.model.cfg
         self.mean = np.asarray(ck["mean"], np.float32)
         self.std = np.asarray(ck["std"], np.float32)
@@ -46,8 +51,8 @@ class Generator:
     def check_length(self, n: int) -> int:
         lo, hi = self.length_range
         if not lo <= n <= hi:
-            raise InputError(f"length {n} frames ({n / FPS:.1f} s) is outside the trained range {lo}-{hi} frames "
-                             f"({lo / FPS:.1f}-{hi / FPS:.1f} s at 30 fps)")
+            raise InputError(f"length {n} frames ({n / self.fps:.1f} s) is outside the trained range {lo}-{hi} "
+                             f"frames ({lo / self.fps:.1f}-{hi / self.fps:.1f} s at {self.fps:g} fps)")
         return n
 
     def embed(self, prompts: list[str]) -> np.ndarray:
@@ -66,56 +71,33 @@ class Generator:
 
     def denormalise(self, z: np.ndarray) -> np.ndarray:
         m = z * self.std + self.mean
-        m[..., :53] = np.clip(m[..., :53], 0.0, 1.0)
+        m[..., :N_EXPR] = np.clip(m[..., :N_EXPR], 0.0, 1.0)
         return m.astype(np.float32)
 
     def generate(self, prompts: list[str], length: int = 90, seed: int = 0) -> np.ndarray:
         return self.generate_from_embeddings(self.embed(prompts), length, seed)
 
 
-@lru_cache(maxsize=1)
-def _skin_height() -> tuple[float, float, tuple[str, ...]]:
-    """(lowest, highest) y of the neutral skin mesh (cm) and the expression names; computed once (the
-    evaluation frames thousands of generated windows)."""
-    from anima.facemodel.ict import load_face_model
-    fm = load_face_model()
-    ys = fm.skin().neutral[:, 1]
-    return float(ys.min()), float(ys.max()), tuple(fm.expr_names)
-
-
-def motion_to_sequence(motion: np.ndarray, fps: float = FPS, size: int = 512, meta: dict | None = None):
-    """A tracked-sequence object for generated motion: the neutral identity, framed in a ``size`` square."""
-    from anima.io.sequence import TrackedSequence
-
-    lo, hi, names = _skin_height()
-    F = len(motion)
-    scale = 0.8 * size / (hi - lo)  # pixels per cm: the head fills 80 % of the frame
-    cy = (hi + lo) / 2
-    return TrackedSequence(
-        fps=fps, width=size, height=size, identity=np.zeros(100, np.float32),
-        expression=np.ascontiguousarray(motion[:, :53], np.float32),
-        rotation=np.ascontiguousarray(motion[:, 53:56], np.float32),
-        scale=np.full(F, scale, np.float32),
-        translation=np.tile(np.array([size / 2, -size / 2 - cy * scale, 0], np.float32), (F, 1)),
-        fit_error_px=np.zeros(F, np.float32), fit_nme=np.zeros(F, np.float32), flags=np.zeros(F, np.uint8),
-        landmarks=np.full((F, 478, 3), np.nan, np.float32), expr_names=list(names), meta=meta or {})
-
-
-def write_outputs(out: str | Path, motion: np.ndarray, prompt: str, info: dict, video: bool = True,
-                  progress: bool = True) -> dict:
-    from anima.capture.export import export_arkit_csv, export_glb
-    from anima.io.sequence import write_sequence
-    from anima.render.videos import render_videos
-
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    seq = motion_to_sequence(motion, meta={"generated_by": "anima text2face", "prompt": prompt, **info})
-    files = {"sequence": write_sequence(seq, out / "motion.npz"),
-             "arkit_csv": export_arkit_csv(seq, out / "arkit.csv"),
-             "glb": export_glb(seq, out / "face.glb")}
-    if video:
-        render_videos(seq, None, None, out / "face.mp4", progress=progress)
-        files["video"] = out / "face.mp4"
-    (out / "info.json").write_text(json.dumps({"prompt": prompt, **info,
-                                               "files": {k: str(v) for k, v in files.items()}}, indent=2))
-    return files
+def text_to_folder(prompt: str, out: str | Path, cfg: PromptConfig | None = None,
+                   checkpoint: str | Path | None = None, video: bool = True, progress: bool = True,
+                   command: str | None = None) -> dict:
+    """``anima text2face``: a sentence -> a result folder (``motion.npz``, ``arkit.csv``, ``face.glb``,
+    ``face.mp4``, ``info.json``; :func:`anima.export.motion.write_motion_outputs`). ``--out`` is checked
+    before the model loads. Returns the run's info (frames, fps, seed, sampling time, warnings, files)."""
+    cfg = cfg or PromptConfig()
+    seed = cfg.seed
+    with OutputFolder(out, kind="text2face", command=command) as od:
+        gen = Generator(checkpoint)
+        n = gen.check_length(int(round(cfg.seconds * gen.fps)) if cfg.seconds else cfg.length)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            text = clean_prompt(prompt, gen.encoder)
+        t = time.perf_counter()
+        motion = gen.generate([text], n, seed)[0]
+        info = {"prompt": text, "frames": n, "fps": gen.fps, "seed": seed, "checkpoint": str(gen.path),
+                "kind": gen.kind, "sampling_s": round(time.perf_counter() - t, 3),
+                "warnings": [str(w.message) for w in caught]}
+        seq = generated_sequence(gen.fps, face=motion, meta={"generated_by": "anima text2face", **info})
+        od.info = info
+        files = write_motion_outputs(seq, od, "motion.npz", render=video, info=info, progress=progress)
+    return info | {"written": [str(p) for p in files.values()]}

@@ -1,27 +1,28 @@
 """Ship a trained text2face checkpoint: a compact copy (float16 weights, no optimizer state) and a manifest
-(command, data fingerprint, training time, held-out metrics, sha256) beside it, ``<name>.json``."""
+(command, data fingerprint, training time, held-out metrics, sha256) beside it, ``<name>.json``. The metrics are
+computed by the caller's ``evaluate(checkpoint_path) -> dict`` (``anima.eval.text2face.quick_metrics`` from the
+command), so the feature package does not reach up into the evaluation layer."""
 from __future__ import annotations
 
 import hashlib
-import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from anima import __version__
+from anima.io.atomic import write_json
 from anima.text2face.train import TrainConfig, load_checkpoint, save_checkpoint
 
 
-def ship(checkpoint: str | Path, dest: str | Path, dataset: str | Path, progress: bool = True) -> list[Path]:
-    from anima.eval.text2face import quick_metrics
-
+def ship(checkpoint: str | Path, dest: str | Path, evaluate: Callable[[Path], dict]) -> list[Path]:
     ck = load_checkpoint(checkpoint)
     dest = Path(dest)
     cfg = TrainConfig(**ck["train_config"])
     save_checkpoint(dest, kind=ck["kind"], model=ck["model"], train_cfg=cfg,
                     stats=(np.asarray(ck["mean"]), np.asarray(ck["std"])), gram=ck["gram"], step=ck["step"],
-                    info={k: v for k, v in ck["info"].items() if k != "losses"}, compact=True)
-    metrics = quick_metrics(dataset, dest)
+                    info={k: v for k, v in ck["info"].items() if k != "losses"}, compact=True, fps=ck["fps"])
+    metrics = evaluate(dest)
     info = ck["info"]
     manifest = {
         "checkpoint": dest.name, "sha256": hashlib.sha256(dest.read_bytes()).hexdigest(),
@@ -33,6 +34,5 @@ def ship(checkpoint: str | Path, dest: str | Path, dataset: str | Path, progress
         "params": sum(p.numel() for p in ck["model"].parameters()), "model_config": ck["model_config"],
         "heldout_metrics": metrics,
     }
-    man = dest.with_suffix(".json")
-    man.write_text(json.dumps(manifest, indent=2) + "\n")
+    man = write_json(dest.with_suffix(".json"), manifest)
     return [dest, man]

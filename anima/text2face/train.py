@@ -6,58 +6,36 @@ default, ``scheme="autoregressive"`` for the FaceFormer ablation) or the MDM-sty
 region (through the 53x53 Gram matrix of :class:`anima.text2face.data.FaceGeometry`) plus the MSE of the
 z-normalised head rotation, masked over padding (eq. 6.2), plus the VQ loss (eq. 6.3) for the cVQVAE.
 
-Checkpoint ``anima.text2face`` version 1 (one writer :func:`save_checkpoint`, one reader
-:func:`load_checkpoint`): format, version, kind, model and training config, normalisation (mean, std), the
-loss Gram matrix, step, weights, optimizer state (absent in a compact export, whose weights are float16),
-and info (data fingerprint, command, losses, wall time). Training resumes from ``out/checkpoint.pt``.
+Checkpoints are :mod:`anima.io.checkpoint` files of kind ``text2face`` or ``mdm``, version 2: config (model
+and training config, normalisation mean and std, the loss Gram matrix, step), weights, optimizer state
+(absent in a compact export, whose weights are float16) and info (data fingerprint, command, losses, wall
+time). Training resumes from ``out/checkpoint.pt``.
 """
 from __future__ import annotations
 
 import hashlib
 import json
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 import torch
 from tqdm import tqdm
 
+from anima.core.contract import N_EXPR, TEXT_FPS
 from anima.errors import InputError, SchemaError
-from anima.io.atomic import atomic_path
+from anima.io.checkpoint import load_checkpoint as load_checkpoint_file
+from anima.io.checkpoint import load_state
+from anima.io.checkpoint import save_checkpoint as save_checkpoint_file
+from anima.text2face.config import TrainConfig
 from anima.text2face.data import FaceGeometry, crop_pool, load_clips, motion_stats, split_clips
 from anima.text2face.diffusion import MDM, MDMConfig
 from anima.text2face.encoders import encode_cached, get_encoder
-from anima.text2face.model import Text2Face, preset
+from anima.text2face.model import Text2Face, Text2FaceConfig, preset
 
-FORMAT = "anima.text2face"
-VERSION = 1
-
-
-@dataclass
-class TrainConfig:
-    kind: str = "text2face"  # or "mdm"
-    preset: str = "seed"
-    model: dict = field(default_factory=dict)  # overrides of the model config
-    scheme: str = "teacher"  # or "autoregressive" (FaceFormer's)
-    steps: int = 2000
-    batch: int = 8
-    lr: float = 1e-4
-    w_rot: float = 1.0
-    per_clip: int = 30
-    min_len: int = 30
-    max_len: int = 300
-    seed: int = 0
-    ckpt_every: int = 250
-    restart_every: int = 50  # dead-code restart of the cVQVAE codebook (0: never; the seed does not say)
-    fresh_codes: bool = False  # draw the random code anew each step instead of fixing it per sample (§6.1)
-    tf_drop: float = 0.9
-    """Share of teacher-forced input frames replaced by the zero start frame. Not in the seed: with plain
-    teacher forcing the decoder learns to copy the previous frame (30 fps face motion is smooth), ignores
-    the text, and the sampled motion is the same for every prompt (docs/text2face.md). 0 = the seed."""
-    tf_noise: float = 0.0  # Gaussian noise (z units) on teacher-forced inputs against exposure bias
-    encoder: str = "minilm"
-    threads: int = 0  # 0: torch's default
+KINDS = ("text2face", "mdm")
+VERSION = 2  # 1: text2face's own envelope; 2: anima.io.checkpoint
 
 
 def fingerprint(clips) -> str:
@@ -70,7 +48,6 @@ def fingerprint(clips) -> str:
 
 def build_model(kind: str, model_cfg: dict):
     if kind == "text2face":
-        from anima.text2face.model import Text2FaceConfig
         return Text2Face(Text2FaceConfig(**model_cfg))
     if kind == "mdm":
         return MDM(MDMConfig(**model_cfg))
@@ -97,35 +74,28 @@ def rec_loss(pred, target, mask, std, G, w_rot: float):
 # ---- checkpoints -----------------------------------------------------------------------------------
 
 def save_checkpoint(path: Path, *, kind, model, train_cfg: TrainConfig, stats, gram, step, opt=None,
-                    info=None, compact=False) -> Path:
+                    info=None, compact=False, fps: float = TEXT_FPS) -> Path:
     state = {k: (v.half() if compact and v.is_floating_point() else v) for k, v in model.state_dict().items()}
-    obj = {"format": FORMAT, "version": VERSION, "kind": kind, "model_config": model.cfg.to_dict(),
-           "train_config": asdict(train_cfg), "mean": stats[0].tolist(), "std": stats[1].tolist(),
-           "gram": np.asarray(gram).tolist(), "step": step, "state": state,
-           "optim": None if compact or opt is None else opt.state_dict(), "info": info or {}}
-    with atomic_path(path) as tmp:
-        torch.save(obj, tmp)
-    return Path(path)
+    tensors = {"state": state}
+    if opt is not None and not compact:
+        tensors["optimizer"] = opt.state_dict()
+    config = {"model": model.cfg.to_dict(), "train": asdict(train_cfg), "mean": stats[0].tolist(),
+              "std": stats[1].tolist(), "gram": np.asarray(gram).tolist(), "step": step, "fps": fps}
+    return save_checkpoint_file(path, kind, VERSION, config, tensors, info or {})
 
 
 def load_checkpoint(path: str | Path) -> dict:
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"checkpoint not found: {p}")
-    try:
-        obj = torch.load(p, map_location="cpu", weights_only=True)
-    except Exception as e:  # noqa: BLE001 - corrupt or not a torch file
-        raise SchemaError(f"{p}: not a readable text2face checkpoint ({type(e).__name__})") from e
-    if not isinstance(obj, dict) or obj.get("format") != FORMAT:
-        raise SchemaError(f"{p}: not a text2face checkpoint (format {obj.get('format') if isinstance(obj, dict) else '?'!r})")
-    if obj.get("version") != VERSION:
-        raise SchemaError(f"{p}: text2face checkpoint version {obj.get('version')}, this anima reads {VERSION}; "
-                          "retrain with `anima train text2face`")
-    model = build_model(obj["kind"], obj["model_config"])
-    model.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in obj["state"].items()})
+    """The checkpoint as a dict (kind, model_config, train_config, mean, std, gram, step, state, optim, info)
+    with the rebuilt model under ``model``."""
+    ck = load_checkpoint_file(path, KINDS, (1, VERSION), train_hint="train one with `anima train text2face`")
+    c = ck.config
+    model = build_model(ck.kind, c["model"])
+    load_state(model, ck)
     model.eval()
-    obj["model"] = model
-    return obj
+    return {"kind": ck.kind, "version": ck.version, "model_config": c["model"], "train_config": c["train"],
+            "mean": c["mean"], "std": c["std"], "gram": c["gram"], "step": c["step"], "state": ck.state,
+            "optim": ck.tensors.get("optimizer"), "info": ck.info, "model": model, "path": ck.path,
+            "fps": float(c.get("fps", TEXT_FPS))}
 
 
 # ---- training --------------------------------------------------------------------------------------
@@ -139,7 +109,7 @@ def prepare(dataset: str | Path, cfg: TrainConfig):
     emb = dict(zip(texts, encode_cached(enc, texts)))
     E = np.stack([emb[it.text] for it in pool])
     stats = motion_stats(pool)
-    gram = FaceGeometry().gram(np.concatenate([it.motion[:, :53] for it in pool]))
+    gram = FaceGeometry().gram(np.concatenate([it.motion[:, :N_EXPR] for it in pool]))
     return clips, pool, E, stats, gram, enc
 
 
@@ -156,9 +126,10 @@ def train(dataset: str | Path, out: str | Path, cfg: TrainConfig, progress: bool
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     step, losses, wall0 = 0, [], 0.0
     if ck_path.is_file():
-        ck = torch.load(ck_path, map_location="cpu", weights_only=True)
-        same = {**ck.get("train_config", {}), "steps": cfg.steps, "ckpt_every": cfg.ckpt_every} == asdict(cfg)
-        if ck.get("format") == FORMAT and same and ck.get("optim") and ck["step"] <= cfg.steps:  # resume or extend
+        ck = load_checkpoint(ck_path)
+        mine = json.loads(json.dumps(asdict(cfg)))
+        same = {**ck["train_config"], "steps": cfg.steps, "ckpt_every": cfg.ckpt_every} == mine
+        if ck["kind"] == cfg.kind and same and ck.get("optim") and ck["step"] <= cfg.steps:  # resume or extend
             model.load_state_dict(ck["state"])
             opt.load_state_dict(ck["optim"])
             step, losses = ck["step"], ck["info"].get("losses", [])
@@ -166,7 +137,7 @@ def train(dataset: str | Path, out: str | Path, cfg: TrainConfig, progress: bool
         else:
             raise InputError(f"{ck_path} exists but was trained with another configuration (or further than "
                              f"--steps); use another --out")
-    mean_t, std_t, G = torch.tensor(stats[0]), torch.tensor(stats[1]), torch.tensor(gram)
+    std_t, G = torch.tensor(stats[1]), torch.tensor(gram)
     d_r = mcfg.get("d_r", 0)
     codes = torch.from_numpy(np.random.default_rng(cfg.seed + 1).standard_normal((len(pool), max(d_r, 1))).astype(np.float32))
     E_t = torch.from_numpy(E)
@@ -224,7 +195,7 @@ def train(dataset: str | Path, out: str | Path, cfg: TrainConfig, progress: bool
             bar.set_postfix(loss=f"{np.mean(losses[-20:]):.3f}")
         if step % cfg.ckpt_every == 0 or step == cfg.steps:
             save_checkpoint(ck_path, kind=cfg.kind, model=model, train_cfg=cfg, stats=stats, gram=gram, step=step,
-                            opt=opt, info=info())
+                            opt=opt, info=info(), fps=clips[0].fps)
     bar.close()
     model.eval()
     return {"model": model, "path": ck_path, "info": info(), "stats": stats}

@@ -30,7 +30,7 @@ def test_known_audio_offset_is_recovered_to_the_frame(speech, fps, shift):
     ea, eb = a.features[:, 13], b.features[:, 13]  # log energy
     ea = (ea - ea.mean()) / ea.std()
     eb = (eb - eb.mean()) / eb.std()
-    scores = [np.mean(ea[: n - k] * eb[k:n]) for k in range(0, 2 * shift)]
+    scores = [np.mean(ea[: n - k] * eb[k:n]) for k in range(2 * shift)]
     assert int(np.argmax(scores)) == shift
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from anima.capture.body import assemble, bone_length_cv, clean
-from anima.core.skeleton import BODY_JOINTS, JOINT_NAMES, LEFT_HAND, N_JOINTS, PARENTS, RIGHT_HAND, bone_lengths
+from anima.core.skeleton import BODY_JOINTS, JOINT_NAMES, LEFT_HAND, N_JOINTS, PARENTS, RIGHT_HAND
 from anima.io.assets import asset
 from anima.io.sequence import read_sequence, write_sequence
 

@@ -1,7 +1,6 @@
 """End-to-end tests of the ``anima`` command on real data, and its behaviour on bad input."""
 import json
 import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -9,24 +8,17 @@ import pytest
 from anima.io.sequence import FLAG_NO_FACE, read_sequence
 
 
-def run(*args, timeout=300):
-    r = subprocess.run([sys.executable, "-m", "anima", *map(str, args)], capture_output=True, text=True,
-                       timeout=timeout)
-    assert "Traceback" not in r.stderr, r.stderr
-    return r
-
-
-def test_help_for_every_command():
+def test_help_for_every_command(cli):
     for cmd in ([], ["capture"], ["info"], ["export"], ["eval", "landmarks"], ["eval", "stability"],
                 ["facemodel", "import"], ["facemodel", "correspondence"], ["facemodel", "landmarks68"],
                 ["audio", "features"]):
-        r = run(*cmd, "--help")
+        r = cli(*cmd, "--help")
         assert r.returncode == 0 and "usage: anima" in r.stdout, cmd
 
 
-def test_capture_end_to_end_on_real_clip(d0_path, tmp_path):
+def test_capture_end_to_end_on_real_clip(d0_path, tmp_path, cli):
     out = tmp_path / "out"
-    r = run("capture", d0_path, "--out", out, "--max-frames", "40", "--json", "--quiet")
+    r = cli("capture", d0_path, "--out", out, "--max-frames", "40", "--json", "--quiet")
     assert r.returncode == 0, r.stderr
     summary = json.loads(r.stdout)
     assert summary["frames"] == 40 and summary["tracked_fraction"] == 1.0
@@ -40,33 +32,33 @@ def test_capture_end_to_end_on_real_clip(d0_path, tmp_path):
     # the mesh is drawn over the face: the face region changed, the corners did not
     diff = np.abs(frames.astype(int) - src.astype(int)).mean(-1)
     assert diff[:, 200:330, 180:330].mean() > 15 and diff[:, -40:, -40:].mean() < 5
-    r = run("info", out / "capture.npz", "--json")
+    r = cli("info", out / "capture.npz", "--json")
     info = json.loads(r.stdout)
     assert info["frames"] == 40 and info["mean_fit_error_px"] < 5 and "mean_fit_nme" in info
-    r = run("export", "glb", out / "capture.npz", "--out", tmp_path / "again.glb")
+    r = cli("export", "glb", out / "capture.npz", "--out", tmp_path / "again.glb")
     assert r.returncode == 0 and (tmp_path / "again.glb").exists()
 
 
 @pytest.mark.parametrize("kind,expect", [("text", "not a readable video"), ("empty", "empty"),
                                          ("broken_mp4", "not a readable video"), ("noface", "no person"),
                                          ("tiny", "too small")])
-def test_bad_input_clear_message_nonzero_exit(videos, tmp_path, kind, expect):
-    r = run("capture", videos[kind], "--out", tmp_path / kind, "--quiet", "--no-render")
+def test_bad_input_clear_message_nonzero_exit(videos, tmp_path, kind, expect, cli):
+    r = cli("capture", videos[kind], "--out", tmp_path / kind, "--quiet", "--no-render")
     assert r.returncode != 0
     assert expect in r.stderr and r.stderr.startswith("anima: error:"), r.stderr
 
 
-def test_missing_file(tmp_path):
-    r = run("capture", tmp_path / "nope.mp4", "--out", tmp_path / "o")
+def test_missing_file(tmp_path, cli):
+    r = cli("capture", tmp_path / "nope.mp4", "--out", tmp_path / "o")
     assert r.returncode == 2 and "not found" in r.stderr
-    r = run("info", tmp_path / "nope.npz")
+    r = cli("info", tmp_path / "nope.npz")
     assert r.returncode == 2 and "not found" in r.stderr
 
 
 @pytest.mark.parametrize("kind", ["gray", "two_faces", "vfr", "truncated", "partial"])
-def test_unusual_input_still_captured(videos, tmp_path, kind):
+def test_unusual_input_still_captured(videos, tmp_path, kind, cli):
     out = tmp_path / kind
-    r = run("capture", videos[kind], "--out", out, "--quiet", "--no-render", "--json")
+    r = cli("capture", videos[kind], "--out", out, "--quiet", "--no-render", "--json")
     assert r.returncode == 0, r.stderr
     s = json.loads(r.stdout)
     seq = read_sequence(out / "capture.npz")
@@ -81,28 +73,28 @@ def test_unusual_input_still_captured(videos, tmp_path, kind):
         assert s["warnings"], "the user is told about resampling / truncation"
 
 
-def test_audio_features_command(tmp_path):
+def test_audio_features_command(tmp_path, cli):
     from anima.io.assets import asset
 
     out = tmp_path / "f.npz"
-    r = run("audio", "features", asset("videoretalking-examples/examples/audio/1.wav"), "--fps", "15", "--out", out,
+    r = cli("audio", "features", asset("videoretalking-examples/examples/audio/1.wav"), "--fps", "15", "--out", out,
             "--json")
     assert r.returncode == 0, r.stderr
     s = json.loads(r.stdout)
     with np.load(out) as z:
         assert z["features"].shape == (s["frames"], 28) and np.isfinite(z["features"]).all()
-    r = run("audio", "features", asset("liveportrait-examples/assets/examples/driving/d0.mp4"), "--out", out)
+    r = cli("audio", "features", asset("liveportrait-examples/assets/examples/driving/d0.mp4"), "--out", out)
     assert r.returncode == 2 and "no audio track" in r.stderr
 
 
-def test_capture_body_outputs_and_bvh_export(tmp_path):
+def test_capture_body_outputs_and_bvh_export(tmp_path, cli):
     from anima.io.assets import asset
     from anima.io.bvh import read_bvh
     from anima.io.video import probe_video
 
     clip = asset("gesture-video/tango-interviews/speaker8_jjRWaMCWs44_00-00-30.16_00-00-33.32.mp4")
     out = tmp_path / "o"
-    r = run("capture", clip, "--out", out, "--max-frames", "30", "--json", "--quiet")
+    r = cli("capture", clip, "--out", out, "--max-frames", "30", "--json", "--quiet")
     assert r.returncode == 0, r.stderr
     s = json.loads(r.stdout)
     assert s["body_tracked_fraction"] == 1.0 and s["speech"]["present"]
@@ -110,26 +102,26 @@ def test_capture_body_outputs_and_bvh_export(tmp_path):
         assert (out / name).stat().st_size > 1000, name
     info = probe_video(out / "skeleton3d.mp4")
     assert info.has_audio and info.n_frames == 30
-    r = run("export", "bvh", out / "capture.npz", "--out", tmp_path / "g.bvh", "--fps", "15")
+    r = cli("export", "bvh", out / "capture.npz", "--out", tmp_path / "g.bvh", "--fps", "15")
     assert r.returncode == 0, r.stderr
     b = read_bvh(tmp_path / "g.bvh")
     assert abs(b.frame_time - 1 / 15) < 1e-6 and len(b.names) == 55
-    r = run("capture", clip, "--out", tmp_path / "f", "--max-frames", "10", "--face-only", "--quiet", "--json")
+    r = cli("capture", clip, "--out", tmp_path / "f", "--max-frames", "10", "--face-only", "--quiet", "--json")
     assert r.returncode == 0 and "body_tracked_fraction" not in json.loads(r.stdout)
-    r = run("export", "bvh", tmp_path / "f" / "capture.npz", "--out", tmp_path / "x.bvh")
+    r = cli("export", "bvh", tmp_path / "f" / "capture.npz", "--out", tmp_path / "x.bvh")
     assert r.returncode == 2 and "no body" in r.stderr
 
 
-def test_bad_audio_keeps_motion(videos, tmp_path, d0_path):
+def test_bad_audio_keeps_motion(videos, tmp_path, d0_path, cli):
     from anima.io.video import FFMPEG
 
     silent = tmp_path / "silent.wav"
     subprocess.run([FFMPEG, "-v", "error", "-f", "lavfi", "-i", "anullsrc=r=16000:cl=mono", "-t", "2", str(silent)],
                    check=True)
-    r = run("capture", d0_path, "--out", tmp_path / "s", "--max-frames", "10", "--audio", silent, "--quiet",
+    r = cli("capture", d0_path, "--out", tmp_path / "s", "--max-frames", "10", "--audio", silent, "--quiet",
             "--no-render", "--json")
     assert r.returncode == 0 and json.loads(r.stdout)["speech"]["silent"] is True
-    r = run("capture", d0_path, "--out", tmp_path / "u", "--max-frames", "10", "--audio", videos["text"], "--quiet",
+    r = cli("capture", d0_path, "--out", tmp_path / "u", "--max-frames", "10", "--audio", videos["text"], "--quiet",
             "--no-render", "--json")
     assert r.returncode == 0, r.stderr
     sp = json.loads(r.stdout)["speech"]

@@ -2,8 +2,7 @@ import numpy as np
 
 from anima.core.camera import camera_to_image, mediapipe_to_camera, project, umeyama
 from anima.core.filters import OneEuroFilter, gaussian_smooth, valid_runs
-from anima.core.rotations import (euler_to_matrix, matrix_to_euler, matrix_to_quat, matrix_to_rotvec,
-                                  rotvec_to_matrix)
+from anima.core.rotations import euler_to_matrix, matrix_to_euler, matrix_to_quat, matrix_to_rotvec, rotvec_to_matrix
 
 
 def test_rotvec_roundtrip_and_orthonormal():

@@ -44,16 +44,16 @@ def test_annotation_import_and_its_errors(tmp_path):
         load_annotations(bad)
 
 
-def _build_cmd(out, extra=(), more_videos=()):
+def _build_args(out, extra=(), more_videos=()):
     vids = [str(asset(c)) for c in CLIPS] + [str(v) for v in more_videos]
-    return [sys.executable, "-m", "anima", "dataset", "build", *vids, "--out", str(out), "--min-len", "2",
-            "--max-len", "4", "--workers", "1", "--quiet", "--json", *extra]
+    return ["dataset", "build", *vids, "--out", str(out), "--min-len", "2", "--max-len", "4", "--workers", "1",
+            "--quiet", "--json", *extra]
 
 
-def test_build_is_resumable_idempotent_and_readable(tmp_path, videos):
+def test_build_is_resumable_idempotent_and_readable(tmp_path, videos, cli):
     out = tmp_path / "ds"
-    cmd = _build_cmd(out, ["--max-frames", "120"], [videos["text"]])
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    args = _build_args(out, ["--max-frames", "120"], [videos["text"]])
+    p = subprocess.Popen([sys.executable, "-m", "anima", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
     deadline = time.time() + 240
     while time.time() < deadline and not list((out / "videos").glob("*.json")):
         time.sleep(0.2)
@@ -64,7 +64,7 @@ def test_build_is_resumable_idempotent_and_readable(tmp_path, videos):
     p.wait()
     first = {f.name: f.stat().st_mtime for f in (out / "videos").glob("*.json")}
     assert len(first) < 3
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    r = cli(*args, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
     summary = json.loads(r.stdout)
     assert summary["videos_done"] == 3 and summary["videos_failed"] == 1
@@ -83,7 +83,7 @@ def test_build_is_resumable_idempotent_and_readable(tmp_path, videos):
     assert am.num_rows >= 1  # oliver1: 8 s of speech, body and hands -> 64-frame windows at 15 fps
     assert len(am["speech"][0]) == 64 * 28 and len(am["body"][0]) == 64 * 165
     # a third run has nothing to do and changes nothing
-    r2 = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    r2 = cli(*args, timeout=300)
     assert json.loads(r2.stdout)["last_run"]["videos_processed"] == 1  # only the failed one is retried
     assert read_table(out, "text_motion").num_rows == len(ids)
     # readable by Ray Data and by the torch datasets
@@ -101,16 +101,15 @@ def test_build_is_resumable_idempotent_and_readable(tmp_path, videos):
     stats = json.loads((out / "stats.json").read_text())
     assert "text_motion" in stats or split != "train"
     # the report renders
-    r3 = subprocess.run([sys.executable, "-m", "anima", "dataset", "report", str(out), "--sheets", "1"],
-                        capture_output=True, text=True, timeout=300)
+    r3 = cli("dataset", "report", out, "--sheets", "1", timeout=300)
     assert r3.returncode == 0, r3.stderr
     md = (out / "report" / "report.md").read_text()
     assert "Clips removed by each rule" in md and (out / "report" / "clip_lengths.png").exists()
 
 
-def test_dataset_of_another_schema_version_is_refused(tmp_path):
+def test_dataset_of_another_schema_version_is_refused(tmp_path, cli):
     out = tmp_path / "old"
     out.mkdir()
     (out / "manifest.json").write_text(json.dumps({"schema": "anima.dataset", "version": 0}))
-    r = subprocess.run(_build_cmd(out), capture_output=True, text=True, timeout=120)
+    r = cli(*_build_args(out), timeout=120)
     assert r.returncode == 4 and "rebuild it" in r.stderr

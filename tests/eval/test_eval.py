@@ -2,7 +2,8 @@
 AFLW2000-3D samples; smoothing removes jitter without costing accuracy)."""
 import numpy as np
 
-from anima.eval.landmarks import calibrate_ibug68, evaluate_aflw
+from anima.capture.calibrate68 import calibrate_ibug68
+from anima.eval.landmarks import evaluate_aflw
 from anima.eval.metrics import mean_acceleration, nme_bbox
 from anima.eval.stability import stability_of_clip
 from anima.facemodel.landmarks68 import ibug68_vertices, upstream_ibug68

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from anima.errors import AssetNotFound
-from anima.facemodel.correspondence import (ANCHORS_IBUG, ANCHORS_MP, build_correspondence, load_correspondence)
+from anima.facemodel.correspondence import ANCHORS_IBUG, ANCHORS_MP, build_correspondence, load_correspondence
 from anima.facemodel.ict import N_EXPR, N_ID, import_ict_obj, region_names
 from anima.io.assets import asset
 

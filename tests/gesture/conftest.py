@@ -1,8 +1,5 @@
 """A dataset built once from real clips for the gesture tests: three PATS gesture clips (body, hands and
 speech) and one StyleTalk talking head whose speech ships as a separate WAV (face-only windows)."""
-import subprocess
-import sys
-
 import pytest
 
 from anima.io.assets import asset
@@ -12,11 +9,9 @@ CLIPS = ["gesture-video/pats-crops/oliver1_gt.mp4", "gesture-video/pats-crops/ol
 
 
 @pytest.fixture(scope="session")
-def ds(tmp_path_factory):
+def ds(tmp_path_factory, cli):
     out = tmp_path_factory.mktemp("gds") / "ds"
-    r = subprocess.run([sys.executable, "-m", "anima", "dataset", "build", *[str(asset(c)) for c in CLIPS],
-                        "--out", str(out), "--min-len", "2", "--quiet", "--json"], capture_output=True, text=True,
-                       timeout=900)
+    r = cli("dataset", "build", *[asset(c) for c in CLIPS], "--out", out, "--min-len", "2", "--quiet", "--json")
     assert r.returncode == 0, r.stderr[-2000:]
     return out
 

@@ -2,7 +2,6 @@
 databases and the dataset's face-only windows, on the dataset built from real clips (conftest)."""
 import json
 import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -13,14 +12,10 @@ from anima.io.video import FFMPEG
 SPEECH = "gesture-video/pats-crops/oliver2_gt.mp4"
 
 
-def _run(*args):
-    return subprocess.run([sys.executable, "-m", "anima", *args], capture_output=True, text=True, timeout=600)
-
-
 @pytest.fixture(scope="module")
 def windows(ds):
-    from anima.eval.gesture import load_windows
-    return load_windows(str(ds))
+    from anima.dataset.windows import read_windows
+    return read_windows(str(ds))
 
 
 @pytest.fixture(scope="module")
@@ -35,12 +30,12 @@ def test_dataset_keeps_face_only_windows_with_the_paired_wav(ds, windows):
     from anima.dataset.build import paired_audio
     video = asset("styletalk-samples/samples/source_video/video/feifeili_clip3.mp4")
     assert paired_audio(video).name == "feifeili_clip3.wav"  # the video has no audio track
-    face_only = [s for s, h in zip(windows["source"], windows["has_body"]) if not h]
+    face_only = [s for s, h in zip(windows.source, windows.has_body) if not h]
     assert face_only and all("styletalk" in s for s in face_only)
-    i = windows["source"].index(face_only[0])
-    assert np.isnan(windows["body"][i]).all() and np.isfinite(windows["face"][i]).all()
-    assert windows["face"][i][:, :53].std(0).max() > 0.02  # the mouth moves while she speaks
-    assert windows["has_body"].sum() >= 6
+    i = windows.source.index(face_only[0])
+    assert np.isnan(windows.body[i]).all() and np.isfinite(windows.face[i]).all()
+    assert windows.face[i][:, :53].std(0).max() > 0.02  # the mouth moves while she speaks
+    assert windows.has_body.sum() >= 6
 
 
 def test_short_gaps_are_interpolated_long_ones_kept_missing():
@@ -56,19 +51,24 @@ def test_short_gaps_are_interpolated_long_ones_kept_missing():
 
 def test_parts_round_trip(windows):
     from anima.gesture.generator import join_parts, split_parts
-    i = int(np.flatnonzero(windows["has_body"])[0])
-    parts = split_parts(windows["body"][i], windows["face"][i])
+    i = int(np.flatnonzero(windows.has_body)[0])
+    parts = split_parts(windows.body[i], windows.face[i])
     assert {k: v.shape[-1] for k, v in parts.items()} == {"face": 53, "body": 42, "hands": 126}
     J, face = join_parts(parts)
-    np.testing.assert_array_equal(J.reshape(64, 165), windows["body"][i])
-    np.testing.assert_array_equal(face, windows["face"][i])
+    np.testing.assert_array_equal(J.reshape(64, 165), windows.body[i])
+    np.testing.assert_array_equal(face, windows.face[i])
 
 
 @pytest.mark.parametrize("kind", ["adversarial", "regression", "lstm"])
 def test_generator_trains_and_generates_any_length(windows, kind, tmp_path):
-    from anima.gesture.generator import (GeneratorConfig, GeneratorTrainConfig, load_generator, save_generator,
-                                         train_generator)
-    gen, info = train_generator(windows["speech"], windows["body"], windows["face"], GeneratorConfig(kind=kind),
+    from anima.gesture.generator import (
+        GeneratorConfig,
+        GeneratorTrainConfig,
+        load_generator,
+        save_generator,
+        train_generator,
+    )
+    gen, info = train_generator(windows.speech, windows.body, windows.face, GeneratorConfig(kind=kind),
                                 GeneratorTrainConfig(steps=60, batch=8))
     w = info["loss_weights"]
     assert all(v > 0 for v in w.values()) and info["body_windows"] < info["windows"]
@@ -77,15 +77,15 @@ def test_generator_trains_and_generates_any_length(windows, kind, tmp_path):
         assert np.mean(log[-10:]) < np.mean(log[:5])
     if kind == "adversarial":
         assert len(info["log"]["disc"]) == 60 and np.isfinite(info["log"]["disc"]).all()
-    J, face = gen.generate(windows["speech"][0][:37])  # fully convolutional: any length
+    J, face = gen.generate(windows.speech[0][:37])  # fully convolutional: any length
     assert J.shape == (37, 55, 3) and face.shape == (37, 56) and np.isfinite(J).all()
     assert (face[:, :53] >= 0).all() and (face[:, :53] <= 1).all()
     again = load_generator(save_generator(tmp_path / "g.pt", gen, info))
-    np.testing.assert_allclose(again.generate(windows["speech"][1])[0], gen.generate(windows["speech"][1])[0], atol=1e-6)
+    np.testing.assert_allclose(again.generate(windows.speech[1])[0], gen.generate(windows.speech[1])[0], atol=1e-6)
 
 
 def test_frechet_distance_and_lip_error_maths():
-    from anima.eval.gesture import lip_error_mm, mouth_opening_mm
+    from anima.eval.gesture.metrics import lip_error_mm, mouth_opening_mm
     from anima.gesture.fgd import frechet_distance
     rng = np.random.default_rng(0)
     a = rng.normal(size=(4000, 3))
@@ -135,26 +135,26 @@ def test_keyword_database_takes_over_while_the_word_is_spoken(ds, wav):
         parse_keyword("yes at 3s")
 
 
-def test_generator_commands(ds, wav, tmp_path):
+def test_generator_commands(ds, wav, tmp_path, cli):
     ck = tmp_path / "gen.pt"
-    r = _run("train", "gesture", "--db", str(ds), "--all-splits", "--model", "generator", "--steps", "20",
+    r = cli("train", "gesture", "--db", str(ds), "--all-splits", "--model", "generator", "--steps", "20",
              "--out", str(ck), "--quiet", "--json")
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["kind"] == "adversarial" and ck.is_file()
     out = tmp_path / "g"
-    r = _run("gesture", str(wav), "--generator", str(ck), "--out", str(out), "--no-render", "--json")
+    r = cli("gesture", str(wav), "--generator", str(ck), "--out", str(out), "--no-render", "--json")
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
     n = info["frames"]
     assert abs(n - 75) <= 1 and info["model"] == "adversarial"  # 5 s at 15 fps
     from anima.io.sequence import read_sequence
-    face = read_sequence(out / "face.npz")
-    assert face.expression.shape == (n, 53) and np.load(out / "gesture.npz")["joints"].shape == (n, 55, 3)
+    seq = read_sequence(out / "gesture.npz")  # one tracked sequence: the generator's face and body
+    assert seq.expression.shape == (n, 53) and seq.body_joints.shape == (n, 55, 3) and seq.tracked.all()
     assert (out / "arkit.csv").read_text().startswith("Timecode")
-    r = _run("gesture", str(wav), "--generator", str(ck), "--out", str(tmp_path / "h"), "--control",
+    r = cli("gesture", str(wav), "--generator", str(ck), "--out", str(tmp_path / "h"), "--control",
              "left_wrist_height>=p85")
     assert r.returncode == 2 and "k-NN search" in r.stderr
-    r = _run("gesture", str(wav), "--out", str(tmp_path / "i"))
+    r = cli("gesture", str(wav), "--out", str(tmp_path / "i"))
     assert r.returncode == 2 and "--generator" in r.stderr
-    r = _run("gesture", str(wav), "--db", str(ds), "--out", str(tmp_path / "j"), "--keyword", "yes@1-2s")
+    r = cli("gesture", str(wav), "--db", str(ds), "--out", str(tmp_path / "j"), "--keyword", "yes@1-2s")
     assert r.returncode == 2 and "keyword-db" in r.stderr and "Traceback" not in r.stderr

@@ -2,10 +2,8 @@
 search equals the literal algorithm, controls hold, the command writes its files, bad inputs are clear."""
 import json
 import subprocess
-import sys
 
 import numpy as np
-import pytest
 
 from anima.io.assets import asset
 from anima.io.video import FFMPEG
@@ -87,31 +85,28 @@ def test_control_holds_on_first_and_last_frame_of_each_window(db):
         assert h[m, r] >= thr and h[m, r + 7] >= thr
 
 
-def _run(*args):
-    return subprocess.run([sys.executable, "-m", "anima", "gesture", *args], capture_output=True, text=True)
-
-
-def test_gesture_command_outputs_and_bad_inputs(ds, tmp_path):
+def test_gesture_command_outputs_and_bad_inputs(ds, tmp_path, cli):
+    from anima.io.sequence import read_sequence
     from anima.io.video import probe_video
     wav44 = tmp_path / "speech44k.wav"  # a sample rate other than 16 kHz is resampled
     subprocess.run([FFMPEG, "-v", "error", "-y", "-i", str(asset(SPEECH)), "-t", "4", "-vn", "-ar", "44100",
                     str(wav44)], check=True)
     out = tmp_path / "g"
-    r = _run(str(wav44), "--db", str(ds), "--all-splits", "--out", str(out), "--json",
+    r = cli("gesture", str(wav44), "--db", str(ds), "--all-splits", "--out", str(out), "--json",
              "--control", "hand_symmetry>=5.0@0-2s")  # impossible: relaxed, with a note
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
     assert info["frames"] == 61 and info["controls"][0]["relaxed_to"] is not None
     assert "relaxed" in r.stderr
-    J = np.load(out / "gesture.npz")["joints"]
+    J = read_sequence(out / "gesture.npz").body_joints
     assert J.shape == (61, 55, 3) and np.isfinite(J).all()
-    assert (out / "gesture.bvh").read_text().startswith("HIERARCHY")
-    assert probe_video(out / "skeleton.mp4").has_audio
-    r = _run(str(wav44), "--db", str(ds), "--out", str(tmp_path / "x"), "--control", "elbow_twist>=p50")
+    assert (out / "body.bvh").read_text().startswith("HIERARCHY")
+    assert probe_video(out / "skeleton3d.mp4").has_audio
+    r = cli("gesture", str(wav44), "--db", str(ds), "--out", str(tmp_path / "x"), "--control", "elbow_twist>=p50")
     assert r.returncode == 2 and "unknown control" in r.stderr and "Traceback" not in r.stderr
     short = tmp_path / "short.wav"
     subprocess.run([FFMPEG, "-v", "error", "-y", "-i", str(wav44), "-t", "0.3", str(short)], check=True)
-    r = _run(str(short), "--db", str(ds), "--out", str(tmp_path / "y"))
+    r = cli("gesture", str(short), "--db", str(ds), "--out", str(tmp_path / "y"))
     assert r.returncode == 2 and "at least" in r.stderr
 
 
@@ -133,7 +128,7 @@ def test_silent_speech_and_speech_longer_than_the_database(db, tmp_path):
 
 
 def test_eval_gesture_leave_one_video_out(ds):
-    from anima.eval.gesture import evaluate
+    from anima.eval.gesture.run import evaluate
     r = evaluate(str(ds), refiner_folds=3, refiner_steps=15, sync_steps=10, generator_steps=10)
     assert r["videos"] == 3 and r["minutes_of_audio_motion"] > 0.2
     assert set(r["minutes_per_speaker"]) == {"oliver", "seth"}
@@ -167,7 +162,7 @@ def test_parent_relative_representation_roundtrips(db):
     assert np.linalg.norm(R[:, 20], axis=-1).max() < 0.08
 
 
-def test_refiner_trains_with_wgan_gp_and_the_command_uses_it(ds, db, tmp_path):
+def test_refiner_trains_with_wgan_gp_and_the_command_uses_it(ds, db, tmp_path, cli):
     import torch
 
     from anima.gesture.refine import RefinerTrainConfig, knn_pairs, load_refiner, save_refiner, train_refiner
@@ -185,13 +180,13 @@ def test_refiner_trains_with_wgan_gp_and_the_command_uses_it(ds, db, tmp_path):
     wav = tmp_path / "s.wav"
     subprocess.run([FFMPEG, "-v", "error", "-y", "-i", str(asset(SPEECH)), "-t", "3", "-vn", "-ar", "16000",
                     str(wav)], check=True)
-    r = _run(str(wav), "--db", str(ds), "--all-splits", "--out", str(tmp_path / "g"), "--refiner", str(path),
+    r = cli("gesture", str(wav), "--db", str(ds), "--all-splits", "--out", str(tmp_path / "g"), "--refiner", str(path),
              "--no-render", "--json")
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["refined"] is True
     bad = tmp_path / "bad.pt"
     torch.save({"format": "anima.gesture_refiner", "version": 7}, bad)
-    r = _run(str(wav), "--db", str(ds), "--out", str(tmp_path / "h"), "--refiner", str(bad), "--no-render")
+    r = cli("gesture", str(wav), "--db", str(ds), "--out", str(tmp_path / "h"), "--refiner", str(bad), "--no-render")
     assert r.returncode == 4 and "version 7" in r.stderr and "Traceback" not in r.stderr
 
 

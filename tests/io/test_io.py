@@ -1,6 +1,6 @@
 import json
-import subprocess
 import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -85,7 +85,7 @@ def test_sequence_roundtrip_and_schema_errors(d0_capture, tmp_path):
 
 
 def test_live_link_csv_layout(d0_capture, tmp_path):
-    from anima.capture.export import export_arkit_csv
+    from anima.export.formats import export_arkit_csv
 
     p = export_arkit_csv(d0_capture, tmp_path / "a.csv")
     cols, vals = read_live_link_csv(p)
@@ -99,7 +99,7 @@ def test_live_link_csv_layout(d0_capture, tmp_path):
 
 
 def test_glb_passes_khronos_validator(d0_capture, tmp_path):
-    from anima.capture.export import export_glb
+    from anima.export.formats import export_glb
 
     p = export_glb(d0_capture, tmp_path / "face.glb")
     node = shutil.which("node")

@@ -1,8 +1,6 @@
 """The weakly supervised 3D pose lifter (seed 004 ch. 3): maths on real Human3.6M/HumanEva data, MediaPipe
 mapping on real S9 images, a few training steps on a small slice, checkpoints, masking, capture."""
 import dataclasses
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -126,7 +124,7 @@ def test_a_few_training_steps_reduce_the_loss(tiny_model):
 
 def test_checkpoint_round_trip_resume_and_versions(tiny_model, tmp_path):
     from anima.errors import InputError, SchemaError
-    from anima.pose3d.train import TrainConfig, load_checkpoint, train
+    from anima.pose3d.train import load_checkpoint, train
     model, _, path, cfg = tiny_model
     m2, ck = load_checkpoint(path)
     assert ck["step"] == 40 and ck["config"]["model"]["width"] == 64
@@ -141,7 +139,7 @@ def test_checkpoint_round_trip_resume_and_versions(tiny_model, tmp_path):
     assert [h["step"] for h in info["history"]] == [45, 50] and load_checkpoint(p2)[1]["step"] == 50
     with pytest.raises(SchemaError):  # another config on the same file is refused, not silently mixed
         train(dataclasses.replace(cfg, steps=50, lr=0.5), p2, tmp_path / "cache", progress=False)
-    bad = torch.load(path, weights_only=False)
+    bad = torch.load(path, weights_only=True)
     bad["version"] = 99
     torch.save(bad, tmp_path / "v99.pt")
     with pytest.raises(SchemaError, match="version 99"):
@@ -167,15 +165,14 @@ def test_masked_joints_are_ignored(tiny_model):
     assert np.isfinite(a).all() and np.allclose(a[:, 0], 0)
 
 
-def test_capture_with_the_lifter_body(tiny_model, tmp_path):
+def test_capture_with_the_lifter_body(tiny_model, tmp_path, cli):
     """`anima capture --body-3d lifter` on a real gesture clip: the body comes from the lifter, hands stay
     attached to the wrists; a missing checkpoint is one clear line."""
     from anima.io.sequence import read_sequence
     path = tiny_model[2]
     clip = asset("gesture-video/pats-crops/oliver1_gt.mp4")
-    r = subprocess.run([sys.executable, "-m", "anima", "capture", str(clip), "--out", str(tmp_path / "c"),
-                        "--max-frames", "12", "--no-render", "--quiet", "--body-3d", "lifter", "--pose-model",
-                        str(path)], capture_output=True, text=True)
+    r = cli("capture", clip, "--out", tmp_path / "c", "--max-frames", "12", "--no-render", "--quiet", "--body-3d",
+            "lifter", "--pose-model", path)
     assert r.returncode == 0, r.stderr
     seq = read_sequence(tmp_path / "c" / "capture.npz")
     assert "pose lifter" in seq.meta["skeleton"]["tracker"]
@@ -185,9 +182,8 @@ def test_capture_with_the_lifter_body(tiny_model, tmp_path):
     hand_ok = ok & np.isfinite(J[:, 13]).all(-1)
     if hand_ok.any():  # left-hand wrist joint sits on the body's left wrist
         np.testing.assert_allclose(J[hand_ok, 13], J[hand_ok, 9], atol=1e-6)
-    r = subprocess.run([sys.executable, "-m", "anima", "capture", str(clip), "--out", str(tmp_path / "d"),
-                        "--max-frames", "5", "--no-render", "--quiet", "--body-3d", "lifter", "--pose-model",
-                        str(tmp_path / "none.pt")], capture_output=True, text=True)
+    r = cli("capture", clip, "--out", tmp_path / "d", "--max-frames", "5", "--no-render", "--quiet", "--body-3d",
+            "lifter", "--pose-model", tmp_path / "none.pt")
     assert r.returncode == 2 and "anima train pose" in r.stderr and "Traceback" not in r.stderr
 
 

@@ -1,8 +1,6 @@
 """Re-enactment (seed 001): the maths of texture synthesis and blending, the database artifact on a real
 clip, the command end to end (audio, bad inputs) and the live loop on a file paced at its frame rate."""
 import json
-import subprocess
-import sys
 from types import SimpleNamespace
 
 import numpy as np
@@ -12,8 +10,7 @@ from anima.io.assets import asset
 from anima.reenact.pipeline import ReenactConfig, Smoother, actor_expressions
 from anima.reenact.render import laplacian_blend
 from anima.reenact.run import pingpong
-from anima.reenact.synth import (adaptive_sigma, nearest, weighted_median, weighted_median_listing1,
-                                 weights)
+from anima.reenact.synth import adaptive_sigma, nearest, weighted_median, weighted_median_listing1
 
 OBAMA1 = "styletalk-samples/samples/source_video/video/Obama_clip1.mp4"
 ACTOR = "videoretalking-examples/examples/face/1.mp4"
@@ -119,15 +116,11 @@ def test_database_on_a_real_clip(obama_db, tmp_path):
         read_database(tmp_path / "v9.npz")
 
 
-def _anima(*args):
-    return subprocess.run([sys.executable, "-m", "anima", *args], capture_output=True, text=True)
-
-
-def test_reenact_command_end_to_end(obama_db, tmp_path):
+def test_reenact_command_end_to_end(obama_db, tmp_path, cli):
     from anima.io.video import probe_video
     path = obama_db[2]
     out = tmp_path / "re.mp4"
-    r = _anima("reenact", "--actor", str(asset(ACTOR)), "--target", str(asset(OBAMA1)), "--db", str(path),
+    r = cli("reenact", "--actor", str(asset(ACTOR)), "--target", str(asset(OBAMA1)), "--db", str(path),
                "--out", str(out), "--side-by-side", "--json", "--quiet")
     assert r.returncode == 0, r.stderr
     info = probe_video(out)
@@ -136,11 +129,11 @@ def test_reenact_command_end_to_end(obama_db, tmp_path):
     assert "frame rates differ" in r.stderr  # 22 fps actor on a 30 fps target is handled and said
 
 
-def test_reenact_bad_inputs(tmp_path):
-    r = _anima("reenact", "--actor", str(asset(ACTOR)), "--target",
+def test_reenact_bad_inputs(tmp_path, cli):
+    r = cli("reenact", "--actor", str(asset(ACTOR)), "--target",
                str(asset("liveportrait-examples/assets/examples/driving/d0.mp4")), "--out", str(tmp_path / "o.mp4"))
     assert r.returncode == 2 and "at least 100" in r.stderr and "Traceback" not in r.stderr
-    r = _anima("reenact", "--actor", str(tmp_path / "missing.mp4"), "--target", str(asset(OBAMA1)),
+    r = cli("reenact", "--actor", str(tmp_path / "missing.mp4"), "--target", str(asset(OBAMA1)),
                "--out", str(tmp_path / "o.mp4"))
     assert r.returncode == 2 and "not found" in r.stderr
 

@@ -2,8 +2,6 @@
 vertex-offset loss, the cached sampler, the shipped checkpoint, training on a dataset built from real clips,
 and the command with its bad inputs."""
 import json
-import subprocess
-import sys
 import warnings
 
 import numpy as np
@@ -175,11 +173,11 @@ def test_shipped_model_generates_seeded_valid_motion(shipped):
 def test_shipped_model_follows_the_prompt(shipped):
     """The dataset's detectors on generated motion: a smile prompt smiles more than a neutral one."""
     from anima.dataset.attributes import _mean
-    from anima.text2face.generate import motion_to_sequence
+    from anima.export.framing import generated_sequence
     smile = shipped.generate(["The person smiles for a long time"] * 5, 90, seed=3)
     neutral = shipped.generate(["The person keeps a neutral face for a long time"] * 5, 90, seed=3)
-    s = [_mean(motion_to_sequence(m), ["mouthSmile_L", "mouthSmile_R"]).mean() for m in smile]
-    n = [_mean(motion_to_sequence(m), ["mouthSmile_L", "mouthSmile_R"]).mean() for m in neutral]
+    s = [_mean(generated_sequence(30.0, face=m), ["mouthSmile_L", "mouthSmile_R"]).mean() for m in smile]
+    n = [_mean(generated_sequence(30.0, face=m), ["mouthSmile_L", "mouthSmile_R"]).mean() for m in neutral]
     assert np.mean(s) > np.mean(n) + 0.05, (s, n)
 
 
@@ -198,11 +196,10 @@ def test_checkpoint_of_another_version_is_refused(tmp_path, shipped):
 # ---- training on real clips, and the command ------------------------------------------------------------
 
 @pytest.fixture(scope="module")
-def ds(tmp_path_factory):
+def ds(tmp_path_factory, cli):
     out = tmp_path_factory.mktemp("t2fds") / "ds"
-    r = subprocess.run([sys.executable, "-m", "anima", "dataset", "build", *[str(asset(c)) for c in CLIPS],
-                        "--out", str(out), "--min-len", "2", "--max-len", "6", "--workers", "1", "--quiet", "--json"],
-                       capture_output=True, text=True, timeout=900)
+    r = cli("dataset", "build", *[asset(c) for c in CLIPS], "--out", out, "--min-len", "2", "--max-len", "6",
+            "--workers", "1", "--quiet", "--json")
     assert r.returncode == 0, r.stderr[-2000:]
     return out
 
@@ -225,14 +222,10 @@ def test_training_learns_resumes_exactly_and_carries_its_config(ds, tmp_path):
         train(ds, tmp_path / "a", dataclasses.replace(cfg, lr=1e-2), progress=False)
 
 
-def _run(*args):
-    return subprocess.run([sys.executable, "-m", "anima", *args], capture_output=True, text=True, timeout=600)
-
-
-def test_text2face_command_writes_its_files_and_refuses_bad_input(tmp_path):
+def test_text2face_command_writes_its_files_and_refuses_bad_input(tmp_path, cli):
     from anima.io.sequence import read_sequence
     out = tmp_path / "gen"
-    r = _run("text2face", "a woman smiles, then blinks", "--out", str(out), "--length", "45", "--json")
+    r = cli("text2face", "a woman smiles, then blinks", "--out", str(out), "--length", "45", "--json")
     assert r.returncode == 0, r.stderr[-2000:]
     info = json.loads(r.stdout)
     for f in ("motion.npz", "face.mp4", "arkit.csv", "face.glb", "info.json"):
@@ -242,5 +235,5 @@ def test_text2face_command_writes_its_files_and_refuses_bad_input(tmp_path):
     assert len((out / "arkit.csv").read_text().splitlines()) == 46
     for args, code, msg in [(("",), 2, "empty"), (("a person smiles", "--length", "5000"), 2, "trained range"),
                             (("a person smiles", "--checkpoint", str(tmp_path / "none.pt")), 2, "not found")]:
-        r = _run("text2face", *args, "--out", str(tmp_path / "bad"), "--no-video")
+        r = cli("text2face", *args, "--out", str(tmp_path / "bad"), "--no-video")
         assert r.returncode == code and msg in r.stderr and "Traceback" not in r.stderr, r.stderr

@@ -1,0 +1,122 @@
+"""The one reader of a dataset's training pairs, checking the data contract (``anima.core.contract``) on read.
+
+* :func:`read_windows`: the (audio, motion) windows as stacked arrays with their frame rate, taken from the
+  data (the ``fps`` column), never assumed.
+* :func:`read_clips`: the (text, motion) clips with their frame rate.
+
+A row whose sizes break the contract, or a mix of frame rates, is a :class:`SchemaError` naming the row.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from anima.core.contract import BODY_DIM, FACE_DIM, SPEECH_DIM
+from anima.dataset.storage import read_table
+from anima.errors import SchemaError
+
+
+@dataclass
+class Windows:
+    """(audio, motion) windows: ``speech [N, T, 28]``, ``body [N, T, 165]`` (all NaN for face-only windows),
+    ``face [N, T, 56]``; per window its source video, start (s), split and id."""
+    speech: np.ndarray
+    body: np.ndarray
+    face: np.ndarray
+    source: list[str]
+    start_s: list[float]
+    split: list[str]
+    window_id: list[str]
+    fps: float
+
+    @property
+    def has_body(self) -> np.ndarray:
+        return np.isfinite(self.body).all((1, 2))
+
+    @property
+    def n(self) -> int:
+        return len(self.source)
+
+    @property
+    def length(self) -> int:
+        return int(self.speech.shape[1]) if self.n else 0
+
+    def select(self, keep) -> Windows:
+        keep = np.asarray(keep)
+        idx = np.flatnonzero(keep) if keep.dtype == bool else keep
+        return Windows(self.speech[idx], self.body[idx], self.face[idx], [self.source[i] for i in idx],
+                       [self.start_s[i] for i in idx], [self.split[i] for i in idx],
+                       [self.window_id[i] for i in idx], self.fps)
+
+
+def _one_rate(fps: list, folder, kind: str) -> float:
+    rates = sorted({round(float(f), 6) for f in fps})
+    if len(rates) > 1:
+        raise SchemaError(f"{folder}: {kind} rows at several frame rates {rates}: rebuild the dataset")
+    if rates and not rates[0] > 0:
+        raise SchemaError(f"{folder}: {kind} rows with frame rate {rates[0]}")
+    return rates[0] if rates else 0.0
+
+
+def _array(values, n: int, dim: int, what: str, row: str) -> np.ndarray:
+    a = np.asarray(values, np.float32)
+    if a.size != n * dim:
+        raise SchemaError(f"{row}: {what} has {a.size} values, expected {n} frames x {dim}")
+    return a.reshape(n, dim)
+
+
+def read_windows(folder: str | Path, split: str | None = None) -> Windows:
+    """All (audio, motion) windows of a dataset (one split, or all), face-only windows included."""
+    t = read_table(folder, "audio_motion", split).to_pydict()
+    n_rows = len(t["window_id"])
+    fps = _one_rate(t["fps"], folder, "audio_motion")
+    lengths = sorted(set(int(n) for n in t["n_frames"]))
+    if len(lengths) > 1:
+        raise SchemaError(f"{folder}: (audio, motion) windows of several lengths {lengths}")
+    S, B, Fc = [], [], []
+    for i in range(n_rows):
+        n, row = int(t["n_frames"][i]), t["window_id"][i]
+        S.append(_array(t["speech"][i], n, SPEECH_DIM, "speech", row))
+        B.append(_array(t["body"][i], n, BODY_DIM, "body", row))
+        Fc.append(_array(t["face"][i], n, FACE_DIM, "face", row))
+    T = lengths[0] if lengths else 0
+
+    def stack(xs, d):
+        return np.stack(xs) if xs else np.zeros((0, T, d), np.float32)
+    return Windows(stack(S, SPEECH_DIM), stack(B, BODY_DIM), stack(Fc, FACE_DIM), list(t["source"]),
+                   [float(s) for s in t["start_s"]], list(t["split"]), list(t["window_id"]), fps)
+
+
+@dataclass
+class ClipRow:
+    clip_id: str
+    video_id: str
+    split: str
+    source: str
+    start_s: float
+    motion: np.ndarray  # [T, 56] raw (expression weights, axis-angle)
+    texts: list[str]
+    events: list[tuple[str, float, float]]
+    gender: str | None
+    fps: float
+    extra: dict = field(default_factory=dict)
+
+
+def read_clips(folder: str | Path, split: str | None = None) -> list[ClipRow]:
+    """The (text, motion) clips of a dataset (one split, or all)."""
+    t = read_table(folder, "text_motion", split).to_pydict()
+    fps = _one_rate(t["fps"], folder, "text_motion")
+    out = []
+    for i in range(len(t["clip_id"])):
+        n, row = int(t["n_frames"][i]), t["clip_id"][i]
+        ev = json.loads(t["attributes"][i]) if t["attributes"][i] else []
+        ev = ev.get("events", []) if isinstance(ev, dict) else ev
+        g = t["gender"][i]
+        out.append(ClipRow(row, t["video_id"][i], t["split"][i], t["source"][i], float(t["start_s"][i]),
+                           _array(t["motion"][i], n, FACE_DIM, "motion", row), list(t["texts"][i]),
+                           [(str(a), float(s), float(e)) for a, s, e in ev],
+                           g if g in ("female", "male") else None, fps))
+    return out

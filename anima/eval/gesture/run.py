@@ -1,0 +1,126 @@
+"""``anima eval gesture``: seed 004 ch. 4-5 on the dataset's (audio, motion) windows. The k-NN search is
+evaluated leave-one-video-out (each video's windows synthesised from its speech with a database of the other
+videos' windows) and compared with the captured motion; the learned models (k-NN + cGAN refiner, the §4.4
+generator, direct regression, the LSTM baseline, the sync classifier) are cross-validated by video in 3 folds.
+
+* control adherence (table 5.3): for each control (high / low left-wrist height, high / low left-wrist speed
+  at the database's 85th / 15th percentile), the mean and standard deviation of the controlled feature over
+  the synthesised frames, beside the threshold and the uncontrolled synthesis;
+* L1 to the ground truth (cm, mean over joints and frames, pelvis-relative);
+* diversity: mean L1 (cm) between syntheses of the same speech with k = 0..4;
+* jerk: mean magnitude of the third time derivative of the wrists (m/s^3), synthesised vs captured;
+* beat consistency (Li et al. 2021): mean over motion beats (local minima of the wrists' speed) of
+  exp(-d^2 / (2 * 0.1^2)), d the distance in seconds to the nearest audio onset (librosa);
+* FGD (Yoon et al. 2020): Fréchet distance in the feature space of a motion autoencoder trained on the
+  training split's captured windows;
+* lip keypoint error (table 4.3): mm between the 20 lip landmarks of the ICT face with the predicted and the
+  captured expression, neutral head pose; the sanity row pairs each window with a random other video's face;
+* lip sync on FaceGood's (Mandarin speech, blendshape) recordings: correlation of the predicted mouth opening
+  with FaceGood's jaw-open curve, at lag 0 and at the best lag.
+"""
+from __future__ import annotations
+
+from collections import defaultdict
+
+import numpy as np
+
+from anima.dataset.windows import read_windows
+from anima.errors import InputError
+from anima.eval.gesture.learned import generator_rows, refiner_rows, sync_rows
+from anima.eval.gesture.metrics import (
+    adherence_table,
+    audio_onsets,
+    beat_consistency,
+    diversity_cm,
+    jerk,
+    l1_cm,
+    minutes_covered,
+    speaker_of,
+    wrist_motion,
+)
+from anima.gesture.control import control_features, parse_control, step_masks
+from anima.gesture.database import from_dataset
+from anima.gesture.features import N_STEP
+from anima.gesture.knn import search
+
+CONTROLS = ["left_wrist_height>=p85", "left_wrist_height<=p15", "left_wrist_speed>=p85", "left_wrist_speed<=p15"]
+
+
+def knn_rows(db, ks) -> tuple[dict, dict, dict]:
+    """Leave-one-video-out k-NN synthesis of every window: (metrics per window, table 5.3 adherence, what the
+    learned rows reuse: per window the k-NN outputs, the controlled outputs and the audio onsets)."""
+    T, fps = db.G.shape[1], db.fps
+    by_video = defaultdict(list)
+    for i, (src, _) in enumerate(db.source):
+        by_video[src].append(i)
+    res = defaultdict(list)
+    adherence = {c: {"values": []} for c in ["none"] + CONTROLS}
+    kept = {"outs": {}, "ctrl": defaultdict(dict), "onsets": {}}
+    for idx in by_video.values():
+        own = set(idx)
+        sub = db.subset([i for i in range(db.M) if i not in own])
+        p0 = sub.P.reshape(-1, sub.P.shape[-1]).mean(0)
+        controlled = {}  # per control: this database's step masks and threshold (the same for all its queries)
+        for c in CONTROLS:
+            masks, rep = step_masks(sub, [parse_control(c)], T // N_STEP, N_STEP / fps)
+            controlled[c] = (masks, rep[0]["relaxed_to"] if rep[0]["relaxed_to"] is not None else rep[0]["threshold"])
+        for i in idx:
+            F_in, gt = db.F[i], db.G[i].reshape(T, -1, 3)
+            outs = [search(sub, F_in, k, p0)[0].reshape(T, -1, 3) for k in ks]
+            g = outs[0]
+            on = audio_onsets(db.S[i], fps)
+            res["l1_cm"].append(l1_cm(g, gt))
+            res["diversity_cm"].append(diversity_cm(outs))
+            res["jerk"].append(jerk(g, fps))
+            res["jerk_captured"].append(jerk(gt, fps))
+            res["wrist_motion_cm"].append(wrist_motion(g))
+            res["wrist_motion_cm_captured"].append(wrist_motion(gt))
+            kept["outs"][i], kept["onsets"][i] = outs, on
+            res["beat_consistency"].append(beat_consistency(g, on, fps))
+            res["beat_consistency_captured"].append(beat_consistency(gt, on, fps))
+            adherence["none"]["values"].append(control_features(g.reshape(1, T, -1), fps))
+            for c, (masks, thr) in controlled.items():
+                out = search(sub, F_in, 0, p0, masks)[0].reshape(1, T, -1)
+                adherence[c]["values"].append(control_features(out, fps))
+                adherence[c].setdefault("thresholds", []).append(thr)
+                kept["ctrl"][c][i] = (out[0].reshape(T, -1, 3), thr)
+    return res, adherence_table(adherence, T), kept
+
+
+def evaluate(folder: str, ks=(0, 1, 2, 3, 4), refiner_folds: int = 3, refiner_steps: int | None = None,
+             progress: bool = False, sync_steps: int = 300, generator_steps: int | None = None,
+             speaker: str | None = None) -> dict:
+    """``speaker``: evaluate on that speaker's windows only (databases, training and tests), the seed's
+    subject-specific protocol; default: all speakers together."""
+    db = from_dataset(folder, None)
+    if speaker is not None:
+        keep = [i for i, (s, _) in enumerate(db.source) if speaker_of(s) == speaker]
+        if not keep:
+            known = sorted({speaker_of(s) for s, _ in db.source})
+            raise InputError(f"no (audio, motion) windows of speaker {speaker!r}; speakers: {', '.join(known)}")
+        db = db.subset(keep)
+    videos = {s for s, _ in db.source}
+    if len(videos) < 2:
+        raise InputError("leave-one-video-out needs windows from at least two videos")
+    window_s = db.G.shape[1] / db.fps
+    res, table, kept = knn_rows(db, ks)
+    starts = defaultdict(list)
+    for src, st in db.source:
+        starts[src].append(st)
+    out = {"protocol": __doc__.split("\n\n", 1)[1].strip(), "speaker": speaker or "all",
+           "videos": len(videos), "windows": db.M, "fps": db.fps,
+           "minutes_of_audio_motion": minutes_covered(starts.items(), window_s),
+           "knn": {k: float(np.nanmean(v)) for k, v in res.items()}, "control_adherence": table}
+    if refiner_folds:
+        out["knn_cgan"] = refiner_rows(db, kept, ks, refiner_folds, refiner_steps, progress)
+        folds = max(2, min(refiner_folds, len(videos)))
+        w = read_windows(folder)
+        if speaker is not None:
+            w = w.select(np.array([speaker_of(s) == speaker for s in w.source]))
+        out["generator"] = generator_rows(w, kept, db, folds, generator_steps, progress, kept.get("refined"))
+        out["sync_classifier"] = sync_rows(db, folds, steps=sync_steps)
+    per = defaultdict(list)
+    for src, st in starts.items():
+        per[speaker_of(src)].append((src, st))
+    out["minutes_per_speaker"] = {k: minutes_covered(v, window_s) for k, v in sorted(per.items())}
+    return out

@@ -1,0 +1,63 @@
+"""The one writer of motion outputs: capture, text2face and gesture all write their result folder here.
+
+:func:`write_motion_outputs` writes, into an :class:`anima.io.outdir.OutputFolder`:
+
+=====================  ==========================================================  ======================
+file                   what                                                        when
+=====================  ==========================================================  ======================
+``<name>.npz``         the tracked sequence (``anima.io.sequence``)                always, written first
+``arkit.csv``          Live Link Face CSV (52 ARKit weights + head)                a face in some frame
+``face.glb``           ICT face with 53 morph targets, animated                    a face in some frame
+``body.bvh``           upper body + hands                                          a fully tracked frame
+``overlay.mp4``        the fitted mesh over the source video                       a face and a source
+``mesh.mp4``           the fitted mesh alone                                       a face and a source
+``face.mp4``           the animated neutral face (generated motion)                a face, no source
+``skeleton_overlay``   2D joints over the source video (``.mp4``)                  a body and a source
+``skeleton3d.mp4``     front and 3/4 views of the 3D skeleton                      a body
+``info.json``          what made it (prompt, settings, notes, summary)             always
+=====================  ==========================================================  ======================
+
+Videos carry the source's audio track, else ``audio`` (the speech motion was made from). The sequence is
+written first, so a failing render loses nothing already computed; every file is atomic.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from anima.export.formats import export_arkit_csv, export_bvh, export_glb, has_body
+from anima.io.atomic import write_json
+from anima.io.outdir import OutputFolder
+from anima.io.sequence import TrackedSequence, write_sequence
+from anima.render.skeleton import render_skeleton_videos
+from anima.render.videos import render_videos
+
+
+def write_motion_outputs(seq: TrackedSequence, out: OutputFolder, name: str = "capture.npz",
+                         source_video: str | None = None, audio: str | None = None, render: bool = True,
+                         info: dict | None = None, progress: bool = True) -> dict[str, Path]:
+    """Write the output set of ``seq`` (see the module table); returns ``{role: path}``."""
+    files = {"sequence": write_sequence(seq, out.file(name))}
+    face = bool(seq.tracked.any())
+    if face:
+        files["arkit_csv"] = export_arkit_csv(seq, out.file("arkit.csv"))
+        files["glb"] = export_glb(seq, out.file("face.glb"))
+    if has_body(seq):
+        files["bvh"] = export_bvh(seq, out.file("body.bvh"))
+    if render and face:
+        if source_video is not None:
+            render_videos(seq, source_video, out.file("overlay.mp4"), out.file("mesh.mp4"), progress=progress,
+                          audio=audio)
+            files["overlay_video"], files["mesh_video"] = out.path / "overlay.mp4", out.path / "mesh.mp4"
+        else:
+            render_videos(seq, None, None, out.file("face.mp4"), progress=progress, audio=audio)
+            files["face_video"] = out.path / "face.mp4"
+    if render and seq.body_joints is not None:
+        overlay = out.file("skeleton_overlay.mp4") if source_video is not None and seq.body_image is not None else None
+        render_skeleton_videos(seq, source_video, overlay, out.file("skeleton3d.mp4"), progress=progress,
+                               audio=audio)
+        if overlay is not None:
+            files["skeleton_overlay_video"] = overlay
+        files["skeleton_video"] = out.path / "skeleton3d.mp4"
+    if info is not None:
+        files["info"] = write_json(out.file("info.json"), {**info, "files": {k: p.name for k, p in files.items()}})
+    return files

@@ -1,0 +1,65 @@
+"""Every subcommand's --help runs, and its options' defaults are the config dataclasses' defaults."""
+import argparse
+import contextlib
+import dataclasses
+import io
+
+import pytest
+
+from anima.cli.main import build_parser, main
+
+
+def _leaves(parser: argparse.ArgumentParser, path=()):
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    if not subs:
+        yield path
+        return
+    for name, p in subs[0].choices.items():
+        yield from _leaves(p, path + (name,))
+
+
+COMMANDS = list(_leaves(build_parser()))
+
+
+def test_there_are_all_the_commands():
+    assert len(COMMANDS) >= 23
+    assert ("capture",) in COMMANDS and ("eval", "gesture") in COMMANDS and ("train", "pose") in COMMANDS
+
+
+@pytest.mark.parametrize("cmd", COMMANDS, ids=[" ".join(c) for c in COMMANDS])
+def test_help(cmd):
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out), pytest.raises(SystemExit) as e:
+        main([*cmd, "--help"])
+    assert e.value.code == 0
+    assert out.getvalue().startswith("usage: anima " + " ".join(cmd))
+
+
+def test_group_alone_prints_its_help(capsys):
+    assert main(["eval"]) == 2
+    assert "landmarks" in capsys.readouterr().out
+
+
+def test_defaults_come_from_the_configs():
+    from anima.capture.pipeline import CaptureConfig
+    from anima.reenact.pipeline import ReenactConfig
+    p = build_parser()
+    a = p.parse_args(["capture", "v.mp4", "--out", "o"])
+    assert a.smooth_sigma == CaptureConfig().smooth_sigma and a.max_gap == CaptureConfig().max_gap
+    a = p.parse_args(["reenact", "--target", "t.mp4"])
+    r = ReenactConfig()
+    assert (a.n, a.a, a.smooth, a.map_expressions) == (r.n, r.a, r.smooth, r.map_expressions)
+    fields = {f.name for f in dataclasses.fields(ReenactConfig)}
+    assert {"n", "a", "smooth", "map_expressions"} <= fields
+
+
+@pytest.mark.parametrize("argv", [["capture", "v.mp4", "--out", "o", "--sigma", "nan"],
+                                  ["capture", "v.mp4", "--out", "o", "--max-frames", "0"],
+                                  ["reenact", "--target", "t.mp4", "--a", "1.5"],
+                                  ["audio", "features", "x.wav", "--fps", "-1"],
+                                  ["text2face", "hi", "--out", "o", "--seconds", "inf"]])
+def test_out_of_range_options_are_one_line_and_exit_2(argv, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and err.count("\n") == 1 and err.startswith("anima: error:")
