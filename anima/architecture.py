@@ -7,25 +7,32 @@ imports sit at module top; a function-level internal import is allowed only when
 (loads torch, MediaPipe, Ray, matplotlib or a sentence encoder when imported), so that light commands and
 ``--help`` stay fast.
 """
+
 from __future__ import annotations
 
 import ast
 from pathlib import Path
 
 LAYERS: dict[str, int] = {
-    "errors": 0, "architecture": 0, "core": 0,              # pure maths, conventions, the data contract
-    "io": 1,                                                 # files: assets, artifacts, checkpoints, writers
-    "facemodel": 2, "audio": 2,                              # models of data: the face model, speech features
-    "render": 3, "pose3d": 3,                                # renderers; the 2D->3D lifter (used by capture)
-    "export": 4,                                             # motion to files (the one motion writer)
-    "capture": 5,                                            # stage: video -> tracked sequence
-    "dataset": 6,                                            # stage: tracked sequences -> training pairs
-    "text2face": 7, "gesture": 7, "reenact": 7,              # features (independent of each other)
-    "eval": 8,                                               # metrics and evaluation runners
-    "cli": 9, "__main__": 10,                                # the command line, and `python -m anima`
+    "errors": 0,
+    "architecture": 0,
+    "core": 0,  # pure maths, conventions, the data contract
+    "io": 1,  # files: assets, artifacts, checkpoints, writers
+    "facemodel": 2,
+    "audio": 2,  # models of data: the face model, speech features
+    "render": 3,
+    "pose3d": 3,  # renderers; the 2D->3D lifter (used by capture)
+    "export": 4,  # motion to files (the one motion writer)
+    "capture": 5,  # stage: video -> tracked sequence
+    "dataset": 6,  # stage: tracked sequences -> training pairs
+    "text2face": 7,
+    "gesture": 7,
+    "reenact": 7,  # features (independent of each other)
+    "eval": 8,  # metrics and evaluation runners
+    "cli": 9,
+    "__main__": 10,  # the command line, and `python -m anima`
 }
-HEAVY_THIRD_PARTY = ("torch", "mediapipe", "ray", "matplotlib", "sentence_transformers", "transformers",
-                     "open_clip")
+HEAVY_THIRD_PARTY = ("torch", "mediapipe", "ray", "matplotlib", "sentence_transformers", "transformers", "open_clip")
 
 
 def package_of(module: str) -> str:
@@ -58,8 +65,12 @@ def imports(path: Path) -> list[tuple[str, int, bool, str]]:
     top = {id(n) for n in tree.body}
     out = []
     for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0 and \
-                (node.module == "anima" or node.module.startswith("anima.")):
+        if (
+            isinstance(node, ast.ImportFrom)
+            and node.module
+            and node.level == 0
+            and (node.module == "anima" or node.module.startswith("anima."))
+        ):
             for a in node.names:
                 out.append((node.module, node.lineno, id(node) in top, a.name))
         elif isinstance(node, ast.Import):

@@ -6,6 +6,7 @@ speakers move theirs ~2.9) and wrist jerk (m/s^3). Writes benchmarks/results/ges
 
     python benchmarks/ablation_gesture_adv.py --db DATASET [--weights 0 0.1 1]   # ~5 min per weight
 """
+
 from __future__ import annotations
 
 import argparse
@@ -40,18 +41,28 @@ def main() -> None:
         l1, motion, jerk = [], [], []
         for f in range(a.folds):
             tr = fold != f
-            gen, _ = train_generator(w.speech[tr], w.body[tr], w.face[tr], GeneratorConfig(kind=kind, fps=w.fps),
-                                     GeneratorTrainConfig(adv_weight=weight))
+            gen, _ = train_generator(
+                w.speech[tr],
+                w.body[tr],
+                w.face[tr],
+                GeneratorConfig(kind=kind, fps=w.fps),
+                GeneratorTrainConfig(adv_weight=weight),
+            )
             for n in np.flatnonzero((fold == f) & w.has_body):
                 J, _ = gen.generate(w.speech[n])
                 l1.append(float(np.abs(J - w.body[n].reshape(J.shape)).mean() * 100))
                 motion.append(wrist_motion(J))
                 jerk.append(jerk_of(J, w.fps))
-        res[str(weight)] = {"l1_cm": float(np.mean(l1)), "wrist_motion_cm": float(np.mean(motion)),
-                            "jerk": float(np.mean(jerk)), "windows": len(l1)}
+        res[str(weight)] = {
+            "l1_cm": float(np.mean(l1)),
+            "wrist_motion_cm": float(np.mean(motion)),
+            "jerk": float(np.mean(jerk)),
+            "windows": len(l1),
+        }
         print(weight, res[str(weight)], flush=True)
-    res["wrist_motion_cm_captured"] = float(np.mean([wrist_motion(w.body[n].reshape(-1, 55, 3))
-                                                     for n in np.flatnonzero(w.has_body)]))
+    res["wrist_motion_cm_captured"] = float(
+        np.mean([wrist_motion(w.body[n].reshape(-1, 55, 3)) for n in np.flatnonzero(w.has_body)])
+    )
     write_json(a.out, res)
 
 

@@ -6,6 +6,7 @@ Writes benchmarks/results/body.json.
 
 The overhead ratio is the median over repeats of back-to-back (capture time / raw Holistic time) pairs.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -55,12 +56,21 @@ def main() -> None:
     for _ in range(a.repeats):
         raw_t.append(raw_holistic(path))
         full_t.append(full_capture(path))
-    res = {"clip": a.clip, "size": [info.width, info.height], "frames": info.n_frames, "repeats": a.repeats,
-           "cpu_count": os.cpu_count(), "machine": platform.machine(), "python": platform.python_version(),
-           "raw_holistic_fps": info.n_frames / statistics.median(raw_t),
-           "capture_fps": info.n_frames / statistics.median(full_t),
-           "overhead_ratio": statistics.median(f / r for f, r in zip(full_t, raw_t)),
-           "target": {"overhead_ratio": "<= 1.2"}, "raw_s": raw_t, "capture_s": full_t}
+    res = {
+        "clip": a.clip,
+        "size": [info.width, info.height],
+        "frames": info.n_frames,
+        "repeats": a.repeats,
+        "cpu_count": os.cpu_count(),
+        "machine": platform.machine(),
+        "python": platform.python_version(),
+        "raw_holistic_fps": info.n_frames / statistics.median(raw_t),
+        "capture_fps": info.n_frames / statistics.median(full_t),
+        "overhead_ratio": statistics.median(f / r for f, r in zip(full_t, raw_t)),
+        "target": {"overhead_ratio": "<= 1.2"},
+        "raw_s": raw_t,
+        "capture_s": full_t,
+    }
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(res, indent=2))
     print(json.dumps({k: v for k, v in res.items() if not k.endswith("_s")}, indent=2))

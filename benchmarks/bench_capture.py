@@ -6,6 +6,7 @@ and fitting alone. Writes benchmarks/results/capture.json.
 Both pipelines run in the same process, interleaved, ``repeats`` times; the overhead ratio is the median
 over repeats of (end-to-end time / raw MediaPipe time) of back-to-back pairs, so machine noise cancels out.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -50,8 +51,11 @@ def end_to_end(path: str, n: int) -> float:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--clip", default="liveportrait-examples/assets/examples/driving/d10.mp4",
-                    help="512x512 talking clip under the data root")
+    ap.add_argument(
+        "--clip",
+        default="liveportrait-examples/assets/examples/driving/d10.mp4",
+        help="512x512 talking clip under the data root",
+    )
     ap.add_argument("--frames", type=int, default=0, help="frames to use (0 = the whole clip)")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "capture.json"))
@@ -78,15 +82,22 @@ def main() -> None:
         fit_t.append(time.perf_counter() - t0)
     raw_m, e2e_m, fit_m = statistics.median(raw_t), statistics.median(e2e_t), statistics.median(fit_t)
     res = {
-        "clip": a.clip, "size": [info.width, info.height], "frames": n, "repeats": a.repeats,
-        "cpu_count": os.cpu_count(), "machine": platform.machine(), "python": platform.python_version(),
+        "clip": a.clip,
+        "size": [info.width, info.height],
+        "frames": n,
+        "repeats": a.repeats,
+        "cpu_count": os.cpu_count(),
+        "machine": platform.machine(),
+        "python": platform.python_version(),
         "raw_mediapipe_fps": n / raw_m,
         "end_to_end_capture_fps": n / e2e_m,
         "overhead_ratio": statistics.median(e / r for e, r in zip(e2e_t, raw_t)),
         "fit_only_fps": len(lm_big) / fit_m,
         "fit_only_frames": len(lm_big),
         "targets": {"end_to_end_capture_fps": ">= 25", "fit_only_fps": ">= 300", "overhead_ratio": "<= 1.25"},
-        "raw_s": raw_t, "end_to_end_s": e2e_t, "fit_s": fit_t,
+        "raw_s": raw_t,
+        "end_to_end_s": e2e_t,
+        "fit_s": fit_t,
     }
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(res, indent=2))

@@ -5,6 +5,7 @@ speed-up ratio wall(1 worker) / wall(2 workers) (2.0 would be perfect scaling on
 
     python benchmarks/bench_dataset.py [--videos N] [--repeats R]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,8 +28,24 @@ def build(videos: list[str], workers: int) -> tuple[float, dict]:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "ds"
         t0 = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "anima", "dataset", "build", *videos, "--out", str(out),
-                        "--workers", str(workers), "--quiet", "--json"], check=True, capture_output=True)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "anima",
+                "dataset",
+                "build",
+                *videos,
+                "--out",
+                str(out),
+                "--workers",
+                str(workers),
+                "--quiet",
+                "--json",
+            ],
+            check=True,
+            capture_output=True,
+        )
         wall = time.perf_counter() - t0
         return wall, json.loads((out / "manifest.json").read_text())
 
@@ -48,15 +65,22 @@ def main() -> None:
             runs[w].append(wall)
     t1, t2 = statistics.median(runs[1]), statistics.median(runs[2])
     frames, compute = man["frames"], man["compute_s"]
-    res = {"videos": [str(Path(v).relative_to(asset("."))) for v in videos], "frames": frames,
-           "seconds_of_video": man["seconds_of_video"], "cpu_count": os.cpu_count(),
-           "machine": platform.machine(), "python": platform.python_version(),
-           "wall_s_1_worker": runs[1], "wall_s_2_workers": runs[2],
-           "speedup_2_over_1": t1 / t2, "scaling_efficiency": t1 / t2 / 2,
-           "videos_per_hour_2_workers": len(videos) / t2 * 3600,
-           "frames_per_s_per_core": frames / compute,
-           "note": "wall includes starting Ray (~4 s) and the final statistics pass; frames_per_s_per_core is "
-                   "captured frames / summed per-video task seconds"}
+    res = {
+        "videos": [str(Path(v).relative_to(asset("."))) for v in videos],
+        "frames": frames,
+        "seconds_of_video": man["seconds_of_video"],
+        "cpu_count": os.cpu_count(),
+        "machine": platform.machine(),
+        "python": platform.python_version(),
+        "wall_s_1_worker": runs[1],
+        "wall_s_2_workers": runs[2],
+        "speedup_2_over_1": t1 / t2,
+        "scaling_efficiency": t1 / t2 / 2,
+        "videos_per_hour_2_workers": len(videos) / t2 * 3600,
+        "frames_per_s_per_core": frames / compute,
+        "note": "wall includes starting Ray (~4 s) and the final statistics pass; frames_per_s_per_core is "
+        "captured frames / summed per-video task seconds",
+    }
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(res, indent=2))
     print(json.dumps(res, indent=2))

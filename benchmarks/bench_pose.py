@@ -6,6 +6,7 @@ vs one frame at a time, on the same inputs, in one run. Writes benchmarks/result
 Without a checkpoint, a freshly initialised network of the default (seed) size is timed: speed does not
 depend on the weights. Inputs are real Human3.6M S1 2D projections. Target: < 1 ms per frame batched.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -50,13 +51,23 @@ def main() -> None:
         batched.append((time.perf_counter() - t0) / len(uv) * 1000)
         t0 = time.perf_counter()
         for i in range(a.single):
-            predict(model, uv[i:i + 1], conf[i:i + 1])
+            predict(model, uv[i : i + 1], conf[i : i + 1])
         single.append((time.perf_counter() - t0) / a.single * 1000)
     b, s = statistics.median(batched), statistics.median(single)
-    res = {"model": cfg, "parameters": sum(p.numel() for p in model.parameters()), "frames": len(uv),
-           "torch_threads": torch.get_num_threads(), "cpu_count": os.cpu_count(), "machine": platform.machine(),
-           "batched_ms_per_frame": b, "single_ms_per_frame": s, "speedup_batched_over_single": s / b,
-           "target": {"batched_ms_per_frame": "< 1"}, "batched_runs": batched, "single_runs": single}
+    res = {
+        "model": cfg,
+        "parameters": sum(p.numel() for p in model.parameters()),
+        "frames": len(uv),
+        "torch_threads": torch.get_num_threads(),
+        "cpu_count": os.cpu_count(),
+        "machine": platform.machine(),
+        "batched_ms_per_frame": b,
+        "single_ms_per_frame": s,
+        "speedup_batched_over_single": s / b,
+        "target": {"batched_ms_per_frame": "< 1"},
+        "batched_runs": batched,
+        "single_runs": single,
+    }
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(res, indent=2))
     print(json.dumps({k: v for k, v in res.items() if not k.endswith("_runs")}, indent=2))

@@ -9,6 +9,7 @@ Writes benchmarks/results/reenact.json.
 Target: the three Obama clips (256x256) upscaled to 512x512 with ffmpeg, one database (as the seed upscaled
 its 450x450 video to 512x512). Actor: LivePortrait d12 (512x512, talking).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -52,8 +53,24 @@ def main() -> None:
         ups = []
         for c in OBAMA:
             p = Path(tmp) / Path(c).name
-            subprocess.run([FFMPEG, "-v", "error", "-y", "-i", str(asset(c)), "-vf", "scale=512:512:flags=bicubic",
-                            "-c:v", "libx264", "-crf", "16", str(p)], check=True)
+            subprocess.run(
+                [
+                    FFMPEG,
+                    "-v",
+                    "error",
+                    "-y",
+                    "-i",
+                    str(asset(c)),
+                    "-vf",
+                    "scale=512:512:flags=bicubic",
+                    "-c:v",
+                    "libx264",
+                    "-crf",
+                    "16",
+                    str(p),
+                ],
+                check=True,
+            )
             ups.append(str(p))
         db, seqs = build_database(ups, progress=False)
         tseq = seqs[0]
@@ -65,6 +82,7 @@ def main() -> None:
     basis = LandmarkBasis.build(load_face_model(), load_correspondence(), fcfg.use_iris)
     H, W = actor.shape[1:3]
     from anima.reenact.run import single_thread_blas
+
     limit = single_thread_blas()  # as `anima reenact` runs its loop
     st = {k: [] for k in ("track_ms", "fit_ms", "texture_ms", "geometry_ms")}
     times: dict = {}
@@ -98,13 +116,22 @@ def main() -> None:
     limit.unregister()
     med = {k: statistics.median(v[5:]) for k, v in {**st, **times}.items()}
     total = sum(med.values())
-    res = {"size": [W, H], "frames": len(actor), "database_frames": db.n, "region_vertices": int(len(db.vertex_ids)),
-           "n": cfg.n, "cpu_count": os.cpu_count(), "machine": platform.machine(),
-           "per_stage_median_ms": med, "total_ms": total, "fps": 1000.0 / total,
-           "texture_listing1_ms": statistics.median(ref_ms[3:]),
-           "texture_speedup_vs_listing1": statistics.median(ref_ms[3:]) / med["texture_ms"],
-           "target": {"fps": ">= 30 end to end excluding decode/encode"},
-           "seed_table_4_9": "160 ms/frame on a laptop GPU (face detection, feature extraction, texture, render, blend)"}
+    res = {
+        "size": [W, H],
+        "frames": len(actor),
+        "database_frames": db.n,
+        "region_vertices": int(len(db.vertex_ids)),
+        "n": cfg.n,
+        "cpu_count": os.cpu_count(),
+        "machine": platform.machine(),
+        "per_stage_median_ms": med,
+        "total_ms": total,
+        "fps": 1000.0 / total,
+        "texture_listing1_ms": statistics.median(ref_ms[3:]),
+        "texture_speedup_vs_listing1": statistics.median(ref_ms[3:]) / med["texture_ms"],
+        "target": {"fps": ">= 30 end to end excluding decode/encode"},
+        "seed_table_4_9": "160 ms/frame on a laptop GPU (face detection, feature extraction, texture, render, blend)",
+    }
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(res, indent=2))
     print(json.dumps(res, indent=2))

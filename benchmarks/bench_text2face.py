@@ -8,6 +8,7 @@ Timed: the sampler alone (text embedding given) and the whole call a user makes 
 encoding included). Target: < 0.5 s for 90 frames on 2 cores. Also times the seed-size model (13.6 M
 parameters, freshly initialised: speed does not depend on the weights).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -48,23 +49,41 @@ def main() -> None:
     E = g.embed([PROMPT])
     cached, cr = timeit(lambda: g.generate_from_embeddings(E, a.frames, 0, cached=True), a.repeats)
     uncached, ur = timeit(lambda: g.generate_from_embeddings(E, a.frames, 0, cached=False), a.repeats)
-    same = np.allclose(g.generate_from_embeddings(E, a.frames, 0, cached=True),
-                       g.generate_from_embeddings(E, a.frames, 0, cached=False), atol=1e-4)
+    same = np.allclose(
+        g.generate_from_embeddings(E, a.frames, 0, cached=True),
+        g.generate_from_embeddings(E, a.frames, 0, cached=False),
+        atol=1e-4,
+    )
     full, fr = timeit(lambda: g.generate([PROMPT], a.frames, 0), a.repeats)
     torch.manual_seed(0)
     big = Text2Face(preset("seed")).eval()
     e, c = torch.from_numpy(E), torch.randn(1, 64)
     big_cached, _ = timeit(lambda: big.sample(e, c, a.frames, cached=True), max(3, a.repeats // 2))
     big_uncached, _ = timeit(lambda: big.sample(e, c, a.frames, cached=False), max(3, a.repeats // 2))
-    res = {"checkpoint": str(g.path), "frames": a.frames, "prompt": PROMPT,
-           "parameters": sum(p.numel() for p in g.model.parameters()),
-           "torch_threads": torch.get_num_threads(), "cpu_count": os.cpu_count(), "machine": platform.machine(),
-           "cached_s": cached, "uncached_s": uncached, "speedup_cached_over_uncached": uncached / cached,
-           "cached_equals_uncached": bool(same), "prompt_to_motion_s": full,
-           "seed_size_model": {"parameters": sum(p.numel() for p in big.parameters()), "cached_s": big_cached,
-                               "uncached_s": big_uncached, "speedup": big_uncached / big_cached},
-           "target": {"prompt_to_motion_s": "< 0.5 for 90 frames"},
-           "cached_runs": cr, "uncached_runs": ur, "prompt_to_motion_runs": fr}
+    res = {
+        "checkpoint": str(g.path),
+        "frames": a.frames,
+        "prompt": PROMPT,
+        "parameters": sum(p.numel() for p in g.model.parameters()),
+        "torch_threads": torch.get_num_threads(),
+        "cpu_count": os.cpu_count(),
+        "machine": platform.machine(),
+        "cached_s": cached,
+        "uncached_s": uncached,
+        "speedup_cached_over_uncached": uncached / cached,
+        "cached_equals_uncached": bool(same),
+        "prompt_to_motion_s": full,
+        "seed_size_model": {
+            "parameters": sum(p.numel() for p in big.parameters()),
+            "cached_s": big_cached,
+            "uncached_s": big_uncached,
+            "speedup": big_uncached / big_cached,
+        },
+        "target": {"prompt_to_motion_s": "< 0.5 for 90 frames"},
+        "cached_runs": cr,
+        "uncached_runs": ur,
+        "prompt_to_motion_runs": fr,
+    }
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(res, indent=2))
     print(json.dumps({k: v for k, v in res.items() if not k.endswith("_runs")}, indent=2))

@@ -31,8 +31,9 @@ def face_model():
 def anima_cli(*args, timeout: float = 900, env: dict | None = None) -> subprocess.CompletedProcess:
     """Run the ``anima`` command as a user does, in a new process; whatever happens, stderr holds no
     traceback (errors are one line)."""
-    r = subprocess.run([sys.executable, "-m", "anima", *map(str, args)], capture_output=True, text=True,
-                       timeout=timeout, env=env)
+    r = subprocess.run(
+        [sys.executable, "-m", "anima", *map(str, args)], capture_output=True, text=True, timeout=timeout, env=env
+    )
     assert "Traceback" not in r.stderr, r.stderr[-3000:]
     return r
 
@@ -61,24 +62,80 @@ def videos(tmp_path_factory, d0_path) -> dict:
     d = tmp_path_factory.mktemp("videos")
     out = {}
     out["gray"] = d / "gray.mp4"
-    ffmpeg("-i", str(d0_path), "-t", "1.2", "-vf", "format=gray", "-c:v", "libx264", "-pix_fmt", "yuv420p",
-           str(out["gray"]))
+    ffmpeg(
+        "-i",
+        str(d0_path),
+        "-t",
+        "1.2",
+        "-vf",
+        "format=gray",
+        "-c:v",
+        "libx264",
+        "-pix_fmt",
+        "yuv420p",
+        str(out["gray"]),
+    )
     out["tiny"] = d / "tiny.mp4"
     ffmpeg("-i", str(d0_path), "-t", "0.5", "-vf", "scale=24:24", "-c:v", "libx264", str(out["tiny"]))
     out["noface"] = d / "noface.mp4"
-    ffmpeg("-f", "lavfi", "-i", "testsrc=size=256x256:rate=25", "-t", "1", "-c:v", "libx264", "-pix_fmt",
-           "yuv420p", str(out["noface"]))
+    ffmpeg(
+        "-f",
+        "lavfi",
+        "-i",
+        "testsrc=size=256x256:rate=25",
+        "-t",
+        "1",
+        "-c:v",
+        "libx264",
+        "-pix_fmt",
+        "yuv420p",
+        str(out["noface"]),
+    )
     out["partial"] = d / "partial.mp4"  # 1 s of face, then 1 s without
-    ffmpeg("-i", str(d0_path), "-f", "lavfi", "-i", "testsrc=size=512x512:rate=25", "-filter_complex",
-           "[0:v]trim=duration=1,setpts=PTS-STARTPTS[a];[1:v]trim=duration=1,setpts=PTS-STARTPTS,format=yuv420p[b];"
-           "[a][b]concat=n=2:v=1[v]", "-map", "[v]", "-c:v", "libx264", str(out["partial"]))
+    ffmpeg(
+        "-i",
+        str(d0_path),
+        "-f",
+        "lavfi",
+        "-i",
+        "testsrc=size=512x512:rate=25",
+        "-filter_complex",
+        "[0:v]trim=duration=1,setpts=PTS-STARTPTS[a];[1:v]trim=duration=1,setpts=PTS-STARTPTS,format=yuv420p[b];"
+        "[a][b]concat=n=2:v=1[v]",
+        "-map",
+        "[v]",
+        "-c:v",
+        "libx264",
+        str(out["partial"]),
+    )
     out["two_faces"] = d / "two.mp4"
-    ffmpeg("-i", str(d0_path), "-i", str(d0_path), "-t", "1", "-filter_complex",
-           "[0:v]scale=256:256[a];[1:v]scale=200:200,pad=256:256:28:28[b];[a][b]hstack", "-c:v", "libx264",
-           str(out["two_faces"]))
+    ffmpeg(
+        "-i",
+        str(d0_path),
+        "-i",
+        str(d0_path),
+        "-t",
+        "1",
+        "-filter_complex",
+        "[0:v]scale=256:256[a];[1:v]scale=200:200,pad=256:256:28:28[b];[a][b]hstack",
+        "-c:v",
+        "libx264",
+        str(out["two_faces"]),
+    )
     out["vfr"] = d / "vfr.mp4"
-    ffmpeg("-i", str(d0_path), "-t", "2", "-vf", "setpts='(N+floor(N/2))/25/TB'", "-vsync", "vfr",
-           "-c:v", "libx264", str(out["vfr"]))
+    ffmpeg(
+        "-i",
+        str(d0_path),
+        "-t",
+        "2",
+        "-vf",
+        "setpts='(N+floor(N/2))/25/TB'",
+        "-vsync",
+        "vfr",
+        "-c:v",
+        "libx264",
+        str(out["vfr"]),
+    )
     ffmpeg("-i", str(d0_path), "-c", "copy", "-movflags", "+faststart", str(d / "faststart.mp4"))
     data = (d / "faststart.mp4").read_bytes()
     out["truncated"] = d / "truncated.mp4"  # an interrupted download: index first, 60 % of the data

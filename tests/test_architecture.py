@@ -1,4 +1,5 @@
 """The structure rules of docs/architecture.md, checked on the code itself."""
+
 import ast
 import re
 import subprocess
@@ -61,6 +62,7 @@ def test_no_import_cycle_between_modules():
             if d not in state:
                 visit(d, stack + [m])
         state[m] = 2
+
     for m in graph:
         if m not in state:
             visit(m, [])
@@ -79,13 +81,21 @@ def test_cli_is_thin():
 
 def test_nothing_loads_pickles_from_user_files():
     pat = re.compile(r"weights_only\s*=\s*False|allow_pickle\s*=\s*True")
-    hits = [f"{p.relative_to(ROOT)}:{i}" for p in list(PKG.rglob("*.py")) + list((ROOT / "benchmarks").glob("*.py"))
-            for i, line in enumerate(p.read_text().splitlines(), 1) if pat.search(line)]
+    hits = [
+        f"{p.relative_to(ROOT)}:{i}"
+        for p in list(PKG.rglob("*.py")) + list((ROOT / "benchmarks").glob("*.py"))
+        for i, line in enumerate(p.read_text().splitlines(), 1)
+        if pat.search(line)
+    ]
     assert hits == []
 
 
 @pytest.mark.parametrize("args", [["check"], ["format", "--check"]], ids=["lint", "format"])
 def test_ruff(args):
-    r = subprocess.run([sys.executable, "-m", "ruff", *args, "anima", "tests", "benchmarks", "tools"], cwd=ROOT,
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "ruff", *args, "anima", "tests", "benchmarks", "tools"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, (r.stdout + r.stderr)[-4000:]

@@ -9,6 +9,7 @@ differences along the motion-frame axis (``librosa.feature.delta``, width 3).
 Loudness: the signal is scaled so that its active part (frames within 40 dB of the loudest) has an RMS of
 -20 dBFS, so features do not depend on recording gain.
 """
+
 from __future__ import annotations
 
 import subprocess
@@ -29,8 +30,9 @@ WIN = 400  # 25 ms
 N_MELS = 40
 TARGET_DBFS = -20.0
 SILENCE_DBFS = -60.0
-FEATURE_NAMES = ([f"mfcc{i}" for i in range(N_MFCC)] + ["log_energy"]
-                 + [f"d_mfcc{i}" for i in range(N_MFCC)] + ["d_log_energy"])
+FEATURE_NAMES = (
+    [f"mfcc{i}" for i in range(N_MFCC)] + ["log_energy"] + [f"d_mfcc{i}" for i in range(N_MFCC)] + ["d_log_energy"]
+)
 
 
 class NoAudio(InputError):
@@ -55,8 +57,25 @@ def read_audio(path: str | Path, sr: int = SR) -> np.ndarray:
     p = Path(path)
     if not p.is_file():
         raise InputError(f"audio file not found: {p}")
-    cmd = [FFMPEG, "-hide_banner", "-nostdin", "-v", "error", "-i", str(p), "-map", "0:a:0", "-vn", "-ac", "1",
-           "-ar", str(sr), "-f", "f32le", "-"]
+    cmd = [
+        FFMPEG,
+        "-hide_banner",
+        "-nostdin",
+        "-v",
+        "error",
+        "-i",
+        str(p),
+        "-map",
+        "0:a:0",
+        "-vn",
+        "-ac",
+        "1",
+        "-ar",
+        str(sr),
+        "-f",
+        "f32le",
+        "-",
+    ]
     res = subprocess.run(cmd, capture_output=True, timeout=600)
     err = res.stderr.decode(errors="replace").strip()
     if res.returncode != 0:
@@ -91,8 +110,9 @@ def _centred_frames(x: np.ndarray, centres: np.ndarray, length: int) -> np.ndarr
     return pad[idx]
 
 
-def speech_features(x: np.ndarray, fps: float, n_frames: int | None = None, sr: int = SR,
-                    normalize: bool = True) -> SpeechFeatures:
+def speech_features(
+    x: np.ndarray, fps: float, n_frames: int | None = None, sr: int = SR, normalize: bool = True
+) -> SpeechFeatures:
     """Features ``[n_frames, 28]`` at motion frame times ``i / fps`` (default: as many frames as the audio
     covers)."""
     if fps <= 0:
@@ -125,20 +145,31 @@ def features_for_file(path: str | Path, fps: float, n_frames: int | None = None)
     return speech_features(read_audio(path), fps, n_frames)
 
 
-def write_speech_features(path: str | Path, fps: float, n_frames: int | None = None,
-                          out: str | Path | None = None) -> dict:
+def write_speech_features(
+    path: str | Path, fps: float, n_frames: int | None = None, out: str | Path | None = None
+) -> dict:
     """``anima audio features``: the features of ``path`` written to ``out`` (default ``<path>.speech.npz``:
     ``features [F, 28]``, ``valid [F]``, ``fps``, ``names``). Returns a summary."""
     x = read_audio(path)
     longest = 2 * int(np.ceil(len(x) / SR * fps)) + 1
     if n_frames is not None and not 1 <= n_frames <= longest:
-        raise InputError(f"--frames {n_frames}: the audio is {len(x) / SR:.2f} s, so at most {longest} frames at "
-                         f"{fps:g} fps (2 x its length)")
+        raise InputError(
+            f"--frames {n_frames}: the audio is {len(x) / SR:.2f} s, so at most {longest} frames at "
+            f"{fps:g} fps (2 x its length)"
+        )
     f = speech_features(x, fps, n_frames)
     dest = Path(out) if out else Path(path).with_suffix(".speech.npz")
     with atomic_path(dest) as tmp:
-        np.savez_compressed(tmp, features=f.features, valid=f.valid, fps=np.float32(f.fps),
-                            names=np.asarray(FEATURE_NAMES))
-    return {"file": str(path), "out": str(dest), "frames": int(len(f.features)), "fps": f.fps,
-            "duration_s": round(f.duration_s, 3), "silent": f.silent, "gain_db": round(f.gain_db, 2),
-            "frames_outside_audio": int((~f.valid).sum())}
+        np.savez_compressed(
+            tmp, features=f.features, valid=f.valid, fps=np.float32(f.fps), names=np.asarray(FEATURE_NAMES)
+        )
+    return {
+        "file": str(path),
+        "out": str(dest),
+        "frames": int(len(f.features)),
+        "fps": f.fps,
+        "duration_s": round(f.duration_s, 3),
+        "silent": f.silent,
+        "gain_db": round(f.gain_db, 2),
+        "frames_outside_audio": int((~f.valid).sum()),
+    }

@@ -13,6 +13,7 @@ smoothing (sigma 1.5 frames), optional
 resampling (e.g. to 15 fps for gesture work) and optional fixed bone lengths per clip (median length of
 each bone, re-imposed along each bone's direction from the root outwards).
 """
+
 from __future__ import annotations
 
 import warnings
@@ -52,8 +53,15 @@ def _image_joints(pose: np.ndarray, left, right, width: int, height: int) -> np.
     g = {k: px[i] for k, i in MP_POSE.items()}
     pelvis = (g["left_hip"] + g["right_hip"]) / 2
     neck = (g["left_shoulder"] + g["right_shoulder"]) / 2
-    pos = {"pelvis": pelvis, "left_hip": g["left_hip"], "right_hip": g["right_hip"], "spine": (pelvis + neck) / 2,
-           "neck": neck, "head": (g["left_ear"] + g["right_ear"]) / 2, "nose": g["nose"]}
+    pos = {
+        "pelvis": pelvis,
+        "left_hip": g["left_hip"],
+        "right_hip": g["right_hip"],
+        "spine": (pelvis + neck) / 2,
+        "neck": neck,
+        "head": (g["left_ear"] + g["right_ear"]) / 2,
+        "nose": g["nose"],
+    }
     for i, n in enumerate(BODY_JOINTS):
         uv[i] = pos.get(n, g.get(n))
     for hand, sl in ((left, LEFT_HAND), (right, RIGHT_HAND)):
@@ -62,8 +70,14 @@ def _image_joints(pose: np.ndarray, left, right, width: int, height: int) -> np.
     return uv
 
 
-def assemble_frame(pose: np.ndarray | None, pose_world: np.ndarray | None, left: np.ndarray | None,
-                   right: np.ndarray | None, width: int, height: int):
+def assemble_frame(
+    pose: np.ndarray | None,
+    pose_world: np.ndarray | None,
+    left: np.ndarray | None,
+    right: np.ndarray | None,
+    width: int,
+    height: int,
+):
     """One frame -> (joints ``[55, 3]`` metres pelvis-relative, confidence ``[55]``, pixels ``[55, 2]``)."""
     J = np.full((N_JOINTS, 3), np.nan)
     C = np.zeros(N_JOINTS)
@@ -75,11 +89,23 @@ def assemble_frame(pose: np.ndarray | None, pose_world: np.ndarray | None, left:
     v = {k: vis[i] for k, i in MP_POSE.items()}
     pelvis = (g["left_hip"] + g["right_hip"]) / 2
     neck = (g["left_shoulder"] + g["right_shoulder"]) / 2
-    pos = {"pelvis": pelvis, "left_hip": g["left_hip"], "right_hip": g["right_hip"], "spine": (pelvis + neck) / 2,
-           "neck": neck, "head": (g["left_ear"] + g["right_ear"]) / 2, "nose": g["nose"]}
-    cf = {"pelvis": min(v["left_hip"], v["right_hip"]), "left_hip": v["left_hip"], "right_hip": v["right_hip"],
-          "neck": min(v["left_shoulder"], v["right_shoulder"]), "head": min(v["left_ear"], v["right_ear"]),
-          "nose": v["nose"]}
+    pos = {
+        "pelvis": pelvis,
+        "left_hip": g["left_hip"],
+        "right_hip": g["right_hip"],
+        "spine": (pelvis + neck) / 2,
+        "neck": neck,
+        "head": (g["left_ear"] + g["right_ear"]) / 2,
+        "nose": g["nose"],
+    }
+    cf = {
+        "pelvis": min(v["left_hip"], v["right_hip"]),
+        "left_hip": v["left_hip"],
+        "right_hip": v["right_hip"],
+        "neck": min(v["left_shoulder"], v["right_shoulder"]),
+        "head": min(v["left_ear"], v["right_ear"]),
+        "nose": v["nose"],
+    }
     cf["spine"] = cf["neck"]  # the pelvis is the origin by construction; the spine hangs off the neck
     for side in ("left", "right"):
         for part in ("shoulder", "elbow", "wrist"):
@@ -95,8 +121,10 @@ def assemble_frame(pose: np.ndarray | None, pose_world: np.ndarray | None, left:
     wv = np.maximum(vis[_UPPER], 1e-3)[:, None]
     ci, cw = (img * wv).sum(0) / wv.sum(), (wrl * wv).sum(0) / wv.sum()
     s = np.sqrt((wv * (wrl - cw) ** 2).sum() / max((wv * (img - ci) ** 2).sum(), 1e-12))
-    for hand, sl, wrist in ((left, LEFT_HAND, BODY_JOINTS.index("left_wrist")),
-                            (right, RIGHT_HAND, BODY_JOINTS.index("right_wrist"))):
+    for hand, sl, wrist in (
+        (left, LEFT_HAND, BODY_JOINTS.index("left_wrist")),
+        (right, RIGHT_HAND, BODY_JOINTS.index("right_wrist")),
+    ):
         if hand is None:
             continue
         h = np.stack([hand[:, 0] * width, -hand[:, 1] * height, -hand[:, 2] * width], -1).astype(np.float64)
@@ -131,8 +159,14 @@ def _interp_gaps(x: np.ndarray, max_gap: int) -> tuple[np.ndarray, np.ndarray]:
     return x, filled
 
 
-def clean(track: BodyTrack, min_conf: float = 0.5, max_gap: int = 8, sigma: float = 1.5,
-          fixed_bones: bool = False, resample_fps: float | None = None) -> BodyTrack:
+def clean(
+    track: BodyTrack,
+    min_conf: float = 0.5,
+    max_gap: int = 8,
+    sigma: float = 1.5,
+    fixed_bones: bool = False,
+    resample_fps: float | None = None,
+) -> BodyTrack:
     J = track.joints.copy()
     drop = track.conf < min_conf
     drop[:, 0] = False  # the pelvis is the origin by construction (its visibility only tells about the hips)
@@ -166,8 +200,9 @@ def clean(track: BodyTrack, min_conf: float = 0.5, max_gap: int = 8, sigma: floa
         if ratio is not None:
             ok = np.isfinite(ratio) & (ratio > 0)
             rel = J[ok][:, sl] - J[ok][:, wrist][:, None]
-            J[np.flatnonzero(ok)[:, None], np.arange(sl.start, sl.stop)[None]] = \
+            J[np.flatnonzero(ok)[:, None], np.arange(sl.start, sl.stop)[None]] = (
                 rel / ratio[ok][:, None, None] + J[ok][:, wrist][:, None]
+            )
     if sigma > 0:
         # hands are smoothed wrist-relative and re-attached, so they stay on the (smoothed) body wrists
         rel = {"L": J[:, LEFT_HAND] - J[:, LEFT_HAND][:, :1], "R": J[:, RIGHT_HAND] - J[:, RIGHT_HAND][:, :1]}

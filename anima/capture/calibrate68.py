@@ -2,6 +2,7 @@
 AFLW2000-3D test images): fit the model to MediaPipe on each calibration face
 (:mod:`anima.capture.landmark_sets`) and pick, per point, the ICT vertex whose projection best matches the
 annotations (:func:`anima.facemodel.landmarks68.calibrate`)."""
+
 from __future__ import annotations
 
 import json
@@ -40,10 +41,14 @@ def calibrate_ibug68(radius_cm: float = 1.2) -> dict:
             gts.append(s.pts)
             names.append(s.name)
     vertices, before, after = calibrate(model, uvs, gts, radius_cm)
-    return {"vertices": vertices.tolist(), "radius_cm": radius_cm, "samples": names,
-            "calibration_nme_points_17_67_before": float(np.nanmean(before)),
-            "calibration_nme_points_17_67_after": float(np.nanmean(after)),
-            "note": "jawline 0-16: ICT's documented Multi-PIE jawline substitutes (not calibrated)"}
+    return {
+        "vertices": vertices.tolist(),
+        "radius_cm": radius_cm,
+        "samples": names,
+        "calibration_nme_points_17_67_before": float(np.nanmean(before)),
+        "calibration_nme_points_17_67_after": float(np.nanmean(after)),
+        "note": "jawline 0-16: ICT's documented Multi-PIE jawline substitutes (not calibrated)",
+    }
 
 
 def write_ibug68(radius_cm: float = 1.2, out: str | Path | None = None) -> dict:
@@ -51,5 +56,7 @@ def write_ibug68(radius_cm: float = 1.2, out: str | Path | None = None) -> dict:
     r = calibrate_ibug68(radius_cm)
     dest = Path(out) if out else package_data(FILENAME)
     write_text(dest, json.dumps(r, indent=1))
-    return {k: v for k, v in r.items() if k not in ("vertices", "samples")} | {"out": str(dest),
-                                                                               "n_samples": len(r["samples"])}
+    return {k: v for k, v in r.items() if k not in ("vertices", "samples")} | {
+        "out": str(dest),
+        "n_samples": len(r["samples"]),
+    }

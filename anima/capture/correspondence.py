@@ -1,5 +1,6 @@
 """``anima facemodel correspondence``: rebuild the MediaPipe <-> ICT correspondence from MediaPipe run on
 real portraits (the template of :mod:`anima.facemodel.correspondence`, step 1)."""
+
 from __future__ import annotations
 
 from pathlib import Path

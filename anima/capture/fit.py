@@ -19,6 +19,7 @@ Identity: from ``n_keyframes`` frames spread over the clip (preferring frontal o
 expressions and a ridge solve of the 100 identity coefficients with Huber-reweighted landmarks (robust to
 a bad keyframe or a badly tracked landmark).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -148,8 +149,9 @@ def _box_qp_gauss_seidel(N, g, x, sweeps, tol):
     return x
 
 
-def solve_expression(Q: np.ndarray, base: np.ndarray, basis: LandmarkBasis, M: np.ndarray, cfg: FitConfig,
-                     e0: np.ndarray | None = None) -> np.ndarray:
+def solve_expression(
+    Q: np.ndarray, base: np.ndarray, basis: LandmarkBasis, M: np.ndarray, cfg: FitConfig, e0: np.ndarray | None = None
+) -> np.ndarray:
     """Bounded least squares for expression weights, batched over frames.
 
     Q ``[F, K, 3]`` observations in model space, base ``[K, 3]`` identity shape, M ``[F, 3, 3]`` weight
@@ -165,16 +167,18 @@ def solve_expression(Q: np.ndarray, base: np.ndarray, basis: LandmarkBasis, M: n
     MD = (Q - base[None]) @ M  # M is symmetric: row k of (D M) = M D_k
     g = MD.reshape(F, K * 3) @ basis.expr.reshape(K * 3, n) - cfg.lam_expr_l1
     x = np.zeros((F, n)) if e0 is None else np.clip(e0, 0.0, 1.0).astype(np.float64)
-    return _box_qp_gauss_seidel(np.ascontiguousarray(N), np.ascontiguousarray(g), np.ascontiguousarray(x),
-                                cfg.qp_sweeps, 1e-5)
+    return _box_qp_gauss_seidel(
+        np.ascontiguousarray(N), np.ascontiguousarray(g), np.ascontiguousarray(x), cfg.qp_sweeps, 1e-5
+    )
 
 
 def to_model_space(P: np.ndarray, scale, R, t) -> np.ndarray:
     return ((P - t[:, None]) @ R) / scale[:, None, None]
 
 
-def fit_frames(P: np.ndarray, basis: LandmarkBasis, identity: np.ndarray | None, cfg: FitConfig,
-               e0: np.ndarray | None = None) -> FrameFit:
+def fit_frames(
+    P: np.ndarray, basis: LandmarkBasis, identity: np.ndarray | None, cfg: FitConfig, e0: np.ndarray | None = None
+) -> FrameFit:
     """Pose + expression for frames ``P [F, K, 3]`` (camera-space pixels of ``basis.index``)."""
     base = basis.shape(identity)
     F = P.shape[0]

@@ -1,5 +1,6 @@
 """MediaPipe Holistic (legacy ``solutions`` API, models in the wheel): face (478 refined), pose (33, image and
 world coordinates with visibility), and both hands (21 each) in one pass, in video mode."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -25,13 +26,22 @@ def _arr(lms, vis: bool = False):
 
 
 class HolisticTracker:
-    def __init__(self, static_image_mode: bool = False, model_complexity: int = 1,
-                 min_detection_confidence: float = 0.5, min_tracking_confidence: float = 0.5):
+    def __init__(
+        self,
+        static_image_mode: bool = False,
+        model_complexity: int = 1,
+        min_detection_confidence: float = 0.5,
+        min_tracking_confidence: float = 0.5,
+    ):
         import mediapipe as mp
 
         self._h = mp.solutions.holistic.Holistic(
-            static_image_mode=static_image_mode, model_complexity=model_complexity, refine_face_landmarks=True,
-            min_detection_confidence=min_detection_confidence, min_tracking_confidence=min_tracking_confidence)
+            static_image_mode=static_image_mode,
+            model_complexity=model_complexity,
+            refine_face_landmarks=True,
+            min_detection_confidence=min_detection_confidence,
+            min_tracking_confidence=min_tracking_confidence,
+        )
 
     def __call__(self, rgb: np.ndarray) -> HolisticFrame:
         if rgb.ndim == 2:
@@ -40,8 +50,13 @@ class HolisticTracker:
         face = _arr(r.face_landmarks)
         if face is not None and face.shape[0] != 478:
             face = None
-        return HolisticFrame(face, _arr(r.pose_landmarks, True), _arr(r.pose_world_landmarks, True),
-                             _arr(r.left_hand_landmarks), _arr(r.right_hand_landmarks))
+        return HolisticFrame(
+            face,
+            _arr(r.pose_landmarks, True),
+            _arr(r.pose_world_landmarks, True),
+            _arr(r.left_hand_landmarks),
+            _arr(r.right_hand_landmarks),
+        )
 
     def close(self) -> None:
         self._h.close()

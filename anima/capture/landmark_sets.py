@@ -7,6 +7,7 @@
 
 Each sample is a face crop (box + margin, resized so the face is ~200 px) with its 68 points in crop pixels.
 """
+
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET

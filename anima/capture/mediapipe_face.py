@@ -4,6 +4,7 @@ Video mode (``static_image_mode=False``) detects once and then tracks from the p
 landmarks, re-detecting when tracking is lost. With several faces in view it follows one face: the
 one MediaPipe's detector ranks first when tracking (re)starts, kept until it is lost.
 """
+
 from __future__ import annotations
 
 import os
@@ -17,13 +18,22 @@ N_LANDMARKS = 478
 
 
 class FaceMeshTracker:
-    def __init__(self, static_image_mode: bool = False, refine_landmarks: bool = True,
-                 min_detection_confidence: float = 0.5, min_tracking_confidence: float = 0.5):
+    def __init__(
+        self,
+        static_image_mode: bool = False,
+        refine_landmarks: bool = True,
+        min_detection_confidence: float = 0.5,
+        min_tracking_confidence: float = 0.5,
+    ):
         import mediapipe as mp
 
         self._mesh = mp.solutions.face_mesh.FaceMesh(
-            static_image_mode=static_image_mode, max_num_faces=1, refine_landmarks=refine_landmarks,
-            min_detection_confidence=min_detection_confidence, min_tracking_confidence=min_tracking_confidence)
+            static_image_mode=static_image_mode,
+            max_num_faces=1,
+            refine_landmarks=refine_landmarks,
+            min_detection_confidence=min_detection_confidence,
+            min_tracking_confidence=min_tracking_confidence,
+        )
 
     def __call__(self, rgb: np.ndarray) -> np.ndarray | None:
         """``rgb (H, W, 3) uint8`` -> normalised landmarks ``(478, 3)`` float32 or None (no face)."""

@@ -1,4 +1,5 @@
 """Monocular face capture: decode -> MediaPipe face mesh (video mode) -> ICT fit -> smoothing -> artifact."""
+
 from __future__ import annotations
 
 import hashlib
@@ -81,15 +82,22 @@ class Timings:
     frames: int = 0
 
 
-def track_landmarks(info: VideoInfo, max_frames: int | None = None, progress: bool = True,
-                    warnings_out: list[str] | None = None, on_frame=None) -> np.ndarray:
+def track_landmarks(
+    info: VideoInfo,
+    max_frames: int | None = None,
+    progress: bool = True,
+    warnings_out: list[str] | None = None,
+    on_frame=None,
+) -> np.ndarray:
     """Run MediaPipe face mesh over the video; ``[F, 478, 3]`` normalised landmarks, NaN where no face.
     ``on_frame(landmarks)`` is called after each frame (used to fit while tracking)."""
     total = info.n_frames if max_frames is None else min(info.n_frames, max_frames)
     out = []
     errs: list[str] = []
-    with FaceMeshTracker(static_image_mode=False) as tracker, \
-            tqdm(total=total, desc="track", unit="fr", disable=not progress, leave=False) as bar:
+    with (
+        FaceMeshTracker(static_image_mode=False) as tracker,
+        tqdm(total=total, desc="track", unit="fr", disable=not progress, leave=False) as bar,
+    ):
         for i, frame in enumerate(iter_frames(info, errors=errs)):
             if max_frames is not None and i >= max_frames:
                 break
@@ -176,12 +184,18 @@ class StreamingPrefit:
         if self.identity is None or any(r is None for *_, r in parts):
             return None
         fits = [r[1] for *_, r in parts]
-        return (self.identity, np.concatenate([f.expr for f in fits]), np.concatenate([f.scale for f in fits]),
-                np.concatenate([f.R for f in fits]), np.concatenate([f.t for f in fits]))
+        return (
+            self.identity,
+            np.concatenate([f.expr for f in fits]),
+            np.concatenate([f.scale for f in fits]),
+            np.concatenate([f.R for f in fits]),
+            np.concatenate([f.t for f in fits]),
+        )
 
 
-def fit_landmark_sequence(lm: np.ndarray, width: int, height: int, fps: float, cfg: CaptureConfig,
-                          meta: dict | None = None, prefit=None) -> TrackedSequence:
+def fit_landmark_sequence(
+    lm: np.ndarray, width: int, height: int, fps: float, cfg: CaptureConfig, meta: dict | None = None, prefit=None
+) -> TrackedSequence:
     """Fit identity (keyframes), per-frame pose/camera/expression, smooth, flag. ``lm [F, 478, 3]``.
     ``prefit``: the result of :meth:`StreamingPrefit.result` for these frames, reused when its identity
     agrees with the whole-clip identity."""
@@ -237,21 +251,45 @@ def fit_landmark_sequence(lm: np.ndarray, width: int, height: int, fps: float, c
     flags[low] |= FLAG_LOW_CONFIDENCE
     meta = dict(meta or {})
     meta.update(
-        tracker={"name": "mediapipe.face_mesh", "version": _mp_version(), "refine_landmarks": True,
-                 "mode": "video", "landmarks": 478},
-        face_model={"name": "ICT-FaceKit light", "n_identity": int(basis.ident.shape[-1]),
-                    "n_expression": int(basis.expr.shape[-1]), "correspondence": corr.meta},
+        tracker={
+            "name": "mediapipe.face_mesh",
+            "version": _mp_version(),
+            "refine_landmarks": True,
+            "mode": "video",
+            "landmarks": 478,
+        },
+        face_model={
+            "name": "ICT-FaceKit light",
+            "n_identity": int(basis.ident.shape[-1]),
+            "n_expression": int(basis.expr.shape[-1]),
+            "correspondence": corr.meta,
+        },
         fit={k: getattr(cfg.fit, k) for k in cfg.fit.__dataclass_fields__},
         smoothing={"filter": "gaussian", "sigma_frames": cfg.smooth_sigma},
         keyframes=np.flatnonzero(found)[key].tolist(),
-        identity_from=("first-chunk keyframes (within tolerance of the whole-clip identity)" if reused
-                       else "keyframes over the whole clip"),
+        identity_from=(
+            "first-chunk keyframes (within tolerance of the whole-clip identity)"
+            if reused
+            else "keyframes over the whole clip"
+        ),
         anima_version=__version__,
     )
-    return TrackedSequence(fps=fps, width=width, height=height, identity=identity, expression=expr,
-                           rotation=matrix_to_rotvec(R), scale=s, translation=t, fit_error_px=err, fit_nme=nme,
-                           flags=flags, landmarks=lm.astype(np.float32), expr_names=list(model.expr_names),
-                           meta=meta)
+    return TrackedSequence(
+        fps=fps,
+        width=width,
+        height=height,
+        identity=identity,
+        expression=expr,
+        rotation=matrix_to_rotvec(R),
+        scale=s,
+        translation=t,
+        fit_error_px=err,
+        fit_nme=nme,
+        flags=flags,
+        landmarks=lm.astype(np.float32),
+        expr_names=list(model.expr_names),
+        meta=meta,
+    )
 
 
 def _mp_version() -> str:
@@ -260,15 +298,22 @@ def _mp_version() -> str:
     return getattr(mediapipe, "__version__", "?")
 
 
-def track_holistic(info: VideoInfo, max_frames: int | None = None, progress: bool = True,
-                   warnings_out: list[str] | None = None, on_face=None):
+def track_holistic(
+    info: VideoInfo,
+    max_frames: int | None = None,
+    progress: bool = True,
+    warnings_out: list[str] | None = None,
+    on_face=None,
+):
     """Run MediaPipe Holistic over the video. Returns (face landmarks ``[F, 478, 3]`` NaN where no face,
     list of :class:`HolisticFrame`)."""
     total = info.n_frames if max_frames is None else min(info.n_frames, max_frames)
     lms, frames = [], []
     errs: list[str] = []
-    with HolisticTracker() as tracker, \
-            tqdm(total=total, desc="track", unit="fr", disable=not progress, leave=False) as bar:
+    with (
+        HolisticTracker() as tracker,
+        tqdm(total=total, desc="track", unit="fr", disable=not progress, leave=False) as bar,
+    ):
         for i, image in enumerate(iter_frames(info, errors=errs)):
             if max_frames is not None and i >= max_frames:
                 break
@@ -289,11 +334,22 @@ def empty_face_sequence(n: int, width: int, height: int, fps: float, meta: dict)
     """A sequence with no face in any frame (body and speech may still be present)."""
     model = load_face_model()
     nan = np.full(n, np.nan)
-    return TrackedSequence(fps=fps, width=width, height=height, identity=np.zeros(model.id_deltas.shape[0]),
-                           expression=np.zeros((n, model.expr_deltas.shape[0])), rotation=np.zeros((n, 3)),
-                           scale=np.ones(n), translation=np.zeros((n, 3)), fit_error_px=nan, fit_nme=nan.copy(),
-                           flags=np.full(n, FLAG_NO_FACE, np.uint8), landmarks=np.full((n, 478, 3), np.nan, np.float32),
-                           expr_names=list(model.expr_names), meta=meta)
+    return TrackedSequence(
+        fps=fps,
+        width=width,
+        height=height,
+        identity=np.zeros(model.id_deltas.shape[0]),
+        expression=np.zeros((n, model.expr_deltas.shape[0])),
+        rotation=np.zeros((n, 3)),
+        scale=np.ones(n),
+        translation=np.zeros((n, 3)),
+        fit_error_px=nan,
+        fit_nme=nan.copy(),
+        flags=np.full(n, FLAG_NO_FACE, np.uint8),
+        landmarks=np.full((n, 478, 3), np.nan, np.float32),
+        expr_names=list(model.expr_names),
+        meta=meta,
+    )
 
 
 def attach_speech(seq: TrackedSequence, audio_path: str) -> None:
@@ -308,10 +364,15 @@ def attach_speech(seq: TrackedSequence, audio_path: str) -> None:
         return
     f = speech_features(x, seq.fps, seq.n_frames)
     seq.speech, seq.speech_valid = f.features, f.valid
-    seq.meta["audio"] = {"present": True, "path": str(audio_path), "duration_s": round(f.duration_s, 3),
-                         "silent": f.silent, "gain_db": round(f.gain_db, 2),
-                         "frames_outside_audio": int((~f.valid).sum()),
-                         "features": "13 MFCC + log mean energy + first derivatives (anima.audio.features)"}
+    seq.meta["audio"] = {
+        "present": True,
+        "path": str(audio_path),
+        "duration_s": round(f.duration_s, 3),
+        "silent": f.silent,
+        "gain_db": round(f.gain_db, 2),
+        "frames_outside_audio": int((~f.valid).sum()),
+        "features": "13 MFCC + log mean energy + first derivatives (anima.audio.features)",
+    }
 
 
 def _lift_body(body, frames, width: int, height: int, checkpoint: str | None) -> str:
@@ -330,8 +391,13 @@ def _lift_body(body, frames, width: int, height: int, checkpoint: str | None) ->
     return f"anima pose lifter {path.name} sha1:{hashlib.sha1(path.read_bytes()).hexdigest()[:12]}"
 
 
-def capture_video(video: str, cfg: CaptureConfig | None = None, audio: str | None = None, progress: bool = True,
-                  timings: Timings | None = None) -> TrackedSequence:
+def capture_video(
+    video: str,
+    cfg: CaptureConfig | None = None,
+    audio: str | None = None,
+    progress: bool = True,
+    timings: Timings | None = None,
+) -> TrackedSequence:
     """One pass over ``video``: face (ICT fit), body and hands (55 joints, cleaned), speech features.
     ``cfg.face_only`` keeps the fast face-mesh path. ``audio``: a separate audio file (default: the
     video's own track). Raises InputError when neither a face nor a body is found."""
@@ -371,10 +437,19 @@ def capture_video(video: str, cfg: CaptureConfig | None = None, audio: str | Non
         seq.body_joints, seq.body_joints_raw = cleaned.joints, body.joints
         seq.body_conf, seq.body_interpolated = cleaned.conf, cleaned.interpolated
         seq.body_image = body.image
-        seq.meta["skeleton"] = {"joints": JOINT_NAMES, "parents": PARENTS.tolist(), "units": "m",
-                                "origin": "pelvis", "tracker": tracker,
-                                "cleaning": {"min_conf": cfg.body_min_conf, "max_gap": cfg.max_gap,
-                                             "sigma": cfg.body_sigma, "fixed_bones": cfg.fixed_bones}}
+        seq.meta["skeleton"] = {
+            "joints": JOINT_NAMES,
+            "parents": PARENTS.tolist(),
+            "units": "m",
+            "origin": "pelvis",
+            "tracker": tracker,
+            "cleaning": {
+                "min_conf": cfg.body_min_conf,
+                "max_gap": cfg.max_gap,
+                "sigma": cfg.body_sigma,
+                "fixed_bones": cfg.fixed_bones,
+            },
+        }
         if timings is not None:
             timings.decode_track_s += t1 - t0
             timings.fit_s += time.perf_counter() - t1
@@ -383,8 +458,9 @@ def capture_video(video: str, cfg: CaptureConfig | None = None, audio: str | Non
     return seq
 
 
-def capture_face(video: str, cfg: CaptureConfig | None = None, progress: bool = True,
-                 timings: Timings | None = None) -> TrackedSequence:
+def capture_face(
+    video: str, cfg: CaptureConfig | None = None, progress: bool = True, timings: Timings | None = None
+) -> TrackedSequence:
     """Track and fit a face in ``video``. Raises InputError for unreadable video or no face at all."""
     cfg = cfg or CaptureConfig()
     info = probe_video(video)
@@ -401,8 +477,15 @@ def capture_face(video: str, cfg: CaptureConfig | None = None, progress: bool = 
         raise InputError(f"no face found in {video} ({len(lm)} frames checked)")
     if info.n_frames and len(lm) < min(info.n_frames, cfg.max_frames or info.n_frames) - 1:
         warns.append(f"only {len(lm)} of {info.n_frames} frames decoded (truncated file?)")
-    seq = fit_landmark_sequence(lm, info.width, info.height, info.fps, cfg,
-                                meta={"source": {**info.as_dict(), "warnings": warns}}, prefit=prefit)
+    seq = fit_landmark_sequence(
+        lm,
+        info.width,
+        info.height,
+        info.fps,
+        cfg,
+        meta={"source": {**info.as_dict(), "warnings": warns}},
+        prefit=prefit,
+    )
     if timings is not None:
         timings.decode_track_s += t1 - t0
         timings.fit_s += time.perf_counter() - t1

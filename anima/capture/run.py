@@ -1,5 +1,6 @@
 """``anima capture``: a video -> a result folder (the tracked sequence and everything people look at and use),
 through the one motion writer (:func:`anima.export.motion.write_motion_outputs`)."""
+
 from __future__ import annotations
 
 import time
@@ -18,11 +19,19 @@ def check_capture_inputs(cfg: CaptureConfig) -> None:
         raise InputError("--body-3d lifter needs the body: drop --face-only")
     if cfg.body_3d == "lifter":
         from anima.pose3d.train import load_checkpoint  # lazy: torch
+
         load_checkpoint(Path(cfg.pose_model) if cfg.pose_model else default_checkpoint())
 
 
-def capture_to_folder(video: str, out: str | Path, cfg: CaptureConfig | None = None, audio: str | None = None,
-                      render: bool = True, progress: bool = True, command: str | None = None) -> dict:
+def capture_to_folder(
+    video: str,
+    out: str | Path,
+    cfg: CaptureConfig | None = None,
+    audio: str | None = None,
+    render: bool = True,
+    progress: bool = True,
+    command: str | None = None,
+) -> dict:
     """Capture ``video`` into ``out``; returns the sequence summary with the capture speed, the total time,
     the files written and the warnings."""
     cfg = cfg or CaptureConfig()
@@ -35,6 +44,7 @@ def capture_to_folder(video: str, out: str | Path, cfg: CaptureConfig | None = N
         s["capture_fps"] = round(tm.frames / max(tm.decode_track_s + tm.fit_s, 1e-9), 1)
         s["warnings"] = seq.meta.get("source", {}).get("warnings", [])
         od.info = s
-        files = write_motion_outputs(seq, od, "capture.npz", source_video=video, audio=audio, render=render,
-                                     info=s, progress=progress)
+        files = write_motion_outputs(
+            seq, od, "capture.npz", source_video=video, audio=audio, render=render, info=s, progress=progress
+        )
     return s | {"total_s": round(time.perf_counter() - t0, 2), "outputs": [str(p) for p in files.values()]}

@@ -1,4 +1,5 @@
 """``anima audio features``."""
+
 from __future__ import annotations
 
 from anima.audio.features import write_speech_features
@@ -8,14 +9,20 @@ from anima.cli.options import number, positive_int
 
 def register(sub) -> None:
     asub = group(sub, "audio", "speech features aligned to motion frames", "audio_command", "TOOL")
-    af = asub.add_parser("features", help="13 MFCC + log energy and their derivatives (28) per motion frame",
-                         description="Read the audio of FILE (WAV/MP3/FLAC or a video), normalise loudness, and "
-                         "compute 28 speech features per motion frame, centred on the frame times i/fps.")
+    af = asub.add_parser(
+        "features",
+        help="13 MFCC + log energy and their derivatives (28) per motion frame",
+        description="Read the audio of FILE (WAV/MP3/FLAC or a video), normalise loudness, and "
+        "compute 28 speech features per motion frame, centred on the frame times i/fps.",
+    )
     af.add_argument("file")
-    af.add_argument("--fps", type=number(float, 1.0, 240.0), default=30.0,
-                    help="motion frame rate, 1-240 (default 30)")
-    af.add_argument("--frames", type=positive_int, default=None,
-                    help="number of motion frames (default: the audio's length; at most 2 x the audio's length)")
+    af.add_argument("--fps", type=number(float, 1.0, 240.0), default=30.0, help="motion frame rate, 1-240 (default 30)")
+    af.add_argument(
+        "--frames",
+        type=positive_int,
+        default=None,
+        help="number of motion frames (default: the audio's length; at most 2 x the audio's length)",
+    )
     af.add_argument("--out", default=None, help="output .npz (default: FILE.speech.npz)")
     af.add_argument("--json", action="store_true")
     af.set_defaults(func=cmd_features)

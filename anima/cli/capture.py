@@ -1,4 +1,5 @@
 """``anima capture``, ``anima info``, ``anima export``."""
+
 from __future__ import annotations
 
 from anima.capture.pipeline import CaptureConfig
@@ -12,39 +13,55 @@ CAPTURE_OPTIONS = ["max_frames", "smooth_sigma", "face_only", "max_gap", "fixed_
 
 
 def register(sub) -> None:
-    c = sub.add_parser("capture", help="track a 3D face, body and hands (and speech) in a video",
-                       description="Track face, body and hands in VIDEO with MediaPipe Holistic (or the face "
-                       "only with --face-only), fit the ICT face model (identity per clip; pose, camera and 53 "
-                       "expressions per frame), build the cleaned 55-joint upper-body+hands skeleton, compute "
-                       "speech features from the audio, and write into --out: capture.npz (tracked sequence), "
-                       "arkit.csv (Live Link Face), face.glb (morph-target animation), body.bvh, overlay.mp4, "
-                       "mesh.mp4, skeleton videos, info.json and manifest.json (written last).")
+    c = sub.add_parser(
+        "capture",
+        help="track a 3D face, body and hands (and speech) in a video",
+        description="Track face, body and hands in VIDEO with MediaPipe Holistic (or the face "
+        "only with --face-only), fit the ICT face model (identity per clip; pose, camera and 53 "
+        "expressions per frame), build the cleaned 55-joint upper-body+hands skeleton, compute "
+        "speech features from the audio, and write into --out: capture.npz (tracked sequence), "
+        "arkit.csv (Live Link Face), face.glb (morph-target animation), body.bvh, overlay.mp4, "
+        "mesh.mp4, skeleton videos, info.json and manifest.json (written last).",
+    )
     c.add_argument("video", help="input video (mp4/mov/mkv/webm; H.264, HEVC, VP9...)")
     c.add_argument("--out", required=True, help="output folder (created; checked before any work)")
     add_options(c, CaptureConfig, CAPTURE_OPTIONS)
     c.add_argument("--no-smooth", action="store_true", help="disable temporal smoothing (--sigma 0)")
     c.add_argument("--no-render", action="store_true", help="skip the videos")
-    c.add_argument("--audio", default=None, help="separate WAV/MP3/FLAC for the speech features "
-                   "(default: the video's own audio track)")
+    c.add_argument(
+        "--audio",
+        default=None,
+        help="separate WAV/MP3/FLAC for the speech features (default: the video's own audio track)",
+    )
     add_json_quiet(c)
     c.set_defaults(func=cmd_capture)
 
-    i = sub.add_parser("info", help="summarise a tracked-sequence file",
-                       description="Frames, fps, tracked fraction, mean fit error (px and NME), body and hands "
-                       "tracked, speech of FILE (capture.npz, motion.npz, gesture.npz).")
+    i = sub.add_parser(
+        "info",
+        help="summarise a tracked-sequence file",
+        description="Frames, fps, tracked fraction, mean fit error (px and NME), body and hands "
+        "tracked, speech of FILE (capture.npz, motion.npz, gesture.npz).",
+    )
     i.add_argument("file")
     i.add_argument("--json", action="store_true", help="print JSON")
     i.set_defaults(func=cmd_info)
 
-    x = sub.add_parser("export", help="export a tracked sequence (ARKit CSV, GLB or BVH)",
-                       description="Export FILE (capture.npz, motion.npz or gesture.npz) as a Live Link Face "
-                       "CSV, a GLB with morph targets, or a BVH of the upper body and hands (fixed bone lengths; "
-                       "rest pose documented in anima/io/bvh.py).")
+    x = sub.add_parser(
+        "export",
+        help="export a tracked sequence (ARKit CSV, GLB or BVH)",
+        description="Export FILE (capture.npz, motion.npz or gesture.npz) as a Live Link Face "
+        "CSV, a GLB with morph targets, or a BVH of the upper body and hands (fixed bone lengths; "
+        "rest pose documented in anima/io/bvh.py).",
+    )
     x.add_argument("format", choices=FORMATS)
     x.add_argument("file")
     x.add_argument("--out", required=True)
-    x.add_argument("--fps", type=number(float, 1.0, 240.0), default=None,
-                   help="BVH only: resample to this rate (1-240), e.g. 15 for gesture work")
+    x.add_argument(
+        "--fps",
+        type=number(float, 1.0, 240.0),
+        default=None,
+        help="BVH only: resample to this rate (1-240), e.g. 15 for gesture work",
+    )
     x.set_defaults(func=cmd_export)
 
 
@@ -52,8 +69,9 @@ def cmd_capture(a) -> int:
     cfg = config_from_args(CaptureConfig, a, CAPTURE_OPTIONS)
     if a.no_smooth:
         cfg.smooth_sigma = 0.0
-    s = capture_to_folder(a.video, a.out, cfg, audio=a.audio, render=not a.no_render, progress=not a.quiet,
-                          command=command_line(a))
+    s = capture_to_folder(
+        a.video, a.out, cfg, audio=a.audio, render=not a.no_render, progress=not a.quiet, command=command_line(a)
+    )
     return emit(s, a.json, summary_table)
 
 
@@ -68,22 +86,35 @@ def cmd_export(a) -> int:
 
 def summary_table(s: dict) -> str:
     """A tracked sequence's summary (and a capture run's speed, files, warnings) as aligned text."""
-    rows = [("frames", f"{s['frames']} @ {s['fps']:g} fps ({s['duration_s']} s)"),
-            ("size", "x".join(map(str, s["size"]))),
-            ("face tracked", f"{100 * s['tracked_fraction']:.1f} %"),
-            ("low-confidence frames", str(s["low_confidence_frames"])),
-            ("mean fit error", f"{s['mean_fit_error_px']} px  (NME {100 * (s['mean_fit_nme'] or 0):.2f} %)"
-             if s["mean_fit_error_px"] is not None else "-")]
+    rows = [
+        ("frames", f"{s['frames']} @ {s['fps']:g} fps ({s['duration_s']} s)"),
+        ("size", "x".join(map(str, s["size"]))),
+        ("face tracked", f"{100 * s['tracked_fraction']:.1f} %"),
+        ("low-confidence frames", str(s["low_confidence_frames"])),
+        (
+            "mean fit error",
+            f"{s['mean_fit_error_px']} px  (NME {100 * (s['mean_fit_nme'] or 0):.2f} %)"
+            if s["mean_fit_error_px"] is not None
+            else "-",
+        ),
+    ]
     if s.get("body_tracked_fraction") is not None:
-        rows += [("body tracked", f"{100 * s['body_tracked_fraction']:.1f} %"),
-                 ("hands tracked (L / R)", f"{100 * s['left_hand_tracked_fraction']:.1f} % / "
-                                           f"{100 * s['right_hand_tracked_fraction']:.1f} %  (after interpolation "
-                                           f"{100 * s['left_hand_after_interpolation']:.1f} / "
-                                           f"{100 * s['right_hand_after_interpolation']:.1f})")]
+        rows += [
+            ("body tracked", f"{100 * s['body_tracked_fraction']:.1f} %"),
+            (
+                "hands tracked (L / R)",
+                f"{100 * s['left_hand_tracked_fraction']:.1f} % / "
+                f"{100 * s['right_hand_tracked_fraction']:.1f} %  (after interpolation "
+                f"{100 * s['left_hand_after_interpolation']:.1f} / "
+                f"{100 * s['right_hand_after_interpolation']:.1f})",
+            ),
+        ]
     rows.append(("speech features", _speech_line(s.get("speech"))))
     if "capture_fps" in s:
-        rows += [("capture speed", f"{s['capture_fps']} frames/s (decode+track+fit)"),
-                 ("total time", f"{s.get('total_s', '-')} s")]
+        rows += [
+            ("capture speed", f"{s['capture_fps']} frames/s (decode+track+fit)"),
+            ("total time", f"{s.get('total_s', '-')} s"),
+        ]
     w = max(len(k) for k, _ in rows)
     lines = [f"  {k:<{w}}  {v}" for k, v in rows]
     lines += [f"  wrote {p}" for p in s.get("outputs", [])]

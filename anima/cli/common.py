@@ -1,4 +1,5 @@
 """What every command group shares: printing results, the recorded command line, group parsers."""
+
 from __future__ import annotations
 
 import argparse

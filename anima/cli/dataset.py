@@ -1,4 +1,5 @@
 """``anima dataset build``, ``anima dataset report``."""
+
 from __future__ import annotations
 
 from anima.cli.common import command_line, emit, group, notes
@@ -12,13 +13,17 @@ BUILD_OPTIONS = ["n_descriptions", "seed", "max_frames"]
 
 
 def register(sub) -> None:
-    dsub = group(sub, "dataset", "build and report (text, motion) and (audio, motion) datasets", "dataset_command",
-                 "TOOL")
-    db = dsub.add_parser("build", help="capture, filter, annotate and store videos as training pairs (Ray)",
-                         description="One Ray task per video (local Ray by default, --address for a cluster): "
-                         "capture, filter (length, action keywords, head yaw, fit error, confidence), annotate "
-                         "(imported or automatic), describe, and write Parquet shards. Resumable: rerun the same "
-                         "command after an interruption and finished videos are skipped.")
+    dsub = group(
+        sub, "dataset", "build and report (text, motion) and (audio, motion) datasets", "dataset_command", "TOOL"
+    )
+    db = dsub.add_parser(
+        "build",
+        help="capture, filter, annotate and store videos as training pairs (Ray)",
+        description="One Ray task per video (local Ray by default, --address for a cluster): "
+        "capture, filter (length, action keywords, head yaw, fit error, confidence), annotate "
+        "(imported or automatic), describe, and write Parquet shards. Resumable: rerun the same "
+        "command after an interruption and finished videos are skipped.",
+    )
     db.add_argument("videos", nargs="+", help="video files, folders (searched recursively) or glob patterns")
     db.add_argument("--out", required=True, help="dataset folder")
     db.add_argument("--annotations", default=None, help="CelebV-Text style JSON (see anima/dataset/annotations.py)")
@@ -29,9 +34,12 @@ def register(sub) -> None:
     db.add_argument("--json", action="store_true")
     db.add_argument("--quiet", action="store_true")
     db.set_defaults(func=cmd_build)
-    dr = dsub.add_parser("report", help="markdown/HTML report with plots and contact sheets",
-                         description="Write DATASET/report/report.md and report.html: clips removed per rule, "
-                         "attribute distribution, clip lengths, example descriptions, contact sheets.")
+    dr = dsub.add_parser(
+        "report",
+        help="markdown/HTML report with plots and contact sheets",
+        description="Write DATASET/report/report.md and report.html: clips removed per rule, "
+        "attribute distribution, clip lengths, example descriptions, contact sheets.",
+    )
     dr.add_argument("dataset")
     dr.add_argument("--sheets", type=number(int, 0, 100), default=3, help="contact sheets to draw (0-100)")
     dr.set_defaults(func=cmd_report)
@@ -39,8 +47,16 @@ def register(sub) -> None:
 
 def cmd_build(a) -> int:
     cfg = config_from_args(BuildConfig, a, BUILD_OPTIONS, filters=config_from_args(FilterConfig, a, FILTER_OPTIONS))
-    m = build_dataset(a.videos, a.out, cfg, annotations=a.annotations, address=a.address, num_workers=a.workers,
-                      progress=not a.quiet, command=command_line(a))
+    m = build_dataset(
+        a.videos,
+        a.out,
+        cfg,
+        annotations=a.annotations,
+        address=a.address,
+        num_workers=a.workers,
+        progress=not a.quiet,
+        command=command_line(a),
+    )
     emit(build_summary(m), a.json)
     notes([f"failed: {e['source']}: {e['error']}" for e in m["videos_failed"]], "warning")
     return 0

@@ -1,4 +1,5 @@
 """``anima text2face`` (a sentence -> facial motion) and ``anima gesture`` (speech -> gestures)."""
+
 from __future__ import annotations
 
 from anima.cli.common import command_line, emit, notes
@@ -11,11 +12,14 @@ GESTURE_OPTIONS = ["k", "init", "seed", "all_splits", "control", "keyword", "key
 
 
 def register(sub) -> None:
-    tf = sub.add_parser("text2face", help="generate facial motion from a sentence",
-                        description="Seed 000: a sentence -> 3D facial motion (ICT expression weights + head "
-                        "rotation, 30 fps). Writes into --out: motion.npz (a tracked sequence: `anima info`, "
-                        "`anima export`), face.mp4, arkit.csv (Live Link Face), face.glb, info.json and "
-                        "manifest.json. Uses the shipped checkpoint unless --checkpoint is given.")
+    tf = sub.add_parser(
+        "text2face",
+        help="generate facial motion from a sentence",
+        description="Seed 000: a sentence -> 3D facial motion (ICT expression weights + head "
+        "rotation, 30 fps). Writes into --out: motion.npz (a tracked sequence: `anima info`, "
+        "`anima export`), face.mp4, arkit.csv (Live Link Face), face.glb, info.json and "
+        "manifest.json. Uses the shipped checkpoint unless --checkpoint is given.",
+    )
     tf.add_argument("prompt", help='e.g. "a woman smiles, then blinks"')
     tf.add_argument("--out", required=True, help="output folder")
     add_options(tf, PromptConfig, PROMPT_OPTIONS)
@@ -24,19 +28,24 @@ def register(sub) -> None:
     tf.add_argument("--json", action="store_true")
     tf.set_defaults(func=cmd_text2face)
 
-    ge = sub.add_parser("gesture", help="speech to 3D upper-body + hand gestures (controllable k-NN search)",
-                        description="Seed 004 Algorithm 1: every 8 frames (15 fps), the database windows of the "
-                        "dataset's (audio, motion) pairs are pre-selected by pose continuity and ranked by audio "
-                        "(cosine) + pose rank; the k-th best continues the motion. Controls restrict the search "
-                        "without retraining, in time ranges. With --generator, the §4.4 generator instead (it also "
-                        "gives the face). Writes into --out: gesture.npz (a tracked sequence), body.bvh, "
-                        "skeleton3d.mp4 (with the speech), with the generator also arkit.csv, face.glb, face.mp4; "
-                        "info.json and manifest.json.")
+    ge = sub.add_parser(
+        "gesture",
+        help="speech to 3D upper-body + hand gestures (controllable k-NN search)",
+        description="Seed 004 Algorithm 1: every 8 frames (15 fps), the database windows of the "
+        "dataset's (audio, motion) pairs are pre-selected by pose continuity and ranked by audio "
+        "(cosine) + pose rank; the k-th best continues the motion. Controls restrict the search "
+        "without retraining, in time ranges. With --generator, the §4.4 generator instead (it also "
+        "gives the face). Writes into --out: gesture.npz (a tracked sequence), body.bvh, "
+        "skeleton3d.mp4 (with the speech), with the generator also arkit.csv, face.glb, face.mp4; "
+        "info.json and manifest.json.",
+    )
     ge.add_argument("speech", help="speech audio (WAV/MP3/FLAC or a video's audio; resampled to 16 kHz)")
     ge.add_argument("--db", default=None, help="dataset folder from `anima dataset build` (k-NN search)")
-    ge.add_argument("--generator", default=None,
-                    help="instead of the search: a §4.4 generator checkpoint from `anima train gesture --model "
-                    "generator`")
+    ge.add_argument(
+        "--generator",
+        default=None,
+        help="instead of the search: a §4.4 generator checkpoint from `anima train gesture --model generator`",
+    )
     ge.add_argument("--out", required=True)
     add_options(ge, GestureConfig, GESTURE_OPTIONS)
     ge.add_argument("--refiner", default=None, help="cGAN refiner checkpoint from `anima train gesture`")
@@ -47,16 +56,32 @@ def register(sub) -> None:
 
 def cmd_text2face(a) -> int:
     from anima.text2face.generate import text_to_folder  # lazy: torch
-    info = text_to_folder(a.prompt, a.out, config_from_args(PromptConfig, a, PROMPT_OPTIONS), a.checkpoint,
-                          video=not a.no_video, progress=not a.json, command=command_line(a))
+
+    info = text_to_folder(
+        a.prompt,
+        a.out,
+        config_from_args(PromptConfig, a, PROMPT_OPTIONS),
+        a.checkpoint,
+        video=not a.no_video,
+        progress=not a.json,
+        command=command_line(a),
+    )
     notes(info["warnings"], "warning")
-    return emit(info, a.json, lambda i: f"{i['frames']} frames in {i['sampling_s']:.2f} s; wrote "
-                                        + ", ".join(i["written"]))
+    return emit(
+        info, a.json, lambda i: f"{i['frames']} frames in {i['sampling_s']:.2f} s; wrote " + ", ".join(i["written"])
+    )
 
 
 def cmd_gesture(a) -> int:
-    info = gesture_to_folder(a.speech, a.out, config_from_args(GestureConfig, a, GESTURE_OPTIONS), db=a.db,
-                             generator=a.generator, refiner=a.refiner, render=not a.no_render,
-                             command=command_line(a))
+    info = gesture_to_folder(
+        a.speech,
+        a.out,
+        config_from_args(GestureConfig, a, GESTURE_OPTIONS),
+        db=a.db,
+        generator=a.generator,
+        refiner=a.refiner,
+        render=not a.no_render,
+        command=command_line(a),
+    )
     notes(info["notes"])
     return emit(info, a.json, lambda i: "wrote " + ", ".join(i["written"]))

@@ -2,6 +2,7 @@
 its own module (``anima/cli/<group>.py``) with a ``register(subparsers)``, and each handler calls one library
 function. Every command has ``--help``; errors print one line on stderr with exit code 2 (bad input),
 3 (missing asset) or 4 (incompatible or unsafe file); ``--debug`` shows the traceback."""
+
 from __future__ import annotations
 
 import argparse
@@ -44,8 +45,7 @@ def _silence_native_stderr() -> None:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, 2)
         os.close(devnull)
-        sys.stderr = os.fdopen(real, "w", buffering=1, encoding=sys.stderr.encoding or "utf-8",
-                               errors="replace")
+        sys.stderr = os.fdopen(real, "w", buffering=1, encoding=sys.stderr.encoding or "utf-8", errors="replace")
     except (OSError, ValueError, AttributeError):
         pass
 
@@ -78,8 +78,10 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as e:
         if a.debug:
             raise
-        print(f"anima: internal error: {type(e).__name__}: {_one_line(e)} (rerun with --debug for details)",
-              file=sys.stderr)
+        print(
+            f"anima: internal error: {type(e).__name__}: {_one_line(e)} (rerun with --debug for details)",
+            file=sys.stderr,
+        )
         return 1
 
 

@@ -13,6 +13,7 @@ A ``bool`` field that defaults to False is a switch (``--face-only``); one that 
 ``--no-...`` switch (or the ``flag`` given). :func:`config_from_args` builds the config back from the parsed
 options, so the command and the Python API share defaults.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,8 +39,13 @@ def field_docs(cls) -> dict[str, str]:
             continue
         body = tree.body[0].body
         for node, nxt in zip(body, body[1:] + [None]):
-            if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and isinstance(nxt, ast.Expr) \
-                    and isinstance(nxt.value, ast.Constant) and isinstance(nxt.value.value, str):
+            if (
+                isinstance(node, ast.AnnAssign)
+                and isinstance(node.target, ast.Name)
+                and isinstance(nxt, ast.Expr)
+                and isinstance(nxt.value, ast.Constant)
+                and isinstance(nxt.value.value, str)
+            ):
                 text = re.sub(r":(?:mod|func|class|meth|data):`([^`]*)`", r"\1", nxt.value.value)
                 docs[node.target.id] = " ".join(text.replace("``", "").split())
     return docs
@@ -47,6 +53,7 @@ def field_docs(cls) -> dict[str, str]:
 
 def number(kind, low=None, high=None):
     """An argparse type: a finite ``kind`` (int or float) within ``[low, high]``."""
+
     def parse(text: str):
         try:
             v = kind(text)
@@ -59,6 +66,7 @@ def number(kind, low=None, high=None):
             hi = "inf" if high is None else high
             raise argparse.ArgumentTypeError(f"{text} is outside [{lo}, {hi}]")
         return v
+
     parse.__name__ = kind.__name__
     return parse
 

@@ -1,4 +1,5 @@
 """``anima reenact``."""
+
 from __future__ import annotations
 
 from anima.cli.common import emit, notes
@@ -10,37 +11,53 @@ REENACT_OPTIONS = ["n", "a", "smooth", "map_expressions"]
 
 
 def register(sub) -> None:
-    re_ = sub.add_parser("reenact", help="put an actor's lower-face expression on a target person's video",
-                         description="Seed 001: fit the ICT face model to actor and target, build a database of "
-                         "the target's lower-face vertex colours per frame, and for every actor frame synthesise "
-                         "the texture as the weighted median of the n most similar target frames, render the "
-                         "target's face with the actor's expression and blend it in (Laplacian pyramid). The "
-                         "actor's audio is muxed in. --live reads a camera index, a stream URL or a file (paced "
-                         "at its frame rate), dropping frames rather than falling behind.")
+    re_ = sub.add_parser(
+        "reenact",
+        help="put an actor's lower-face expression on a target person's video",
+        description="Seed 001: fit the ICT face model to actor and target, build a database of "
+        "the target's lower-face vertex colours per frame, and for every actor frame synthesise "
+        "the texture as the weighted median of the n most similar target frames, render the "
+        "target's face with the actor's expression and blend it in (Laplacian pyramid). The "
+        "actor's audio is muxed in. --live reads a camera index, a stream URL or a file (paced "
+        "at its frame rate), dropping frames rather than falling behind.",
+    )
     re_.add_argument("--actor", help="actor video (its audio is used)")
     re_.add_argument("--live", default=None, metavar="SOURCE", help="camera index, stream URL or video file")
-    re_.add_argument("--target", nargs="+", required=True, help="target video(s) of one person; the first is "
-                     "the background")
+    re_.add_argument(
+        "--target", nargs="+", required=True, help="target video(s) of one person; the first is the background"
+    )
     re_.add_argument("--out", help="output MP4")
     re_.add_argument("--db", default=None, help="database file: read if it exists, else written after building")
     re_.add_argument("--side-by-side", action="store_true", help="actor | output")
     add_options(re_, ReenactConfig, REENACT_OPTIONS)
-    re_.add_argument("--max-seconds", type=number(float, 0.1, 86_400.0), default=None,
-                     help="--live: stop after this long")
+    re_.add_argument(
+        "--max-seconds", type=number(float, 0.1, 86_400.0), default=None, help="--live: stop after this long"
+    )
     re_.add_argument("--json", action="store_true")
     re_.add_argument("--quiet", action="store_true")
     re_.set_defaults(func=cmd_reenact)
 
 
 def cmd_reenact(a) -> int:
-    r = run_reenact(a.target, a.out, config_from_args(ReenactConfig, a, REENACT_OPTIONS), actor=a.actor,
-                    live=a.live, sbs=a.side_by_side, db_path=a.db, max_seconds=a.max_seconds, progress=not a.quiet)
+    r = run_reenact(
+        a.target,
+        a.out,
+        config_from_args(ReenactConfig, a, REENACT_OPTIONS),
+        actor=a.actor,
+        live=a.live,
+        sbs=a.side_by_side,
+        db_path=a.db,
+        max_seconds=a.max_seconds,
+        progress=not a.quiet,
+    )
     notes(r.get("notes"))
     return emit(r, a.json, _text)
 
 
 def _text(r: dict) -> str:
     if "frames_received" in r:
-        return (f"processed {r['frames_processed']} of {r['frames_received']} frames (median latency "
-                f"{r['latency_ms']['median']:.0f} ms)" + (f", wrote {r['output']}" if r["output"] else ""))
+        return (
+            f"processed {r['frames_processed']} of {r['frames_received']} frames (median latency "
+            f"{r['latency_ms']['median']:.0f} ms)" + (f", wrote {r['output']}" if r["output"] else "")
+        )
     return f"wrote {r['output']}"

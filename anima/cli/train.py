@@ -1,4 +1,5 @@
 """``anima train pose | text2face | gesture``."""
+
 from __future__ import annotations
 
 import json
@@ -17,12 +18,15 @@ GESTURE_MODELS = ("refiner", "generator", "regression", "lstm")
 
 def register(sub) -> None:
     trsub = group(sub, "train", "train models", "train_command", "MODEL")
-    tp = trsub.add_parser("pose", help="the weakly supervised 2D->3D body pose lifter (seed 004 ch. 3)",
-                          description="Train the lifter on Human3.6M S1,S5,S6,S7,S8 mocap projected through the real "
-                          "cameras (3D labels) and MediaPipe 2D detections on the in-the-wild videos of the data "
-                          "folder (2D labels only), with the losses of seed 004 eqs. 3.3-3.8. Resumable: rerun the "
-                          "same command after an interruption. Never trains on S9/S11. The checkpoint carries its "
-                          "config; Human3.6M terms forbid redistributing it.")
+    tp = trsub.add_parser(
+        "pose",
+        help="the weakly supervised 2D->3D body pose lifter (seed 004 ch. 3)",
+        description="Train the lifter on Human3.6M S1,S5,S6,S7,S8 mocap projected through the real "
+        "cameras (3D labels) and MediaPipe 2D detections on the in-the-wild videos of the data "
+        "folder (2D labels only), with the losses of seed 004 eqs. 3.3-3.8. Resumable: rerun the "
+        "same command after an interruption. Never trains on S9/S11. The checkpoint carries its "
+        "config; Human3.6M terms forbid redistributing it.",
+    )
     tp.add_argument("--out", default=None, help=f"checkpoint (default: {default_checkpoint()})")
     add_options(tp, PoseTrainConfig, POSE_OPTIONS)
     tp.add_argument("--width", type=number(int, 8, 8192), default=1024, help="f_3D width (seed: 1024)")
@@ -31,36 +35,50 @@ def register(sub) -> None:
     add_json_quiet(tp)
     tp.set_defaults(func=cmd_pose)
 
-    tt = trsub.add_parser("text2face", help="text -> facial motion: the seed 000 model or the MDM baseline",
-                          description="Train on the (text, motion) clips of a dataset from `anima dataset build`: "
-                          "random crops re-described by the timeline grammar, the vertex-offset loss through the ICT "
-                          "face model, teacher forcing (seed 000 ch. 6-7). Resumable: rerun the same command. "
-                          "The checkpoint carries its config and normalisation.")
+    tt = trsub.add_parser(
+        "text2face",
+        help="text -> facial motion: the seed 000 model or the MDM baseline",
+        description="Train on the (text, motion) clips of a dataset from `anima dataset build`: "
+        "random crops re-described by the timeline grammar, the vertex-offset loss through the ICT "
+        "face model, teacher forcing (seed 000 ch. 6-7). Resumable: rerun the same command. "
+        "The checkpoint carries its config and normalisation.",
+    )
     tt.add_argument("dataset", help="dataset folder")
     tt.add_argument("--out", default="runs/text2face", help="run folder (checkpoint.pt is written there)")
     add_options(tt, FaceTrainConfig, FACE_OPTIONS)
     tt.add_argument("--codebook", type=number(int, 2, 65_536), default=None, help="N_emb (codebook entries)")
     tt.add_argument("--emb-dim", type=number(int, 2, 8192), default=None, help="D_emb (codebook entry size)")
     tt.add_argument("--style", action="store_true", help="ablation: add a random style vector to the decoder input")
-    tt.add_argument("--ship", default=None, metavar="PATH",
-                    help="also write a compact (float16, no optimizer) copy and its manifest (command, data "
-                    "fingerprint, held-out metrics) to PATH")
+    tt.add_argument(
+        "--ship",
+        default=None,
+        metavar="PATH",
+        help="also write a compact (float16, no optimizer) copy and its manifest (command, data "
+        "fingerprint, held-out metrics) to PATH",
+    )
     add_json_quiet(tt)
     tt.set_defaults(func=cmd_text2face)
 
-    tg = trsub.add_parser("gesture", help="the cGAN refiner of k-NN gestures (§5.3.3) or the §4.4 generator",
-                          description="--model refiner (default): synthesises every training window's speech with "
-                          "the k-NN search over the other videos (k = 0..4), then trains a 1D U-Net generator "
-                          "against a WGAN-GP critic on (speech, gesture) pairs (5 critic steps per generator step, "
-                          "L1 to the k-NN output, parent-relative joints); use it with `anima gesture --refiner`. "
-                          "--model generator: the §4.4 speech-to-gesture U-Net (face, body and hand decoders) with "
-                          "its audio+pose discriminator; regression: the same without the adversarial term; lstm: "
-                          "the LSTM baseline. Use those with `anima gesture --generator`.")
+    tg = trsub.add_parser(
+        "gesture",
+        help="the cGAN refiner of k-NN gestures (§5.3.3) or the §4.4 generator",
+        description="--model refiner (default): synthesises every training window's speech with "
+        "the k-NN search over the other videos (k = 0..4), then trains a 1D U-Net generator "
+        "against a WGAN-GP critic on (speech, gesture) pairs (5 critic steps per generator step, "
+        "L1 to the k-NN output, parent-relative joints); use it with `anima gesture --refiner`. "
+        "--model generator: the §4.4 speech-to-gesture U-Net (face, body and hand decoders) with "
+        "its audio+pose discriminator; regression: the same without the adversarial term; lstm: "
+        "the LSTM baseline. Use those with `anima gesture --generator`.",
+    )
     tg.add_argument("--db", required=True, help="dataset folder from `anima dataset build`")
     tg.add_argument("--out", required=True, help="checkpoint path (.pt)")
     tg.add_argument("--model", default="refiner", choices=GESTURE_MODELS)
-    tg.add_argument("--steps", type=number(int, 1, 10_000_000), default=None,
-                    help="generator steps (default 600 refiner, 1000 others)")
+    tg.add_argument(
+        "--steps",
+        type=number(int, 1, 10_000_000),
+        default=None,
+        help="generator steps (default 600 refiner, 1000 others)",
+    )
     tg.add_argument("--seed", type=int, default=0)
     tg.add_argument("--all-splits", action="store_true", help="train on all splits (default: train only)")
     add_json_quiet(tg)
@@ -69,11 +87,13 @@ def register(sub) -> None:
 
 def cmd_pose(a) -> int:
     from anima.pose3d.train import summary_json, train  # lazy: torch
+
     base = PoseTrainConfig()
     cfg = config_from_args(PoseTrainConfig, a, POSE_OPTIONS, model={**base.model, "width": a.width})
     out = Path(a.out) if a.out else default_checkpoint()
-    _, info = train(cfg, out, Path(a.cache) if a.cache else default_cache(), progress=not a.quiet,
-                    resume=not a.no_resume)
+    _, info = train(
+        cfg, out, Path(a.cache) if a.cache else default_cache(), progress=not a.quiet, resume=not a.no_resume
+    )
     print(summary_json(info) if a.json else f"wrote {out} ({info['seconds']:.0f} s, {cfg.steps} steps)")
     return 0
 
@@ -82,12 +102,19 @@ def cmd_text2face(a) -> int:
     from anima.eval.text2face import quick_metrics  # lazy: torch
     from anima.text2face.ship import ship  # lazy: torch
     from anima.text2face.train import train  # lazy: torch
-    model = {k: v for k, v in (("N_emb", a.codebook), ("D_emb", a.emb_dim), ("style", a.style or None)) if v is not None}
+
+    model = {
+        k: v for k, v in (("N_emb", a.codebook), ("D_emb", a.emb_dim), ("style", a.style or None)) if v is not None
+    }
     cfg = config_from_args(FaceTrainConfig, a, FACE_OPTIONS, model=model)
     r = train(a.dataset, a.out, cfg, progress=not a.quiet, command=command_line(a))
     losses = r["info"]["losses"][-50:]
-    msg = {"checkpoint": str(r["path"]), "steps": cfg.steps, "wall_s": round(r["info"]["wall_s"], 1),
-           "final_loss": float(sum(losses) / max(1, len(losses)))}
+    msg = {
+        "checkpoint": str(r["path"]),
+        "steps": cfg.steps,
+        "wall_s": round(r["info"]["wall_s"], 1),
+        "final_loss": float(sum(losses) / max(1, len(losses))),
+    }
     if a.ship:
         msg["shipped"] = [str(p) for p in ship(r["path"], a.ship, lambda p: quick_metrics(a.dataset, p))]
     return emit(msg, a.json)
@@ -95,8 +122,10 @@ def cmd_text2face(a) -> int:
 
 def cmd_gesture(a) -> int:
     from anima.gesture.train import train_from_dataset  # lazy: torch
-    msg = train_from_dataset(a.db, a.out, a.model, a.steps, a.seed, a.all_splits, progress=not a.quiet,
-                             command=command_line(a))
-    return emit(msg, a.json, lambda m: "\n".join(f"{k}: {json.dumps(v) if isinstance(v, dict) else v}"
-                                                 for k, v in m.items()))
 
+    msg = train_from_dataset(
+        a.db, a.out, a.model, a.steps, a.seed, a.all_splits, progress=not a.quiet, command=command_line(a)
+    )
+    return emit(
+        msg, a.json, lambda m: "\n".join(f"{k}: {json.dumps(v) if isinstance(v, dict) else v}" for k, v in m.items())
+    )

@@ -3,6 +3,7 @@
 Convention: global rotation ``G_j`` maps a bone's rest-pose vector to the current one; local rotation
 ``L_j = G_parent^-1 G_j``; forward kinematics ``p_child = p_j + G_j @ offset_child``.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -63,8 +64,9 @@ def positions_to_rotations(P: np.ndarray, parents: np.ndarray, offsets: np.ndarr
     return G
 
 
-def forward_kinematics(G_local: np.ndarray, parents: np.ndarray, offsets: np.ndarray,
-                       root_pos: np.ndarray | None = None) -> np.ndarray:
+def forward_kinematics(
+    G_local: np.ndarray, parents: np.ndarray, offsets: np.ndarray, root_pos: np.ndarray | None = None
+) -> np.ndarray:
     """Positions ``[F, J, 3]`` from local rotations ``[F, J, 3, 3]``."""
     F, J = G_local.shape[:2]
     G = np.zeros_like(G_local)

@@ -5,6 +5,7 @@ X in pixels; the image point is ``(u, v) = (X[0], -X[1])``. So ``t[0]`` is the i
 origin and ``-t[1]`` its row; ``t[2]`` only orders depth. MediaPipe landmarks map into the same space by
 :func:`mediapipe_to_camera`.
 """
+
 from __future__ import annotations
 
 import numpy as np

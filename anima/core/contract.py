@@ -19,6 +19,7 @@ Speech frame (``anima.audio.features``): 13 MFCC + log mean energy (14), then th
 ``body [T, 165]`` (all NaN for a face-only window), ``face [T, 56]``.
 (text, motion) clip: ``[T, 56]`` at ``TEXT_FPS``.
 """
+
 from __future__ import annotations
 
 N_IDENTITY = 100

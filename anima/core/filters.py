@@ -5,6 +5,7 @@
 * :class:`OneEuroFilter` - causal, adaptive cutoff (Casiez et al. 2012) for live use, where future frames
   are not available: low cutoff when the signal is still (kills jitter), high when it moves (little lag).
 """
+
 from __future__ import annotations
 
 import numpy as np

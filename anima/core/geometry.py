@@ -1,4 +1,5 @@
 """Mesh geometry helpers on arrays: closest points on triangles and on meshes."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -66,7 +67,7 @@ def closest_points_on_mesh(points: np.ndarray, verts: np.ndarray, tris: np.ndarr
     best_bary = np.zeros((len(points), 3))
     best_d = np.full(len(points), np.inf)
     for q in range(len(points)):
-        cand = np.unique(np.concatenate([tri_of[start[v]:start[v + 1]] for v in near[q]]))
+        cand = np.unique(np.concatenate([tri_of[start[v] : start[v + 1]] for v in near[q]]))
         if len(cand) == 0:
             continue
         t = tris[cand]
@@ -74,4 +75,3 @@ def closest_points_on_mesh(points: np.ndarray, verts: np.ndarray, tris: np.ndarr
         i = int(np.argmin(d))
         best_ids[q], best_bary[q], best_d[q] = t[i], bary[i], d[i]
     return best_ids, best_bary, best_d
-

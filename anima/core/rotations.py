@@ -4,6 +4,7 @@ Convention: rotation vectors are axis * angle (radians); quaternions are (x, y, 
 matrices act on column vectors (``R @ v``). Euler angles (yaw, pitch, roll) compose as
 ``R = Ry(yaw) @ Rx(pitch) @ Rz(roll)`` (ARKit head-rotation order).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -53,17 +54,45 @@ def matrix_to_quat(R: np.ndarray) -> np.ndarray:
     q = np.zeros(R.shape[:-2] + (4,))
     # case w largest
     s = np.sqrt(np.maximum(1 + tr, 1e-12)) * 2
-    qw = np.stack([(R[..., 2, 1] - R[..., 1, 2]) / s, (R[..., 0, 2] - R[..., 2, 0]) / s,
-                   (R[..., 1, 0] - R[..., 0, 1]) / s, 0.25 * s], -1)
+    qw = np.stack(
+        [
+            (R[..., 2, 1] - R[..., 1, 2]) / s,
+            (R[..., 0, 2] - R[..., 2, 0]) / s,
+            (R[..., 1, 0] - R[..., 0, 1]) / s,
+            0.25 * s,
+        ],
+        -1,
+    )
     s = np.sqrt(np.maximum(1 + m00 - m11 - m22, 1e-12)) * 2
-    qx = np.stack([0.25 * s, (R[..., 0, 1] + R[..., 1, 0]) / s, (R[..., 0, 2] + R[..., 2, 0]) / s,
-                   (R[..., 2, 1] - R[..., 1, 2]) / s], -1)
+    qx = np.stack(
+        [
+            0.25 * s,
+            (R[..., 0, 1] + R[..., 1, 0]) / s,
+            (R[..., 0, 2] + R[..., 2, 0]) / s,
+            (R[..., 2, 1] - R[..., 1, 2]) / s,
+        ],
+        -1,
+    )
     s = np.sqrt(np.maximum(1 - m00 + m11 - m22, 1e-12)) * 2
-    qy = np.stack([(R[..., 0, 1] + R[..., 1, 0]) / s, 0.25 * s, (R[..., 1, 2] + R[..., 2, 1]) / s,
-                   (R[..., 0, 2] - R[..., 2, 0]) / s], -1)
+    qy = np.stack(
+        [
+            (R[..., 0, 1] + R[..., 1, 0]) / s,
+            0.25 * s,
+            (R[..., 1, 2] + R[..., 2, 1]) / s,
+            (R[..., 0, 2] - R[..., 2, 0]) / s,
+        ],
+        -1,
+    )
     s = np.sqrt(np.maximum(1 - m00 - m11 + m22, 1e-12)) * 2
-    qz = np.stack([(R[..., 0, 2] + R[..., 2, 0]) / s, (R[..., 1, 2] + R[..., 2, 1]) / s, 0.25 * s,
-                   (R[..., 1, 0] - R[..., 0, 1]) / s], -1)
+    qz = np.stack(
+        [
+            (R[..., 0, 2] + R[..., 2, 0]) / s,
+            (R[..., 1, 2] + R[..., 2, 1]) / s,
+            0.25 * s,
+            (R[..., 1, 0] - R[..., 0, 1]) / s,
+        ],
+        -1,
+    )
     for i, cand_q in enumerate((qw, qx, qy, qz)):
         q = np.where((which == i)[..., None], cand_q, q)
     return q / np.linalg.norm(q, axis=-1, keepdims=True)

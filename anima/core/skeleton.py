@@ -8,19 +8,51 @@ Hands (2 x 21, MediaPipe hand order): wrist, thumb_cmc/mcp/ip/tip, index_mcp/pip
 middle_..., ring_..., pinky_.... A hand's wrist joint is attached to the body's wrist (same position).
 "Left" is the subject's left.
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-BODY_JOINTS = ["pelvis", "left_hip", "right_hip", "spine", "neck", "head", "nose",
-               "left_shoulder", "left_elbow", "left_wrist", "right_shoulder", "right_elbow", "right_wrist"]
+BODY_JOINTS = [
+    "pelvis",
+    "left_hip",
+    "right_hip",
+    "spine",
+    "neck",
+    "head",
+    "nose",
+    "left_shoulder",
+    "left_elbow",
+    "left_wrist",
+    "right_shoulder",
+    "right_elbow",
+    "right_wrist",
+]
 BODY_PARENTS = [-1, 0, 0, 0, 3, 4, 5, 4, 7, 8, 4, 10, 11]
 
-HAND_JOINTS = ["wrist", "thumb_cmc", "thumb_mcp", "thumb_ip", "thumb_tip",
-               "index_mcp", "index_pip", "index_dip", "index_tip",
-               "middle_mcp", "middle_pip", "middle_dip", "middle_tip",
-               "ring_mcp", "ring_pip", "ring_dip", "ring_tip",
-               "pinky_mcp", "pinky_pip", "pinky_dip", "pinky_tip"]
+HAND_JOINTS = [
+    "wrist",
+    "thumb_cmc",
+    "thumb_mcp",
+    "thumb_ip",
+    "thumb_tip",
+    "index_mcp",
+    "index_pip",
+    "index_dip",
+    "index_tip",
+    "middle_mcp",
+    "middle_pip",
+    "middle_dip",
+    "middle_tip",
+    "ring_mcp",
+    "ring_pip",
+    "ring_dip",
+    "ring_tip",
+    "pinky_mcp",
+    "pinky_pip",
+    "pinky_dip",
+    "pinky_tip",
+]
 HAND_PARENTS = [-1, 0, 1, 2, 3, 0, 5, 6, 7, 0, 9, 10, 11, 0, 13, 14, 15, 0, 17, 18, 19]
 
 
@@ -42,9 +74,19 @@ RIGHT_HAND = slice(34, 55)
 BODY = slice(0, 13)
 
 # MediaPipe Pose (33 landmarks) indices used to build the body joints
-MP_POSE = {"nose": 0, "left_ear": 7, "right_ear": 8, "left_shoulder": 11, "right_shoulder": 12,
-           "left_elbow": 13, "right_elbow": 14, "left_wrist": 15, "right_wrist": 16,
-           "left_hip": 23, "right_hip": 24}
+MP_POSE = {
+    "nose": 0,
+    "left_ear": 7,
+    "right_ear": 8,
+    "left_shoulder": 11,
+    "right_shoulder": 12,
+    "left_elbow": 13,
+    "right_elbow": 14,
+    "left_wrist": 15,
+    "right_wrist": 16,
+    "left_hip": 23,
+    "right_hip": 24,
+}
 
 
 def bone_lengths(joints: np.ndarray) -> np.ndarray:

@@ -16,6 +16,7 @@ Accepted JSON (one file for many videos; unknown keys are ignored)::
 CelebV-Text's own per-clip lists ``[[name, start, end], ...]`` under "actions"/"emotions" are accepted too.
 :func:`load_annotations` validates and raises :class:`InputError` naming the first problem.
 """
+
 from __future__ import annotations
 
 import json
@@ -61,8 +62,9 @@ def load_annotations(path: str | Path, known_videos: list[str] | None = None) ->
     for stem, c in clips.items():
         if not isinstance(c, dict):
             raise InputError(f"{path}: clip {stem!r} must be an object")
-        ev = _events(c.get("actions", []), f"{path}: {stem}.actions") + \
-            _events(c.get("emotions", []), f"{path}: {stem}.emotions")
+        ev = _events(c.get("actions", []), f"{path}: {stem}.actions") + _events(
+            c.get("emotions", []), f"{path}: {stem}.emotions"
+        )
         g = c.get("gender")
         if g not in (None, "female", "male"):
             raise InputError(f"{path}: {stem}.gender must be 'female', 'male' or null")
@@ -70,6 +72,8 @@ def load_annotations(path: str | Path, known_videos: list[str] | None = None) ->
     if known_videos is not None:
         unknown = sorted(set(out) - set(known_videos))
         if unknown:
-            raise InputError(f"{path}: annotations name clips that are not among the videos: {unknown[:5]}"
-                             + (" ..." if len(unknown) > 5 else ""))
+            raise InputError(
+                f"{path}: annotations name clips that are not among the videos: {unknown[:5]}"
+                + (" ..." if len(unknown) > 5 else "")
+            )
     return out

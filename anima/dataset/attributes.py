@@ -5,6 +5,7 @@ fit, speech energy) into events ``(attribute, start_s, end_s)`` with hysteresis 
 durations. Thresholds live in :class:`DetectorConfig`; they were calibrated on shared clips against frame
 labels made by watching them (``tests/labels/attributes/*.json``, ``anima eval annotations``).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -16,8 +17,20 @@ from scipy.signal import find_peaks
 from anima.core.filters import valid_runs
 from anima.core.rotations import matrix_to_euler, rotvec_to_matrix
 
-ATTRIBUTES = ["blink", "smile", "frown", "squint", "raise eyebrows", "surprise", "mouth open", "yawn", "talk",
-              "nod", "shake head", "turn"]
+ATTRIBUTES = [
+    "blink",
+    "smile",
+    "frown",
+    "squint",
+    "raise eyebrows",
+    "surprise",
+    "mouth open",
+    "yawn",
+    "talk",
+    "nod",
+    "shake head",
+    "turn",
+]
 
 
 @dataclass
@@ -52,8 +65,15 @@ def _mean(seq, names):
     return seq.expression[:, idx].mean(1)
 
 
-def hysteresis_events(x: np.ndarray, on: float, off: float, fps: float, min_s: float = 0.0,
-                      max_s: float | None = None, valid: np.ndarray | None = None) -> list[tuple[int, int]]:
+def hysteresis_events(
+    x: np.ndarray,
+    on: float,
+    off: float,
+    fps: float,
+    min_s: float = 0.0,
+    max_s: float | None = None,
+    valid: np.ndarray | None = None,
+) -> list[tuple[int, int]]:
     """Frame runs ``[a, b)`` where x rises above ``on`` and lasts until it falls below ``off``."""
     active = np.zeros(len(x), bool)
     state = False
@@ -81,8 +101,9 @@ def head_angles_deg(seq) -> np.ndarray:
     return np.rad2deg(matrix_to_euler(rotvec_to_matrix(seq.rotation)))
 
 
-def _oscillation_events(sig: np.ndarray, fps: float, prominence: float, min_swings: int,
-                        max_gap_s: float = 0.8) -> list[tuple[int, int]]:
+def _oscillation_events(
+    sig: np.ndarray, fps: float, prominence: float, min_swings: int, max_gap_s: float = 0.8
+) -> list[tuple[int, int]]:
     """Runs of alternating peaks/troughs (detrended signal) with the given prominence."""
     trend = uniform_filter1d(sig, size=max(3, int(1.5 * fps)), mode="nearest")
     d = sig - trend
@@ -118,6 +139,7 @@ def detect(seq, cfg: DetectorConfig | None = None) -> list[tuple[str, float, flo
     add("blink", hysteresis_events(blink, cfg.blink_on, cfg.blink_on * h, fps, 0.04, cfg.blink_max_s, valid))
     smile = _mean(seq, ["mouthSmile_L", "mouthSmile_R"])
     add("smile", hysteresis_events(smile, cfg.smile_on, cfg.smile_on * h, fps, cfg.min_s, None, valid))
+
     def rel(x):  # brows and lids sit differently on every face: measure against the clip's own baseline
         return x - (np.percentile(x[valid], cfg.baseline_pct) if valid.any() else 0.0)
 
@@ -135,8 +157,20 @@ def detect(seq, cfg: DetectorConfig | None = None) -> list[tuple[str, float, flo
     add("mouth open", hysteresis_events(jaw, cfg.mouth_open_on, cfg.mouth_open_on * h, fps, cfg.min_s, None, valid))
     add("yawn", hysteresis_events(jaw, cfg.yawn_jaw, cfg.yawn_jaw * h, fps, cfg.yawn_min_s, None, valid))
     # talk: lip motion, gated by voice activity where there is audio
-    lips = ["jawOpen", "mouthClose", "mouthFunnel", "mouthPucker", "mouthLowerDown_L", "mouthLowerDown_R",
-            "mouthUpperUp_L", "mouthUpperUp_R", "mouthPress_L", "mouthPress_R", "mouthStretch_L", "mouthStretch_R"]
+    lips = [
+        "jawOpen",
+        "mouthClose",
+        "mouthFunnel",
+        "mouthPucker",
+        "mouthLowerDown_L",
+        "mouthLowerDown_R",
+        "mouthUpperUp_L",
+        "mouthUpperUp_R",
+        "mouthPress_L",
+        "mouthPress_R",
+        "mouthStretch_L",
+        "mouthStretch_R",
+    ]
     idx = [seq.expr_names.index(n) for n in lips]
     speed = np.abs(np.diff(seq.expression[:, idx], axis=0, prepend=seq.expression[:1, idx])).sum(1) * fps
     motion = uniform_filter1d(speed, size=max(3, int(0.5 * fps)), mode="nearest")
@@ -149,8 +183,14 @@ def detect(seq, cfg: DetectorConfig | None = None) -> list[tuple[str, float, flo
     rate = uniform_filter1d(flips, size=max(3, int(1.0 * fps)), mode="nearest") * fps  # reversals / s
     talk = np.where(rate >= cfg.talk_reversals_per_s, talk, 0.0)
     if seq.speech is not None:
-        voiced = uniform_filter1d((seq.speech[:, 13] > cfg.talk_voice_log_energy).astype(float),
-                                  size=max(3, int(0.5 * fps)), mode="nearest") > 0.3
+        voiced = (
+            uniform_filter1d(
+                (seq.speech[:, 13] > cfg.talk_voice_log_energy).astype(float),
+                size=max(3, int(0.5 * fps)),
+                mode="nearest",
+            )
+            > 0.3
+        )
         talk = np.where(voiced & seq.speech_valid, talk, 0.0)
     add("talk", hysteresis_events(talk, 1.0, h, fps, 0.5, None, valid))
     ypr = head_angles_deg(seq)

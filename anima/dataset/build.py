@@ -9,6 +9,7 @@ atomically). A failing video is recorded in ``errors/<id>.json`` (and retried on
 stop the build. Splits are 90/5/5 by source video, from a hash of the video id (stable when videos are
 added). Normalisation statistics come from the training split only.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -110,11 +111,17 @@ def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | 
     events = annotation["events"] if annotation else auto
     gender = annotation.get("gender") if annotation else None
     split = split_of(vid)
-    prov = json.dumps({"tracker": seq.meta.get("tracker"), "skeleton_tracker": seq.meta.get("skeleton", {}).get("tracker"),
-                       "face_model": {k: v for k, v in seq.meta.get("face_model", {}).items() if k != "correspondence"},
-                       "anima_version": __version__, "annotations": "imported" if annotation else "automatic",
-                       "audio": str(audio) if audio != Path(path) else "video track",
-                       "fps_source": seq.fps})
+    prov = json.dumps(
+        {
+            "tracker": seq.meta.get("tracker"),
+            "skeleton_tracker": seq.meta.get("skeleton", {}).get("tracker"),
+            "face_model": {k: v for k, v in seq.meta.get("face_model", {}).items() if k != "correspondence"},
+            "anima_version": __version__,
+            "annotations": "imported" if annotation else "automatic",
+            "audio": str(audio) if audio != Path(path) else "video track",
+            "fps_source": seq.fps,
+        }
+    )
     counts = {r: 0 for r in RULES}
     clips = cut_clips(seq.n_frames, seq.fps, cfg.filters)
     if not clips:
@@ -130,27 +137,65 @@ def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | 
         seed = int(hashlib.sha1(f"{vid}/{k}/{cfg.seed}".encode()).hexdigest()[:8], 16)
         texts = describe_many(segment_timeline(rel, duration=t1c - t0c), cfg.n_descriptions, seed, gender)
         motion = text_motion_clip(seq, a, b)
-        rows.append({"clip_id": f"{vid}/{k:03d}", "video_id": vid, "split": split, "source": str(path),
-                     "start_s": t0c, "end_s": t1c, "fps": 30.0, "n_frames": len(motion), "motion": motion,
-                     "texts": texts, "attributes": json.dumps(rel), "gender": gender, "provenance": prov})
+        rows.append(
+            {
+                "clip_id": f"{vid}/{k:03d}",
+                "video_id": vid,
+                "split": split,
+                "source": str(path),
+                "start_s": t0c,
+                "end_s": t1c,
+                "fps": 30.0,
+                "n_frames": len(motion),
+                "motion": motion,
+                "texts": texts,
+                "attributes": json.dumps(rel),
+                "gender": gender,
+                "provenance": prov,
+            }
+        )
     windows = []
     if seq.speech is not None:
         x = read_audio(audio)
         n15 = int(np.floor(seq.n_frames / seq.fps * GESTURE_FPS))
         sp = speech_features(x, GESTURE_FPS, n15)
         for w in audio_motion_windows(seq, sp.features, sp.valid, cfg.window, cfg.hop):
-            windows.append({"window_id": f"{vid}/{w['start_frame']:05d}", "video_id": vid, "split": split,
-                            "source": str(path), "start_s": w["start_s"], "fps": GESTURE_FPS, "n_frames": cfg.window,
-                            "body": w["body"], "face": w["face"], "speech": w["speech"], "provenance": prov})
+            windows.append(
+                {
+                    "window_id": f"{vid}/{w['start_frame']:05d}",
+                    "video_id": vid,
+                    "split": split,
+                    "source": str(path),
+                    "start_s": w["start_s"],
+                    "fps": GESTURE_FPS,
+                    "n_frames": cfg.window,
+                    "body": w["body"],
+                    "face": w["face"],
+                    "speech": w["speech"],
+                    "provenance": prov,
+                }
+            )
     write_shard(rows, out / "shards" / "text_motion" / f"{vid}.parquet", "text_motion")
     write_shard(windows, out / "shards" / "audio_motion" / f"{vid}.parquet", "audio_motion")
-    result = {"video_id": vid, "source": str(path), "status": "ok", "split": split, "frames": seq.n_frames,
-              "fps": seq.fps, "duration_s": seq.n_frames / seq.fps, "clips_total": len(clips) or 1,
-              "clips_kept": len(rows), "removed": counts, "windows": len(windows),
-              "face_only_windows": int(sum(not np.isfinite(w["body"]).all() for w in windows)),
-              "has_body": seq.body_joints is not None, "has_speech": seq.speech is not None,
-              "auto_events": [[n, round(s, 3), round(e, 3)] for n, s, e in auto],
-              "seconds": round(time.perf_counter() - t0, 2), "worker_pid": os.getpid()}
+    result = {
+        "video_id": vid,
+        "source": str(path),
+        "status": "ok",
+        "split": split,
+        "frames": seq.n_frames,
+        "fps": seq.fps,
+        "duration_s": seq.n_frames / seq.fps,
+        "clips_total": len(clips) or 1,
+        "clips_kept": len(rows),
+        "removed": counts,
+        "windows": len(windows),
+        "face_only_windows": int(sum(not np.isfinite(w["body"]).all() for w in windows)),
+        "has_body": seq.body_joints is not None,
+        "has_speech": seq.speech is not None,
+        "auto_events": [[n, round(s, 3), round(e, 3)] for n, s, e in auto],
+        "seconds": round(time.perf_counter() - t0, 2),
+        "worker_pid": os.getpid(),
+    }
     _write_json(out / "videos" / f"{vid}.json", result)
     err = out / "errors" / f"{vid}.json"
     if err.exists():
@@ -169,16 +214,26 @@ def _task(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | None) ->
         return process_video(path, out_dir, cfg, annotation)
     except Exception as e:
         msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-        res = {"video_id": video_id(path), "source": str(path), "status": "error", "error": msg,
-               "kind": type(e).__name__, "traceback": traceback.format_exc(limit=4)}
+        res = {
+            "video_id": video_id(path),
+            "source": str(path),
+            "status": "error",
+            "error": msg,
+            "kind": type(e).__name__,
+            "traceback": traceback.format_exc(limit=4),
+        }
         _write_json(Path(out_dir) / "errors" / f"{video_id(path)}.json", res)
         return res
 
 
 def _start_ray(address: str | None, num_workers: int | None):
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-    worker_env = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "GLOG_minloglevel": "2",
-                  "TF_CPP_MIN_LOG_LEVEL": "3"}
+    worker_env = {
+        "OMP_NUM_THREADS": "1",
+        "NUMBA_NUM_THREADS": "1",
+        "GLOG_minloglevel": "2",
+        "TF_CPP_MIN_LOG_LEVEL": "3",
+    }
     if not address:
         # a private local instance, as documented. Settings inherited from a parent process that runs Ray
         # itself (RAY_ADDRESS, RAY_AUTH_MODE=token set by its ray.init) would point this instance's workers
@@ -189,8 +244,9 @@ def _start_ray(address: str | None, num_workers: int | None):
     import ray
 
     if not ray.is_initialized():
-        kw = dict(include_dashboard=False, log_to_driver=False, configure_logging=False,
-                  runtime_env={"env_vars": worker_env})
+        kw = dict(
+            include_dashboard=False, log_to_driver=False, configure_logging=False, runtime_env={"env_vars": worker_env}
+        )
         if address:
             ray.init(address=address, **kw)
         else:
@@ -200,16 +256,32 @@ def _start_ray(address: str | None, num_workers: int | None):
 
 def build_summary(m: dict) -> dict:
     """The lines ``anima dataset build`` prints of a manifest."""
-    keys = ["videos", "videos_done", "clips_total", "clips_kept", "removed_by_rule", "windows", "frames",
-            "seconds_of_video", "compute_s", "last_run"]
+    keys = [
+        "videos",
+        "videos_done",
+        "clips_total",
+        "clips_kept",
+        "removed_by_rule",
+        "windows",
+        "frames",
+        "seconds_of_video",
+        "compute_s",
+        "last_run",
+    ]
     return {k: m[k] for k in keys} | {"videos_failed": len(m["videos_failed"])}
 
 
-def build_dataset(inputs: list[str], out_dir: str | Path, cfg: BuildConfig | None = None,
-                  annotations: str | None = None, address: str | None = None, num_workers: int | None = None,
-                  progress: bool = True, command: str | None = None) -> dict:
+def build_dataset(
+    inputs: list[str],
+    out_dir: str | Path,
+    cfg: BuildConfig | None = None,
+    annotations: str | None = None,
+    address: str | None = None,
+    num_workers: int | None = None,
+    progress: bool = True,
+    command: str | None = None,
+) -> dict:
     from tqdm import tqdm
-
 
     cfg = cfg or BuildConfig()
     out = Path(out_dir)
@@ -239,8 +311,13 @@ def build_dataset(inputs: list[str], out_dir: str | Path, cfg: BuildConfig | Non
     stats = compute_stats(out)
     _write_json(out / "stats.json", stats)
     manifest = _manifest(out, videos, cfg, status="complete")
-    manifest["last_run"] = {"videos_processed": len(pending), "wall_s": round(wall, 2),
-                            "workers": num_workers or os.cpu_count(), "address": address, "command": command}
+    manifest["last_run"] = {
+        "videos_processed": len(pending),
+        "wall_s": round(wall, 2),
+        "workers": num_workers or os.cpu_count(),
+        "address": address,
+        "command": command,
+    }
     _write_json(out / "manifest.json", manifest)
     return manifest
 
@@ -257,13 +334,21 @@ def _manifest(out: Path, videos: list[Path], cfg: BuildConfig, status: str) -> d
             errors.append(json.loads(e.read_text()))
     removed = {k: sum(r["removed"][k] for r in results) for k in RULES}
     return {
-        "schema": SCHEMA, "version": VERSION, "status": status, "anima_version": __version__,
-        "config": dataclasses.asdict(cfg), "videos": len(videos), "videos_done": len(results),
+        "schema": SCHEMA,
+        "version": VERSION,
+        "status": status,
+        "anima_version": __version__,
+        "config": dataclasses.asdict(cfg),
+        "videos": len(videos),
+        "videos_done": len(results),
         "videos_failed": [{"source": e["source"], "error": e["error"]} for e in errors],
-        "clips_total": sum(r["clips_total"] for r in results), "clips_kept": sum(r["clips_kept"] for r in results),
-        "removed_by_rule": removed, "windows": sum(r["windows"] for r in results),
+        "clips_total": sum(r["clips_total"] for r in results),
+        "clips_kept": sum(r["clips_kept"] for r in results),
+        "removed_by_rule": removed,
+        "windows": sum(r["windows"] for r in results),
         "splits": {s: sorted(r["video_id"] for r in results if r["split"] == s) for s in ("train", "val", "test")},
-        "frames": sum(r["frames"] for r in results), "seconds_of_video": round(sum(r["duration_s"] for r in results), 2),
+        "frames": sum(r["frames"] for r in results),
+        "seconds_of_video": round(sum(r["duration_s"] for r in results), 2),
         "compute_s": round(sum(r["seconds"] for r in results), 2),
     }
 
@@ -276,8 +361,11 @@ def compute_stats(out: Path) -> dict:
     tm = read_table(out, "text_motion", "train")
     if tm.num_rows:
         m = np.concatenate([np.asarray(x, np.float32).reshape(-1, 56) for x in tm["motion"].to_pylist()])
-        stats["text_motion"] = {"mean": m.mean(0).tolist(), "std": np.maximum(m.std(0), 1e-6).tolist(),
-                                "frames": int(len(m))}
+        stats["text_motion"] = {
+            "mean": m.mean(0).tolist(),
+            "std": np.maximum(m.std(0), 1e-6).tolist(),
+            "frames": int(len(m)),
+        }
     am = read_table(out, "audio_motion", "train")
     if am.num_rows:
         stats["audio_motion"] = {}

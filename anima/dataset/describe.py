@@ -16,6 +16,7 @@ CelebV-Text PCFG of table 4.3).
    Descriptions are drawn deterministically from a seed (``numpy.random.default_rng(seed)``). Subject words
    are neutral ("person", "they") unless a gender attribute is given.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -24,13 +25,24 @@ import numpy as np
 
 # attribute -> (third person singular, plural/base) verb phrases
 VERBS = {
-    "talk": ("talks", "talk"), "gaze": ("gazes", "gaze"), "frown": ("frowns", "frown"),
-    "blink": ("blinks", "blink"), "smile": ("smiles", "smile"), "squint": ("squints", "squint"),
-    "raise eyebrows": ("raises the eyebrows", "raise the eyebrows"), "surprise": ("looks surprised", "look surprised"),
-    "mouth open": ("opens the mouth", "open the mouth"), "yawn": ("yawns", "yawn"), "nod": ("nods", "nod"),
-    "shake head": ("shakes the head", "shake the head"), "turn": ("turns the head", "turn the head"),
-    "head wagging": ("wags the head", "wag the head"), "close eyes": ("closes the eyes", "close the eyes"),
-    "laugh": ("laughs", "laugh"), "sing": ("sings", "sing"), "look around": ("looks around", "look around"),
+    "talk": ("talks", "talk"),
+    "gaze": ("gazes", "gaze"),
+    "frown": ("frowns", "frown"),
+    "blink": ("blinks", "blink"),
+    "smile": ("smiles", "smile"),
+    "squint": ("squints", "squint"),
+    "raise eyebrows": ("raises the eyebrows", "raise the eyebrows"),
+    "surprise": ("looks surprised", "look surprised"),
+    "mouth open": ("opens the mouth", "open the mouth"),
+    "yawn": ("yawns", "yawn"),
+    "nod": ("nods", "nod"),
+    "shake head": ("shakes the head", "shake the head"),
+    "turn": ("turns the head", "turn the head"),
+    "head wagging": ("wags the head", "wag the head"),
+    "close eyes": ("closes the eyes", "close the eyes"),
+    "laugh": ("laughs", "laugh"),
+    "sing": ("sings", "sing"),
+    "look around": ("looks around", "look around"),
     "neutral": ("keeps a neutral face", "keep a neutral face"),
 }
 GENDER_WORDS = {"female": ("woman", "she", False), "male": ("man", "he", False), None: ("person", "they", True)}
@@ -50,8 +62,12 @@ class Segment:
         return self.end - self.start
 
 
-def segment_timeline(events: list[tuple[str, float, float]], duration: float | None = None,
-                     min_len: float = 0.1, fill_neutral: bool = True) -> list[Segment]:
+def segment_timeline(
+    events: list[tuple[str, float, float]],
+    duration: float | None = None,
+    min_len: float = 0.1,
+    fill_neutral: bool = True,
+) -> list[Segment]:
     """Events ``(attribute, start_s, end_s)`` -> ordered segments with constant active sets. Adjacent
     segments with the same set are merged; segments shorter than ``min_len`` are merged into the previous."""
     if not events and not duration:
@@ -82,8 +98,7 @@ def _phrase(attrs, plural: bool) -> str:
     return _join([VERBS.get(a, (a + "s", a))[1 if plural else 0] for a in attrs])
 
 
-def describe(segments: list[Segment], rng: np.random.Generator, gender: str | None = None,
-             long_s: float = 2.5) -> str:
+def describe(segments: list[Segment], rng: np.random.Generator, gender: str | None = None, long_s: float = 2.5) -> str:
     """One description of the segments (see the module grammar)."""
     if not segments:
         return ""
@@ -98,7 +113,11 @@ def describe(segments: list[Segment], rng: np.random.Generator, gender: str | No
     n = len(segments)
     for i, seg in enumerate(segments):
         short = seg.duration < long_s
-        dur = ["for a short time", "briefly"][rng.integers(2)] if short else ["for a long time", "for a while"][rng.integers(2)]
+        dur = (
+            ["for a short time", "briefly"][rng.integers(2)]
+            if short
+            else ["for a long time", "for a while"][rng.integers(2)]
+        )
         first = i == 0
         subj = subject if first else (pronoun if rng.random() < 0.85 else subject.replace("a ", "the ", 1))
         plural = (not first) and subj == pronoun and plural_pron
@@ -115,8 +134,9 @@ def describe(segments: list[Segment], rng: np.random.Generator, gender: str | No
     return text[0].upper() + text[1:]
 
 
-def describe_many(segments: list[Segment], n: int = 10, seed: int = 0, gender: str | None = None,
-                  max_tries: int = 200) -> list[str]:
+def describe_many(
+    segments: list[Segment], n: int = 10, seed: int = 0, gender: str | None = None, max_tries: int = 200
+) -> list[str]:
     """``n`` distinct descriptions (fewer only if the grammar cannot produce ``n``), deterministic in ``seed``."""
     rng = np.random.default_rng(seed)
     out: list[str] = []

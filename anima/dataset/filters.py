@@ -7,6 +7,7 @@
 4. ``fit_error``: the failsafe - any tracked frame whose fit NME exceeds ``max_fit_nme``.
 5. ``low_confidence``: less than ``min_tracked`` of the frames have a face, or too many low-confidence frames.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -10,6 +10,7 @@
   linearly (hands leave the frame or pass behind each other for a few frames while gesturing). Windows
   without a usable body but with a tracked face are kept as face-only windows (body NaN).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -89,8 +90,9 @@ def fill_short_gaps(x: np.ndarray, max_frames: int) -> np.ndarray:
     return out
 
 
-def audio_motion_windows(seq, speech15: np.ndarray, speech_valid15: np.ndarray,
-                         window: int = WINDOW, hop: int = HOP) -> list[dict]:
+def audio_motion_windows(
+    seq, speech15: np.ndarray, speech_valid15: np.ndarray, window: int = WINDOW, hop: int = HOP
+) -> list[dict]:
     """Windows of ``window`` frames at 15 fps over the whole sequence (see module doc). A window whose face
     is tracked and whose speech is valid but whose body or hands are not (a head-and-shoulders clip, a long
     hand occlusion) is kept as a face-only window: its ``body`` is all NaN (``has_body`` False); the face
@@ -107,7 +109,11 @@ def audio_motion_windows(seq, speech15: np.ndarray, speech_valid15: np.ndarray,
         # a missing hip takes its median position over the clip (MediaPipe's low-confidence estimate)
         raw = seq.body_joints_raw if seq.body_joints_raw is not None else J
         for j in (1, 2):
-            med = np.nanmedian(raw[:, j], axis=0) if np.isfinite(raw[:, j]).any() else np.array([0.1 if j == 1 else -0.1, 0, 0])
+            med = (
+                np.nanmedian(raw[:, j], axis=0)
+                if np.isfinite(raw[:, j]).any()
+                else np.array([0.1 if j == 1 else -0.1, 0, 0])
+            )
             miss = ~np.isfinite(J[:, j]).all(-1)
             J[miss, j] = med
         J = fill_short_gaps(J, int(round(MAX_GAP_S * seq.fps)))
@@ -125,6 +131,14 @@ def audio_motion_windows(seq, speech15: np.ndarray, speech_valid15: np.ndarray,
         if not full and not face_ok[w].all():
             continue
         b = body[w] if full else np.full((window, BODY_DIM), np.nan)
-        out.append({"start_frame": s, "start_s": s / GESTURE_FPS, "body": b.astype(np.float32), "has_body": full,
-                    "face": face[w], "speech": speech15[w].astype(np.float32)})
+        out.append(
+            {
+                "start_frame": s,
+                "start_s": s / GESTURE_FPS,
+                "body": b.astype(np.float32),
+                "has_body": full,
+                "face": face[w],
+                "speech": speech15[w].astype(np.float32),
+            }
+        )
     return out

@@ -4,6 +4,7 @@ Sections: clips removed by each rule (seed 000 §5.1 discusses them), attribute 
 table 4.4: fraction of kept clips where each attribute occurs), clip-length histogram, splits, example
 descriptions, and contact sheets (frames of a few kept clips with the fitted mesh drawn over them).
 """
+
 from __future__ import annotations
 
 import html
@@ -20,7 +21,9 @@ from anima.render.face import render_mesh
 from anima.render.videos import SequenceMesh
 
 
-def _bar(plt, path: Path, labels, values, color: str, ylabel: str, size, rotation: int, title: str | None = None) -> str:
+def _bar(
+    plt, path: Path, labels, values, color: str, ylabel: str, size, rotation: int, title: str | None = None
+) -> str:
     fig, ax = plt.subplots(figsize=size)
     ax.bar(labels, values, color=color)
     ax.set_ylabel(ylabel)
@@ -51,17 +54,28 @@ def _plots(out: Path, lengths: list[float], attr_frac: dict[str, float], removed
     files.append("clip_lengths.png")
     if attr_frac:
         names = sorted(attr_frac, key=lambda k: -attr_frac[k])
-        files.append(_bar(plt, out / "attributes.png", names, [attr_frac[n] for n in names], "#ee7733",
-                          "fraction of clips", (6, 3), 40, "Attribute distribution"))
-    files.append(_bar(plt, out / "removed.png", list(removed), list(removed.values()), "#aa3377", "clips removed",
-                      (5, 3), 30))
+        files.append(
+            _bar(
+                plt,
+                out / "attributes.png",
+                names,
+                [attr_frac[n] for n in names],
+                "#ee7733",
+                "fraction of clips",
+                (6, 3),
+                40,
+                "Attribute distribution",
+            )
+        )
+    files.append(
+        _bar(plt, out / "removed.png", list(removed), list(removed.values()), "#aa3377", "clips removed", (5, 3), 30)
+    )
     return files
 
 
 def contact_sheet(source: str, start_s: float, end_s: float, path: Path, n: int = 6, size: int = 160) -> bool:
     """Frames of a clip with the fitted face mesh over them (captures the clip's frames again, face only)."""
     import cv2
-
 
     try:
         frames, info = read_video(source, max_frames=int(end_s * 30) + 2)
@@ -74,8 +88,11 @@ def contact_sheet(source: str, start_s: float, end_s: float, path: Path, n: int 
     mesh = SequenceMesh(seq)
     tiles = []
     for f in np.linspace(a, b - 1, n).astype(int):
-        img = render_mesh(mesh.camera_vertices(f), mesh.tris, (info.width, info.height), frames[f], 0.5) \
-            if seq.tracked[f] else frames[f]
+        img = (
+            render_mesh(mesh.camera_vertices(f), mesh.tris, (info.width, info.height), frames[f], 0.5)
+            if seq.tracked[f]
+            else frames[f]
+        )
         tiles.append(cv2.resize(np.concatenate([frames[f], img], 0), (size, 2 * size * info.height // info.width)))
     cv2.imwrite(str(path), np.concatenate(tiles, 1)[:, :, ::-1])
     return True
@@ -99,20 +116,43 @@ def write_report(folder: str | Path, n_examples: int = 4, sheets: int = 3) -> Pa
         p = rep / f"sheet_{i}.png"
         if contact_sheet(tm["source"][i], tm["start_s"][i], tm["end_s"][i], p):
             sheet_files.append((p.name, tm["clip_id"][i]))
-    md = [f"# Dataset report: {folder.name}", "",
-          f"- videos: {manifest['videos']} ({manifest['videos_done']} done, {len(manifest['videos_failed'])} failed)",
-          f"- video seconds: {manifest['seconds_of_video']}, frames: {manifest['frames']}, capture compute: "
-          f"{manifest['compute_s']} s",
-          f"- clips: {manifest['clips_total']} cut, **{manifest['clips_kept']} kept**; (audio, motion) windows: "
-          f"**{manifest['windows']}**",
-          "- splits (videos): " + ", ".join(f"{k} {len(v)}" for k, v in manifest["splits"].items()), "",
-          "## Clips removed by each rule", "", "| rule | clips |", "|---|---|"]
+    md = [
+        f"# Dataset report: {folder.name}",
+        "",
+        f"- videos: {manifest['videos']} ({manifest['videos_done']} done, {len(manifest['videos_failed'])} failed)",
+        f"- video seconds: {manifest['seconds_of_video']}, frames: {manifest['frames']}, capture compute: "
+        f"{manifest['compute_s']} s",
+        f"- clips: {manifest['clips_total']} cut, **{manifest['clips_kept']} kept**; (audio, motion) windows: "
+        f"**{manifest['windows']}**",
+        "- splits (videos): " + ", ".join(f"{k} {len(v)}" for k, v in manifest["splits"].items()),
+        "",
+        "## Clips removed by each rule",
+        "",
+        "| rule | clips |",
+        "|---|---|",
+    ]
     md += [f"| {k} | {v} |" for k, v in manifest["removed_by_rule"].items()]
-    md += ["", "![removed](removed.png)", "", "## Attribute distribution (fraction of kept clips)", "",
-           "| attribute | fraction |", "|---|---|"]
+    md += [
+        "",
+        "![removed](removed.png)",
+        "",
+        "## Attribute distribution (fraction of kept clips)",
+        "",
+        "| attribute | fraction |",
+        "|---|---|",
+    ]
     md += [f"| {k} | {v:.2f} |" for k, v in sorted(frac.items(), key=lambda kv: -kv[1])]
-    md += ["", "![attributes](attributes.png)" if "attributes.png" in plots else "", "", "## Clip lengths", "",
-           "![lengths](clip_lengths.png)", "", "## Example descriptions", ""]
+    md += [
+        "",
+        "![attributes](attributes.png)" if "attributes.png" in plots else "",
+        "",
+        "## Clip lengths",
+        "",
+        "![lengths](clip_lengths.png)",
+        "",
+        "## Example descriptions",
+        "",
+    ]
     for i in range(min(n_examples, len(tm["clip_id"]))):
         md.append(f"**{tm['clip_id'][i]}** ({lengths[i]:.1f} s)")
         md += [f"- {t}" for t in tm["texts"][i][:3]]
@@ -126,7 +166,7 @@ def write_report(folder: str | Path, n_examples: int = 4, sheets: int = 3) -> Pa
     body = []
     for line in text.splitlines():
         if line.startswith("!["):
-            src = line[line.index("(") + 1:-1]
+            src = line[line.index("(") + 1 : -1]
             body.append(f'<p><img src="{html.escape(src)}" style="max-width:100%"></p>')
         elif line.startswith("# "):
             body.append(f"<h1>{html.escape(line[2:])}</h1>")
@@ -149,6 +189,7 @@ def write_report(folder: str | Path, n_examples: int = 4, sheets: int = 3) -> Pa
             out_html.append("</table>")
             in_table = False
         out_html.append(b)
-    (rep / "report.html").write_text("<html><body style='font-family:sans-serif'>" + "\n".join(out_html)
-                                     + "</body></html>")
+    (rep / "report.html").write_text(
+        "<html><body style='font-family:sans-serif'>" + "\n".join(out_html) + "</body></html>"
+    )
     return rep / "report.md"

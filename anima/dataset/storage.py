@@ -20,6 +20,7 @@ are tracked, the body or hands are not) have an all-NaN body.
 Both read with pyarrow, pandas, ``ray.data.read_parquet(folder/shards/<kind>)`` or the torch datasets of
 ``anima.dataset.torch_data``.
 """
+
 from __future__ import annotations
 
 import json
@@ -36,18 +37,38 @@ SCHEMA = "anima.dataset"
 VERSION = 1
 KINDS = ("text_motion", "audio_motion")
 
-TEXT_SCHEMA = pa.schema([
-    ("clip_id", pa.string()), ("video_id", pa.string()), ("split", pa.string()), ("source", pa.string()),
-    ("start_s", pa.float64()), ("end_s", pa.float64()), ("fps", pa.float32()), ("n_frames", pa.int32()),
-    ("motion", pa.list_(pa.float32())), ("texts", pa.list_(pa.string())), ("attributes", pa.string()),
-    ("gender", pa.string()), ("provenance", pa.string()),
-])
-AUDIO_SCHEMA = pa.schema([
-    ("window_id", pa.string()), ("video_id", pa.string()), ("split", pa.string()), ("source", pa.string()),
-    ("start_s", pa.float64()), ("fps", pa.float32()), ("n_frames", pa.int32()),
-    ("body", pa.list_(pa.float32())), ("face", pa.list_(pa.float32())), ("speech", pa.list_(pa.float32())),
-    ("provenance", pa.string()),
-])
+TEXT_SCHEMA = pa.schema(
+    [
+        ("clip_id", pa.string()),
+        ("video_id", pa.string()),
+        ("split", pa.string()),
+        ("source", pa.string()),
+        ("start_s", pa.float64()),
+        ("end_s", pa.float64()),
+        ("fps", pa.float32()),
+        ("n_frames", pa.int32()),
+        ("motion", pa.list_(pa.float32())),
+        ("texts", pa.list_(pa.string())),
+        ("attributes", pa.string()),
+        ("gender", pa.string()),
+        ("provenance", pa.string()),
+    ]
+)
+AUDIO_SCHEMA = pa.schema(
+    [
+        ("window_id", pa.string()),
+        ("video_id", pa.string()),
+        ("split", pa.string()),
+        ("source", pa.string()),
+        ("start_s", pa.float64()),
+        ("fps", pa.float32()),
+        ("n_frames", pa.int32()),
+        ("body", pa.list_(pa.float32())),
+        ("face", pa.list_(pa.float32())),
+        ("speech", pa.list_(pa.float32())),
+        ("provenance", pa.string()),
+    ]
+)
 SCHEMAS = {"text_motion": TEXT_SCHEMA, "audio_motion": AUDIO_SCHEMA}
 
 
@@ -73,8 +94,10 @@ def check_dataset(folder: str | Path) -> dict:
     if manifest.get("schema") != SCHEMA:
         raise SchemaError(f"{folder}: schema {manifest.get('schema')!r}, expected {SCHEMA!r}")
     if int(manifest.get("version", -1)) != VERSION:
-        raise SchemaError(f"{folder}: dataset schema version {manifest.get('version')} (this anima reads "
-                          f"{VERSION}); rebuild it with `anima dataset build`")
+        raise SchemaError(
+            f"{folder}: dataset schema version {manifest.get('version')} (this anima reads "
+            f"{VERSION}); rebuild it with `anima dataset build`"
+        )
     return manifest
 
 

@@ -1,4 +1,5 @@
 """torch ``Dataset`` views of an anima dataset (see ``anima.dataset.storage`` for the schema)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -29,8 +30,11 @@ class TextMotionDataset(Dataset):
         m = np.asarray(self.table["motion"][i], np.float32).reshape(-1, 56)
         rng = np.random.default_rng((self.seed, self.epoch, i))
         texts = self.table["texts"][i]
-        return {"motion": torch.from_numpy((m - self.mean) / self.std), "text": texts[rng.integers(len(texts))],
-                "length": len(m)}
+        return {
+            "motion": torch.from_numpy((m - self.mean) / self.std),
+            "text": texts[rng.integers(len(texts))],
+            "length": len(m),
+        }
 
 
 class AudioMotionDataset(Dataset):

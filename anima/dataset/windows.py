@@ -6,6 +6,7 @@
 
 A row whose sizes break the contract, or a mix of frame rates, is a :class:`SchemaError` naming the row.
 """
+
 from __future__ import annotations
 
 import json
@@ -23,6 +24,7 @@ from anima.errors import SchemaError
 class Windows:
     """(audio, motion) windows: ``speech [N, T, 28]``, ``body [N, T, 165]`` (all NaN for face-only windows),
     ``face [N, T, 56]``; per window its source video, start (s), split and id."""
+
     speech: np.ndarray
     body: np.ndarray
     face: np.ndarray
@@ -47,9 +49,16 @@ class Windows:
     def select(self, keep) -> Windows:
         keep = np.asarray(keep)
         idx = np.flatnonzero(keep) if keep.dtype == bool else keep
-        return Windows(self.speech[idx], self.body[idx], self.face[idx], [self.source[i] for i in idx],
-                       [self.start_s[i] for i in idx], [self.split[i] for i in idx],
-                       [self.window_id[i] for i in idx], self.fps)
+        return Windows(
+            self.speech[idx],
+            self.body[idx],
+            self.face[idx],
+            [self.source[i] for i in idx],
+            [self.start_s[i] for i in idx],
+            [self.split[i] for i in idx],
+            [self.window_id[i] for i in idx],
+            self.fps,
+        )
 
 
 def _one_rate(fps: list, folder, kind: str) -> float:
@@ -86,8 +95,17 @@ def read_windows(folder: str | Path, split: str | None = None) -> Windows:
 
     def stack(xs, d):
         return np.stack(xs) if xs else np.zeros((0, T, d), np.float32)
-    return Windows(stack(S, SPEECH_DIM), stack(B, BODY_DIM), stack(Fc, FACE_DIM), list(t["source"]),
-                   [float(s) for s in t["start_s"]], list(t["split"]), list(t["window_id"]), fps)
+
+    return Windows(
+        stack(S, SPEECH_DIM),
+        stack(B, BODY_DIM),
+        stack(Fc, FACE_DIM),
+        list(t["source"]),
+        [float(s) for s in t["start_s"]],
+        list(t["split"]),
+        list(t["window_id"]),
+        fps,
+    )
 
 
 @dataclass
@@ -115,8 +133,18 @@ def read_clips(folder: str | Path, split: str | None = None) -> list[ClipRow]:
         ev = json.loads(t["attributes"][i]) if t["attributes"][i] else []
         ev = ev.get("events", []) if isinstance(ev, dict) else ev
         g = t["gender"][i]
-        out.append(ClipRow(row, t["video_id"][i], t["split"][i], t["source"][i], float(t["start_s"][i]),
-                           _array(t["motion"][i], n, FACE_DIM, "motion", row), list(t["texts"][i]),
-                           [(str(a), float(s), float(e)) for a, s, e in ev],
-                           g if g in ("female", "male") else None, fps))
+        out.append(
+            ClipRow(
+                row,
+                t["video_id"][i],
+                t["split"][i],
+                t["source"][i],
+                float(t["start_s"][i]),
+                _array(t["motion"][i], n, FACE_DIM, "motion", row),
+                list(t["texts"][i]),
+                [(str(a), float(s), float(e)) for a, s, e in ev],
+                g if g in ("female", "male") else None,
+                fps,
+            )
+        )
     return out

@@ -9,6 +9,7 @@ Protocol, per attribute pooled over clips:
   true detections / detections, recall = labelled events overlapped by a detection / labelled events;
 * frame level: precision and recall over frames, outside ignore ranges.
 """
+
 from __future__ import annotations
 
 import json
@@ -30,19 +31,22 @@ def load_labels() -> list[dict]:
 def _ranges_mask(ranges, n):
     m = np.zeros(n, bool)
     for a, b in ranges:
-        m[a:b + 1] = True
+        m[a : b + 1] = True
     return m
 
 
 def capture_labelled(lab: dict):
 
-    return capture_video(str(asset(lab["clip"])), CaptureConfig(face_only=True, max_frames=lab.get("frames")),
-                         progress=False)
+    return capture_video(
+        str(asset(lab["clip"])), CaptureConfig(face_only=True, max_frames=lab.get("frames")), progress=False
+    )
 
 
 def score(seqs_and_labels, cfg: DetectorConfig | None = None) -> dict:
-    acc = {a: {"tp_det": 0, "det": 0, "hit_lab": 0, "lab": 0, "tp_f": 0, "det_f": 0, "lab_f": 0, "clips": 0}
-           for a in ATTRIBUTES}
+    acc = {
+        a: {"tp_det": 0, "det": 0, "hit_lab": 0, "lab": 0, "tp_f": 0, "det_f": 0, "lab_f": 0, "clips": 0}
+        for a in ATTRIBUTES
+    }
     for seq, lab in seqs_and_labels:
         events = detect(seq, cfg)
         n = seq.n_frames
@@ -61,7 +65,7 @@ def score(seqs_and_labels, cfg: DetectorConfig | None = None) -> dict:
             dets = [(int(round(s * seq.fps)), int(round(e * seq.fps))) for nm, s, e in events if nm == attr]
             for s, e in dets:
                 span = np.zeros(n, bool)
-                span[s:max(e, s + 1)] = True
+                span[s : max(e, s + 1)] = True
                 if (span & ign).sum() >= 0.5 * span.sum():
                     continue  # (mostly) inside an ambiguous range: not counted
                 a["det"] += 1
@@ -74,7 +78,9 @@ def score(seqs_and_labels, cfg: DetectorConfig | None = None) -> dict:
         if a["clips"] == 0:
             continue
         out[attr] = {
-            "clips": a["clips"], "labelled_events": a["lab"], "detections": a["det"],
+            "clips": a["clips"],
+            "labelled_events": a["lab"],
+            "detections": a["det"],
             "precision": a["tp_det"] / a["det"] if a["det"] else (1.0 if a["lab"] == 0 else 0.0),
             "recall": a["hit_lab"] / a["lab"] if a["lab"] else None,
             "frame_precision": a["tp_f"] / a["det_f"] if a["det_f"] else None,
@@ -86,5 +92,8 @@ def score(seqs_and_labels, cfg: DetectorConfig | None = None) -> dict:
 def evaluate_annotations(cfg: DetectorConfig | None = None) -> dict:
     labs = load_labels()
     pairs = [(capture_labelled(lab), lab) for lab in labs]
-    return {"protocol": __doc__.split("Protocol, per attribute pooled over clips:")[1].strip(),
-            "clips": [lab["name"] for lab in labs], "per_attribute": score(pairs, cfg)}
+    return {
+        "protocol": __doc__.split("Protocol, per attribute pooled over clips:")[1].strip(),
+        "clips": [lab["name"] for lab in labs],
+        "per_attribute": score(pairs, cfg),
+    }

@@ -1,6 +1,7 @@
 """Body and hand capture report (``anima eval body``): per clip, body tracked %, each hand tracked %, the
 same after interpolation of short drop-outs, and the bone-length coefficient of variation before and after
 cleaning (it must drop); plus the hand detector on the still images of ``hand-images/``."""
+
 from __future__ import annotations
 
 import glob
@@ -13,8 +14,11 @@ from anima.core.skeleton import LEFT_HAND, RIGHT_HAND
 from anima.io.assets import asset
 from anima.io.video import probe_video
 
-DEFAULT_SETS = ["gesture-video/pats-crops/*.mp4", "gesture-video/tango-interviews/*.mp4",
-                "talking-heads-misc/LatentSync/assets/*.mp4"]
+DEFAULT_SETS = [
+    "gesture-video/pats-crops/*.mp4",
+    "gesture-video/tango-interviews/*.mp4",
+    "talking-heads-misc/LatentSync/assets/*.mp4",
+]
 
 
 def body_report_clip(path: str, cfg: CaptureConfig | None = None, max_frames: int | None = None) -> dict:
@@ -26,13 +30,17 @@ def body_report_clip(path: str, cfg: CaptureConfig | None = None, max_frames: in
     ok_raw = np.isfinite(raw.joints).all(-1)
     ok = np.isfinite(c.joints).all(-1)
     return {
-        "clip": path.split("/")[-1], "frames": len(frames), "size": [info.width, info.height], "fps": info.fps,
+        "clip": path.split("/")[-1],
+        "frames": len(frames),
+        "size": [info.width, info.height],
+        "fps": info.fps,
         "body_tracked": float(ok_raw[:, :13].all(1).mean()),
         "left_hand_tracked": float(ok_raw[:, LEFT_HAND].all(1).mean()),
         "right_hand_tracked": float(ok_raw[:, RIGHT_HAND].all(1).mean()),
         "left_hand_after_interpolation": float(ok[:, LEFT_HAND].all(1).mean()),
         "right_hand_after_interpolation": float(ok[:, RIGHT_HAND].all(1).mean()),
-        "bone_cv_raw": bone_length_cv(raw.joints), "bone_cv_cleaned": bone_length_cv(c.joints),
+        "bone_cv_raw": bone_length_cv(raw.joints),
+        "bone_cv_cleaned": bone_length_cv(c.joints),
     }
 
 
@@ -58,8 +66,18 @@ def evaluate_body(patterns: list[str] | None = None, max_frames: int | None = No
     for pat in patterns or DEFAULT_SETS:
         paths += sorted(glob.glob(str(asset(pat.split("*")[0].rstrip("/"))) + "/" + pat.split("/")[-1]))
     rows = [body_report_clip(p, max_frames=max_frames) for p in tqdm(paths, desc="clips", disable=not progress)]
-    keys = ["body_tracked", "left_hand_tracked", "right_hand_tracked", "left_hand_after_interpolation",
-            "right_hand_after_interpolation", "bone_cv_raw", "bone_cv_cleaned"]
-    return {"clips": rows, "mean": {k: float(np.mean([r[k] for r in rows])) for k in keys} if rows else {},
-            "bone_cv_dropped_on": f"{sum(r['bone_cv_cleaned'] < r['bone_cv_raw'] for r in rows)}/{len(rows)} clips",
-            "hand_images": hand_images_report()}
+    keys = [
+        "body_tracked",
+        "left_hand_tracked",
+        "right_hand_tracked",
+        "left_hand_after_interpolation",
+        "right_hand_after_interpolation",
+        "bone_cv_raw",
+        "bone_cv_cleaned",
+    ]
+    return {
+        "clips": rows,
+        "mean": {k: float(np.mean([r[k] for r in rows])) for k in keys} if rows else {},
+        "bone_cv_dropped_on": f"{sum(r['bone_cv_cleaned'] < r['bone_cv_raw'] for r in rows)}/{len(rows)} clips",
+        "hand_images": hand_images_report(),
+    }

@@ -9,6 +9,7 @@ normalised by sqrt(w*h) of the ground-truth bounding box. Two predictions are sc
   image), its 68 landmark vertices projected. The vertices are ``anima.facemodel.landmarks68``: ICT's
   documented Multi-PIE jawline substitutes for 0-16, and 17-67 calibrated on other annotated faces.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -26,8 +27,13 @@ from anima.facemodel.ict import load_face_model
 from anima.facemodel.landmarks68 import ibug68_vertices
 from anima.io.assets import asset
 
-GROUPS = {"jaw": range(17), "brows": range(17, 27), "nose": range(27, 36), "eyes": range(36, 48),
-          "mouth": range(48, 68)}
+GROUPS = {
+    "jaw": range(17),
+    "brows": range(17, 27),
+    "nose": range(27, 36),
+    "eyes": range(36, 48),
+    "mouth": range(48, 68),
+}
 
 
 def aflw_items(root: Path | None = None) -> list[tuple[Path, Path]]:
@@ -71,8 +77,12 @@ def evaluate_aflw(progress: bool = False) -> dict:
                 rows.append({"image": jpg.name, "detected": False})
                 continue
             mp68, f68 = r
-            row = {"image": jpg.name, "detected": True, "nme_mediapipe": float(nme_bbox(mp68, gt)),
-                   "nme_fit": float(nme_bbox(f68, gt))}
+            row = {
+                "image": jpg.name,
+                "detected": True,
+                "nme_mediapipe": float(nme_bbox(mp68, gt)),
+                "nme_fit": float(nme_bbox(f68, gt)),
+            }
             d = np.sqrt(np.prod(gt.max(0) - gt.min(0)))
             for g, idx in GROUPS.items():
                 idx = list(idx)
@@ -81,7 +91,8 @@ def evaluate_aflw(progress: bool = False) -> dict:
     det = [r for r in rows if r["detected"]]
     summary = {
         "protocol": "AFLW2000-3D 68-pt 2D NME, normalised by sqrt(w*h) of the GT bbox (3DDFA_V2)",
-        "images": len(rows), "detected": len(det),
+        "images": len(rows),
+        "detected": len(det),
         "nme_mediapipe": float(np.mean([r["nme_mediapipe"] for r in det])) if det else None,
         "nme_fit": float(np.mean([r["nme_fit"] for r in det])) if det else None,
         "nme_fit_by_group": {g: float(np.mean([r[f"nme_fit_{g}"] for r in det])) for g in GROUPS} if det else {},

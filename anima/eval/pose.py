@@ -3,6 +3,7 @@
 
 Protocols, metrics: :mod:`anima.pose3d.metrics` (17 H36M joints, root-relative; HumanEva: its 15 joints).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -18,17 +19,21 @@ from anima.pose3d.metrics import pose_metrics
 # seed 004, tables 3.2 and 3.3 (H3.6M test subjects S9 and S11, all actions, average over actions)
 SEED_PUBLISHED = {
     "setting": "ResNet-50 on RGB images, trained on H3.6M (H80K or 5 fps) + MPII/LSP 2D; tested on all 15 actions "
-               "of S9 and S11 with tight ground-truth crops",
+    "of S9 and S11 with tight ground-truth crops",
     "h36m_scaled_mpjpe_mm": {"H80K": 71.1, "5fps": 65.7},
     "h36m_procrustes_mpjpe_mm": {"H80K": 53.4, "5fps": 49.2},
-    "posing_action": {"scaled_mpjpe_mm": {"H80K": 57.1, "5fps": 54.0},
-                      "procrustes_mpjpe_mm": {"H80K": 43.9, "5fps": 40.6}},
+    "posing_action": {
+        "scaled_mpjpe_mm": {"H80K": 57.1, "5fps": 54.0},
+        "procrustes_mpjpe_mm": {"H80K": 43.9, "5fps": 40.6},
+    },
 }
 
-OUR_SETTING = ("MediaPipe Pose (model_complexity 1) 2D keypoints on the full 1000x1000 images (no ground-truth "
-               "crop) lifted by a 2D->3D network trained on H3.6M S1,S5,S6,S7,S8 mocap projected through the real "
-               "cameras (no images) + MediaPipe 2D on in-the-wild videos; tested on the 320 staged frames of S9 "
-               "'Posing 1' (3 cameras), i.e. one action of one test subject")
+OUR_SETTING = (
+    "MediaPipe Pose (model_complexity 1) 2D keypoints on the full 1000x1000 images (no ground-truth "
+    "crop) lifted by a 2D->3D network trained on H3.6M S1,S5,S6,S7,S8 mocap projected through the real "
+    "cameras (no images) + MediaPipe 2D on in-the-wild videos; tested on the 320 staged frames of S9 "
+    "'Posing 1' (3 cameras), i.e. one action of one test subject"
+)
 
 # the ablation of seed table 3.6, on this lifter
 ABLATION = {
@@ -42,6 +47,7 @@ ABLATION = {
 
 def evaluate_model(model, cache: Path, progress: bool = False) -> dict:
     from anima.pose3d.train import predict  # lazy: torch
+
     e = s9_image_evidence(cache, progress)
     f = e["found"]
     s9 = pose_metrics(predict(model, e["uv"][f], e["conf"][f]), e["gt3d"][f])
@@ -53,31 +59,46 @@ def evaluate_model(model, cache: Path, progress: bool = False) -> dict:
 def evaluate(checkpoint: Path | None, cache: Path, progress: bool = False) -> dict:
     """The lifter ``checkpoint`` (None: MediaPipe's baseline only) on S9 images and HumanEva."""
     from anima.pose3d.train import load_checkpoint  # lazy: torch
+
     loaded = load_checkpoint(checkpoint) if checkpoint is not None else None  # fail before the slow part
     e = s9_image_evidence(cache, progress)
     f = e["found"]
-    out = {"s9_images": {"frames": int(len(f)), "person_found": int(f.sum()),
-                         "cameras": sorted(set(e["camera"].tolist())),
-                         "mediapipe_world_landmarks": pose_metrics(e["world"][f], e["gt3d"][f])},
-           "humaneva_validation": {"frames": int(len(humaneva_validation()["uv"])),
-                                   "input": "ground-truth 2D of the 3 colour cameras (no HumanEva images are "
-                                            "available, so MediaPipe cannot be run on it); nose masked (b_k = 0)"},
-           "seed_published": SEED_PUBLISHED, "our_setting": OUR_SETTING}
+    out = {
+        "s9_images": {
+            "frames": int(len(f)),
+            "person_found": int(f.sum()),
+            "cameras": sorted(set(e["camera"].tolist())),
+            "mediapipe_world_landmarks": pose_metrics(e["world"][f], e["gt3d"][f]),
+        },
+        "humaneva_validation": {
+            "frames": int(len(humaneva_validation()["uv"])),
+            "input": "ground-truth 2D of the 3 colour cameras (no HumanEva images are "
+            "available, so MediaPipe cannot be run on it); nose masked (b_k = 0)",
+        },
+        "seed_published": SEED_PUBLISHED,
+        "our_setting": OUR_SETTING,
+    }
     if loaded is not None:
         model, ck = loaded
         res = evaluate_model(model, cache, progress)
-        out["checkpoint"] = {"path": str(checkpoint), "config": ck["config"], "step": ck["step"],
-                             "train_s": ck["extra"].get("seconds")}
+        out["checkpoint"] = {
+            "path": str(checkpoint),
+            "config": ck["config"],
+            "step": ck["step"],
+            "train_s": ck["extra"].get("seconds"),
+        }
         out["s9_images"]["lifter"] = res["h36m_s9_images"]
         out["humaneva_validation"]["lifter"] = res["humaneva_validation_gt2d"]
     return out
 
 
-def ablation(work: Path, cache: Path, steps: int, width: int = 256, dropout: float = 0.1,
-             progress: bool = True) -> dict:
+def ablation(
+    work: Path, cache: Path, steps: int, width: int = 256, dropout: float = 0.1, progress: bool = True
+) -> dict:
     """Train (or reuse, resumable) one lifter per row of :data:`ABLATION` and evaluate each. The rows share
     everything but the flags (seed, data, steps, width)."""
     from anima.pose3d.train import load_checkpoint, train  # lazy: torch
+
     rows = {}
     for name, flags in ABLATION.items():
         base = TrainConfig(steps=steps)
@@ -99,18 +120,27 @@ def ablation(work: Path, cache: Path, steps: int, width: int = 256, dropout: flo
     return rows
 
 
-def evaluate_pose(model: str | None = None, cache: str | None = None, ablation_dir: str | None = None,
-                  ablation_steps: int = 8000, ablation_width: int = 256, ablation_dropout: float = 0.1,
-                  progress: bool = True) -> dict:
+def evaluate_pose(
+    model: str | None = None,
+    cache: str | None = None,
+    ablation_dir: str | None = None,
+    ablation_steps: int = 8000,
+    ablation_width: int = 256,
+    ablation_dropout: float = 0.1,
+    progress: bool = True,
+) -> dict:
     """``anima eval pose``: the lifter (default checkpoint unless ``model``) and, with ``ablation_dir``, the
     rows of seed table 3.6 trained there."""
     cache_p = Path(cache) if cache else default_cache()
     model_p = Path(model) if model else default_checkpoint()
     if not model_p.exists() and (model or not ablation_dir):
-        raise InputError(f"no pose lifter checkpoint at {model_p}: train one with `anima train pose`"
-                         + ("" if ablation_dir else ", or pass --ablation DIR to train the ablation rows"))
+        raise InputError(
+            f"no pose lifter checkpoint at {model_p}: train one with `anima train pose`"
+            + ("" if ablation_dir else ", or pass --ablation DIR to train the ablation rows")
+        )
     r = evaluate(model_p if model_p.exists() else None, cache_p, progress=progress)
     if ablation_dir:
-        r["ablation"] = ablation(Path(ablation_dir), cache_p, ablation_steps, ablation_width, ablation_dropout,
-                                 progress=progress)
+        r["ablation"] = ablation(
+            Path(ablation_dir), cache_p, ablation_steps, ablation_width, ablation_dropout, progress=progress
+        )
     return r

@@ -15,6 +15,7 @@ bounding boxes, the same crop for output and truth):
   (what rasterization and blending alone cost);
 * SSIM against n (fig. 4.6) and method 1 (no smoothing) vs method 2 (T = 5).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -41,23 +42,25 @@ def ssim(a: np.ndarray, b: np.ndarray) -> float:
     C1, C2 = (0.01 * 255) ** 2, (0.03 * 255) ** 2
     blur = lambda x: cv2.GaussianBlur(x, (11, 11), 1.5)
     mu_a, mu_b = blur(a), blur(b)
-    s_aa, s_bb, s_ab = blur(a * a) - mu_a ** 2, blur(b * b) - mu_b ** 2, blur(a * b) - mu_a * mu_b
-    m = ((2 * mu_a * mu_b + C1) * (2 * s_ab + C2)) / ((mu_a ** 2 + mu_b ** 2 + C1) * (s_aa + s_bb + C2))
+    s_aa, s_bb, s_ab = blur(a * a) - mu_a**2, blur(b * b) - mu_b**2, blur(a * b) - mu_a * mu_b
+    m = ((2 * mu_a * mu_b + C1) * (2 * s_ab + C2)) / ((mu_a**2 + mu_b**2 + C1) * (s_aa + s_bb + C2))
     return float(m.mean())
 
 
 def _lips():
     import mediapipe as mp
+
     return np.array(sorted({i for e in mp.solutions.face_mesh.FACEMESH_LIPS for i in e}))
 
 
 def video_metrics(out: list[np.ndarray], gt: list[np.ndarray], box) -> dict:
     from anima.eval.lpips import lpips
+
     x0, y0, w, h = box
-    co = np.stack([o[y0:y0 + h, x0:x0 + w] for o in out])
-    cg = np.stack([g[y0:y0 + h, x0:x0 + w] for g in gt])
+    co = np.stack([o[y0 : y0 + h, x0 : x0 + w] for o in out])
+    cg = np.stack([g[y0 : y0 + h, x0 : x0 + w] for g in gt])
     s = [ssim(a, b) for a, b in zip(co, cg)]
-    lp = np.concatenate([lpips(co[i:i + 32], cg[i:i + 32]) for i in range(0, len(co), 32)])
+    lp = np.concatenate([lpips(co[i : i + 32], cg[i : i + 32]) for i in range(0, len(co), 32)])
     lips = _lips()
     nme = []
     with FaceMeshTracker(static_image_mode=True) as t1, FaceMeshTracker(static_image_mode=True) as t2:
@@ -77,15 +80,21 @@ def video_metrics(out: list[np.ndarray], gt: list[np.ndarray], box) -> dict:
         fo = cv2.calcOpticalFlowFarneback(go[t], go[t + 1], None, 0.5, 3, 15, 3, 5, 1.2, 0)
         fg = cv2.calcOpticalFlowFarneback(gg[t], gg[t + 1], None, 0.5, 3, 15, 3, 5, 1.2, 0)
         tof.append(np.abs(fo - fg).sum(-1).mean())
+
     def consecutive(c):
         a, b = c[:-1], c[1:]
-        return np.concatenate([lpips(a[i:i + 32], b[i:i + 32]) for i in range(0, len(a), 32)])
+        return np.concatenate([lpips(a[i : i + 32], b[i : i + 32]) for i in range(0, len(a), 32)])
 
     lpo, lpg = consecutive(co), consecutive(cg)
     n = min(len(lpo), len(lpg))
-    return {"ssim": float(np.mean(s)), "lpips": float(np.mean(lp)),
-            "nme_lips": float(np.mean(nme)) if nme else None, "nme_frames": len(nme),
-            "tof": float(np.mean(tof)) if tof else None, "tlp": float(np.mean(np.abs(lpo[:n] - lpg[:n])))}
+    return {
+        "ssim": float(np.mean(s)),
+        "lpips": float(np.mean(lp)),
+        "nme_lips": float(np.mean(nme)) if nme else None,
+        "nme_frames": len(nme),
+        "tof": float(np.mean(tof)) if tof else None,
+        "tlp": float(np.mean(np.abs(lpo[:n] - lpg[:n]))),
+    }
 
 
 def _render(rx, db, seq, gt, cfg, n=None, true_colors=False):
@@ -103,8 +112,9 @@ def _render(rx, db, seq, gt, cfg, n=None, true_colors=False):
     return out, np.array(boxes)
 
 
-def self_reenactment(clips: list[str], actor_frames: int, ns=(1, 10, 50, 100, 200), progress: bool = False,
-                     save_dir: Path | None = None) -> dict:
+def self_reenactment(
+    clips: list[str], actor_frames: int, ns=(1, 10, 50, 100, 200), progress: bool = False, save_dir: Path | None = None
+) -> dict:
     paths = [str(asset(c)) for c in clips]
     db, seqs = build_database(paths, progress=progress, exclude={0: (0, actor_frames)})
     seq = seqs[0]
@@ -131,19 +141,23 @@ def self_reenactment(clips: list[str], actor_frames: int, ns=(1, 10, 50, 100, 20
             continue
         out, _ = _render(rx, db, seq, gt, cfg1, n=n)
         x0, y0, w, h = box
-        res["ssim_vs_n"][str(n)] = float(np.mean([ssim(o[y0:y0 + h, x0:x0 + w], g[y0:y0 + h, x0:x0 + w])
-                                                  for o, g in zip(out, gt)]))
+        res["ssim_vs_n"][str(n)] = float(
+            np.mean([ssim(o[y0 : y0 + h, x0 : x0 + w], g[y0 : y0 + h, x0 : x0 + w]) for o, g in zip(out, gt)])
+        )
     if save_dir is not None:
         save_dir.mkdir(parents=True, exist_ok=True)
         name = Path(clips[0]).stem
         picks = np.linspace(10, len(gt) - 10, 4).astype(int)
         rows = [np.hstack([gt[i], outs["method1"][i], outs["method2"][i]]) for i in picks]
-        cv2.imwrite(str(save_dir / f"{name}_real_method1_method2.png"), cv2.cvtColor(np.vstack(rows), cv2.COLOR_RGB2BGR))
+        cv2.imwrite(
+            str(save_dir / f"{name}_real_method1_method2.png"), cv2.cvtColor(np.vstack(rows), cv2.COLOR_RGB2BGR)
+        )
     return res
 
 
-def nbest_curves(actor: str, clips: list[str], n: int = 100, progress: bool = False,
-                 save_dir: Path | None = None) -> dict:
+def nbest_curves(
+    actor: str, clips: list[str], n: int = 100, progress: bool = False, save_dir: Path | None = None
+) -> dict:
     """Identity mismatch (seed §4.2 figs. 4.2-4.3): sorted L2 distances of the n best database frames for
     a cross-person actor, raw and with per-person expression normalisation."""
     db, _ = build_database([str(asset(c)) for c in clips], progress=progress)
@@ -155,13 +169,22 @@ def nbest_curves(actor: str, clips: list[str], n: int = 100, progress: bool = Fa
         return np.sort(d, 1)[:, :n].mean(0)
 
     raw, mapped = curve(a), curve(f(a))
-    out = {"actor": actor, "targets": clips, "n": n, "mean_l2_raw": float(raw.mean()),
-           "mean_l2_mapped": float(mapped.mean()), "best_raw": float(raw[0]), "best_mapped": float(mapped[0]),
-           "reduction": float(1 - mapped.mean() / raw.mean())}
+    out = {
+        "actor": actor,
+        "targets": clips,
+        "n": n,
+        "mean_l2_raw": float(raw.mean()),
+        "mean_l2_mapped": float(mapped.mean()),
+        "best_raw": float(raw[0]),
+        "best_mapped": float(mapped[0]),
+        "reduction": float(1 - mapped.mean() / raw.mean()),
+    }
     if save_dir is not None:
         import matplotlib
+
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
+
         save_dir.mkdir(parents=True, exist_ok=True)
         fig, ax = plt.subplots(figsize=(5, 3.2))
         ax.plot(np.arange(1, n + 1), raw, label="actor expression (raw)")
@@ -178,8 +201,10 @@ def nbest_curves(actor: str, clips: list[str], n: int = 100, progress: bool = Fa
 
 def plot_ssim_vs_n(results: dict, path: Path) -> None:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     fig, ax = plt.subplots(figsize=(5, 3.2))
     for name, r in results.items():
         ns = sorted(int(k) for k in r["ssim_vs_n"])
@@ -198,9 +223,11 @@ def evaluate(out_dir: Path | None = None, progress: bool = False) -> dict:
     res = {"protocol": __doc__.split("\n\n", 1)[1].strip()}
     res["adult_obama"] = self_reenactment(OBAMA, 250, progress=progress, save_dir=out_dir)
     child = self_reenactment(CHILD, 100, ns=(1, 10, 50, 100), progress=progress, save_dir=out_dir)
-    child["note"] = ("d11 has 225 frames: the first 100 are actor and ground truth and only the remaining 125 "
-                     "form the database, so n = 100 takes almost every frame; too short for a fair comparison "
-                     "with the adult's 1,800-frame database (the seed's had 5,000+)")
+    child["note"] = (
+        "d11 has 225 frames: the first 100 are actor and ground truth and only the remaining 125 "
+        "form the database, so n = 100 takes almost every frame; too short for a fair comparison "
+        "with the adult's 1,800-frame database (the seed's had 5,000+)"
+    )
     res["child_d11"] = child
     res["identity_mismatch"] = nbest_curves(CROSS_ACTOR, OBAMA, progress=progress, save_dir=out_dir)
     if out_dir is not None:

@@ -10,6 +10,7 @@ temporal Gaussian filter (default sigma). Reported per clip (over frames with a 
 * ``error_ratio_smoothed_vs_unsmoothed``: mean landmark error (px) of the smoothed fit over that of the
   unsmoothed fit (target <= 1.10: smoothing must not cost accuracy).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -59,18 +60,27 @@ def stability_of_clip(path: str, max_frames: int | None = 300) -> dict:
     acc_fit = mean_acceleration(fit_s[sel], iod[sel])
     err_s = float(np.nanmean(seq_s.fit_error_px))
     err_u = float(np.nanmean(seq_u.fit_error_px))
-    return {"clip": path.split("/")[-1], "frames": int(len(lm)), "tracked": float(found.mean()),
-            "acc_raw": acc_raw, "acc_fit_smoothed": acc_fit,
-            "acc_fit_unsmoothed": mean_acceleration(fitted_landmarks_2d(seq_u, basis)[sel], iod[sel]),
-            "acc_reduction": 1 - acc_fit / acc_raw, "error_px_smoothed": err_s, "error_px_unsmoothed": err_u,
-            "error_ratio_smoothed_vs_unsmoothed": err_s / err_u}
+    return {
+        "clip": path.split("/")[-1],
+        "frames": int(len(lm)),
+        "tracked": float(found.mean()),
+        "acc_raw": acc_raw,
+        "acc_fit_smoothed": acc_fit,
+        "acc_fit_unsmoothed": mean_acceleration(fitted_landmarks_2d(seq_u, basis)[sel], iod[sel]),
+        "acc_reduction": 1 - acc_fit / acc_raw,
+        "error_px_smoothed": err_s,
+        "error_px_unsmoothed": err_u,
+        "error_ratio_smoothed_vs_unsmoothed": err_s / err_u,
+    }
 
 
 def evaluate_stability(clips: list[str] | None = None, max_frames: int | None = 300) -> dict:
     paths = clips or [str(asset(c)) for c in DEFAULT_CLIPS]
     rows = [stability_of_clip(p, max_frames) for p in paths]
-    return {"filter": f"gaussian sigma={CaptureConfig().smooth_sigma} frames (zero-phase)",
-            "clips": rows,
-            "mean_acc_reduction": float(np.mean([r["acc_reduction"] for r in rows])),
-            "mean_error_ratio": float(np.mean([r["error_ratio_smoothed_vs_unsmoothed"] for r in rows])),
-            "targets": {"acc_reduction": ">= 0.40", "error_ratio": "<= 1.10"}}
+    return {
+        "filter": f"gaussian sigma={CaptureConfig().smooth_sigma} frames (zero-phase)",
+        "clips": rows,
+        "mean_acc_reduction": float(np.mean([r["acc_reduction"] for r in rows])),
+        "mean_error_ratio": float(np.mean([r["error_ratio_smoothed_vs_unsmoothed"] for r in rows])),
+        "targets": {"acc_reduction": ">= 0.40", "error_ratio": "<= 1.10"},
+    }

@@ -18,6 +18,7 @@ Protocol (``anima eval text2face DATASET``):
 * **R-precision** (top 1/2/3) among all held-out windows' texts with a contrastive evaluator trained on the
   training crops (:mod:`anima.text2face.evaluator`).
 """
+
 from __future__ import annotations
 
 import json
@@ -47,7 +48,7 @@ def ci(values) -> dict:
 
 def errors(gen: np.ndarray, real: np.ndarray, geom: FaceGeometry) -> tuple[float, float]:
     d = np.linalg.norm(geom.metric_offsets(gen[..., :53]) - geom.metric_offsets(real[..., :53]), axis=-1)
-    return float(d.mean()), float(np.sqrt((d ** 2).mean()))
+    return float(d.mean()), float(np.sqrt((d**2).mean()))
 
 
 def diversity(motions: np.ndarray, geom: FaceGeometry, rng: np.random.Generator) -> float:
@@ -70,8 +71,11 @@ def recall_table(label_sets: list[set[str]], detected: list[list[set[str]]], att
         neg = [i for i, s in enumerate(label_sets) if a not in s]
         rec = [np.mean([a in rep[i] for i in pos]) for rep in detected] if pos else [np.nan]
         fa = [np.mean([a in rep[i] for i in neg]) for rep in detected] if neg else [np.nan]
-        out[a] = {"recall": round(float(np.mean(rec)), 3), "false_alarm": round(float(np.mean(fa)), 3),
-                  "items": len(pos)}
+        out[a] = {
+            "recall": round(float(np.mean(rec)), 3),
+            "false_alarm": round(float(np.mean(fa)), 3),
+            "items": len(pos),
+        }
     return out
 
 
@@ -93,24 +97,37 @@ def retrieval_method(pool, pool_E) -> Method:
             m = pool[i].motion
             out.append(m[:T] if len(m) >= T else np.concatenate([m, np.repeat(m[-1:], T - len(m), 0)]))
         return np.stack(out).astype(np.float32)
-    return Method("retrieval", fn, stochastic=False, info={"what": "motion of the training crop with the nearest description"})
+
+    return Method(
+        "retrieval", fn, stochastic=False, info={"what": "motion of the training crop with the nearest description"}
+    )
 
 
 def mean_method(mean) -> Method:
-    return Method("mean", lambda E, T, seed: np.repeat(np.asarray(mean, np.float32)[None, None], len(E), 0).repeat(T, 1),
-                  stochastic=False, info={"what": "the mean training frame, held"})
+    return Method(
+        "mean",
+        lambda E, T, seed: np.repeat(np.asarray(mean, np.float32)[None, None], len(E), 0).repeat(T, 1),
+        stochastic=False,
+        info={"what": "the mean training frame, held"},
+    )
 
 
 def model_method(name, ckpt_path) -> Method:
     g = Generator(ckpt_path)
-    info = {"checkpoint": str(ckpt_path), "kind": g.kind, "params": sum(p.numel() for p in g.model.parameters()),
-            "model_config": g.cfg.to_dict(), "train": {k: g.ck["train_config"][k] for k in ("scheme", "steps", "batch", "preset")},
-            "train_wall_s": round(g.ck["info"].get("wall_s", 0.0), 1)}
+    info = {
+        "checkpoint": str(ckpt_path),
+        "kind": g.kind,
+        "params": sum(p.numel() for p in g.model.parameters()),
+        "model_config": g.cfg.to_dict(),
+        "train": {k: g.ck["train_config"][k] for k in ("scheme", "steps", "batch", "preset")},
+        "train_wall_s": round(g.ck["info"].get("wall_s", 0.0), 1),
+    }
     return Method(name, lambda E, T, seed: g.generate_from_embeddings(E, T, seed), info=info)
 
 
 def _slug(name: str) -> str:
     import re
+
     return re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
 
 
@@ -118,17 +135,19 @@ def variants(steps: int, ablations: bool, seed_preset: bool) -> dict[str, TrainC
     small = TrainConfig(preset="small", steps=steps)
     v = {"ours": small, "mdm": TrainConfig(kind="mdm", steps=steps)}
     if ablations:
-        v.update({
-            # FaceFormer's scheme: every step rolls out the whole sequence; the seed trained it 25x longer
-            # (50k steps at batch 1) than teacher forcing; here it gets the same wall budget, i.e. fewer steps
-            "autoregressive": replace(small, scheme="autoregressive", steps=max(1, steps // 10)),
-            "teacher forcing, no frame dropout (seed)": replace(small, tf_drop=0.0),
-            "style": replace(small, model={"style": True}),
-            "codebook D256 N256": replace(small, model={"N_emb": 256}),
-            "codebook D256 N64": replace(small, model={"N_emb": 64}),
-            "codebook D128 N128": replace(small, model={"D_emb": 128}),
-            "codebook D512 N128": replace(small, model={"D_emb": 512}),
-        })
+        v.update(
+            {
+                # FaceFormer's scheme: every step rolls out the whole sequence; the seed trained it 25x longer
+                # (50k steps at batch 1) than teacher forcing; here it gets the same wall budget, i.e. fewer steps
+                "autoregressive": replace(small, scheme="autoregressive", steps=max(1, steps // 10)),
+                "teacher forcing, no frame dropout (seed)": replace(small, tf_drop=0.0),
+                "style": replace(small, model={"style": True}),
+                "codebook D256 N256": replace(small, model={"N_emb": 256}),
+                "codebook D256 N64": replace(small, model={"N_emb": 64}),
+                "codebook D128 N128": replace(small, model={"D_emb": 128}),
+                "codebook D512 N128": replace(small, model={"D_emb": 512}),
+            }
+        )
     if seed_preset:
         v["ours (seed size)"] = TrainConfig(preset="seed", steps=steps)
     return v
@@ -147,12 +166,26 @@ def score(method: Method, items, item_E, geom, reps, progress) -> dict:
         divs.append(diversity(m, geom, np.random.default_rng(r)))
         detected.append(attribute_sets(m))
         gens.append(m)
-    return {"mae_mm": ci(maes), "rmse_mm": ci(rmses), "diversity_mm": ci(divs), "detected": detected,
-            "generated": gens, "score_s": round(time.perf_counter() - t0, 1)}
+    return {
+        "mae_mm": ci(maes),
+        "rmse_mm": ci(rmses),
+        "diversity_mm": ci(divs),
+        "detected": detected,
+        "generated": gens,
+        "score_s": round(time.perf_counter() - t0, 1),
+    }
 
 
-def evaluate(dataset, work: Path, reps: int = 20, ablations: bool = True, steps: int = 1000,
-             seed_preset: bool = False, checkpoint: str | None = None, progress: bool = True) -> dict:
+def evaluate(
+    dataset,
+    work: Path,
+    reps: int = 20,
+    ablations: bool = True,
+    steps: int = 1000,
+    seed_preset: bool = False,
+    checkpoint: str | None = None,
+    progress: bool = True,
+) -> dict:
     work = Path(work)
     if checkpoint:
         load_checkpoint(checkpoint)  # a bad checkpoint fails before any training
@@ -172,8 +205,14 @@ def evaluate(dataset, work: Path, reps: int = 20, ablations: bool = True, steps:
         if name == "ours" and checkpoint:
             methods.append(model_method(name, checkpoint))
             continue
-        r = train(dataset, work / _slug(name), cfg, progress=progress, prepared=prepared,
-                  command=f"anima eval text2face {dataset} --work {work}")
+        r = train(
+            dataset,
+            work / _slug(name),
+            cfg,
+            progress=progress,
+            prepared=prepared,
+            command=f"anima eval text2face {dataset} --work {work}",
+        )
         methods.append(model_method(name, r["path"]))
 
     if SHIPPED.is_file() and not checkpoint:
@@ -195,26 +234,48 @@ def evaluate(dataset, work: Path, reps: int = 20, ablations: bool = True, steps:
     covered = [a for a in ATTRIBUTES if sum(a in s for s in labels) >= 2]
     real_det = attribute_sets(real)
     result = {
-        "protocol": {"train_clips": sum(c.split == "train" for c in clips), "train_crops": len(pool),
-                     "heldout_clips": len(held), "heldout_videos": len({c.video_id for c in held}),
-                     "eval_windows": len(items), "window_frames": EVAL_LEN, "reps": reps,
-                     "metric_vertices": geom.n_metric, "attributes_covered": covered,
-                     "label_counts": {a: sum(a in s for s in labels) for a in covered}},
-        "real": {"diversity_mm": ci([diversity(real, geom, np.random.default_rng(r)) for r in range(reps)]),
-                 "attribute_recall": recall_table(labels, [real_det], covered),
-                 "r_precision": [round(x, 3) for x in np.mean(
-                     [r_precision(ev, (real - stats[0]) / stats[1], item_E[:, k]) for k in range(item_E.shape[1])], 0)]},
+        "protocol": {
+            "train_clips": sum(c.split == "train" for c in clips),
+            "train_crops": len(pool),
+            "heldout_clips": len(held),
+            "heldout_videos": len({c.video_id for c in held}),
+            "eval_windows": len(items),
+            "window_frames": EVAL_LEN,
+            "reps": reps,
+            "metric_vertices": geom.n_metric,
+            "attributes_covered": covered,
+            "label_counts": {a: sum(a in s for s in labels) for a in covered},
+        },
+        "real": {
+            "diversity_mm": ci([diversity(real, geom, np.random.default_rng(r)) for r in range(reps)]),
+            "attribute_recall": recall_table(labels, [real_det], covered),
+            "r_precision": [
+                round(x, 3)
+                for x in np.mean(
+                    [r_precision(ev, (real - stats[0]) / stats[1], item_E[:, k]) for k in range(item_E.shape[1])], 0
+                )
+            ],
+        },
         "methods": {},
     }
     for m in methods:
         s = score(m, items, item_E, geom, reps, progress)
-        rp = np.mean([r_precision(ev, (g - stats[0]) / stats[1], item_E[:, r % item_E.shape[1]])
-                      for r, g in enumerate(s["generated"])], 0)
+        rp = np.mean(
+            [
+                r_precision(ev, (g - stats[0]) / stats[1], item_E[:, r % item_E.shape[1]])
+                for r, g in enumerate(s["generated"])
+            ],
+            0,
+        )
         result["methods"][m.name] = {
-            "mae_mm": s["mae_mm"], "rmse_mm": s["rmse_mm"], "diversity_mm": s["diversity_mm"],
+            "mae_mm": s["mae_mm"],
+            "rmse_mm": s["rmse_mm"],
+            "diversity_mm": s["diversity_mm"],
             "r_precision": [round(float(x), 3) for x in rp],
             "attribute_recall": recall_table(labels, s["detected"], covered),
-            "score_s": s["score_s"], **m.info}
+            "score_s": s["score_s"],
+            **m.info,
+        }
     result["tables"] = tables_markdown(result)
     return result
 
@@ -227,18 +288,27 @@ TABLE_73 = ["codebook D256 N256", "codebook D256 N64", "codebook D128 N128", "co
 def _row(name, r):
     f = lambda d: f"{d['mean']:.3f} ± {d['ci95']:.3f}"
     rp = r.get("r_precision", [])
-    return f"| {name} | {f(r['mae_mm'])} | {f(r['rmse_mm'])} | {f(r['diversity_mm'])} | " + \
-        " / ".join(f"{x:.2f}" for x in rp) + " |"
+    return (
+        f"| {name} | {f(r['mae_mm'])} | {f(r['rmse_mm'])} | {f(r['diversity_mm'])} | "
+        + " / ".join(f"{x:.2f}" for x in rp)
+        + " |"
+    )
 
 
 def tables_markdown(res: dict) -> str:
     head = "| method | MAE (mm) ↓ | RMSE (mm) ↓ | Diversity (mm) → | R-precision top-1/2/3 ↑ |\n|---|---|---|---|---|"
     real = res["real"]
-    real_row = f"| real | - | - | {real['diversity_mm']['mean']:.3f} ± {real['diversity_mm']['ci95']:.3f} | " + \
-        " / ".join(f"{x:.2f}" for x in real["r_precision"]) + " |"
+    real_row = (
+        f"| real | - | - | {real['diversity_mm']['mean']:.3f} ± {real['diversity_mm']['ci95']:.3f} | "
+        + " / ".join(f"{x:.2f}" for x in real["r_precision"])
+        + " |"
+    )
     out = []
-    for title, names in (("Table 7.1: methods", TABLE_71), ("Table 7.2: training scheme and style", TABLE_72),
-                         ("Table 7.3: codebook (D_emb, N_emb); ours is D256 N128", TABLE_73)):
+    for title, names in (
+        ("Table 7.1: methods", TABLE_71),
+        ("Table 7.2: training scheme and style", TABLE_72),
+        ("Table 7.3: codebook (D_emb, N_emb); ours is D256 N128", TABLE_73),
+    ):
         rows = [_row(n, res["methods"][n]) for n in names if n in res["methods"]]
         if len(rows) > 1:
             out.append(f"**{title}**\n\n{head}\n{real_row}\n" + "\n".join(rows))
@@ -259,7 +329,6 @@ def dump(res: dict, path: Path) -> None:
     path.write_text(json.dumps(res, indent=2))
 
 
-
 def quick_metrics(dataset, checkpoint, reps: int = 5) -> dict:
     """Held-out MAE / RMSE / Diversity of one checkpoint (for a shipped model's manifest)."""
     clips, pool, pool_E, stats, gram, enc = prepare(dataset, TrainConfig(preset="small"))
@@ -268,6 +337,11 @@ def quick_metrics(dataset, checkpoint, reps: int = 5) -> dict:
     item_E = encode_cached(enc, [t for it in items for t in it.texts]).reshape(len(items), len(items[0].texts), -1)
     s = score(model_method("ours", checkpoint), items, item_E, FaceGeometry(), reps, progress=False)
     real = np.stack([it.motion for it in items])
-    return {"eval_windows": len(items), "reps": reps, "mae_mm": s["mae_mm"], "rmse_mm": s["rmse_mm"],
-            "diversity_mm": s["diversity_mm"],
-            "real_diversity_mm": ci([diversity(real, FaceGeometry(), np.random.default_rng(r)) for r in range(reps)])}
+    return {
+        "eval_windows": len(items),
+        "reps": reps,
+        "mae_mm": s["mae_mm"],
+        "rmse_mm": s["rmse_mm"],
+        "diversity_mm": s["diversity_mm"],
+        "real_diversity_mm": ci([diversity(real, FaceGeometry(), np.random.default_rng(r)) for r in range(reps)]),
+    }

@@ -1,4 +1,5 @@
 """Exports of a tracked sequence: ARKit Live Link Face CSV, GLB with morph targets, BVH of body and hands."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -29,8 +30,16 @@ def export_glb(seq: TrackedSequence, path: str | Path, animate_head: bool = True
     head rotation."""
     skin = load_face_model().skin()
     q = matrix_to_quat(seq.rotation_matrices()) if animate_head else None
-    return write_glb(path, skin.vertices(seq.identity), skin.triangles(), skin.expr_deltas, skin.expr_names,
-                     seq.expression, seq.fps, q)
+    return write_glb(
+        path,
+        skin.vertices(seq.identity),
+        skin.triangles(),
+        skin.expr_deltas,
+        skin.expr_names,
+        seq.expression,
+        seq.fps,
+        q,
+    )
 
 
 def has_body(seq: TrackedSequence) -> bool:

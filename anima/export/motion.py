@@ -20,6 +20,7 @@ file                   what                                                     
 Videos carry the source's audio track, else ``audio`` (the speech motion was made from). The sequence is
 written first, so a failing render loses nothing already computed; every file is atomic.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -32,9 +33,16 @@ from anima.render.skeleton import render_skeleton_videos
 from anima.render.videos import render_videos
 
 
-def write_motion_outputs(seq: TrackedSequence, out: OutputFolder, name: str = "capture.npz",
-                         source_video: str | None = None, audio: str | None = None, render: bool = True,
-                         info: dict | None = None, progress: bool = True) -> dict[str, Path]:
+def write_motion_outputs(
+    seq: TrackedSequence,
+    out: OutputFolder,
+    name: str = "capture.npz",
+    source_video: str | None = None,
+    audio: str | None = None,
+    render: bool = True,
+    info: dict | None = None,
+    progress: bool = True,
+) -> dict[str, Path]:
     """Write the output set of ``seq`` (see the module table); returns ``{role: path}``."""
     files = {"sequence": write_sequence(seq, out.file(name))}
     face = bool(seq.tracked.any())
@@ -45,16 +53,16 @@ def write_motion_outputs(seq: TrackedSequence, out: OutputFolder, name: str = "c
         files["bvh"] = export_bvh(seq, out.file("body.bvh"))
     if render and face:
         if source_video is not None:
-            render_videos(seq, source_video, out.file("overlay.mp4"), out.file("mesh.mp4"), progress=progress,
-                          audio=audio)
+            render_videos(
+                seq, source_video, out.file("overlay.mp4"), out.file("mesh.mp4"), progress=progress, audio=audio
+            )
             files["overlay_video"], files["mesh_video"] = out.path / "overlay.mp4", out.path / "mesh.mp4"
         else:
             render_videos(seq, None, None, out.file("face.mp4"), progress=progress, audio=audio)
             files["face_video"] = out.path / "face.mp4"
     if render and seq.body_joints is not None:
         overlay = out.file("skeleton_overlay.mp4") if source_video is not None and seq.body_image is not None else None
-        render_skeleton_videos(seq, source_video, overlay, out.file("skeleton3d.mp4"), progress=progress,
-                               audio=audio)
+        render_skeleton_videos(seq, source_video, overlay, out.file("skeleton3d.mp4"), progress=progress, audio=audio)
         if overlay is not None:
             files["skeleton_overlay_video"] = overlay
         files["skeleton_video"] = out.path / "skeleton3d.mp4"

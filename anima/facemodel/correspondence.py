@@ -15,6 +15,7 @@ Computed once by ``anima facemodel correspondence`` (see :func:`build_correspond
    (distance <= 0.5 cm); plus the reverse map: each of ICT's 68 iBUG vertices as a barycentric point
    of MediaPipe's mesh ("raw MediaPipe, 68 points").
 """
+
 from __future__ import annotations
 
 import json
@@ -40,8 +41,18 @@ VALID_DIST_CM = 0.5
 # Default template images: real, roughly frontal faces from the shared data (paths under the data root).
 DEFAULT_TEMPLATE_IMAGES = [
     f"styletalk-samples/samples/source_video/image/{n}.png"
-    for n in ("KristiNoem", "Obama_clip1", "Obama_clip2", "Obama_clip3", "andrew_clip_1", "andrew_clip_2",
-              "feifeili_clip1", "feifeili_clip2_short", "feifeili_clip3", "reagan_clip1")
+    for n in (
+        "KristiNoem",
+        "Obama_clip1",
+        "Obama_clip2",
+        "Obama_clip3",
+        "andrew_clip_1",
+        "andrew_clip_2",
+        "feifeili_clip1",
+        "feifeili_clip2_short",
+        "feifeili_clip3",
+        "reagan_clip1",
+    )
 ] + [f"liveportrait-examples/assets/examples/source/{n}.jpg" for n in ("s0", "s5", "s9", "s11", "s12", "s42")]
 
 
@@ -92,8 +103,10 @@ def procrustes_mean(shapes: list[np.ndarray]) -> np.ndarray:
 
 def _fit_model_to_points(model: FaceModel, ids, bary, X, w, lam_id=1.0, lam_e=0.1):
     """Ridge fit of identity+expression so that the barycentric points match X (model space)."""
+
     def gather(B):  # B (n, V, 3) -> (n, Q, 3)
         return np.einsum("nqcd,qc->nqd", B[:, ids], bary)
+
     n0 = np.einsum("qcd,qc->qd", model.neutral[ids], bary)
     A = np.concatenate([gather(model.id_deltas), gather(model.expr_deltas)], 0)  # (153, Q, 3)
     sw = np.sqrt(w)[None, :, None]
@@ -139,28 +152,57 @@ def build_correspondence(template: np.ndarray, model: FaceModel, n_iter: int = 1
     V = model.vertices(identity, expr).astype(np.float64)
     mp_tris = mediapipe_triangles()
     rid, rbary, rdist = closest_points_on_mesh(V[model.landmarks68], X, mp_tris, k=6)
-    meta = {"n_iter": n_iter, "valid_dist_cm": VALID_DIST_CM,
-            "mean_dist_cm": float(d.mean()), "median_dist_cm": float(np.median(d)),
-            "ibug_reverse_mean_dist_cm": float(rdist.mean()),
-            "fitted_identity_norm": float(np.linalg.norm(identity))}
-    return Correspondence(ids.astype(np.int32), bary.astype(np.float32), d.astype(np.float32),
-                          d <= VALID_DIST_CM, rid.astype(np.int32), rbary.astype(np.float32),
-                          X.astype(np.float32), meta)
+    meta = {
+        "n_iter": n_iter,
+        "valid_dist_cm": VALID_DIST_CM,
+        "mean_dist_cm": float(d.mean()),
+        "median_dist_cm": float(np.median(d)),
+        "ibug_reverse_mean_dist_cm": float(rdist.mean()),
+        "fitted_identity_norm": float(np.linalg.norm(identity)),
+    }
+    return Correspondence(
+        ids.astype(np.int32),
+        bary.astype(np.float32),
+        d.astype(np.float32),
+        d <= VALID_DIST_CM,
+        rid.astype(np.int32),
+        rbary.astype(np.float32),
+        X.astype(np.float32),
+        meta,
+    )
 
 
 def save_correspondence(c: Correspondence, path: str | Path) -> None:
     with atomic_path(path) as tmp:
-        np.savez_compressed(tmp, vertex_ids=c.vertex_ids, bary=c.bary, dist_cm=c.dist_cm, valid=c.valid,
-                            ibug_mp_ids=c.ibug_mp_ids, ibug_mp_bary=c.ibug_mp_bary, template=c.template,
-                            meta=np.asarray(json.dumps(c.meta)))
+        np.savez_compressed(
+            tmp,
+            vertex_ids=c.vertex_ids,
+            bary=c.bary,
+            dist_cm=c.dist_cm,
+            valid=c.valid,
+            ibug_mp_ids=c.ibug_mp_ids,
+            ibug_mp_bary=c.ibug_mp_bary,
+            template=c.template,
+            meta=np.asarray(json.dumps(c.meta)),
+        )
 
 
 @lru_cache(maxsize=1)
 def load_correspondence(path: str | None = None) -> Correspondence:
     p = Path(path) if path else package_data(FILENAME)
     if not p.is_file():
-        raise AssetNotFound(f"landmark correspondence not found: {p}\n  rebuild it with "
-                            "`anima facemodel correspondence` (see docs/face_capture.md)")
+        raise AssetNotFound(
+            f"landmark correspondence not found: {p}\n  rebuild it with "
+            "`anima facemodel correspondence` (see docs/face_capture.md)"
+        )
     with np.load(p, allow_pickle=False) as z:
-        return Correspondence(z["vertex_ids"], z["bary"], z["dist_cm"], z["valid"], z["ibug_mp_ids"],
-                              z["ibug_mp_bary"], z["template"], json.loads(str(z["meta"])))
+        return Correspondence(
+            z["vertex_ids"],
+            z["bary"],
+            z["dist_cm"],
+            z["valid"],
+            z["ibug_mp_ids"],
+            z["ibug_mp_bary"],
+            z["template"],
+            json.loads(str(z["meta"])),
+        )

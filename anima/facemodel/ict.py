@@ -7,6 +7,7 @@ Two ways in, one model out:
 * :func:`import_ict_obj` reads the upstream OBJ files (what a user downloads from ICT-VGL/ICT-FaceKit);
 * :func:`load_face_model` reads the compact ``ict_facekit_light.npz`` (same arrays, see data README).
 """
+
 from __future__ import annotations
 
 import json
@@ -106,11 +107,16 @@ class FaceModel:
         keep = (f[:, :3] >= 0).all(1) & ((self.faces[:, 3] < 0) | (f[:, 3] >= 0))
         lm = remap[self.landmarks68]
         return FaceModel(
-            neutral=self.neutral[vertex_idx], id_deltas=self.id_deltas[:, vertex_idx],
-            expr_deltas=self.expr_deltas[:, vertex_idx], faces=f[keep].astype(np.int32),
-            expr_names=self.expr_names, landmarks68=lm.astype(np.int32),
-            uvs=self.uvs, face_uvs=None if self.face_uvs is None else self.face_uvs[keep],
-            vertex_indices=self.vertex_indices, vertex_ids=vertex_idx,
+            neutral=self.neutral[vertex_idx],
+            id_deltas=self.id_deltas[:, vertex_idx],
+            expr_deltas=self.expr_deltas[:, vertex_idx],
+            faces=f[keep].astype(np.int32),
+            expr_names=self.expr_names,
+            landmarks68=lm.astype(np.int32),
+            uvs=self.uvs,
+            face_uvs=None if self.face_uvs is None else self.face_uvs[keep],
+            vertex_indices=self.vertex_indices,
+            vertex_ids=vertex_idx,
         )
 
     def skin(self) -> FaceModel:
@@ -152,6 +158,7 @@ def region_vertices(model: FaceModel, name: str) -> np.ndarray:
 
 
 # ---- loading ------------------------------------------------------------------------------------
+
 
 def _from_arrays(d: dict) -> FaceModel:
     names = [str(n) for n in d["expr_names"]]
@@ -204,7 +211,9 @@ def import_ict_obj(folder: str | Path, vertex_indices_json: str | Path | None = 
     neutral = base["v"]
     skip = {"generic_neutral_mesh"}
     id_files = sorted(p for p in folder.glob("identity*.obj") if re.fullmatch(r"identity\d+", p.stem))
-    expr_all = {p.stem: p for p in folder.glob("*.obj") if p.stem not in skip and not re.fullmatch(r"identity\d+", p.stem)}
+    expr_all = {
+        p.stem: p for p in folder.glob("*.obj") if p.stem not in skip and not re.fullmatch(r"identity\d+", p.stem)
+    }
     order = [n for n in vi["expressions"] if n in expr_all] + sorted(set(expr_all) - set(vi["expressions"]))
 
     def deltas(paths):
@@ -228,7 +237,6 @@ def import_ict_obj(folder: str | Path, vertex_indices_json: str | Path | None = 
         "vertex_indices_json": np.asarray(vi_text),
         "landmarks68": np.asarray(vi["idx_to_landmark_verts"], np.int32),
     }
-
 
 
 def write_face_model(folder: str | Path, out: str | Path) -> dict:

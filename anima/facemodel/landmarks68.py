@@ -7,6 +7,7 @@ upstream definition, whose projection under the fitted model is closest on avera
 The result is shipped as ``anima/facemodel/data/ibug68_vertices.json`` (project-made; rebuild with
 ``anima facemodel landmarks68``). Without it the upstream definition (+ jaw substitutes) is used.
 """
+
 from __future__ import annotations
 
 import json
@@ -19,8 +20,24 @@ from anima.io.assets import package_data
 
 FILENAME = "ibug68_vertices.json"
 # ICT README: "Right jawline (substitutes 0-7 in Multi PIE)" and "Left jawline (substitutes 9-16)".
-JAW_SUBSTITUTES = {0: 1278, 1: 1272, 2: 12, 3: 1834, 4: 243, 5: 781, 6: 2199, 7: 1447,
-                   9: 3661, 10: 4390, 11: 3022, 12: 2484, 13: 4036, 14: 2253, 15: 3490, 16: 3496}
+JAW_SUBSTITUTES = {
+    0: 1278,
+    1: 1272,
+    2: 12,
+    3: 1834,
+    4: 243,
+    5: 781,
+    6: 2199,
+    7: 1447,
+    9: 3661,
+    10: 4390,
+    11: 3022,
+    12: 2484,
+    13: 4036,
+    14: 2253,
+    15: 3490,
+    16: 3496,
+}
 
 
 def upstream_ibug68(model: FaceModel) -> np.ndarray:
@@ -55,8 +72,9 @@ def calibrate(model: FaceModel, uv_of_vertices: list, gts: list[np.ndarray], rad
     for i in range(17, 68):  # the jawline keeps ICT's documented substitutes (conventions differ most there)
         d = np.linalg.norm(model.neutral[face] - model.neutral[base[i]], axis=1)
         cand = face[d < radius_cm]
-        err = np.mean([np.linalg.norm(uv[cand] - g[i], axis=1) / n for uv, g, n in zip(uv_of_vertices, gts, norm)],
-                      axis=0)
+        err = np.mean(
+            [np.linalg.norm(uv[cand] - g[i], axis=1) / n for uv, g, n in zip(uv_of_vertices, gts, norm)], axis=0
+        )
         j = int(np.argmin(err))
         out[i] = cand[j]
         before[i] = np.mean([np.linalg.norm(uv[base[i]] - g[i]) / n for uv, g, n in zip(uv_of_vertices, gts, norm)])

@@ -5,6 +5,7 @@ Syntax: ``NAME OP VALUE[@START-ENDs]``, e.g. ``left_wrist_height>=p85@0-5s`` (VA
 the database; a plain number is in the feature's units: metres, metres/second; symmetry is minus the
 distance between the left wrist and the mirrored right wrist, so higher is more symmetric).
 """
+
 from __future__ import annotations
 
 import re
@@ -24,11 +25,14 @@ def control_features(G: np.ndarray, fps: float = FPS) -> dict[str, np.ndarray]:
     """G (M, T, 165) -> per-frame control features (M, T)."""
     J = G.reshape(G.shape[0], G.shape[1], -1, 3)
     lw, rw = J[..., _LW, :], J[..., _RW, :]
-    speed = lambda w: np.concatenate([np.zeros_like(w[:, :1, 0]),
-                                      np.linalg.norm(np.diff(w, axis=1), axis=-1) * fps], 1)
-    return {"left_wrist_height": lw[..., 1], "right_wrist_height": rw[..., 1],
-            "left_wrist_speed": speed(lw), "right_wrist_speed": speed(rw),
-            "hand_symmetry": -np.linalg.norm(lw - rw * np.array([-1.0, 1.0, 1.0]), axis=-1)}
+    speed = lambda w: np.concatenate([np.zeros_like(w[:, :1, 0]), np.linalg.norm(np.diff(w, axis=1), axis=-1) * fps], 1)
+    return {
+        "left_wrist_height": lw[..., 1],
+        "right_wrist_height": rw[..., 1],
+        "left_wrist_speed": speed(lw),
+        "right_wrist_speed": speed(rw),
+        "hand_symmetry": -np.linalg.norm(lw - rw * np.array([-1.0, 1.0, 1.0]), axis=-1),
+    }
 
 
 NAMES = tuple(control_features(np.zeros((1, 2, 165))).keys())
@@ -67,8 +71,9 @@ def parse_control(text: str) -> Control:
     return Control(name, op, float(v), bool(p), float(a) if a else 0.0, float(b) if b else float("inf"), text)
 
 
-def step_masks(db, controls: list[Control], n_steps: int, step_s: float,
-               threshold_rows: np.ndarray | None = None) -> tuple[list, list[dict]]:
+def step_masks(
+    db, controls: list[Control], n_steps: int, step_s: float, threshold_rows: np.ndarray | None = None
+) -> tuple[list, list[dict]]:
     """Per search step, the window-start mask (None = no control) and a report per control: the threshold
     used, and how far it was relaxed (towards the median) when no database window satisfied it. Percentiles
     are taken over the database windows ``threshold_rows`` (default: all)."""
@@ -90,8 +95,12 @@ def step_masks(db, controls: list[Control], n_steps: int, step_s: float,
                 if db.start_mask(fm).any():
                     relaxed_to = t2
                     break
-            warnings.warn(f"control {c.text!r}: no database window satisfies it; relaxed from {thr:.3f} to "
-                          f"{relaxed_to:.3f}" if relaxed_to is not None else f"control {c.text!r} cannot be met", stacklevel=2)
+            warnings.warn(
+                f"control {c.text!r}: no database window satisfies it; relaxed from {thr:.3f} to {relaxed_to:.3f}"
+                if relaxed_to is not None
+                else f"control {c.text!r} cannot be met",
+                stacklevel=2,
+            )
         masks_by_control.append(fm)
         report.append({"control": c.text, "threshold": thr, "relaxed_to": relaxed_to})
     out = []

@@ -1,6 +1,7 @@
 """The matching database from the dataset builder's (audio, motion) windows (read through
 :func:`anima.dataset.windows.read_windows`: 55-joint skeleton + 28 speech features per frame, at the data's
 own frame rate)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -17,8 +18,10 @@ def from_dataset(folder: str | Path, split: str | None = "train") -> MatchDB:
     w = read_windows(folder, split)
     keep = np.flatnonzero(w.has_body) if w.n and w.length == T_MATCH else np.zeros(0, int)
     if not len(keep):
-        raise InputError(f"no usable (audio, motion) windows in {folder} (split {split}): build the dataset from "
-                         "videos where the upper body and hands are visible and there is speech")
+        raise InputError(
+            f"no usable (audio, motion) windows in {folder} (split {split}): build the dataset from "
+            "videos where the upper body and hands are visible and there is speech"
+        )
     J = w.body[keep].reshape(len(keep), T_MATCH, -1, 3)
     S = w.speech[keep]
     F = np.stack([audio_features(s) for s in S])

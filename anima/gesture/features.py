@@ -6,6 +6,7 @@
 * gesture g_t (165): the 55-joint skeleton (pelvis-relative metres).
 Frames past the end of a window repeat its last frame.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -18,9 +19,19 @@ T_MATCH = WINDOW
 N_STEP = 8
 AUDIO_OFFSETS = tuple(range(0, 15, 2))
 POSE_OFFSETS = (0, 2, 4, 6)
-POSE_JOINTS = [JOINT_NAMES.index(n) for n in (
-    "left_wrist", "left_elbow", "left_hand_index_mcp", "left_hand_pinky_mcp",
-    "right_wrist", "right_elbow", "right_hand_index_mcp", "right_hand_pinky_mcp")]
+POSE_JOINTS = [
+    JOINT_NAMES.index(n)
+    for n in (
+        "left_wrist",
+        "left_elbow",
+        "left_hand_index_mcp",
+        "left_hand_pinky_mcp",
+        "right_wrist",
+        "right_elbow",
+        "right_hand_index_mcp",
+        "right_hand_pinky_mcp",
+    )
+]
 
 
 def _ahead(x: np.ndarray, offsets) -> np.ndarray:

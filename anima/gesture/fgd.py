@@ -7,6 +7,7 @@ from the normalised 55-joint gesture ``[T, 165]`` to a ``latent``-wide code per 
 decoder; trained to reconstruct (L1). The feature of a window is its code averaged over time. Pure torch
 and numpy.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -37,11 +38,19 @@ class MotionAutoencoder(nn.Module):
 
         def blk(cin, cout, stride):
             return nn.Sequential(nn.Conv1d(cin, cout, 3, stride, 1), nn.BatchNorm1d(cout), nn.LeakyReLU(0.2))
-        self.encoder = nn.Sequential(blk(G_DIM, width, 1), blk(width, width, 2), blk(width, width, 2),
-                                     nn.Conv1d(width, latent, 3, 2, 1))
-        self.decoder = nn.Sequential(nn.Upsample(scale_factor=2), blk(latent, width, 1), nn.Upsample(scale_factor=2),
-                                     blk(width, width, 1), nn.Upsample(scale_factor=2), blk(width, width, 1),
-                                     nn.Conv1d(width, G_DIM, 3, 1, 1))
+
+        self.encoder = nn.Sequential(
+            blk(G_DIM, width, 1), blk(width, width, 2), blk(width, width, 2), nn.Conv1d(width, latent, 3, 2, 1)
+        )
+        self.decoder = nn.Sequential(
+            nn.Upsample(scale_factor=2),
+            blk(latent, width, 1),
+            nn.Upsample(scale_factor=2),
+            blk(width, width, 1),
+            nn.Upsample(scale_factor=2),
+            blk(width, width, 1),
+            nn.Conv1d(width, G_DIM, 3, 1, 1),
+        )
 
     def forward(self, g):
         """``g [B, T, 165]`` (normalised, T a multiple of 8) -> reconstruction."""
@@ -79,5 +88,14 @@ def train_fgd(G: np.ndarray, steps: int = 1500, batch: int = 16, latent: int = 8
         opt.zero_grad()
         loss.backward()
         opt.step()
-    return FGD(ae, mean, std, {"windows": int(len(G)), "steps": steps, "latent": latent,
-                               "final_l1_normalised": round(float(loss.detach()), 4)})
+    return FGD(
+        ae,
+        mean,
+        std,
+        {
+            "windows": int(len(G)),
+            "steps": steps,
+            "latent": latent,
+            "final_l1_normalised": round(float(loss.detach()), 4),
+        },
+    )

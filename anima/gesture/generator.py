@@ -23,6 +23,7 @@ without a visible body) train the face decoder only.
 
 Pure torch and numpy; checkpoints through :func:`save_generator` / :func:`load_generator`.
 """
+
 from __future__ import annotations
 
 import time
@@ -48,32 +49,40 @@ KINDS = ("adversarial", "regression", "lstm")
 
 # ---- representation (pure) ------------------------------------------------------------------------
 
+
 def split_parts(body165: np.ndarray, face56: np.ndarray) -> dict[str, np.ndarray]:
     """Dataset window arrays ``[..., T, 165]`` (55 joints) and ``[..., T, 56]`` (53 expressions + head
     rotation) -> the generator's three parts."""
     J = body165.reshape(*body165.shape[:-1], N_JOINTS, 3)
     body = np.concatenate([J[..., BODY, :].reshape(*J.shape[:-2], 3 * N_BODY_JOINTS), face56[..., N_EXPR:]], -1)
-    return {"face": face56[..., :N_EXPR], "body": body,
-            "hands": J[..., N_BODY_JOINTS:, :].reshape(*J.shape[:-2], PARTS["hands"])}
+    return {
+        "face": face56[..., :N_EXPR],
+        "body": body,
+        "hands": J[..., N_BODY_JOINTS:, :].reshape(*J.shape[:-2], PARTS["hands"]),
+    }
 
 
 def join_parts(parts: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Inverse of :func:`split_parts`: -> joints ``[..., T, 55, 3]``, face ``[..., T, 56]``."""
     b, h = parts["body"], parts["hands"]
     nb = 3 * N_BODY_JOINTS
-    J = np.concatenate([b[..., :nb].reshape(*b.shape[:-1], N_BODY_JOINTS, 3),
-                        h.reshape(*h.shape[:-1], 2 * N_HAND_JOINTS, 3)], -2)
+    J = np.concatenate(
+        [b[..., :nb].reshape(*b.shape[:-1], N_BODY_JOINTS, 3), h.reshape(*h.shape[:-1], 2 * N_HAND_JOINTS, 3)], -2
+    )
     return J, np.concatenate([parts["face"], b[..., nb:]], -1)
 
 
 def part_losses(pred: dict, target: dict) -> dict:
     """Eq. 4.1's three terms per window (mean over frames): face L2 norm, body and hands L1 norms."""
-    return {"face": (pred["face"] - target["face"]).norm(dim=-1).mean(-1),
-            "body": (pred["body"] - target["body"]).abs().sum(-1).mean(-1),
-            "hands": (pred["hands"] - target["hands"]).abs().sum(-1).mean(-1)}
+    return {
+        "face": (pred["face"] - target["face"]).norm(dim=-1).mean(-1),
+        "body": (pred["body"] - target["body"]).abs().sum(-1).mean(-1),
+        "hands": (pred["hands"] - target["hands"]).abs().sum(-1).mean(-1),
+    }
 
 
 # ---- networks ---------------------------------------------------------------------------------------
+
 
 @dataclass
 class GeneratorConfig:
@@ -115,7 +124,7 @@ class LSTMBaseline(nn.Module):
 
     def forward(self, speech):
         # time delay: the output at t has heard the speech up to t + delay
-        x = torch.cat([speech[:, self.delay:], speech[:, -1:].expand(-1, self.delay, -1)], 1) if self.delay else speech
+        x = torch.cat([speech[:, self.delay :], speech[:, -1:].expand(-1, self.delay, -1)], 1) if self.delay else speech
         return {p: self.out[p](self.lstm[p](x)[0]) for p in PARTS}
 
 
@@ -126,6 +135,7 @@ def build_model(cfg: GeneratorConfig) -> nn.Module:
 
 
 # ---- inference wrapper ---------------------------------------------------------------------------------
+
 
 class GestureGenerator:
     """Normalisation + network: ``generate(speech [T, 28]) -> (joints [T, 55, 3], face [T, 56])``."""
@@ -156,6 +166,7 @@ class GestureGenerator:
 
 # ---- training ---------------------------------------------------------------------------------------
 
+
 @dataclass
 class GeneratorTrainConfig:
     steps: int = 1000  # the seed: 300,000 per subject on hours of data
@@ -174,8 +185,9 @@ def part_stats(S: np.ndarray, parts: dict, has_body: np.ndarray) -> dict:
     return st
 
 
-def train_generator(S: np.ndarray, body: np.ndarray, face: np.ndarray, model: GeneratorConfig,
-                    cfg: GeneratorTrainConfig, progress=None) -> tuple[GestureGenerator, dict]:
+def train_generator(
+    S: np.ndarray, body: np.ndarray, face: np.ndarray, model: GeneratorConfig, cfg: GeneratorTrainConfig, progress=None
+) -> tuple[GestureGenerator, dict]:
     """``S [N, T, 28]``, ``body [N, T, 165]`` (all NaN for a face-only window), ``face [N, T, 56]``; T a
     multiple of 8."""
     if len(S) == 0:
@@ -225,8 +237,9 @@ def train_generator(S: np.ndarray, body: np.ndarray, face: np.ndarray, model: Ge
             fake = torch.cat([fake_out["body"], fake_out["hands"]], -1)
             real = torch.cat([y_t["body"][j], y_t["hands"][j]], -1)
             d_real, d_fake = D(s_t[j], real), D(s_t[j], fake.detach())
-            loss_d = (F.binary_cross_entropy_with_logits(d_real, torch.ones_like(d_real))
-                      + F.binary_cross_entropy_with_logits(d_fake, torch.zeros_like(d_fake)))
+            loss_d = F.binary_cross_entropy_with_logits(
+                d_real, torch.ones_like(d_real)
+            ) + F.binary_cross_entropy_with_logits(d_fake, torch.zeros_like(d_fake))
             opt_d.zero_grad()
             loss_d.backward()
             opt_d.step()
@@ -244,9 +257,14 @@ def train_generator(S: np.ndarray, body: np.ndarray, face: np.ndarray, model: Ge
         if progress is not None:
             progress(step)
     net.eval()
-    info = {"windows": int(len(S)), "body_windows": int(has_body.sum()), "wall_s": round(time.time() - t0, 1),
-            "loss_weights": {"w1_face": weights["face"], "w2_body": weights["body"], "w3_hands": weights["hands"]},
-            "train_config": asdict(cfg), "log": log}
+    info = {
+        "windows": int(len(S)),
+        "body_windows": int(has_body.sum()),
+        "wall_s": round(time.time() - t0, 1),
+        "loss_weights": {"w1_face": weights["face"], "w2_body": weights["body"], "w3_hands": weights["hands"]},
+        "train_config": asdict(cfg),
+        "log": log,
+    }
     return GestureGenerator(net, model, stats), info
 
 
@@ -256,8 +274,7 @@ def save_generator(path, gen: GestureGenerator, info: dict):
 
 
 def load_generator(path) -> GestureGenerator:
-    ck = load_checkpoint(path, KIND, (1, VERSION),
-                         train_hint="train one with `anima train gesture --model generator`")
+    ck = load_checkpoint(path, KIND, (1, VERSION), train_hint="train one with `anima train gesture --model generator`")
     cfg = GeneratorConfig.from_dict(ck.config["model"])
     net = build_model(cfg)
     load_state(net, ck)

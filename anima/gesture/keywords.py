@@ -7,6 +7,7 @@ windows of the database that is active at its start time, so the pose continuity
 search's own (pre-selection by the previous pose). Controls still apply, with their percentiles taken over
 the standard database.
 """
+
 from __future__ import annotations
 
 import re
@@ -45,22 +46,36 @@ def union(main: MatchDB, extra: dict[str, MatchDB]) -> tuple[MatchDB, np.ndarray
     has_s = all(d.S is not None for d in dbs)
     if any(abs(d.fps - main.fps) > 1e-6 for d in dbs):
         raise InputError(f"keyword databases at {sorted({d.fps for d in dbs})} fps: all must be at one frame rate")
-    u = MatchDB(np.concatenate([d.F for d in dbs]), np.concatenate([d.P for d in dbs]),
-                np.concatenate([d.G for d in dbs]), sum((list(d.source) for d in dbs), []),
-                np.concatenate([d.S for d in dbs]) if has_s else None, main.fps)
+    u = MatchDB(
+        np.concatenate([d.F for d in dbs]),
+        np.concatenate([d.P for d in dbs]),
+        np.concatenate([d.G for d in dbs]),
+        sum((list(d.source) for d in dbs), []),
+        np.concatenate([d.S for d in dbs]) if has_s else None,
+        main.fps,
+    )
     part = np.concatenate([np.full(d.M, i) for i, d in enumerate(dbs)])
     return u, part, names
 
 
-def keyword_masks(db: MatchDB, part: np.ndarray, names: list[str], keywords: list[Keyword], n_steps: int,
-                  step_s: float, control_masks: list) -> tuple[list, list[str]]:
+def keyword_masks(
+    db: MatchDB,
+    part: np.ndarray,
+    names: list[str],
+    keywords: list[Keyword],
+    n_steps: int,
+    step_s: float,
+    control_masks: list,
+) -> tuple[list, list[str]]:
     """Per search step, the window-start mask: the active database's windows (a keyword's while it is spoken,
     else the standard one), intersected with the step's control mask when that leaves any candidate.
     Returns the masks and, per step, the name of the database used."""
     for kw in keywords:
         if kw.word not in names:
-            raise InputError(f"keyword {kw.word!r} has no database: give --keyword-db {kw.word}=DATASET "
-                             f"(have: {', '.join(names[1:]) or 'none'})")
+            raise InputError(
+                f"keyword {kw.word!r} has no database: give --keyword-db {kw.word}=DATASET "
+                f"(have: {', '.join(names[1:]) or 'none'})"
+            )
     base = db.start_mask(None)
     out, used = [], []
     for k in range(n_steps):

@@ -16,6 +16,7 @@ Control masks look at the first and the last frame of each N-frame window (§5.3
 frames at once; exact distances in float64 like the literal one, float32 only inside a lower bound with its
 error margin) and returns identical output.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -64,8 +65,14 @@ class MatchDB:
     def subset(self, idx) -> MatchDB:
         """The windows ``idx`` (indices or a boolean mask) as a new database."""
         idx = np.flatnonzero(idx) if np.asarray(idx).dtype == bool else np.asarray(idx, int)
-        return MatchDB(self.F[idx], self.P[idx], self.G[idx], [self.source[i] for i in idx] if self.source else [],
-                       None if self.S is None else self.S[idx], self.fps)
+        return MatchDB(
+            self.F[idx],
+            self.P[idx],
+            self.G[idx],
+            [self.source[i] for i in idx] if self.source else [],
+            None if self.S is None else self.S[idx],
+            self.fps,
+        )
 
     def audio_norms(self) -> np.ndarray:
         """|f| per database frame, computed as the literal search computes it (float64, per row)."""
@@ -95,22 +102,30 @@ class MatchDB:
             err_a = np.empty(self.M)
             err = np.empty(self.M)
             for c in range(0, self.M, 4096):  # in chunks: the float64 projection of 600,000 frames is 230 MB
-                X = (P[c:c + 4096].astype(np.float64) - mu) @ U
+                X = (P[c : c + 4096].astype(np.float64) - mu) @ U
                 lo_c = X.min(1)
                 step_c = np.maximum(X.max(1) - lo_c, 1e-12) / 255
                 q = np.round((X - lo_c[:, None]) / step_c[:, None] - 128).clip(-128, 127)
                 e2 = ((q + 128) * step_c[:, None] + lo_c[:, None] - X) ** 2
-                err_a[c:c + 4096] = np.sqrt(e2[..., :N_FIRST].sum(-1)).max(1)
-                err[c:c + 4096] = np.sqrt(e2.sum(-1)).max(1)
-                Qi[c:c + 4096] = q
-                lo[c:c + 4096] = lo_c + 128 * step_c  # value = integer * step + lo
-                step[c:c + 4096] = step_c
+                err_a[c : c + 4096] = np.sqrt(e2[..., :N_FIRST].sum(-1)).max(1)
+                err[c : c + 4096] = np.sqrt(e2.sum(-1)).max(1)
+                Qi[c : c + 4096] = q
+                lo[c : c + 4096] = lo_c + 128 * step_c  # value = integer * step + lo
+                step[c : c + 4096] = step_c
             self._layout = _Layout(
-                np.ascontiguousarray(P[..., dims]), dims, U, mu,
-                np.ascontiguousarray(Qi[..., :N_FIRST].transpose(0, 2, 1)), np.ascontiguousarray(lo[:, :N_FIRST]),
-                np.ascontiguousarray(step[:, :N_FIRST]), err_a,
-                np.ascontiguousarray(Qi[..., N_FIRST:]), np.ascontiguousarray(lo[:, N_FIRST:]),
-                np.ascontiguousarray(step[:, N_FIRST:]), err)
+                np.ascontiguousarray(P[..., dims]),
+                dims,
+                U,
+                mu,
+                np.ascontiguousarray(Qi[..., :N_FIRST].transpose(0, 2, 1)),
+                np.ascontiguousarray(lo[:, :N_FIRST]),
+                np.ascontiguousarray(step[:, :N_FIRST]),
+                err_a,
+                np.ascontiguousarray(Qi[..., N_FIRST:]),
+                np.ascontiguousarray(lo[:, N_FIRST:]),
+                np.ascontiguousarray(step[:, N_FIRST:]),
+                err,
+            )
         return self._layout
 
     def start_mask(self, frame_mask: np.ndarray | None) -> np.ndarray:
@@ -118,10 +133,10 @@ class MatchDB:
         window allowed, and the window inside the database window."""
         M, T = self.P.shape[:2]
         ok = np.zeros((M, T), bool)
-        ok[:, 1:T - N_STEP + 1] = True  # s = 1 .. T - N (Algorithm 1 starts at s = 1)
+        ok[:, 1 : T - N_STEP + 1] = True  # s = 1 .. T - N (Algorithm 1 starts at s = 1)
         if frame_mask is not None:
             last = np.zeros_like(frame_mask)
-            last[:, :T - N_STEP + 1] = frame_mask[:, N_STEP - 1:]
+            last[:, : T - N_STEP + 1] = frame_mask[:, N_STEP - 1 :]
             ok &= frame_mask & last
         return ok
 
@@ -138,8 +153,9 @@ def _cosine(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return 1.0 - (a * b).sum(-1) / np.maximum(na * nb, 1e-12)
 
 
-def search_literal(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
-                   control: list | None = None) -> tuple[np.ndarray, list]:
+def search_literal(
+    db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray, control: list | None = None
+) -> tuple[np.ndarray, list]:
     """Algorithm 1 as written (Python loops). ``control``: per search step a (M, T) window-start mask or
     None. Returns the gestures (T, 165) and the chosen (window, frame) per step."""
     T = len(F_in)
@@ -168,7 +184,7 @@ def search_literal(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
         order = np.argsort(comb, kind="stable")
         m, r = cand[int(order[min(k, len(order) - 1)])]
         n = min(N_STEP, T - t)
-        G.append(db.G[m, r:r + n])
+        G.append(db.G[m, r : r + n])
         p_prev = db.P[m, r + N_STEP - 1].astype(np.float64)
         picks.append((m, r))
         t += N_STEP
@@ -320,8 +336,9 @@ def _rank_sum(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     out += rb
 
 
-def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
-           control: list | None = None) -> tuple[np.ndarray, list]:
+def search(
+    db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray, control: list | None = None
+) -> tuple[np.ndarray, list]:
     """The same search, fast: a numba pass over all windows and frames per step (partial distance search),
     then the ranking on the M pre-selected candidates. Identical output to :func:`search_literal`."""
     T = len(F_in)
@@ -342,8 +359,24 @@ def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
     comb_buf = np.empty(db.M, np.int64)
     while t < T:
         mask = base if control is None or control[step] is None else control[step]
-        _preselect(L.P, L.Qa, L.lo_a, L.step_a, L.err_a, L.Qb, L.lo_b, L.step_b, L.err, np.ascontiguousarray(mask),
-                   p_prev[L.dims], (p_prev - L.mu) @ L.U, lb, qb_work, r, pdist)
+        _preselect(
+            L.P,
+            L.Qa,
+            L.lo_a,
+            L.step_a,
+            L.err_a,
+            L.Qb,
+            L.lo_b,
+            L.step_b,
+            L.err,
+            np.ascontiguousarray(mask),
+            p_prev[L.dims],
+            (p_prev - L.mu) @ L.U,
+            lb,
+            qb_work,
+            r,
+            pdist,
+        )
         keep = r >= 0
         if keep.all():
             m_ok, r_ok, pd = rows, r, pdist
@@ -352,16 +385,16 @@ def search(db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray,
         else:
             raise ValueError("no database window satisfies the control")
         b = F_in[t].astype(np.float64)
-        fd = fdist[:len(m_ok)]
+        fd = fdist[: len(m_ok)]
         _audio_distance(Fdb, F_norm, m_ok, r_ok, b, float(np.sqrt((b * b).sum(-1))), fd)
-        comb = comb_buf[:len(m_ok)]
+        comb = comb_buf[: len(m_ok)]
         _rank_sum(fd, pd, comb)
         key = comb * len(comb) + np.arange(len(comb))  # the stable order of comb, as unique keys
         kk = min(k, len(key) - 1)
         j = int(np.argpartition(key, kk)[kk])
         m, rr = int(m_ok[j]), int(r_ok[j])
         n = min(N_STEP, T - t)
-        G.append(db.G[m, rr:rr + n])
+        G.append(db.G[m, rr : rr + n])
         p_prev = db.P[m, rr + N_STEP - 1].astype(np.float64)
         picks.append((m, rr))
         t += N_STEP

@@ -14,6 +14,7 @@ Training pairs (:func:`knn_pairs`): for every training window, the k-NN synthesi
 database without its video (k = 0..K for variety), beside the captured gesture (the "real" pair).
 Checkpoint ``anima.gesture_refiner`` version 1 (:func:`save_refiner` / :func:`load_refiner`).
 """
+
 from __future__ import annotations
 
 import time
@@ -38,6 +39,7 @@ G_DIM = BODY_DIM
 
 # ---- representation (pure) ------------------------------------------------------------------------
 
+
 def to_parent_relative(J: np.ndarray | torch.Tensor):
     """``[..., 55, 3]`` pelvis-relative positions -> joint minus parent (the root keeps its position)."""
     par = np.where(PARENTS < 0, 0, PARENTS)
@@ -58,6 +60,7 @@ def from_parent_relative(R: np.ndarray | torch.Tensor):
 
 # ---- networks ---------------------------------------------------------------------------------------
 
+
 @dataclass
 class RefinerConfig:
     # the seed's figure 5.4 gives the block layout; widths here are halved for a 2-core CPU and 2 minutes
@@ -74,6 +77,7 @@ def _block(cin, cout):
 
 
 # the 1D U-Net of seed 004 fig. 5.4, shared by the §4.4 generator (anima.gesture.generator) and this refiner
+
 
 def unet_encoder(cin: int, widths) -> nn.ModuleList:
     """8 [Conv-BN-ReLU] blocks (kernel 3); :func:`unet_encode` max-pools after every second one but the last."""
@@ -133,8 +137,11 @@ class Critic(nn.Module):
         w = list(cfg.critic_widths)
         layers = []
         for i in range(len(w)):
-            layers += [nn.Conv1d(SPEECH_DIM + G_DIM if i == 0 else w[i - 1], w[i], 3, padding=1),
-                       nn.InstanceNorm1d(w[i], affine=True), nn.LeakyReLU(0.2)]
+            layers += [
+                nn.Conv1d(SPEECH_DIM + G_DIM if i == 0 else w[i - 1], w[i], 3, padding=1),
+                nn.InstanceNorm1d(w[i], affine=True),
+                nn.LeakyReLU(0.2),
+            ]
             if i % 2 == 1:
                 layers.append(nn.AvgPool1d(2))
         self.body = nn.Sequential(*layers)
@@ -148,11 +155,12 @@ class Critic(nn.Module):
 def gradient_penalty(critic, speech, real, fake):
     a = torch.rand(len(real), 1, 1)
     x = (a * real + (1 - a) * fake).requires_grad_(True)
-    g, = torch.autograd.grad(critic(speech, x).sum(), x, create_graph=True)
+    (g,) = torch.autograd.grad(critic(speech, x).sum(), x, create_graph=True)
     return ((g.flatten(1).norm(dim=1) - 1) ** 2).mean()
 
 
 # ---- data -------------------------------------------------------------------------------------------
+
 
 def knn_pairs(db, ks=(0, 1, 2, 3, 4), windows=None):
     """(speech [N, 64, 28], k-NN gesture [N, 64, 55, 3], captured gesture [N, 64, 55, 3], window index [N]):
@@ -181,6 +189,7 @@ def knn_pairs(db, ks=(0, 1, 2, 3, 4), windows=None):
 
 
 # ---- training and checkpoints --------------------------------------------------------------------------
+
 
 @dataclass
 class RefinerTrainConfig:
@@ -211,8 +220,9 @@ class Refiner:
     def refine(self, speech: np.ndarray, J: np.ndarray) -> np.ndarray:
         T = len(J)
         pad = (-T) % 8
-        s, g = self._norm(np.pad(speech, ((0, pad), (0, 0)), mode="edge"),
-                          np.pad(J, ((0, pad), (0, 0), (0, 0)), mode="edge"))
+        s, g = self._norm(
+            np.pad(speech, ((0, pad), (0, 0)), mode="edge"), np.pad(J, ((0, pad), (0, 0), (0, 0)), mode="edge")
+        )
         out = self.G(torch.from_numpy(s)[None], torch.from_numpy(g)[None])[0].numpy()[:T]
         R = (out * self.stats["g_std"] + self.stats["g_mean"]).reshape(T, -1, 3)
         return from_parent_relative(R).astype(np.float32)
@@ -225,8 +235,12 @@ def train_refiner(db, cfg: RefinerTrainConfig, progress=None, pairs=None) -> tup
     rel_k = to_parent_relative(K).reshape(len(K), K.shape[1], -1)
     rel_r = to_parent_relative(R).reshape(len(R), R.shape[1], -1)
     allg = np.concatenate([rel_k, rel_r]).reshape(-1, G_DIM)
-    stats = {"s_mean": S.reshape(-1, SPEECH_DIM).mean(0), "s_std": S.reshape(-1, SPEECH_DIM).std(0) + 1e-4,
-             "g_mean": allg.mean(0), "g_std": allg.std(0) + 1e-4}
+    stats = {
+        "s_mean": S.reshape(-1, SPEECH_DIM).mean(0),
+        "s_std": S.reshape(-1, SPEECH_DIM).std(0) + 1e-4,
+        "g_mean": allg.mean(0),
+        "g_std": allg.std(0) + 1e-4,
+    }
     s_t = torch.from_numpy(((S - stats["s_mean"]) / stats["s_std"]).astype(np.float32))
     k_t = torch.from_numpy(((rel_k - stats["g_mean"]) / stats["g_std"]).astype(np.float32))
     r_t = torch.from_numpy(((rel_r - stats["g_mean"]) / stats["g_std"]).astype(np.float32))
@@ -242,7 +256,9 @@ def train_refiner(db, cfg: RefinerTrainConfig, progress=None, pairs=None) -> tup
             i = torch.from_numpy(rng.integers(0, n, cfg.batch))
             with torch.no_grad():
                 fake = G(s_t[i], k_t[i])
-            loss_d = D(s_t[i], fake).mean() - D(s_t[i], r_t[i]).mean() + cfg.gp * gradient_penalty(D, s_t[i], r_t[i], fake)
+            loss_d = (
+                D(s_t[i], fake).mean() - D(s_t[i], r_t[i]).mean() + cfg.gp * gradient_penalty(D, s_t[i], r_t[i], fake)
+            )
             opt_d.zero_grad()
             loss_d.backward()
             opt_d.step()
@@ -259,15 +275,27 @@ def train_refiner(db, cfg: RefinerTrainConfig, progress=None, pairs=None) -> tup
         log["l1"].append(round(float(l1.detach()), 4))
         if progress is not None:
             progress(step)
-    info = {"pairs": n, "windows": int(len(np.unique(W))), "wall_s": round(time.time() - t0, 1),
-            "train_config": {**asdict(cfg), "ks": list(cfg.ks)}, "model_config": mcfg.to_dict(), "log": log}
+    info = {
+        "pairs": n,
+        "windows": int(len(np.unique(W))),
+        "wall_s": round(time.time() - t0, 1),
+        "train_config": {**asdict(cfg), "ks": list(cfg.ks)},
+        "model_config": mcfg.to_dict(),
+        "log": log,
+    }
     return Refiner(G, stats), info
 
 
 def save_refiner(path: str | Path, ref: Refiner, info: dict) -> Path:
     config = {"model": info["model_config"], "stats": {k: v.tolist() for k, v in ref.stats.items()}}
-    return save_checkpoint(path, KIND, VERSION, config, {"state": ref.G.state_dict()},
-                           {k: v for k, v in info.items() if k != "model_config"})
+    return save_checkpoint(
+        path,
+        KIND,
+        VERSION,
+        config,
+        {"state": ref.G.state_dict()},
+        {k: v for k, v in info.items() if k != "model_config"},
+    )
 
 
 def load_refiner(path: str | Path) -> Refiner:

@@ -3,6 +3,7 @@
 The result is a tracked sequence (``gesture.npz``) written by the one motion writer with its BVH and videos
 (the speech muxed in), so ``anima info`` and ``anima export`` read it like a capture.
 """
+
 from __future__ import annotations
 
 import warnings
@@ -43,9 +44,17 @@ class GestureConfig:
     """The gesture database of a keyword: a dataset folder (repeatable)."""
 
 
-def synthesize(speech_path: str, db, k: int = 0, controls: list | None = None, init: str = "mean",
-               seed: int = 0, refiner=None, keywords: list | None = None,
-               keyword_dbs: dict | None = None) -> tuple[np.ndarray, dict]:
+def synthesize(
+    speech_path: str,
+    db,
+    k: int = 0,
+    controls: list | None = None,
+    init: str = "mean",
+    seed: int = 0,
+    refiner=None,
+    keywords: list | None = None,
+    keyword_dbs: dict | None = None,
+) -> tuple[np.ndarray, dict]:
     """k-NN search (and, with ``refiner`` from ``anima.gesture.refine.load_refiner``, the cGAN refinement)
     at the database's frame rate. ``keywords`` (``anima.gesture.keywords.Keyword``) switch the search to
     ``keyword_dbs[word]`` (MatchDB) while the word is spoken."""
@@ -70,16 +79,21 @@ def synthesize(speech_path: str, db, k: int = 0, controls: list | None = None, i
     notes += [str(w.message) for w in caught]
     used = None
     if part is not None:
-        masks, used = keyword_masks(db, part, names, keywords or [], n_steps, N_STEP / fps,
-                                    masks if controls else None)
+        masks, used = keyword_masks(db, part, names, keywords or [], n_steps, N_STEP / fps, masks if controls else None)
     if T > db.M * db.P.shape[1]:
         notes.append("the speech is longer than the database: database windows are reused")
     G, picks = search(db, F_in, k, p0, masks)
     J = G.reshape(len(G), -1, 3)
     if refiner is not None:
-        J = refiner.refine(feats.features[:len(J)], J)
-    info = {"frames": len(G), "fps": fps, "controls": report, "notes": notes, "refined": refiner is not None,
-            "picks": [(int(m), int(r)) for m, r in picks]}
+        J = refiner.refine(feats.features[: len(J)], J)
+    info = {
+        "frames": len(G),
+        "fps": fps,
+        "controls": report,
+        "notes": notes,
+        "refined": refiner is not None,
+        "picks": [(int(m), int(r)) for m, r in picks],
+    }
     if used is not None:
         info["database_per_step"] = used
     return J, info
@@ -91,7 +105,9 @@ def read_speech(speech_path: str, fps: float):
     feats = speech_features(x, fps)
     if len(feats.features) < N_STEP:
         raise InputError(f"speech is {len(x) / 16000:.2f} s long: at least {N_STEP / fps:.2f} s is needed")
-    notes = ["the speech is silent (below -60 dBFS): gestures follow the database's quiet moments"] if feats.silent else []
+    notes = (
+        ["the speech is silent (below -60 dBFS): gestures follow the database's quiet moments"] if feats.silent else []
+    )
     return feats, notes
 
 
@@ -106,9 +122,17 @@ def generate(speech_path: str, gen) -> tuple[np.ndarray, np.ndarray, dict]:
     return J, face, {"frames": len(J), "fps": gen.fps, "notes": notes, "model": gen.cfg.kind}
 
 
-def gesture_to_folder(speech: str, out: str | Path, cfg: GestureConfig, db: str | None = None,
-                      generator: str | None = None, refiner: str | None = None, render: bool = True,
-                      command: str | None = None, progress: bool = False) -> dict:
+def gesture_to_folder(
+    speech: str,
+    out: str | Path,
+    cfg: GestureConfig,
+    db: str | None = None,
+    generator: str | None = None,
+    refiner: str | None = None,
+    render: bool = True,
+    command: str | None = None,
+    progress: bool = False,
+) -> dict:
     """``anima gesture``: check every input, then search (``db``) or generate (``generator``) and write the
     result folder. Returns the run's info (notes, controls, files written)."""
     if not Path(speech).is_file():
@@ -130,21 +154,31 @@ def gesture_to_folder(speech: str, out: str | Path, cfg: GestureConfig, db: str 
     with OutputFolder(out, kind="gesture", command=command) as od:
         if generator:
             from anima.gesture.generator import load_generator  # lazy: torch
+
             J, face, info = generate(speech, load_generator(generator))
         else:
             ref = None
             if refiner:  # checkpoints first: a bad one fails before the database loads
                 from anima.gesture.refine import load_refiner  # lazy: torch
+
                 ref = load_refiner(refiner)
             match_db = from_dataset(db, None if cfg.all_splits else "train")
             kw_dbs = {w: from_dataset(f, None) for w, f in kw_folders.items()}
             J, info = synthesize(speech, match_db, cfg.k, controls, cfg.init, cfg.seed, ref, keywords, kw_dbs)
             face = None
             info = {k: v for k, v in info.items() if k != "picks"} | {"database_windows": match_db.M}
-        seq = generated_sequence(info["fps"], face=face, body=J,
-                                 meta={"generated_by": "anima gesture", "speech": str(speech),
-                                       **{k: v for k, v in info.items() if k != "notes"}})
+        seq = generated_sequence(
+            info["fps"],
+            face=face,
+            body=J,
+            meta={
+                "generated_by": "anima gesture",
+                "speech": str(speech),
+                **{k: v for k, v in info.items() if k != "notes"},
+            },
+        )
         od.info = info
-        files = write_motion_outputs(seq, od, "gesture.npz", audio=str(speech), render=render, info=info,
-                                     progress=progress)
+        files = write_motion_outputs(
+            seq, od, "gesture.npz", audio=str(speech), render=render, info=info, progress=progress
+        )
     return info | {"written": [str(p) for p in files.values()]}

@@ -7,6 +7,7 @@ Pairs are crops of L frames (16, 32 or 64 at 15 fps) of the dataset's windows: i
 of the same crop; off sync = the same speech with the gesture of a random crop of another window.
 Pure torch and numpy; the evaluation runner is ``anima.eval.gesture``.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -46,11 +47,14 @@ def make_pairs(S: np.ndarray, G: np.ndarray, L: int, n: int, rng: np.random.Gene
     a = rng.integers(0, T - L + 1, n)
     j = (i + rng.integers(1, M, n)) % M  # never the same window
     b = rng.integers(0, T - L + 1, n)
-    s = np.stack([S[w, o:o + L] for w, o in zip(i, a)])
-    pos = np.stack([G[w, o:o + L] for w, o in zip(i, a)])
-    neg = np.stack([G[w, o:o + L] for w, o in zip(j, b)])
-    return (np.concatenate([s, s]), np.concatenate([pos, neg]),
-            np.concatenate([np.ones(n, np.float32), np.zeros(n, np.float32)]))
+    s = np.stack([S[w, o : o + L] for w, o in zip(i, a)])
+    pos = np.stack([G[w, o : o + L] for w, o in zip(i, a)])
+    neg = np.stack([G[w, o : o + L] for w, o in zip(j, b)])
+    return (
+        np.concatenate([s, s]),
+        np.concatenate([pos, neg]),
+        np.concatenate([np.ones(n, np.float32), np.zeros(n, np.float32)]),
+    )
 
 
 def train_sync(S, G, L: int, steps: int = 300, batch: int = 32, seed: int = 0) -> tuple[SyncClassifier, dict]:

@@ -7,6 +7,7 @@ checkpoint (:mod:`anima.io.checkpoint`).
 * ``generator`` (the §4.4 adversarial U-Net), ``regression`` (without the adversarial term), ``lstm`` (the
   LSTM baseline): trained on every window, face-only windows training the face decoder.
 """
+
 from __future__ import annotations
 
 import sys
@@ -23,9 +24,16 @@ from anima.gesture.refine import RefinerTrainConfig, knn_pairs, save_refiner, tr
 MODELS = ("refiner", "generator", "regression", "lstm")
 
 
-def train_from_dataset(db: str | Path, out: str | Path, model: str = "refiner", steps: int | None = None,
-                       seed: int = 0, all_splits: bool = False, progress: bool = True,
-                       command: str | None = None) -> dict:
+def train_from_dataset(
+    db: str | Path,
+    out: str | Path,
+    model: str = "refiner",
+    steps: int | None = None,
+    seed: int = 0,
+    all_splits: bool = False,
+    progress: bool = True,
+    command: str | None = None,
+) -> dict:
     """Train ``model`` on the training split of ``db`` (every split with ``all_splits``); returns a summary."""
     if not Path(db).exists():
         raise InputError(f"no dataset at {db}")
@@ -44,18 +52,30 @@ def train_from_dataset(db: str | Path, out: str | Path, model: str = "refiner", 
             ref, info = train_refiner(match_db, cfg, progress=lambda s: bar.update(1), pairs=pairs)
         info.update(dataset=str(db), command=command)
         save_refiner(out, ref, info)
-        return {"checkpoint": str(out), "model": model, "pairs": info["pairs"], "windows": info["windows"],
-                "wall_s": info["wall_s"]}
+        return {
+            "checkpoint": str(out),
+            "model": model,
+            "pairs": info["pairs"],
+            "windows": info["windows"],
+            "wall_s": info["wall_s"],
+        }
     w = read_windows(db, split)
     if not w.n:
         raise InputError(f"no training windows in {db}")
     kind = {"generator": "adversarial"}.get(model, model)
     cfg = GeneratorTrainConfig(steps=steps or GeneratorTrainConfig().steps, seed=seed)
     with tqdm(total=cfg.steps, desc=f"train {model}", unit="step", disable=not progress) as bar:
-        gen, info = train_generator(w.speech, w.body, w.face, GeneratorConfig(kind=kind, fps=w.fps), cfg,
-                                    progress=lambda s: bar.update(1))
+        gen, info = train_generator(
+            w.speech, w.body, w.face, GeneratorConfig(kind=kind, fps=w.fps), cfg, progress=lambda s: bar.update(1)
+        )
     info.update(dataset=str(db), command=command)
     save_generator(out, gen, info)
-    return {"checkpoint": str(out), "model": model, "kind": kind, "windows": info["windows"],
-            "body_windows": info["body_windows"], "loss_weights": info["loss_weights"], "wall_s": info["wall_s"]}
-
+    return {
+        "checkpoint": str(out),
+        "model": model,
+        "kind": kind,
+        "windows": info["windows"],
+        "body_windows": info["body_windows"],
+        "loss_weights": info["loss_weights"],
+        "wall_s": info["wall_s"],
+    }

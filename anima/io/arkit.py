@@ -5,6 +5,7 @@ LeftEyeYaw ... RightEyeRoll``; Timecode ``HH:MM:SS:FF.mmm`` (frame number and it
 ICT names map to ARKit by dropping ``_L/_R`` for ``Left/Right``; ICT splits ``browInnerUp`` and
 ``cheekPuff`` into left/right, which are averaged. ``TongueOut`` and eye rotations are written as 0.
 """
+
 from __future__ import annotations
 
 import csv
@@ -16,18 +17,70 @@ import numpy as np
 from anima.io.atomic import write_text
 
 LIVE_LINK_COLUMNS = [
-    "EyeBlinkLeft", "EyeLookDownLeft", "EyeLookInLeft", "EyeLookOutLeft", "EyeLookUpLeft", "EyeSquintLeft",
-    "EyeWideLeft", "EyeBlinkRight", "EyeLookDownRight", "EyeLookInRight", "EyeLookOutRight", "EyeLookUpRight",
-    "EyeSquintRight", "EyeWideRight", "JawForward", "JawLeft", "JawRight", "JawOpen", "MouthClose",
-    "MouthFunnel", "MouthPucker", "MouthLeft", "MouthRight", "MouthSmileLeft", "MouthSmileRight",
-    "MouthFrownLeft", "MouthFrownRight", "MouthDimpleLeft", "MouthDimpleRight", "MouthStretchLeft",
-    "MouthStretchRight", "MouthRollLower", "MouthRollUpper", "MouthShrugLower", "MouthShrugUpper",
-    "MouthPressLeft", "MouthPressRight", "MouthLowerDownLeft", "MouthLowerDownRight", "MouthUpperUpLeft",
-    "MouthUpperUpRight", "BrowDownLeft", "BrowDownRight", "BrowInnerUp", "BrowOuterUpLeft", "BrowOuterUpRight",
-    "CheekPuff", "CheekSquintLeft", "CheekSquintRight", "NoseSneerLeft", "NoseSneerRight", "TongueOut",
+    "EyeBlinkLeft",
+    "EyeLookDownLeft",
+    "EyeLookInLeft",
+    "EyeLookOutLeft",
+    "EyeLookUpLeft",
+    "EyeSquintLeft",
+    "EyeWideLeft",
+    "EyeBlinkRight",
+    "EyeLookDownRight",
+    "EyeLookInRight",
+    "EyeLookOutRight",
+    "EyeLookUpRight",
+    "EyeSquintRight",
+    "EyeWideRight",
+    "JawForward",
+    "JawLeft",
+    "JawRight",
+    "JawOpen",
+    "MouthClose",
+    "MouthFunnel",
+    "MouthPucker",
+    "MouthLeft",
+    "MouthRight",
+    "MouthSmileLeft",
+    "MouthSmileRight",
+    "MouthFrownLeft",
+    "MouthFrownRight",
+    "MouthDimpleLeft",
+    "MouthDimpleRight",
+    "MouthStretchLeft",
+    "MouthStretchRight",
+    "MouthRollLower",
+    "MouthRollUpper",
+    "MouthShrugLower",
+    "MouthShrugUpper",
+    "MouthPressLeft",
+    "MouthPressRight",
+    "MouthLowerDownLeft",
+    "MouthLowerDownRight",
+    "MouthUpperUpLeft",
+    "MouthUpperUpRight",
+    "BrowDownLeft",
+    "BrowDownRight",
+    "BrowInnerUp",
+    "BrowOuterUpLeft",
+    "BrowOuterUpRight",
+    "CheekPuff",
+    "CheekSquintLeft",
+    "CheekSquintRight",
+    "NoseSneerLeft",
+    "NoseSneerRight",
+    "TongueOut",
 ]
-HEAD_COLUMNS = ["HeadYaw", "HeadPitch", "HeadRoll", "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll",
-                "RightEyeYaw", "RightEyePitch", "RightEyeRoll"]
+HEAD_COLUMNS = [
+    "HeadYaw",
+    "HeadPitch",
+    "HeadRoll",
+    "LeftEyeYaw",
+    "LeftEyePitch",
+    "LeftEyeRoll",
+    "RightEyeYaw",
+    "RightEyePitch",
+    "RightEyeRoll",
+]
 
 
 def arkit_name(ict: str) -> str:
@@ -57,11 +110,14 @@ def timecode(i: int, fps: float) -> str:
     h, rem = divmod(t, 3600)
     m, s = divmod(rem, 60)
     frame = (s - int(s)) * fps
-    return f"{int(h):02d}:{int(m):02d}:{int(s):02d}:{int(frame):02d}.{int(round((frame - int(frame)) * 1000)) % 1000:03d}"
+    return (
+        f"{int(h):02d}:{int(m):02d}:{int(s):02d}:{int(frame):02d}.{int(round((frame - int(frame)) * 1000)) % 1000:03d}"
+    )
 
 
-def write_live_link_csv(path: str | Path, expression: np.ndarray, expr_names: list[str], fps: float,
-                        head_ypr: np.ndarray | None = None) -> Path:
+def write_live_link_csv(
+    path: str | Path, expression: np.ndarray, expr_names: list[str], fps: float, head_ypr: np.ndarray | None = None
+) -> Path:
     """Write the CSV. head_ypr ``[F, 3]`` radians (yaw, pitch, roll), or None for zeros."""
     ark = ict_to_arkit(np.asarray(expression), expr_names)
     F = ark.shape[0]

@@ -3,6 +3,7 @@
 Root: ``$ANIMA_DATA`` if set, else ``../shared/data`` beside the checkout (i.e. next to the repository
 root). A missing asset raises :class:`AssetNotFound` naming the upstream source to download it from.
 """
+
 from __future__ import annotations
 
 import os

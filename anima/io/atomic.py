@@ -6,6 +6,7 @@ writers of one path never share a temporary file), writes it, and on success the
 at any moment, sees either the previous complete file or the new complete file, never a partial one. On
 failure the temporary file is removed and the target is left as it was.
 """
+
 from __future__ import annotations
 
 import json

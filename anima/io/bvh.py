@@ -10,6 +10,7 @@ values (the tracked-sequence file keeps the flags). Leaf joints get an ``End Sit
 Reader (:func:`read_bvh`): any channel order, position channels on any joint, End Sites; returns names,
 parents, offsets, frame time and joint positions by forward kinematics.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -102,13 +103,13 @@ def read_bvh(path: str | Path) -> BVH:
                 stack.pop()
                 i += 1
             elif t == "OFFSET":
-                vals = [float(x) for x in tokens[i + 1:i + 4]]
+                vals = [float(x) for x in tokens[i + 1 : i + 4]]
                 if stack and stack[-1] != -2:
                     offsets[stack[-1]] = vals
                 i += 4
             elif t == "CHANNELS":
                 n = int(tokens[i + 1])
-                channels[stack[-1]] = tokens[i + 2:i + 2 + n]
+                channels[stack[-1]] = tokens[i + 2 : i + 2 + n]
                 i += 2 + n
             else:
                 i += 1
@@ -118,14 +119,20 @@ def read_bvh(path: str | Path) -> BVH:
         n_frames = int(tokens[i + 1])
         assert tokens[i + 2] == "Frame" and tokens[i + 3] == "Time:"
         frame_time = float(tokens[i + 4])
-        vals = np.array(tokens[i + 5:], dtype=np.float64)
+        vals = np.array(tokens[i + 5 :], dtype=np.float64)
     except (IndexError, ValueError, AssertionError) as e:
         raise InputError(f"{path}: not a valid BVH file ({type(e).__name__})") from None
     n_ch = sum(len(c) for c in channels)
     if n_ch == 0 or vals.size < n_frames * n_ch:
         raise InputError(f"{path}: motion data has {vals.size} values, expected {n_frames} x {n_ch}")
-    return BVH(names, np.array(parents), np.array(offsets, np.float64), channels, frame_time,
-               vals[: n_frames * n_ch].reshape(n_frames, n_ch))
+    return BVH(
+        names,
+        np.array(parents),
+        np.array(offsets, np.float64),
+        channels,
+        frame_time,
+        vals[: n_frames * n_ch].reshape(n_frames, n_ch),
+    )
 
 
 def _hold_missing(P: np.ndarray) -> np.ndarray:

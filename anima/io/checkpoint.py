@@ -14,6 +14,7 @@ with :class:`CheckpointError`). Layout::
 The config travels inside the file, so a checkpoint rebuilds its own model. Every error (missing file
 aside, which is bad input) is a :class:`CheckpointError`: one line, exit code 4.
 """
+
 from __future__ import annotations
 
 import json
@@ -57,23 +58,31 @@ def _plain(x):
     return str(x)
 
 
-def save_checkpoint(path: str | Path, kind: str, version: int, config: dict, tensors: dict,
-                    info: dict | None = None) -> Path:
+def save_checkpoint(
+    path: str | Path, kind: str, version: int, config: dict, tensors: dict, info: dict | None = None
+) -> Path:
     """Write atomically. ``tensors``: ``{"state": model.state_dict(), ...}`` (tensors and plain containers
     only); ``config`` and ``info`` are stored as JSON."""
     import torch
 
     if "state" not in tensors:
         raise ValueError("tensors must hold the model's 'state'")
-    obj = {"format": FORMAT, "envelope": ENVELOPE, "kind": kind, "version": int(version),
-           "meta": json.dumps({"config": _plain(config), "info": _plain(info or {})}), "tensors": tensors}
+    obj = {
+        "format": FORMAT,
+        "envelope": ENVELOPE,
+        "kind": kind,
+        "version": int(version),
+        "meta": json.dumps({"config": _plain(config), "info": _plain(info or {})}),
+        "tensors": tensors,
+    }
     with atomic_path(path) as tmp:
         torch.save(obj, tmp)
     return Path(path)
 
 
-def load_checkpoint(path: str | Path, kind: str | tuple[str, ...], version: int | tuple[int, ...],
-                    train_hint: str = "") -> Checkpoint:
+def load_checkpoint(
+    path: str | Path, kind: str | tuple[str, ...], version: int | tuple[int, ...], train_hint: str = ""
+) -> Checkpoint:
     """Read a checkpoint of ``kind`` (one or several) and ``version`` (the versions this anima reads).
     Never executes code from the file. A missing file is :class:`InputError` (exit 2); anything else wrong
     (not a torch file, a pickle with code, another kind, another version) is :class:`CheckpointError`."""
@@ -100,13 +109,16 @@ def load_checkpoint(path: str | Path, kind: str | tuple[str, ...], version: int 
     if not isinstance(obj, dict) or obj.get("format") != FORMAT:
         raise CheckpointError(f"{p}: not an anima checkpoint (format {_fmt(obj)!r}){hint}")
     if obj.get("envelope") != ENVELOPE:
-        raise CheckpointError(f"{p}: checkpoint envelope {obj.get('envelope')!r}, this anima reads {ENVELOPE}; "
-                              "upgrade anima")
+        raise CheckpointError(
+            f"{p}: checkpoint envelope {obj.get('envelope')!r}, this anima reads {ENVELOPE}; upgrade anima"
+        )
     if obj.get("kind") not in kinds:
         raise CheckpointError(f"{p}: a {obj.get('kind')!r} checkpoint, expected {' or '.join(map(repr, kinds))}")
     if obj.get("version") not in versions:
-        raise CheckpointError(f"{p}: {obj.get('kind')} checkpoint version {obj.get('version')!r}, this anima reads "
-                              f"{', '.join(map(str, versions))}{hint}")
+        raise CheckpointError(
+            f"{p}: {obj.get('kind')} checkpoint version {obj.get('version')!r}, this anima reads "
+            f"{', '.join(map(str, versions))}{hint}"
+        )
     try:
         meta = json.loads(obj["meta"])
         tensors = obj["tensors"]
@@ -119,19 +131,30 @@ def load_checkpoint(path: str | Path, kind: str | tuple[str, ...], version: int 
 
 # the per-model envelopes of anima before the one format (all loadable with weights_only=True): kind, and
 # how their fields map to (config, tensors, info)
-LEGACY = {"anima.text2face": None, "anima.gesture_refiner": "gesture_refiner",
-          "anima.gesture_generator": "gesture_generator", "anima.pose_lifter": "pose_lifter"}
+LEGACY = {
+    "anima.text2face": None,
+    "anima.gesture_refiner": "gesture_refiner",
+    "anima.gesture_generator": "gesture_generator",
+    "anima.pose_lifter": "pose_lifter",
+}
 
 
 def _from_legacy(obj: dict, p: Path) -> dict:
     """An envelope of version 1 of a model's own format, read into the one format (its kind at version 1)."""
     fmt, v = obj["format"], obj.get("version")
     if v != 1:
-        raise CheckpointError(f"{p}: a checkpoint of the old format {fmt} version {v!r}, which this anima cannot "
-                              "read; retrain the model")
+        raise CheckpointError(
+            f"{p}: a checkpoint of the old format {fmt} version {v!r}, which this anima cannot read; retrain the model"
+        )
     if fmt == "anima.text2face":
-        config = {"model": obj["model_config"], "train": obj["train_config"], "mean": obj["mean"], "std": obj["std"],
-                  "gram": obj["gram"], "step": obj["step"]}
+        config = {
+            "model": obj["model_config"],
+            "train": obj["train_config"],
+            "mean": obj["mean"],
+            "std": obj["std"],
+            "gram": obj["gram"],
+            "step": obj["step"],
+        }
         tensors, info, kind = {"state": obj["state"]}, obj.get("info", {}), obj["kind"]
         if obj.get("optim"):
             tensors["optimizer"] = obj["optim"]
@@ -142,16 +165,23 @@ def _from_legacy(obj: dict, p: Path) -> dict:
     else:
         config = {"model": obj["model_config"], "stats": obj["stats"]}
         tensors, info, kind = {"state": obj["state"]}, obj.get("info", {}), LEGACY[fmt]
-    return {"format": FORMAT, "envelope": ENVELOPE, "kind": kind, "version": 1,
-            "meta": json.dumps({"config": _plain(config), "info": _plain(info)}), "tensors": tensors}
+    return {
+        "format": FORMAT,
+        "envelope": ENVELOPE,
+        "kind": kind,
+        "version": 1,
+        "meta": json.dumps({"config": _plain(config), "info": _plain(info)}),
+        "tensors": tensors,
+    }
 
 
 def load_state(module, ck: Checkpoint, key: str = "state", float32: bool = True) -> None:
     """Load ``ck.tensors[key]`` into ``module``; a state that does not fit the config is a CheckpointError."""
     state = ck.tensors[key]
     if float32:
-        state = {k: v.float() if hasattr(v, "is_floating_point") and v.is_floating_point() else v
-                 for k, v in state.items()}
+        state = {
+            k: v.float() if hasattr(v, "is_floating_point") and v.is_floating_point() else v for k, v in state.items()
+        }
     try:
         module.load_state_dict(state)
     except (RuntimeError, KeyError, TypeError) as e:

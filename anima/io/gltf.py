@@ -1,6 +1,7 @@
 """Binary glTF 2.0 (GLB) export of the fitted face: mesh (identity applied, metres), the 53 expression
 blendshapes as morph targets (``mesh.extras.targetNames``), and an animation of their weights plus the
 head rotation. glTF axes match anima's camera convention (+Y up, +Z towards the viewer)."""
+
 from __future__ import annotations
 
 import json
@@ -40,25 +41,39 @@ class _Buffer:
         return len(self.accessors) - 1
 
 
-def write_glb(path: str | Path, neutral_cm: np.ndarray, tris: np.ndarray, expr_deltas_cm: np.ndarray,
-              expr_names: list[str], weights: np.ndarray | None = None, fps: float = 30.0,
-              rotations_xyzw: np.ndarray | None = None) -> Path:
+def write_glb(
+    path: str | Path,
+    neutral_cm: np.ndarray,
+    tris: np.ndarray,
+    expr_deltas_cm: np.ndarray,
+    expr_names: list[str],
+    weights: np.ndarray | None = None,
+    fps: float = 30.0,
+    rotations_xyzw: np.ndarray | None = None,
+) -> Path:
     """neutral ``[V, 3]`` cm, tris ``[T, 3]``, expr_deltas ``[53, V, 3]`` cm, weights ``[F, 53]`` (optional
     animation), rotations ``[F, 4]`` (x, y, z, w) head rotation per frame (optional)."""
     buf = _Buffer()
     pos = buf.add((neutral_cm * CM_TO_M).astype(np.float32), FLOAT, "VEC3", ARRAY_BUFFER, minmax=True)
     idx = buf.add(tris.astype(np.uint32).ravel(), UINT, "SCALAR", ELEMENT_ARRAY_BUFFER)
-    targets = [{"POSITION": buf.add((d * CM_TO_M).astype(np.float32), FLOAT, "VEC3", ARRAY_BUFFER, minmax=True)}
-               for d in expr_deltas_cm]
+    targets = [
+        {"POSITION": buf.add((d * CM_TO_M).astype(np.float32), FLOAT, "VEC3", ARRAY_BUFFER, minmax=True)}
+        for d in expr_deltas_cm
+    ]
     n_t = len(targets)
     gltf = {
         "asset": {"version": "2.0", "generator": "anima"},
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": [{"name": "face", "mesh": 0}],
-        "meshes": [{"name": "ict_face", "primitives": [{"attributes": {"POSITION": pos}, "indices": idx,
-                                                         "targets": targets, "mode": 4}],
-                    "weights": [0.0] * n_t, "extras": {"targetNames": list(expr_names)}}],
+        "meshes": [
+            {
+                "name": "ict_face",
+                "primitives": [{"attributes": {"POSITION": pos}, "indices": idx, "targets": targets, "mode": 4}],
+                "weights": [0.0] * n_t,
+                "extras": {"targetNames": list(expr_names)},
+            }
+        ],
     }
     if weights is not None and len(weights) > 0:
         F = len(weights)
@@ -81,5 +96,11 @@ def write_glb(path: str | Path, neutral_cm: np.ndarray, tris: np.ndarray, expr_d
     js = json.dumps(gltf, separators=(",", ":")).encode()
     js += b" " * ((4 - len(js) % 4) % 4)
     total = 12 + 8 + len(js) + 8 + len(buf.data)
-    return write_bytes(path, struct.pack("<III", 0x46546C67, 2, total) + struct.pack("<II", len(js), 0x4E4F534A) + js
-                       + struct.pack("<II", len(buf.data), 0x004E4942) + bytes(buf.data))
+    return write_bytes(
+        path,
+        struct.pack("<III", 0x46546C67, 2, total)
+        + struct.pack("<II", len(js), 0x4E4F534A)
+        + js
+        + struct.pack("<II", len(buf.data), 0x004E4942)
+        + bytes(buf.data),
+    )

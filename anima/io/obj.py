@@ -1,4 +1,5 @@
 """Wavefront OBJ reader for polygon meshes (positions, UVs, faces up to quads)."""
+
 from __future__ import annotations
 
 from pathlib import Path

@@ -13,6 +13,7 @@ read-only folder) is refused at once, and:
   with its size and sha256. A folder with a manifest whose files match it is complete; anything else is
   partial (:func:`check_complete`).
 """
+
 from __future__ import annotations
 
 import fcntl
@@ -71,8 +72,9 @@ class OutputFolder:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             os.close(fd)
-            raise InputError(f"--out {self.path}: another anima run is writing into this folder; wait for it or "
-                             "choose another --out") from None
+            raise InputError(
+                f"--out {self.path}: another anima run is writing into this folder; wait for it or choose another --out"
+            ) from None
         self._lock_fd = fd
         remove_stale_temps(self.path)
         old = self.path / MANIFEST
@@ -112,11 +114,16 @@ class OutputFolder:
                     (self.path / name).unlink()
                 except (FileNotFoundError, IsADirectoryError):
                     pass
-        manifest = {"schema": SCHEMA, "version": VERSION, "kind": self.kind, "command": self.command,
-                    "anima_version": __version__, "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-                    "info": self.info,
-                    "files": {n: {"bytes": (self.path / n).stat().st_size, "sha256": sha256(self.path / n)}
-                              for n in written}}
+        manifest = {
+            "schema": SCHEMA,
+            "version": VERSION,
+            "kind": self.kind,
+            "command": self.command,
+            "anima_version": __version__,
+            "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            "info": self.info,
+            "files": {n: {"bytes": (self.path / n).stat().st_size, "sha256": sha256(self.path / n)} for n in written},
+        }
         write_json(self.path / MANIFEST, manifest)
 
 

@@ -1,6 +1,7 @@
 """Reading object arrays (pickled dicts of arrays, as VideoPose3D's HumanEva files are) without running code:
 the pickle inside the ``.npy`` member is read by an unpickler that knows numpy's array reconstruction and
 nothing else, so numpy never has to be allowed to unpickle."""
+
 from __future__ import annotations
 
 import pickle
@@ -11,9 +12,14 @@ import numpy as np
 
 from anima.errors import InputError
 
-_ALLOWED = {("numpy.core.multiarray", "_reconstruct"), ("numpy._core.multiarray", "_reconstruct"),
-            ("numpy", "ndarray"), ("numpy", "dtype"), ("numpy.core.multiarray", "scalar"),
-            ("numpy._core.multiarray", "scalar")}
+_ALLOWED = {
+    ("numpy.core.multiarray", "_reconstruct"),
+    ("numpy._core.multiarray", "_reconstruct"),
+    ("numpy", "ndarray"),
+    ("numpy", "dtype"),
+    ("numpy.core.multiarray", "scalar"),
+    ("numpy._core.multiarray", "scalar"),
+}
 
 
 class _NumpyOnly(pickle.Unpickler):

@@ -33,6 +33,7 @@ Version 1 files (face only) still load: the v2 arrays are then None. meta.audio 
 units, smoothing, tracker and face-model versions, source (path, codec, duration, size, warnings).
 Readers of a newer or unknown version fail with a clear :class:`SchemaError`.
 """
+
 from __future__ import annotations
 
 import json
@@ -50,10 +51,8 @@ SCHEMA = "anima.tracked_sequence"
 VERSION = 2
 FLAG_NO_FACE = 1
 FLAG_LOW_CONFIDENCE = 2
-ARRAYS = ("identity", "expression", "rotation", "scale", "translation", "fit_error_px", "fit_nme", "flags",
-          "landmarks")
-OPTIONAL = ("body_joints", "body_joints_raw", "body_conf", "body_interpolated", "body_image", "speech",
-            "speech_valid")
+ARRAYS = ("identity", "expression", "rotation", "scale", "translation", "fit_error_px", "fit_nme", "flags", "landmarks")
+OPTIONAL = ("body_joints", "body_joints_raw", "body_conf", "body_interpolated", "body_image", "speech", "speech_valid")
 
 
 @dataclass
@@ -111,7 +110,6 @@ class TrackedSequence:
             "source": self.meta.get("source", {}).get("path"),
         }
         if self.body_joints is not None:
-
             raw = np.isfinite(self.body_joints_raw).all(-1) if self.body_joints_raw is not None else None
             fin = np.isfinite(self.body_joints).all(-1)
             out["body_tracked_fraction"] = round(float(raw[:, :13].all(1).mean()), 4) if raw is not None else None
@@ -128,9 +126,17 @@ class TrackedSequence:
 def write_sequence(seq: TrackedSequence, path: str | Path) -> Path:
     """Write atomically (temp file + rename), so an interrupted run never leaves a corrupt artifact."""
     meta = dict(seq.meta)
-    meta.update(schema=SCHEMA, version=VERSION, fps=float(seq.fps), n_frames=seq.n_frames, width=int(seq.width),
-                height=int(seq.height), expr_names=list(seq.expr_names), camera="weak_perspective",
-                units={"model": "cm", "image": "px", "time": "s", "angles": "rad"})
+    meta.update(
+        schema=SCHEMA,
+        version=VERSION,
+        fps=float(seq.fps),
+        n_frames=seq.n_frames,
+        width=int(seq.width),
+        height=int(seq.height),
+        expr_names=list(seq.expr_names),
+        camera="weak_perspective",
+        units={"model": "cm", "image": "px", "time": "s", "angles": "rad"},
+    )
     arrays = {k: np.asarray(getattr(seq, k)) for k in ARRAYS}
     arrays.update({k: np.asarray(getattr(seq, k)) for k in OPTIONAL if getattr(seq, k) is not None})
     for k in arrays:
@@ -159,8 +165,9 @@ def read_sequence(path: str | Path) -> TrackedSequence:
     if meta.get("schema") != SCHEMA:
         raise SchemaError(f"{path}: schema {meta.get('schema')!r}, expected {SCHEMA!r}")
     if int(meta.get("version", -1)) > VERSION:
-        raise SchemaError(f"{path}: schema version {meta.get('version')} is newer than this anima "
-                          f"(reads <= {VERSION}); upgrade anima")
+        raise SchemaError(
+            f"{path}: schema version {meta.get('version')} is newer than this anima (reads <= {VERSION}); upgrade anima"
+        )
     missing = [k for k in ARRAYS if k not in arrays]
     if missing:
         raise SchemaError(f"{path}: missing arrays {missing}")
@@ -168,5 +175,12 @@ def read_sequence(path: str | Path) -> TrackedSequence:
     for k in ("body_interpolated", "speech_valid"):
         if opt[k] is not None:
             opt[k] = opt[k].astype(bool)
-    return TrackedSequence(fps=float(meta["fps"]), width=int(meta["width"]), height=int(meta["height"]),
-                           expr_names=list(meta["expr_names"]), meta=meta, **{k: arrays[k] for k in ARRAYS}, **opt)
+    return TrackedSequence(
+        fps=float(meta["fps"]),
+        width=int(meta["width"]),
+        height=int(meta["height"]),
+        expr_names=list(meta["expr_names"]),
+        meta=meta,
+        **{k: arrays[k] for k in ARRAYS},
+        **opt,
+    )

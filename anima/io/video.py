@@ -7,6 +7,7 @@
   overlaps tracking. A truncated file yields the frames that decode and records a warning.
 * :class:`VideoWriter` encodes H.264 (yuv420p) and can mux an audio track.
 """
+
 from __future__ import annotations
 
 import os
@@ -46,8 +47,22 @@ class VideoInfo:
 
 def _packet_pts(path: str) -> tuple[np.ndarray, float]:
     """Presentation timestamps (s) of the video packets, read without decoding (ffmpeg framemd5)."""
-    cmd = [FFMPEG, "-hide_banner", "-nostdin", "-v", "error", "-i", path, "-map", "0:v:0", "-c", "copy",
-           "-f", "framemd5", "-"]
+    cmd = [
+        FFMPEG,
+        "-hide_banner",
+        "-nostdin",
+        "-v",
+        "error",
+        "-i",
+        path,
+        "-map",
+        "0:v:0",
+        "-c",
+        "copy",
+        "-f",
+        "framemd5",
+        "-",
+    ]
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     tb = None
     pts = []
@@ -82,8 +97,9 @@ def probe_video(path: str | os.PathLike) -> VideoInfo:
         gen.close()
     except (RuntimeError, OSError, StopIteration, ValueError) as e:
         first = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
-        raise InputError(f"not a readable video (corrupt, truncated before its index, or not a video): {p}"
-                         f" ({first})") from None
+        raise InputError(
+            f"not a readable video (corrupt, truncated before its index, or not a video): {p} ({first})"
+        ) from None
     if "size" not in meta or not meta.get("fps"):
         raise InputError(f"no video stream in {p}")
     w, h = meta["size"]
@@ -97,18 +113,23 @@ def probe_video(path: str | os.PathLike) -> VideoInfo:
         irregular = np.abs(d - np.median(d)) > 0.25 * np.median(d) if len(d) else np.zeros(0, bool)
         if irregular.sum() >= 3 and irregular.mean() > 0.05:
             vfr = True
-            warn.append(f"variable frame rate (frame intervals {d.min()*1000:.1f}-{d.max()*1000:.1f} ms): "
-                        f"resampled to a constant {fps:g} fps")
+            warn.append(
+                f"variable frame rate (frame intervals {d.min() * 1000:.1f}-{d.max() * 1000:.1f} ms): "
+                f"resampled to a constant {fps:g} fps"
+            )
     n = len(pts) if len(pts) else int(round(float(meta.get("duration", 0)) * fps))
     duration = float(meta.get("duration") or (n / fps))
     expected = int(round(duration * fps))
     if vfr:
         n = expected
     elif len(pts) and n < 0.95 * expected - 1:
-        warn.append(f"the file holds {n} of the {expected} frames its header announces (truncated?): "
-                    f"keeping the {n} that are there")
-    return VideoInfo(str(p), fps, int(w), int(h), int(n), duration, str(meta.get("codec", "?")),
-                     "audio_codec" in meta, vfr, warn)
+        warn.append(
+            f"the file holds {n} of the {expected} frames its header announces (truncated?): "
+            f"keeping the {n} that are there"
+        )
+    return VideoInfo(
+        str(p), fps, int(w), int(h), int(n), duration, str(meta.get("codec", "?")), "audio_codec" in meta, vfr, warn
+    )
 
 
 def iter_frames(info: VideoInfo, prefetch: int = 8, errors: list[str] | None = None) -> Iterator[np.ndarray]:
@@ -184,17 +205,31 @@ class VideoWriter:
     :meth:`close` finishes the encode. A run killed or failing mid-render (:meth:`abort`, or leaving a
     ``with`` block by an exception) leaves the previous file, or none, never a truncated video."""
 
-    def __init__(self, path: str | os.PathLike, fps: float, size: tuple[int, int], audio_path: str | None = None,
-                 quality: int = 7):
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        fps: float,
+        size: tuple[int, int],
+        audio_path: str | None = None,
+        quality: int = 7,
+    ):
         self.path = str(path)
         Path(self.path).parent.mkdir(parents=True, exist_ok=True)
         self._tmp = temp_sibling(self.path)
         w, h = size
         self.size = (int(w) + (int(w) % 2), int(h) + (int(h) % 2))
         self._gen = imageio_ffmpeg.write_frames(
-            str(self._tmp), self.size, fps=fps, quality=quality, codec="libx264", macro_block_size=2,
-            audio_path=audio_path, audio_codec="aac" if audio_path else None,
-            output_params=["-movflags", "+faststart"], ffmpeg_log_level="error")
+            str(self._tmp),
+            self.size,
+            fps=fps,
+            quality=quality,
+            codec="libx264",
+            macro_block_size=2,
+            audio_path=audio_path,
+            audio_codec="aac" if audio_path else None,
+            output_params=["-movflags", "+faststart"],
+            ffmpeg_log_level="error",
+        )
         self._gen.send(None)
         self.n = 0
 

@@ -1,5 +1,6 @@
 """Configs of the 2D->3D lifter and its training, and where its files live. Light: no torch, so the command
 line can build its options from them."""
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field

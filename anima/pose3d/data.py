@@ -13,6 +13,7 @@
 All 2D evidence goes through :func:`normalise_2d`: pelvis-centred, divided by the torso height, so that the
 same network reads studio projections, MediaPipe pixels and HumanEva pixels.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -49,9 +50,9 @@ def world_to_camera(X: np.ndarray, R: np.ndarray, T: np.ndarray) -> np.ndarray:
 def project_h36m(Xc: np.ndarray, f, c, k, p) -> np.ndarray:
     """Pinhole projection with the 3d-pose-baseline radial (k1..k3) and tangential (p1, p2) model."""
     xy = Xc[..., :2] / Xc[..., 2:3]
-    r2 = (xy ** 2).sum(-1, keepdims=True)
-    radial = 1 + k[0] * r2 + k[1] * r2 ** 2 + k[2] * r2 ** 3
-    tan = (p[0] * xy[..., 1:2] + p[1] * xy[..., 0:1])
+    r2 = (xy**2).sum(-1, keepdims=True)
+    radial = 1 + k[0] * r2 + k[1] * r2**2 + k[2] * r2**3
+    tan = p[0] * xy[..., 1:2] + p[1] * xy[..., 0:1]
     xy_d = xy * (radial + 2 * tan) + np.asarray([p[1], p[0]]) * r2
     return xy_d * np.asarray(f) + np.asarray(c)
 
@@ -61,8 +62,11 @@ def normalise_2d(uv: np.ndarray, conf: np.ndarray | None = None):
     Torso height: mean 2D length of pelvis-thorax, l_hip-l_shoulder, r_hip-r_shoulder (visible in both
     full-body and upper-body framing)."""
     root = uv[..., 0:1, :]
-    t = (np.linalg.norm(uv[..., 8, :] - uv[..., 0, :], axis=-1) + np.linalg.norm(uv[..., 11, :] - uv[..., 4, :], axis=-1)
-         + np.linalg.norm(uv[..., 14, :] - uv[..., 1, :], axis=-1)) / 3
+    t = (
+        np.linalg.norm(uv[..., 8, :] - uv[..., 0, :], axis=-1)
+        + np.linalg.norm(uv[..., 11, :] - uv[..., 4, :], axis=-1)
+        + np.linalg.norm(uv[..., 14, :] - uv[..., 1, :], axis=-1)
+    ) / 3
     t = np.maximum(t, 1e-6)[..., None, None]
     return (uv - root) / t, t[..., 0, 0]
 
@@ -84,16 +88,21 @@ def load_h36m(subjects=TRAIN_SUBJECTS, every: int = 1) -> H36MSet:
     starts, lens = d["seq_start"], d["seq_len"]
     out_J, out_uv, out_s, out_c = [], [], [], []
     for s in subjects:
-        idx = np.concatenate([np.arange(st, st + n)[::every] for nm, st, n in zip(names, starts, lens)
-                              if nm.split("/")[0] == s])
+        idx = np.concatenate(
+            [np.arange(st, st + n)[::every] for nm, st, n in zip(names, starts, lens) if nm.split("/")[0] == s]
+        )
         for ci in np.flatnonzero(d["cam_subject"] == s):
             Xc = world_to_camera(J[idx], d["cam_R"][ci], d["cam_T_mm"][ci])
             out_J.append(Xc)
             out_uv.append(project_h36m(Xc, d["cam_f"][ci], d["cam_c"][ci], d["cam_k"][ci], d["cam_p"][ci]))
             out_s.append(np.full(len(idx), s))
             out_c.append(np.full(len(idx), d["cam_name"][ci]))
-    return H36MSet(np.concatenate(out_J).astype(np.float32), np.concatenate(out_uv).astype(np.float32),
-                   np.concatenate(out_s), np.concatenate(out_c))
+    return H36MSet(
+        np.concatenate(out_J).astype(np.float32),
+        np.concatenate(out_uv).astype(np.float32),
+        np.concatenate(out_s),
+        np.concatenate(out_c),
+    )
 
 
 def subject_bone_lengths(subjects=TRAIN_SUBJECTS) -> dict[str, np.ndarray]:
@@ -102,8 +111,13 @@ def subject_bone_lengths(subjects=TRAIN_SUBJECTS) -> dict[str, np.ndarray]:
     J = d["joints17_world_mm"]
     out = {}
     for s in subjects:
-        idx = np.concatenate([np.arange(st, st + n) for nm, st, n in zip(d["seq_name"], d["seq_start"], d["seq_len"])
-                              if nm.split("/")[0] == s])
+        idx = np.concatenate(
+            [
+                np.arange(st, st + n)
+                for nm, st, n in zip(d["seq_name"], d["seq_start"], d["seq_len"])
+                if nm.split("/")[0] == s
+            ]
+        )
         out[s] = np.median(np.linalg.norm(J[idx][:, BONES[:, 0]] - J[idx][:, BONES[:, 1]], axis=-1), 0)
     return out
 
@@ -115,8 +129,10 @@ class PoseDetector:
 
     def __init__(self, static_image_mode: bool = True, model_complexity: int = 1):
         import mediapipe as mp
-        self._p = mp.solutions.pose.Pose(static_image_mode=static_image_mode, model_complexity=model_complexity,
-                                         min_detection_confidence=0.5)
+
+        self._p = mp.solutions.pose.Pose(
+            static_image_mode=static_image_mode, model_complexity=model_complexity, min_detection_confidence=0.5
+        )
 
     def __call__(self, rgb: np.ndarray):
         h, w = rgb.shape[:2]
@@ -156,8 +172,15 @@ def s9_image_evidence(cache: Path, progress: bool = False) -> dict[str, np.ndarr
             world = mediapipe_to_h36m(r[2].astype(np.float64)) * 1000.0
         else:
             uv, conf, world = np.zeros((K, 2)), np.zeros(K), np.zeros((K, 3))
-        for k, v in (("uv", uv), ("conf", conf), ("world", world), ("gt3d", gt["joints17_cam_mm"][i]),
-                     ("gt2d", gt["joints17_2d_px"][i]), ("found", found), ("camera", gt["camera"][i])):
+        for k, v in (
+            ("uv", uv),
+            ("conf", conf),
+            ("world", world),
+            ("gt3d", gt["joints17_cam_mm"][i]),
+            ("gt2d", gt["joints17_2d_px"][i]),
+            ("found", found),
+            ("camera", gt["camera"][i]),
+        ):
             rows[k].append(v)
     det.close()
     out = {k: np.stack(v) if k != "camera" else np.array(v) for k, v in rows.items()}
@@ -192,14 +215,21 @@ def humaneva_validation() -> dict[str, np.ndarray]:
                 u, c = humaneva_to_h36m(uv.astype(np.float64))
                 g, _ = humaneva_to_h36m(Xc)
                 ok = np.isfinite(u).all((1, 2)) & np.isfinite(g).all((1, 2))
-                uv_all.append(u[ok][::3]); conf_all.append(c[ok][::3]); gt_all.append(g[ok][::3])
+                uv_all.append(u[ok][::3])
+                conf_all.append(c[ok][::3])
+                gt_all.append(g[ok][::3])
                 act += [a.split(" ")[0]] * int(ok[::3].sum())
-    return {"uv": np.concatenate(uv_all), "conf": np.concatenate(conf_all), "gt3d": np.concatenate(gt_all),
-            "action": np.array(act)}
+    return {
+        "uv": np.concatenate(uv_all),
+        "conf": np.concatenate(conf_all),
+        "gt3d": np.concatenate(gt_all),
+        "action": np.array(act),
+    }
 
 
-def wild_evidence(cache: Path, every: int = 2, max_frames_per_video: int = 600,
-                  progress: bool = False) -> dict[str, np.ndarray]:
+def wild_evidence(
+    cache: Path, every: int = 2, max_frames_per_video: int = 600, progress: bool = False
+) -> dict[str, np.ndarray]:
     """2D-only training data: MediaPipe Pose (video mode) on the in-the-wild videos of the shared data, every
     ``every``-th frame. Frames with no person are skipped. Cached."""
     videos = sorted(p for root in WILD_VIDEOS for p in asset(root).rglob("*.mp4"))
@@ -217,11 +247,17 @@ def wild_evidence(cache: Path, every: int = 2, max_frames_per_video: int = 600,
                 if r is None or i % every:
                     continue
                 uv, conf = mediapipe_to_h36m(r[0].astype(np.float64), r[1].astype(np.float64))
-                uv_all.append(uv); conf_all.append(conf); vid.append(vi)
+                uv_all.append(uv)
+                conf_all.append(conf)
+                vid.append(vi)
         finally:
             det.close()
-    out = {"uv": np.asarray(uv_all, np.float32), "conf": np.asarray(conf_all, np.float32),
-           "video": np.asarray(vid), "videos": np.array([str(v.relative_to(asset("."))) for v in videos])}
+    out = {
+        "uv": np.asarray(uv_all, np.float32),
+        "conf": np.asarray(conf_all, np.float32),
+        "video": np.asarray(vid),
+        "videos": np.array([str(v.relative_to(asset("."))) for v in videos]),
+    }
     with atomic_path(f) as tmp:
         np.savez_compressed(tmp, **out)
     return out

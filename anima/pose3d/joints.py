@@ -4,21 +4,57 @@ H36M-17 (VideoPose3D / Martinez order) is the lifter's output skeleton. MediaPip
 HumanEva's 15 joints are mapped onto it by fixed linear combinations (one matrix each), so the same mapping
 applies to 2D pixels, 3D world landmarks and confidences.
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-H36M_NAMES = ["pelvis", "r_hip", "r_knee", "r_ankle", "l_hip", "l_knee", "l_ankle", "spine", "thorax",
-              "neck_nose", "head", "l_shoulder", "l_elbow", "l_wrist", "r_shoulder", "r_elbow", "r_wrist"]
+H36M_NAMES = [
+    "pelvis",
+    "r_hip",
+    "r_knee",
+    "r_ankle",
+    "l_hip",
+    "l_knee",
+    "l_ankle",
+    "spine",
+    "thorax",
+    "neck_nose",
+    "head",
+    "l_shoulder",
+    "l_elbow",
+    "l_wrist",
+    "r_shoulder",
+    "r_elbow",
+    "r_wrist",
+]
 H36M_PARENTS = np.array([-1, 0, 1, 2, 0, 4, 5, 0, 7, 8, 9, 8, 11, 12, 8, 14, 15])
 K = len(H36M_NAMES)
 BONES = np.array([(j, p) for j, p in enumerate(H36M_PARENTS) if p >= 0])  # (16, 2) child, parent
 FLIP = np.array([0, 4, 5, 6, 1, 2, 3, 7, 8, 9, 10, 14, 15, 16, 11, 12, 13])  # left <-> right
 
 # MediaPipe Pose landmark indices used by the mapping
-_MP = dict(nose=0, l_eye=2, r_eye=5, l_ear=7, r_ear=8, mouth_l=9, mouth_r=10, l_shoulder=11, r_shoulder=12,
-           l_elbow=13, r_elbow=14, l_wrist=15, r_wrist=16, l_hip=23, r_hip=24, l_knee=25, r_knee=26,
-           l_ankle=27, r_ankle=28)
+_MP = dict(
+    nose=0,
+    l_eye=2,
+    r_eye=5,
+    l_ear=7,
+    r_ear=8,
+    mouth_l=9,
+    mouth_r=10,
+    l_shoulder=11,
+    r_shoulder=12,
+    l_elbow=13,
+    r_elbow=14,
+    l_wrist=15,
+    r_wrist=16,
+    l_hip=23,
+    r_hip=24,
+    l_knee=25,
+    r_knee=26,
+    l_ankle=27,
+    r_ankle=28,
+)
 
 # Where the H36M spine and head-top sit relative to MediaPipe's points. SPINE_T: fraction of the way from
 # the pelvis to the thorax (measured on the H36M training subjects' mocap, see `spine_fraction`).
@@ -40,8 +76,20 @@ def mediapipe_matrix(spine_t: float = SPINE_T, head_k: float = HEAD_K) -> np.nda
     ears = {_MP["l_ear"]: 0.5, _MP["r_ear"]: 0.5}
     mouth = {_MP["mouth_l"]: 0.5, _MP["mouth_r"]: 0.5}
     rows["head"] = {**{k: (1 + head_k) * v for k, v in ears.items()}, **{k: -head_k * v for k, v in mouth.items()}}
-    for n in ("r_hip", "r_knee", "r_ankle", "l_hip", "l_knee", "l_ankle", "l_shoulder", "l_elbow", "l_wrist",
-              "r_shoulder", "r_elbow", "r_wrist"):
+    for n in (
+        "r_hip",
+        "r_knee",
+        "r_ankle",
+        "l_hip",
+        "l_knee",
+        "l_ankle",
+        "l_shoulder",
+        "l_elbow",
+        "l_wrist",
+        "r_shoulder",
+        "r_elbow",
+        "r_wrist",
+    ):
         rows[n] = {_MP[n]: 1.0}
     for i, n in enumerate(H36M_NAMES):
         for j, w in rows[n].items():
@@ -49,8 +97,7 @@ def mediapipe_matrix(spine_t: float = SPINE_T, head_k: float = HEAD_K) -> np.nda
     return M
 
 
-def mediapipe_to_h36m(points: np.ndarray, visibility: np.ndarray | None = None,
-                      M: np.ndarray | None = None):
+def mediapipe_to_h36m(points: np.ndarray, visibility: np.ndarray | None = None, M: np.ndarray | None = None):
     """MediaPipe ``(..., 33, D)`` points (and ``(..., 33)`` visibility) -> H36M ``(..., 17, D)`` and
     ``(..., 17)`` confidence (a combined joint takes the lowest visibility of the points it uses)."""
     M = mediapipe_matrix() if M is None else M
@@ -64,9 +111,23 @@ def mediapipe_to_h36m(points: np.ndarray, visibility: np.ndarray | None = None,
 
 # HumanEva-15 (VideoPose3D layout): pelvis, thorax, l_shoulder, l_elbow, l_wrist, r_shoulder, r_elbow,
 # r_wrist, l_hip, l_knee, l_ankle, r_hip, r_knee, r_ankle, head. Side A = left (MANIFEST).
-HUMANEVA_TO_H36M = {"pelvis": 0, "thorax": 1, "l_shoulder": 2, "l_elbow": 3, "l_wrist": 4, "r_shoulder": 5,
-                    "r_elbow": 6, "r_wrist": 7, "l_hip": 8, "l_knee": 9, "l_ankle": 10, "r_hip": 11,
-                    "r_knee": 12, "r_ankle": 13, "head": 14}
+HUMANEVA_TO_H36M = {
+    "pelvis": 0,
+    "thorax": 1,
+    "l_shoulder": 2,
+    "l_elbow": 3,
+    "l_wrist": 4,
+    "r_shoulder": 5,
+    "r_elbow": 6,
+    "r_wrist": 7,
+    "l_hip": 8,
+    "l_knee": 9,
+    "l_ankle": 10,
+    "r_hip": 11,
+    "r_knee": 12,
+    "r_ankle": 13,
+    "head": 14,
+}
 HUMANEVA_EVAL = [H36M_NAMES.index(n) for n in HUMANEVA_TO_H36M]  # the 15 joints both skeletons share
 
 

@@ -5,6 +5,7 @@
 * ``procrustes``: full similarity alignment (rotation, scale, translation) per pose (Umeyama).
 AUC: mean PCK over thresholds 0, 5, ..., 150 mm.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -13,7 +14,7 @@ PROTOCOLS = ("unscaled", "scaled", "procrustes")
 
 
 def root_relative(J: np.ndarray, root: int = 0) -> np.ndarray:
-    return J - J[..., root:root + 1, :]
+    return J - J[..., root : root + 1, :]
 
 
 def align_scale(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
@@ -32,7 +33,7 @@ def align_procrustes(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
     D = np.ones_like(S)
     D[..., -1] = d
     R = (U * D[..., None, :]) @ Vt
-    s = (S * D).sum(-1) / np.maximum((P ** 2).sum((-1, -2)), 1e-12)
+    s = (S * D).sum(-1) / np.maximum((P**2).sum((-1, -2)), 1e-12)
     return s[..., None, None] * P @ R + mg
 
 
@@ -57,6 +58,9 @@ def pose_metrics(pred: np.ndarray, gt: np.ndarray, joints=None) -> dict[str, dic
         if joints is not None:
             e = e[:, joints]
         thr = np.arange(0, 151, 5)
-        out[prot] = {"mpjpe": float(e.mean()), "pck150": float(100 * (e <= 150).mean()),
-                     "auc": float(100 * np.mean([(e <= t).mean() for t in thr]))}
+        out[prot] = {
+            "mpjpe": float(e.mean()),
+            "pck150": float(100 * (e <= 150).mean()),
+            "auc": float(100 * np.mean([(e <= t).mean() for t in thr])),
+        }
     return out

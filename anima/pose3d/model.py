@@ -14,6 +14,7 @@ Seed -> here:
 * f_c: an MLP on z predicting the weak-perspective camera (c_x, c_y, alpha_x, alpha_y); eq. 3.2 projects the
   3D pose into the normalised image frame.
 """
+
 from __future__ import annotations
 
 import torch
@@ -25,8 +26,16 @@ from anima.pose3d.config import LifterConfig
 class _Res(nn.Module):
     def __init__(self, w: int, p: float):
         super().__init__()
-        self.net = nn.Sequential(nn.Linear(w, w), nn.BatchNorm1d(w), nn.ReLU(), nn.Dropout(p),
-                                 nn.Linear(w, w), nn.BatchNorm1d(w), nn.ReLU(), nn.Dropout(p))
+        self.net = nn.Sequential(
+            nn.Linear(w, w),
+            nn.BatchNorm1d(w),
+            nn.ReLU(),
+            nn.Dropout(p),
+            nn.Linear(w, w),
+            nn.BatchNorm1d(w),
+            nn.ReLU(),
+            nn.Dropout(p),
+        )
 
     def forward(self, x):
         return x + self.net(x)
@@ -37,16 +46,32 @@ class Lifter(nn.Module):
         super().__init__()
         self.cfg = cfg = cfg or LifterConfig()
         k, w = cfg.joints, cfg.width
-        self.encoder = nn.Sequential(nn.Linear(3 * k, w), nn.BatchNorm1d(w), nn.ReLU(), nn.Dropout(cfg.dropout),
-                                     _Res(w, cfg.dropout))
+        self.encoder = nn.Sequential(
+            nn.Linear(3 * k, w), nn.BatchNorm1d(w), nn.ReLU(), nn.Dropout(cfg.dropout), _Res(w, cfg.dropout)
+        )
         self.h2d = nn.Linear(w, 2 * k)
         self.d = nn.Linear(w, cfg.latent)
         self.z = nn.Sequential(nn.Linear(2 * k + cfg.latent, w), nn.BatchNorm1d(w), nn.ReLU())
         # f_3D: four FC-1024 layers; the residual connects z with the output of the second
-        self.f3d_a = nn.Sequential(nn.Linear(w, w), nn.BatchNorm1d(w), nn.ReLU(), nn.Dropout(cfg.dropout),
-                                   nn.Linear(w, w), nn.BatchNorm1d(w), nn.ReLU(), nn.Dropout(cfg.dropout))
-        self.f3d_b = nn.Sequential(nn.Linear(w, w), nn.BatchNorm1d(w), nn.ReLU(), nn.Dropout(cfg.dropout),
-                                   nn.Linear(w, w), nn.BatchNorm1d(w), nn.ReLU())
+        self.f3d_a = nn.Sequential(
+            nn.Linear(w, w),
+            nn.BatchNorm1d(w),
+            nn.ReLU(),
+            nn.Dropout(cfg.dropout),
+            nn.Linear(w, w),
+            nn.BatchNorm1d(w),
+            nn.ReLU(),
+            nn.Dropout(cfg.dropout),
+        )
+        self.f3d_b = nn.Sequential(
+            nn.Linear(w, w),
+            nn.BatchNorm1d(w),
+            nn.ReLU(),
+            nn.Dropout(cfg.dropout),
+            nn.Linear(w, w),
+            nn.BatchNorm1d(w),
+            nn.ReLU(),
+        )
         self.out3d = nn.Linear(w, 3 * k)
         self.fc = nn.Sequential(nn.Linear(w, 256), nn.ReLU(), nn.Linear(256, 4))
 

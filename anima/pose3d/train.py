@@ -14,6 +14,7 @@ Units: 3D in metres (``pose_scale``), 2D in torso heights; the seed's weights ar
 (they act on different units than the seed's pixels and millimetres; see the ablation for what each term
 does here).
 """
+
 from __future__ import annotations
 
 import json
@@ -139,7 +140,7 @@ def losses(model: Lifter, cfg: TrainConfig, b3d, bwild=None) -> dict[str, torch.
             L["2d_wild"] = cfg.w_2d * (m * ((ow["proj"] - uvw) ** 2).sum(-1)).sum() / n
             if cfg.bone:
                 bl = (_bone_vec(ow["p3d"]) ** 2).sum(-1)
-                L["bone_wild"] = cfg.w_bone_2d * ((bl - lengths ** 2) ** 2).mean()
+                L["bone_wild"] = cfg.w_bone_2d * ((bl - lengths**2) ** 2).mean()
     return L
 
 
@@ -156,15 +157,29 @@ def load_checkpoint(path: Path) -> tuple[Lifter, dict]:
     model = Lifter(LifterConfig(**ck.config["model"]))
     load_state(model, ck)
     model.eval()
-    return model, {"format": KIND, "version": ck.version, "config": ck.config, "step": ck.info.get("step", 0),
-                   "state_dict": ck.state, "optimizer": ck.tensors.get("optimizer"),
-                   "extra": ck.info.get("extra", {})}
+    return model, {
+        "format": KIND,
+        "version": ck.version,
+        "config": ck.config,
+        "step": ck.info.get("step", 0),
+        "state_dict": ck.state,
+        "optimizer": ck.tensors.get("optimizer"),
+        "extra": ck.info.get("extra", {}),
+    }
 
 
-def train(cfg: TrainConfig, out: Path, cache: Path, progress: bool = True, resume: bool = True,
-          log_every: int = 100, eval_fn=None) -> tuple[Lifter, dict]:
+def train(
+    cfg: TrainConfig,
+    out: Path,
+    cache: Path,
+    progress: bool = True,
+    resume: bool = True,
+    log_every: int = 100,
+    eval_fn=None,
+) -> tuple[Lifter, dict]:
     """Train (or resume) to ``cfg.steps``; writes ``out`` (checkpoint) every 500 steps and at the end."""
     from tqdm import tqdm
+
     torch.manual_seed(cfg.seed)
     model = Lifter(LifterConfig(**cfg.model))
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
@@ -174,7 +189,9 @@ def train(cfg: TrainConfig, out: Path, cache: Path, progress: bool = True, resum
     if resume and out.exists():
         _, ck = load_checkpoint(out)
         mine = json.loads(json.dumps(asdict(cfg)))
-        same = {k: v for k, v in ck["config"].items() if k != "steps"} == {k: v for k, v in mine.items() if k != "steps"}
+        same = {k: v for k, v in ck["config"].items() if k != "steps"} == {
+            k: v for k, v in mine.items() if k != "steps"
+        }
         if not same:
             raise CheckpointError(f"{out} was trained with another configuration; use a new --out or --no-resume")
         model.load_state_dict(ck["state_dict"])
@@ -184,12 +201,18 @@ def train(cfg: TrainConfig, out: Path, cache: Path, progress: bool = True, resum
     data = _Batches(cfg, cache, progress)
     data.rng = np.random.default_rng([cfg.seed, start])
     for g in opt.param_groups:
-        g["lr"] = cfg.lr * gamma ** start
+        g["lr"] = cfg.lr * gamma**start
     model.train()
     hist = []
     t0 = time.perf_counter()
-    bar = tqdm(range(start, cfg.steps), desc="train pose lifter", disable=not progress, unit="step",
-               initial=start, total=cfg.steps)
+    bar = tqdm(
+        range(start, cfg.steps),
+        desc="train pose lifter",
+        disable=not progress,
+        unit="step",
+        initial=start,
+        total=cfg.steps,
+    )
     for step in bar:
         L = losses(model, cfg, data.h36m(), data.wild_batch() if cfg.wild else None)
         total = sum(L.values())
@@ -205,9 +228,14 @@ def train(cfg: TrainConfig, out: Path, cache: Path, progress: bool = True, resum
         if (step + 1) % 500 == 0 and step + 1 < cfg.steps:
             save_checkpoint(out, model, cfg, step + 1, opt)
     model.eval()
-    info = {"seconds": time.perf_counter() - t0, "history": hist,
-            "data": {"h36m_train_samples": int(len(data.J)),
-                     "wild_frames": int(len(data.wild["uv"])) if data.wild is not None else 0}}
+    info = {
+        "seconds": time.perf_counter() - t0,
+        "history": hist,
+        "data": {
+            "h36m_train_samples": int(len(data.J)),
+            "wild_frames": int(len(data.wild["uv"])) if data.wild is not None else 0,
+        },
+    }
     save_checkpoint(out, model, cfg, cfg.steps, opt, info)
     return model, info
 
@@ -220,8 +248,12 @@ def predict(model: Lifter, uv_px: np.ndarray, conf: np.ndarray, batch: int = 409
     model.eval()
     with torch.no_grad():
         for s in range(0, len(uv_n), batch):
-            out.append(model.predict_mm(torch.as_tensor(uv_n[s:s + batch], dtype=torch.float32),
-                                        torch.as_tensor(conf[s:s + batch], dtype=torch.float32)).numpy())
+            out.append(
+                model.predict_mm(
+                    torch.as_tensor(uv_n[s : s + batch], dtype=torch.float32),
+                    torch.as_tensor(conf[s : s + batch], dtype=torch.float32),
+                ).numpy()
+            )
     return np.concatenate(out) if out else np.zeros((0, K, 3), np.float32)
 
 

@@ -27,6 +27,7 @@ vertex_ids      (V,) i4            the region's vertex indices in the full ICT m
 ``meta`` (JSON): schema, version, videos (path, fps, width, height, n_frames), region, face_model,
 anima_version.
 """
+
 from __future__ import annotations
 
 import json
@@ -79,6 +80,7 @@ def region_ids(model) -> np.ndarray:
     neutral mesh, so the neck, the ears and the silhouette, where projected colours would be background,
     stay the target's own pixels) plus the mouth interior geometry."""
     from matplotlib.path import Path as Poly
+
     lower = model.region("lower_face")
     lm = model.neutral[model.landmarks68]
     top = lm[33, 1] + 0.5
@@ -92,18 +94,23 @@ def region_ids(model) -> np.ndarray:
 def sample_colors(frame: np.ndarray, uv: np.ndarray) -> np.ndarray:
     """Bilinear RGB at pixel positions ``uv`` (V, 2) (pixel centres at integer + 0.5 as in the rasterizer)."""
     import cv2
+
     m = np.ascontiguousarray((uv - 0.5).astype(np.float32))
     out = cv2.remap(frame, m[:, 0:1], m[:, 1:2], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     return out[:, 0, :]
 
 
-def build_database(videos: list[str], max_frames: int | None = None, progress: bool = True,
-                   exclude: dict[int, tuple[int, int]] | None = None, seqs: list | None = None):
+def build_database(
+    videos: list[str],
+    max_frames: int | None = None,
+    progress: bool = True,
+    exclude: dict[int, tuple[int, int]] | None = None,
+    seqs: list | None = None,
+):
     """Capture each target video (face only; or take the given ``seqs``), then sample the region's colours
     in every well-tracked frame. ``exclude``: per video index, a frame range kept out of the database
     (self-re-enactment). Returns (database, the target sequences)."""
     from tqdm import tqdm
-
 
     model = load_face_model()
     vid = region_ids(model)
@@ -114,8 +121,15 @@ def build_database(videos: list[str], max_frames: int | None = None, progress: b
         seq = seqs[vi] if seqs else capture_face(str(path), CaptureConfig(max_frames=max_frames), progress=progress)
         out_seqs.append(seq)
         identities.append(seq.identity)
-        metas.append({"path": str(Path(path).resolve()), "fps": seq.fps, "width": seq.width, "height": seq.height,
-                      "n_frames": seq.n_frames})
+        metas.append(
+            {
+                "path": str(Path(path).resolve()),
+                "fps": seq.fps,
+                "width": seq.width,
+                "height": seq.height,
+                "n_frames": seq.n_frames,
+            }
+        )
         R = seq.rotation_matrices()
         good = seq.flags == 0
         lo, hi = (exclude or {}).get(vi, (0, 0))
@@ -123,8 +137,15 @@ def build_database(videos: list[str], max_frames: int | None = None, progress: b
         X = seq.scale[:, None, None] * np.einsum("fij,fnj->fni", R, V) + seq.translation[:, None, :]
         uv = np.stack([X[..., 0], -X[..., 1]], -1)
         info = probe_video(path)
-        for f, rgb in enumerate(tqdm(iter_frames(info), total=seq.n_frames, disable=not progress,
-                                     desc=f"database {Path(path).name}", unit="frame")):
+        for f, rgb in enumerate(
+            tqdm(
+                iter_frames(info),
+                total=seq.n_frames,
+                disable=not progress,
+                desc=f"database {Path(path).name}",
+                unit="frame",
+            )
+        ):
             if f >= seq.n_frames:
                 break
             if not good[f] or lo <= f < hi:
@@ -138,23 +159,41 @@ def build_database(videos: list[str], max_frames: int | None = None, progress: b
             rows["frame"].append(f)
     n = len(rows["frame"])
     if n < MIN_FRAMES:
-        raise InputError(f"the target gives {n} usable frames; the database needs at least {MIN_FRAMES} "
-                         f"(the seed's n = 100 nearest frames): use a longer target video or several")
+        raise InputError(
+            f"the target gives {n} usable frames; the database needs at least {MIN_FRAMES} "
+            f"(the seed's n = 100 nearest frames): use a longer target video or several"
+        )
     arr = {k: np.asarray(v) for k, v in rows.items()}
-    return ReenactDB(arr["expression"].astype(np.float32), arr["rotation"].astype(np.float32),
-                     arr["scale"].astype(np.float32), arr["translation"].astype(np.float32),
-                     arr["video"].astype(np.int32), arr["frame"].astype(np.int32),
-                     np.asarray(identities, np.float32), arr["colors"].astype(np.uint8), vid,
-                     {"videos": metas, "region": list(REGION), "anima_version": __version__,
-                      "face_model": "ICT-FaceKit light"}), out_seqs
+    return ReenactDB(
+        arr["expression"].astype(np.float32),
+        arr["rotation"].astype(np.float32),
+        arr["scale"].astype(np.float32),
+        arr["translation"].astype(np.float32),
+        arr["video"].astype(np.int32),
+        arr["frame"].astype(np.int32),
+        np.asarray(identities, np.float32),
+        arr["colors"].astype(np.uint8),
+        vid,
+        {"videos": metas, "region": list(REGION), "anima_version": __version__, "face_model": "ICT-FaceKit light"},
+    ), out_seqs
 
 
 def write_database(db: ReenactDB, path: str | Path) -> Path:
     meta = dict(db.meta, schema=SCHEMA, version=VERSION)
     with atomic_path(path, ".tmp.npz") as tmp:
-        np.savez(tmp, expression=db.expression, rotation=db.rotation, scale=db.scale, translation=db.translation,
-                 video=db.video, frame=db.frame, identity=db.identity, colors=db.colors, vertex_ids=db.vertex_ids,
-                 meta=np.array(json.dumps(meta)))
+        np.savez(
+            tmp,
+            expression=db.expression,
+            rotation=db.rotation,
+            scale=db.scale,
+            translation=db.translation,
+            video=db.video,
+            frame=db.frame,
+            identity=db.identity,
+            colors=db.colors,
+            vertex_ids=db.vertex_ids,
+            meta=np.array(json.dumps(meta)),
+        )
     return Path(path)
 
 
@@ -171,5 +210,20 @@ def read_database(path: str | Path) -> ReenactDB:
         raise SchemaError(f"{path} is not an {SCHEMA} file")
     if meta.get("version") != VERSION:
         raise SchemaError(f"{path} is {SCHEMA} version {meta.get('version')}; this anima reads version {VERSION}")
-    return ReenactDB(*(d[k] for k in ("expression", "rotation", "scale", "translation", "video", "frame",
-                                      "identity", "colors", "vertex_ids")), meta=meta)
+    return ReenactDB(
+        *(
+            d[k]
+            for k in (
+                "expression",
+                "rotation",
+                "scale",
+                "translation",
+                "video",
+                "frame",
+                "identity",
+                "colors",
+                "vertex_ids",
+            )
+        ),
+        meta=meta,
+    )

@@ -1,6 +1,7 @@
 """The re-enactment loop (seed 001 §4.1.1 steps 1-7): per actor frame, the n nearest target frames by
 expression, adaptive sigma, weighted-median vertex colours, the target's identity with the actor's
 expression under the target's pose and camera, rasterization, Laplacian blend, optional smoothing."""
+
 from __future__ import annotations
 
 import time
@@ -68,8 +69,9 @@ class Reenactor:
         self.times.texture_ms.append(1e3 * (time.perf_counter() - t0))
         return out
 
-    def geometry(self, x: np.ndarray, identity: np.ndarray, scale: float, rotation: np.ndarray,
-                 translation: np.ndarray) -> np.ndarray:
+    def geometry(
+        self, x: np.ndarray, identity: np.ndarray, scale: float, rotation: np.ndarray, translation: np.ndarray
+    ) -> np.ndarray:
         """The target's identity with expression ``x`` under the target frame's pose and camera -> uvz."""
         t0 = time.perf_counter()
         V = self.shape(identity) + (np.asarray(x, np.float32) @ self.deltas).reshape(-1, 3)

@@ -1,5 +1,6 @@
 """Geometry, rasterization and blending of the re-enacted region (seed 001 §3.3-3.4). Pure functions on
 arrays, no I/O."""
+
 from __future__ import annotations
 
 import time
@@ -70,8 +71,17 @@ def laplacian_blend(a: np.ndarray, b: np.ndarray, mask: np.ndarray, levels: int)
     return out
 
 
-def composite(target: np.ndarray, uvz: np.ndarray, tris: np.ndarray, colors: np.ndarray, levels: int = 4,
-              erode: float = 0.04, blur: float = 0.10, alpha: float = 1.0, times: dict | None = None) -> np.ndarray:
+def composite(
+    target: np.ndarray,
+    uvz: np.ndarray,
+    tris: np.ndarray,
+    colors: np.ndarray,
+    levels: int = 4,
+    erode: float = 0.04,
+    blur: float = 0.10,
+    alpha: float = 1.0,
+    times: dict | None = None,
+) -> np.ndarray:
     """Render the region with ``colors`` (V, 3, 0..255) and blend it into ``target`` (uint8 RGB) within the
     face box only. The mask is eroded by ``erode`` and feathered by ``blur`` times the region's height
     (scale-free: the same look at any resolution). ``alpha`` scales the mask (fading to the target's own
@@ -81,7 +91,7 @@ def composite(target: np.ndarray, uvz: np.ndarray, tris: np.ndarray, colors: np.
         return target
     rh = float(np.ptp(uvz[:, 1]))
     erode_px, blur_px = max(1, int(round(erode * rh))), max(2, int(round(blur * rh)))
-    align = 2 ** levels
+    align = 2**levels
     box = bbox(uvz[:, :2], (W, H), pad=blur_px + 2 * align, align=align)
     x0, y0, w, h = box
     if w < align or h < align:
@@ -90,12 +100,12 @@ def composite(target: np.ndarray, uvz: np.ndarray, tris: np.ndarray, colors: np.
     img, mask = render_region(uvz, tris, colors.astype(np.float32), box)
     t1 = time.perf_counter()
     m = feather(mask, erode_px, blur_px) * float(alpha)
-    crop = target[y0:y0 + h, x0:x0 + w].astype(np.float32)
+    crop = target[y0 : y0 + h, x0 : x0 + w].astype(np.float32)
     img = np.where(mask[..., None], img, crop)  # no black outside the coverage to bleed through the pyramid
     lv = levels if (w % align == 0 and h % align == 0) else 0
     out = laplacian_blend(img, crop, m, lv) if lv else img * m[..., None] + crop * (1 - m[..., None])
     res = target.copy()
-    res[y0:y0 + h, x0:x0 + w] = np.clip(out, 0, 255).astype(np.uint8)
+    res[y0 : y0 + h, x0 : x0 + w] = np.clip(out, 0, 255).astype(np.uint8)
     if times is not None:
         times.setdefault("raster_ms", []).append(1e3 * (t1 - t0))
         times.setdefault("blend_ms", []).append(1e3 * (time.perf_counter() - t1))

@@ -1,5 +1,6 @@
 """``anima reenact``: offline (actor video -> output video) and live (camera index, stream or a file paced at
 its real frame rate) re-enactment on a target database."""
+
 from __future__ import annotations
 
 import threading
@@ -58,8 +59,9 @@ def prepare(targets: list[str], db_path: str | None, progress: bool, max_frames:
     if db_path and Path(db_path).exists():
         db = read_database(db_path)
         if Path(db.meta["videos"][0]["path"]).resolve() != Path(targets[0]).resolve():
-            raise InputError(f"{db_path} was built from {db.meta['videos'][0]['path']}, not {targets[0]}: "
-                             "use another --db path")
+            raise InputError(
+                f"{db_path} was built from {db.meta['videos'][0]['path']}, not {targets[0]}: use another --db path"
+            )
         seq0 = capture_face(str(targets[0]), CaptureConfig(max_frames=max_frames), progress=progress)
         return db, seq0
     db, seqs = build_database([str(t) for t in targets], max_frames, progress)
@@ -72,11 +74,19 @@ def single_thread_blas():
     """The per-frame maths are small matrices: multi-threaded BLAS only fights numba's threads for the two
     cores (it made the per-frame fit 12x slower). One BLAS thread during the loop."""
     from threadpoolctl import threadpool_limits
+
     return threadpool_limits(1, user_api="blas")
 
 
-def reenact_video(actor: str, targets: list[str], out: str, cfg: ReenactConfig | None = None,
-                  sbs: bool = False, db_path: str | None = None, progress: bool = True) -> dict:
+def reenact_video(
+    actor: str,
+    targets: list[str],
+    out: str,
+    cfg: ReenactConfig | None = None,
+    sbs: bool = False,
+    db_path: str | None = None,
+    progress: bool = True,
+) -> dict:
     with single_thread_blas():
         return _reenact_video(actor, targets, out, cfg, sbs, db_path, progress)
 
@@ -98,22 +108,27 @@ def _reenact_video(actor, targets, out, cfg, sbs, db_path, progress) -> dict:
     audio = actor if ainfo.has_audio else None
     notes = [] if audio else ["the actor video has no audio track: the output is silent"]
     if abs(ainfo.fps - tfps) > 0.01:
-        notes.append(f"frame rates differ (actor {ainfo.fps:.2f}, target {tfps:.2f}): target frames are "
-                     "picked by time at the actor's rate")
+        notes.append(
+            f"frame rates differ (actor {ainfo.fps:.2f}, target {tfps:.2f}): target frames are "
+            "picked by time at the actor's rate"
+        )
     H, W = tframes.shape[1:3]
     size = (W + (int(round(ainfo.width * H / ainfo.height)) if sbs else 0), H)
     sm = Smoother(cfg.smooth)
     t0 = time.perf_counter()
     n_out = 0
     with VideoWriter(out, aseq.fps, size, audio_path=audio) as vw:
+
         def emit(items):
             nonlocal n_out
             for uvz, col, (j, a_rgb, al) in items:
                 frame = rx.blend(tframes[j], uvz, col, al)
                 vw.write(side_by_side(a_rgb, frame) if sbs else frame)
                 n_out += 1
-        for i, a_rgb in enumerate(tqdm(iter_frames(ainfo), total=aseq.n_frames, disable=not progress,
-                                       desc="re-enact", unit="frame")):
+
+        for i, a_rgb in enumerate(
+            tqdm(iter_frames(ainfo), total=aseq.n_frames, disable=not progress, desc="re-enact", unit="frame")
+        ):
             if i >= aseq.n_frames:
                 break
             j = int(j_of_i[i])
@@ -122,9 +137,17 @@ def _reenact_video(actor, targets, out, cfg, sbs, db_path, progress) -> dict:
             emit(sm.push(uvz, col, (j, a_rgb if sbs else None, float(alpha[i]))))
         emit(sm.flush())
     wall = time.perf_counter() - t0
-    return {"output": str(out), "frames": n_out, "fps": aseq.fps, "size": list(size), "audio": bool(audio),
-            "database_frames": db.n, "render_wall_s": round(wall, 2), "notes": notes,
-            "mean_ms": {k: float(np.mean(v)) for k, v in vars(rx.times).items() if v}}
+    return {
+        "output": str(out),
+        "frames": n_out,
+        "fps": aseq.fps,
+        "size": list(size),
+        "audio": bool(audio),
+        "database_frames": db.n,
+        "render_wall_s": round(wall, 2),
+        "notes": notes,
+        "mean_ms": {k: float(np.mean(v)) for k, v in vars(rx.times).items() if v},
+    }
 
 
 class PacedReader:
@@ -172,8 +195,15 @@ class PacedReader:
             time.sleep(0.001)
 
 
-def reenact_live(source: str, targets: list[str], out: str | None, cfg: ReenactConfig | None = None,
-                 db_path: str | None = None, max_seconds: float | None = None, progress: bool = True) -> dict:
+def reenact_live(
+    source: str,
+    targets: list[str],
+    out: str | None,
+    cfg: ReenactConfig | None = None,
+    db_path: str | None = None,
+    max_seconds: float | None = None,
+    progress: bool = True,
+) -> dict:
     with single_thread_blas():
         return _reenact_live(source, targets, out, cfg, db_path, max_seconds, progress)
 
@@ -248,16 +278,28 @@ def _reenact_live(source, targets, out, cfg, db_path, max_seconds, progress) -> 
             writer.close()
     received = max(reader.read, last_i + 1)
     lat = np.asarray(latencies) if latencies else np.zeros(1)
-    return {"source": str(source), "frames_received": int(received), "frames_processed": int(processed),
-            "frames_dropped": int(max(0, received - processed)), "source_fps": reader.fps,
-            "latency_ms": {"median": float(np.median(lat)), "p95": float(np.percentile(lat, 95)),
-                           "max": float(lat.max())},
-            "output": out}
+    return {
+        "source": str(source),
+        "frames_received": int(received),
+        "frames_processed": int(processed),
+        "frames_dropped": int(max(0, received - processed)),
+        "source_fps": reader.fps,
+        "latency_ms": {"median": float(np.median(lat)), "p95": float(np.percentile(lat, 95)), "max": float(lat.max())},
+        "output": out,
+    }
 
 
-def run_reenact(targets: list[str], out: str | None, cfg: ReenactConfig, actor: str | None = None,
-                live: str | None = None, sbs: bool = False, db_path: str | None = None,
-                max_seconds: float | None = None, progress: bool = True) -> dict:
+def run_reenact(
+    targets: list[str],
+    out: str | None,
+    cfg: ReenactConfig,
+    actor: str | None = None,
+    live: str | None = None,
+    sbs: bool = False,
+    db_path: str | None = None,
+    max_seconds: float | None = None,
+    progress: bool = True,
+) -> dict:
     """``anima reenact``: check every input, then re-enact an actor video (or a live source) on the targets."""
     if not actor and live is None:
         raise InputError("give --actor VIDEO or --live SOURCE")

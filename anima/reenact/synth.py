@@ -1,6 +1,7 @@
 """Texture synthesis maths (seed 001 §3.2): n nearest target frames by expression, adaptive sigma
 (eqs. 3.3-3.4), and the weighted median of their vertex colours (Listing 1). Pure functions, no I/O.
 """
+
 from __future__ import annotations
 
 import numba as nb
@@ -60,8 +61,9 @@ def weighted_median_listing1(colrs, weights):
             Sn = np.cumsum(sorted_weights)
             Pn = (Sn - 0.5 * sorted_weights) / Sn[-1]
             I = np.searchsorted(Pn, 0.5)
-            out[i, j] = ((sorted_data[I] - sorted_data[I - 1])
-                         / (Pn[I] - Pn[I - 1])) * (0.5 - Pn[I - 1]) + sorted_data[I - 1]
+            out[i, j] = ((sorted_data[I] - sorted_data[I - 1]) / (Pn[I] - Pn[I - 1])) * (0.5 - Pn[I - 1]) + sorted_data[
+                I - 1
+            ]
     return out
 
 
@@ -141,4 +143,5 @@ def temporal_mean(x: np.ndarray, T: int) -> np.ndarray:
     if T <= 1:
         return x
     from scipy.ndimage import uniform_filter1d
+
     return uniform_filter1d(np.asarray(x, np.float32), size=T, axis=0, mode="nearest")

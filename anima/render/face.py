@@ -1,4 +1,5 @@
 """Renders of a fitted face: shaded mesh alone, mesh over the video frame, landmarks."""
+
 from __future__ import annotations
 
 import cv2
@@ -16,8 +17,13 @@ def shade(verts_cam: np.ndarray, tris: np.ndarray, base=SKIN) -> np.ndarray:
     return (0.25 + 0.75 * lam)[:, None] * base[None]
 
 
-def render_mesh(verts_cam: np.ndarray, tris: np.ndarray, size: tuple[int, int],
-                background: np.ndarray | None = None, alpha: float = 1.0) -> np.ndarray:
+def render_mesh(
+    verts_cam: np.ndarray,
+    tris: np.ndarray,
+    size: tuple[int, int],
+    background: np.ndarray | None = None,
+    alpha: float = 1.0,
+) -> np.ndarray:
     """Render camera-space vertices (pixels, +y up) as a shaded mesh into an RGB uint8 image of ``size``
     (W, H), optionally alpha-blended over ``background``."""
     W, H = size

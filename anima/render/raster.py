@@ -2,6 +2,7 @@
 
 Input vertices are in image space ``(u, v, depth)`` with larger depth = closer to the viewer (camera +z).
 """
+
 from __future__ import annotations
 
 import numba as nb
@@ -48,8 +49,14 @@ def rasterize(uvz: np.ndarray, tris: np.ndarray, colors: np.ndarray, size: tuple
     img = np.zeros((H, W, colors.shape[1]), np.float32)
     zbuf = np.full((H, W), -np.inf, np.float64)
     mask = np.zeros((H, W), np.bool_)
-    _raster(np.ascontiguousarray(uvz, np.float64), np.ascontiguousarray(tris, np.int64),
-            np.ascontiguousarray(colors, np.float32), img, zbuf, mask)
+    _raster(
+        np.ascontiguousarray(uvz, np.float64),
+        np.ascontiguousarray(tris, np.int64),
+        np.ascontiguousarray(colors, np.float32),
+        img,
+        zbuf,
+        mask,
+    )
     return img, mask, zbuf
 
 

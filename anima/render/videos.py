@@ -1,4 +1,5 @@
 """Videos people look at: the fitted mesh over the input, and the fitted mesh alone."""
+
 from __future__ import annotations
 
 from contextlib import ExitStack
@@ -28,9 +29,15 @@ class SequenceMesh:
         return self.seq.scale[f] * V @ self.R[f].T + self.seq.translation[f]
 
 
-def render_videos(seq: TrackedSequence, video: str | None, overlay_path: str | Path | None,
-                  mesh_path: str | Path | None, progress: bool = True, alpha: float = 0.55,
-                  audio: str | None = None) -> None:
+def render_videos(
+    seq: TrackedSequence,
+    video: str | None,
+    overlay_path: str | Path | None,
+    mesh_path: str | Path | None,
+    progress: bool = True,
+    alpha: float = 0.55,
+    audio: str | None = None,
+) -> None:
     """Write the overlay (mesh over the input frames, needs ``video``) and/or the mesh-only render.
     The source's audio track, if any (else ``audio``, e.g. the speech a face was generated from), is muxed
     into both."""
@@ -44,8 +51,11 @@ def render_videos(seq: TrackedSequence, video: str | None, overlay_path: str | P
     with ExitStack() as stack:
         if frames is not None:
             stack.callback(frames.close)
-        w_over = stack.enter_context(VideoWriter(overlay_path, seq.fps, size, audio)) \
-            if overlay_path and frames is not None else None
+        w_over = (
+            stack.enter_context(VideoWriter(overlay_path, seq.fps, size, audio))
+            if overlay_path and frames is not None
+            else None
+        )
         w_mesh = stack.enter_context(VideoWriter(mesh_path, seq.fps, size, audio)) if mesh_path else None
         for f in tqdm(range(seq.n_frames), desc="render", unit="fr", disable=not progress, leave=False):
             frame = next(frames, None) if frames is not None else None

@@ -1,5 +1,6 @@
 """The training config of the text -> face models. Light (no torch), so the command line builds its options
 from it."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -42,6 +43,7 @@ class TrainConfig:
 @dataclass
 class PromptConfig:
     """What ``anima text2face PROMPT`` generates."""
+
     length: int = field(default=90, metadata={"range": (1, 100_000)})
     """Frames at 30 fps (90 = 3 s); the model's trained range applies."""
     seconds: float | None = field(default=None, metadata={"range": (0.01, 3600.0)})

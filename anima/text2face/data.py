@@ -14,6 +14,7 @@
 * **Metric vertices:** mouth and eye regions of the ICT face (``anima.facemodel.ict.region_vertices``);
   offsets in millimetres.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -82,20 +83,25 @@ def crop_pool(clips: list[Clip], per_clip: int, min_len: int, max_len: int, seed
         n = len(c.motion)
         whole = c.motion[:max_len]
         ev = crop_events(c.events, 0, len(whole), c.fps)
-        text = (c.texts[rng.integers(len(c.texts))] if len(whole) == n
-                else describe_window(ev, len(whole), rng, c.gender, c.fps))
+        text = (
+            c.texts[rng.integers(len(c.texts))]
+            if len(whole) == n
+            else describe_window(ev, len(whole), rng, c.gender, c.fps)
+        )
         items.append(Item(whole, text, ev, c.clip_id))
         for _ in range(per_clip):
             L = int(rng.integers(min_len, min(n, max_len) + 1))
             a = int(rng.integers(0, n - L + 1))
             ev = crop_events(c.events, a, a + L, c.fps)
-            items.append(Item(c.motion[a:a + L], describe_window(ev, L, rng, c.gender, c.fps), ev,
-                              f"{c.clip_id}@{a}+{L}"))
+            items.append(
+                Item(c.motion[a : a + L], describe_window(ev, L, rng, c.gender, c.fps), ev, f"{c.clip_id}@{a}+{L}")
+            )
     return items
 
 
-def eval_items(clips: list[Clip], length: int = EVAL_LEN, hop: int = EVAL_HOP, seed: int = 0,
-               n_texts: int = 3) -> list[Item]:
+def eval_items(
+    clips: list[Clip], length: int = EVAL_LEN, hop: int = EVAL_HOP, seed: int = 0, n_texts: int = 3
+) -> list[Item]:
     """Fixed-length windows of the given clips with descriptions of each window."""
     rng = np.random.default_rng(seed)
     out = []
@@ -103,7 +109,7 @@ def eval_items(clips: list[Clip], length: int = EVAL_LEN, hop: int = EVAL_HOP, s
         for a in range(0, len(c.motion) - length + 1, hop):
             ev = crop_events(c.events, a, a + length, c.fps)
             texts = [describe_window(ev, length, rng, c.gender, c.fps) for _ in range(n_texts)]
-            out.append(Item(c.motion[a:a + length], texts[0], ev, f"{c.clip_id}@{a}", texts))
+            out.append(Item(c.motion[a : a + length], texts[0], ev, f"{c.clip_id}@{a}", texts))
     return out
 
 
@@ -116,6 +122,7 @@ def split_clips(clips: list[Clip]):
 
 
 # ---- normalisation and the vertex-offset geometry ---------------------------------------------------
+
 
 def motion_stats(items: list[Item]) -> tuple[np.ndarray, np.ndarray]:
     X = np.concatenate([it.motion for it in items], 0).astype(np.float64)

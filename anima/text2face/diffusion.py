@@ -3,6 +3,7 @@ encoder over the noisy motion with the text embedding and the diffusion step as 
 the clean motion x0; cosine noise schedule with 1000 steps, DDIM sampling in 50 steps, classifier-free
 guidance (the text dropped for 10 % of training samples). Pure torch, no I/O.
 """
+
 from __future__ import annotations
 
 import math

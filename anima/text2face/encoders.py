@@ -11,6 +11,7 @@ Both return ``float32 [N, d]`` and are deterministic (eval mode, no dropout). Pr
 :func:`clean_prompt`: an empty prompt is refused; one longer than the encoder's window is truncated with a
 warning (the encoder would silently drop the tail otherwise).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -73,8 +74,9 @@ class MiniLMEncoder(TextEncoder):
         import torch
 
         with torch.inference_mode():
-            e = self.model.encode(list(texts), batch_size=64, convert_to_numpy=True, normalize_embeddings=True,
-                                  show_progress_bar=False)
+            e = self.model.encode(
+                list(texts), batch_size=64, convert_to_numpy=True, normalize_embeddings=True, show_progress_bar=False
+            )
         return np.asarray(e, np.float32).reshape(len(texts), self.dim)
 
 
@@ -85,8 +87,10 @@ class OpenClipEncoder(TextEncoder):
         try:
             import open_clip
         except ImportError as e:
-            raise AssetNotFound("the CLIP text encoder needs the open_clip package (pip install open_clip_torch) "
-                                "and ViT-B/32 weights; use --encoder minilm") from e
+            raise AssetNotFound(
+                "the CLIP text encoder needs the open_clip package (pip install open_clip_torch) "
+                "and ViT-B/32 weights; use --encoder minilm"
+            ) from e
         w = weights or os.environ.get("ANIMA_CLIP_WEIGHTS")
         if not w:
             w = user_dir() / "models" / "clip-vit-b-32.pt"
@@ -129,15 +133,18 @@ def get_encoder(name: str = "minilm") -> TextEncoder:
 def clean_prompt(text: str, encoder: TextEncoder) -> str:
     """Strip, refuse an empty prompt, truncate one longer than the encoder's window (with a warning)."""
     if text is None or not str(text).strip():
-        raise InputError("the prompt is empty: describe the facial motion, e.g. \"a woman smiles, then blinks\"")
+        raise InputError('the prompt is empty: describe the facial motion, e.g. "a woman smiles, then blinks"')
     text = " ".join(str(text).split())
     cut = len(text) > MAX_CHARS
     text = text[:MAX_CHARS]
     n = encoder.n_tokens(text)
     if n > encoder.max_tokens or cut:
         short = encoder.truncate(text)
-        warnings.warn(f"prompt has {n} tokens; the {encoder.name} encoder reads {encoder.max_tokens}: truncated to "
-                      f"\"{short[:80]}...\"", stacklevel=2)
+        warnings.warn(
+            f"prompt has {n} tokens; the {encoder.name} encoder reads {encoder.max_tokens}: truncated to "
+            f'"{short[:80]}..."',
+            stacklevel=2,
+        )
         return short
     return text
 

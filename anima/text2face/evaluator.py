@@ -2,6 +2,7 @@
 seed 000 could not compute for lack of a facial one): a text head on the frozen sentence embedding and a 1D
 convolutional motion encoder, trained with a symmetric InfoNCE loss on the training crops only. Pure torch.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -17,9 +18,13 @@ class MotionTextEvaluator(nn.Module):
         super().__init__()
         self.text = nn.Sequential(nn.Linear(d_c, 256), nn.GELU(), nn.Linear(256, dim))
         self.conv = nn.Sequential(
-            nn.Conv1d(motion_dim, width, 5, padding=2), nn.GELU(),
-            nn.Conv1d(width, width, 5, padding=4, dilation=2), nn.GELU(),
-            nn.Conv1d(width, width, 5, padding=8, dilation=4), nn.GELU())
+            nn.Conv1d(motion_dim, width, 5, padding=2),
+            nn.GELU(),
+            nn.Conv1d(width, width, 5, padding=4, dilation=2),
+            nn.GELU(),
+            nn.Conv1d(width, width, 5, padding=8, dilation=4),
+            nn.GELU(),
+        )
         self.head = nn.Linear(2 * width, dim)
         self.log_temp = nn.Parameter(torch.tensor(np.log(1 / 0.07), dtype=torch.float32))
 
@@ -43,8 +48,15 @@ class MotionTextEvaluator(nn.Module):
         return 0.5 * (F.cross_entropy(logits, y) + F.cross_entropy(logits.T, y))
 
 
-def train_evaluator(motions: list[np.ndarray], E: np.ndarray, steps: int = 1500, batch: int = 64,
-                    crop: int = 90, seed: int = 0, progress=None) -> MotionTextEvaluator:
+def train_evaluator(
+    motions: list[np.ndarray],
+    E: np.ndarray,
+    steps: int = 1500,
+    batch: int = 64,
+    crop: int = 90,
+    seed: int = 0,
+    progress=None,
+) -> MotionTextEvaluator:
     """``motions``: normalised training crops; ``E``: their text embeddings. Crops longer than ``crop`` are
     cut at random (the evaluator scores fixed-length windows) and keep their text only when they were made
     at that length; otherwise the whole crop is used, padded."""
@@ -59,8 +71,8 @@ def train_evaluator(motions: list[np.ndarray], E: np.ndarray, steps: int = 1500,
         x = torch.zeros(len(idx), T, motions[0].shape[1])
         mask = torch.zeros(len(idx), T)
         for b, i in enumerate(idx):
-            x[b, :len(motions[i])] = torch.from_numpy(motions[i])
-            mask[b, :len(motions[i])] = 1
+            x[b, : len(motions[i])] = torch.from_numpy(motions[i])
+            mask[b, : len(motions[i])] = 1
         loss = ev.loss(Et[idx], x, mask)
         opt.zero_grad()
         loss.backward()
@@ -87,7 +99,9 @@ EVALUATOR_VERSION = 1
 
 
 def save_evaluator(path, ev: MotionTextEvaluator) -> None:
-    save_checkpoint(path, EVALUATOR_KIND, EVALUATOR_VERSION, {"d_c": ev.text[0].in_features}, {"state": ev.state_dict()})
+    save_checkpoint(
+        path, EVALUATOR_KIND, EVALUATOR_VERSION, {"d_c": ev.text[0].in_features}, {"state": ev.state_dict()}
+    )
 
 
 def load_evaluator(path) -> MotionTextEvaluator:

@@ -6,6 +6,7 @@ length, seed)`` returns raw motion ``[B, T, 56]`` (53 ICT expression weights in 
 tracked-sequence file that ``anima info`` / ``anima export`` read, ``face.mp4``, ``arkit.csv``, ``face.glb``,
 ``info.json``).
 """
+
 from __future__ import annotations
 
 import time
@@ -51,8 +52,10 @@ class Generator:
     def check_length(self, n: int) -> int:
         lo, hi = self.length_range
         if not lo <= n <= hi:
-            raise InputError(f"length {n} frames ({n / self.fps:.1f} s) is outside the trained range {lo}-{hi} "
-                             f"frames ({lo / self.fps:.1f}-{hi / self.fps:.1f} s at {self.fps:g} fps)")
+            raise InputError(
+                f"length {n} frames ({n / self.fps:.1f} s) is outside the trained range {lo}-{hi} "
+                f"frames ({lo / self.fps:.1f}-{hi / self.fps:.1f} s at {self.fps:g} fps)"
+            )
         return n
 
     def embed(self, prompts: list[str]) -> np.ndarray:
@@ -78,9 +81,15 @@ class Generator:
         return self.generate_from_embeddings(self.embed(prompts), length, seed)
 
 
-def text_to_folder(prompt: str, out: str | Path, cfg: PromptConfig | None = None,
-                   checkpoint: str | Path | None = None, video: bool = True, progress: bool = True,
-                   command: str | None = None) -> dict:
+def text_to_folder(
+    prompt: str,
+    out: str | Path,
+    cfg: PromptConfig | None = None,
+    checkpoint: str | Path | None = None,
+    video: bool = True,
+    progress: bool = True,
+    command: str | None = None,
+) -> dict:
     """``anima text2face``: a sentence -> a result folder (``motion.npz``, ``arkit.csv``, ``face.glb``,
     ``face.mp4``, ``info.json``; :func:`anima.export.motion.write_motion_outputs`). ``--out`` is checked
     before the model loads. Returns the run's info (frames, fps, seed, sampling time, warnings, files)."""
@@ -94,9 +103,16 @@ def text_to_folder(prompt: str, out: str | Path, cfg: PromptConfig | None = None
             text = clean_prompt(prompt, gen.encoder)
         t = time.perf_counter()
         motion = gen.generate([text], n, seed)[0]
-        info = {"prompt": text, "frames": n, "fps": gen.fps, "seed": seed, "checkpoint": str(gen.path),
-                "kind": gen.kind, "sampling_s": round(time.perf_counter() - t, 3),
-                "warnings": [str(w.message) for w in caught]}
+        info = {
+            "prompt": text,
+            "frames": n,
+            "fps": gen.fps,
+            "seed": seed,
+            "checkpoint": str(gen.path),
+            "kind": gen.kind,
+            "sampling_s": round(time.perf_counter() - t, 3),
+            "warnings": [str(w.message) for w in caught],
+        }
         seq = generated_sequence(gen.fps, face=motion, meta={"generated_by": "anima text2face", **info})
         od.info = info
         files = write_motion_outputs(seq, od, "motion.npz", render=video, info=info, progress=progress)

@@ -10,6 +10,7 @@ One addition to the seed: the cVQVAE decoder also sees the requested length (``l
 fixed every clip to 90 frames; here clips run 1-10 s, and without the length the guidance for frame t
 cannot know whether "then blinks" should fall at 2 s or at 6 s.
 """
+
 from __future__ import annotations
 
 import math
@@ -64,6 +65,7 @@ def preset(name: str, **over) -> Text2FaceConfig:
 
 # ---- FaceFormer pieces ----------------------------------------------------------------------------
 
+
 def periodic_positional_encoding(d_model: int, period: int, max_len: int) -> torch.Tensor:
     """``[max_len, d_model]``: sinusoids over one period, repeated (FaceFormer's PPE)."""
     pos = torch.arange(period, dtype=torch.float32)[:, None]
@@ -77,7 +79,7 @@ def periodic_positional_encoding(d_model: int, period: int, max_len: int) -> tor
 def alibi_slopes(n_heads: int) -> torch.Tensor:
     def pow2(n):
         start = 2 ** (-(2 ** -(math.log2(n) - 3)))
-        return [start * start ** i for i in range(n)]
+        return [start * start**i for i in range(n)]
 
     if math.log2(n_heads).is_integer():
         s = pow2(n_heads)
@@ -147,6 +149,7 @@ class DecoderLayer(nn.Module):
 
 # ---- the model --------------------------------------------------------------------------------------
 
+
 class CVQVAE(nn.Module):
     """Text embedding -> MLP -> nearest codebook entry (straight-through) -> [z_q, c, length] -> MLP ->
     ``max_len`` guidance tokens of ``d_t`` -> linear to ``d_m``."""
@@ -159,8 +162,9 @@ class CVQVAE(nn.Module):
         self.codebook = nn.Embedding(cfg.N_emb, cfg.D_emb)
         self.codebook.weight.data.uniform_(-1.0 / cfg.N_emb, 1.0 / cfg.N_emb)
         n_len = 8 if cfg.length_cond else 0
-        self.dec = nn.Sequential(nn.Linear(cfg.D_emb + cfg.d_r + n_len, h), nn.LeakyReLU(0.2),
-                                 nn.Linear(h, cfg.max_len * cfg.d_t))
+        self.dec = nn.Sequential(
+            nn.Linear(cfg.D_emb + cfg.d_r + n_len, h), nn.LeakyReLU(0.2), nn.Linear(h, cfg.max_len * cfg.d_t)
+        )
         self.proj = nn.Linear(cfg.d_t, cfg.d_m)
 
     def length_features(self, length: torch.Tensor) -> torch.Tensor:
@@ -169,8 +173,11 @@ class CVQVAE(nn.Module):
         return torch.cat([torch.sin(x * f), torch.cos(x * f)], 1)
 
     def quantize(self, z_e: torch.Tensor):
-        d = (z_e.pow(2).sum(1, keepdim=True) - 2 * z_e @ self.codebook.weight.T
-             + self.codebook.weight.pow(2).sum(1)[None])
+        d = (
+            z_e.pow(2).sum(1, keepdim=True)
+            - 2 * z_e @ self.codebook.weight.T
+            + self.codebook.weight.pow(2).sum(1)[None]
+        )
         idx = d.argmin(1)
         e = self.codebook(idx)
         b = self.cfg.beta
@@ -188,7 +195,9 @@ class CVQVAE(nn.Module):
             return 0
         z = self.enc(text_emb)
         pick = torch.randint(0, len(z), (len(dead),), generator=generator)
-        self.codebook.weight.data[dead] = z[pick] + 0.01 * z.std() * torch.randn(len(dead), z.shape[1], generator=generator)
+        self.codebook.weight.data[dead] = z[pick] + 0.01 * z.std() * torch.randn(
+            len(dead), z.shape[1], generator=generator
+        )
         return len(dead)
 
     def forward(self, text_emb, code, length):
@@ -205,8 +214,9 @@ class Text2Face(nn.Module):
         self.guide = CVQVAE(cfg)
         self.inp = nn.Linear(cfg.motion_dim, cfg.d_m)
         self.style = nn.Linear(cfg.d_r, cfg.d_m, bias=False) if cfg.style else None
-        self.layers = nn.ModuleList(DecoderLayer(cfg.d_m, cfg.n_heads, cfg.ff_mult * cfg.d_m, cfg.dropout)
-                                    for _ in range(cfg.n_layers))
+        self.layers = nn.ModuleList(
+            DecoderLayer(cfg.d_m, cfg.n_heads, cfg.ff_mult * cfg.d_m, cfg.dropout) for _ in range(cfg.n_layers)
+        )
         self.out = nn.Linear(cfg.d_m, cfg.motion_dim)
         nn.init.zeros_(self.out.weight)
         nn.init.zeros_(self.out.bias)
@@ -219,7 +229,7 @@ class Text2Face(nn.Module):
         x = self.inp(frames)
         if style is not None:
             x = x + style[:, None]
-        return self.pe_drop(x + self.ppe[t0:t0 + x.shape[1]])
+        return self.pe_drop(x + self.ppe[t0 : t0 + x.shape[1]])
 
     def _style(self, code):
         return self.style(code) if self.style is not None else None
@@ -251,7 +261,7 @@ class Text2Face(nn.Module):
             for t in range(T):
                 x = self._embed(prev, t, style)
                 for layer, c in zip(self.layers, caches):
-                    x = layer(x, mem[:, t:t + 1], self.bias_f[:, t:t + 1, :t + 1], None, c)
+                    x = layer(x, mem[:, t : t + 1], self.bias_f[:, t : t + 1, : t + 1], None, c)
                 prev = self.out(x)
                 outs.append(prev)
             return torch.cat(outs, 1), vq
@@ -259,7 +269,7 @@ class Text2Face(nn.Module):
         for t in range(T):  # the uncached sampler: recompute the whole prefix every step (FaceFormer's)
             x = self._embed(seq, 0, style)
             for layer in self.layers:
-                x = layer(x, mem[:, :t + 1], self.bias_f[:, :t + 1, :t + 1], self.bias_a[:t + 1, :t + 1])
+                x = layer(x, mem[:, : t + 1], self.bias_f[:, : t + 1, : t + 1], self.bias_a[: t + 1, : t + 1])
             y = self.out(x[:, -1:])
             outs.append(y)
             seq = torch.cat([seq, y], 1)

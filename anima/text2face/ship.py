@@ -2,6 +2,7 @@
 (command, data fingerprint, training time, held-out metrics, sha256) beside it, ``<name>.json``. The metrics are
 computed by the caller's ``evaluate(checkpoint_path) -> dict`` (``anima.eval.text2face.quick_metrics`` from the
 command), so the feature package does not reach up into the evaluation layer."""
+
 from __future__ import annotations
 
 import hashlib
@@ -19,19 +20,38 @@ def ship(checkpoint: str | Path, dest: str | Path, evaluate: Callable[[Path], di
     ck = load_checkpoint(checkpoint)
     dest = Path(dest)
     cfg = TrainConfig(**ck["train_config"])
-    save_checkpoint(dest, kind=ck["kind"], model=ck["model"], train_cfg=cfg,
-                    stats=(np.asarray(ck["mean"]), np.asarray(ck["std"])), gram=ck["gram"], step=ck["step"],
-                    info={k: v for k, v in ck["info"].items() if k != "losses"}, compact=True, fps=ck["fps"])
+    save_checkpoint(
+        dest,
+        kind=ck["kind"],
+        model=ck["model"],
+        train_cfg=cfg,
+        stats=(np.asarray(ck["mean"]), np.asarray(ck["std"])),
+        gram=ck["gram"],
+        step=ck["step"],
+        info={k: v for k, v in ck["info"].items() if k != "losses"},
+        compact=True,
+        fps=ck["fps"],
+    )
     metrics = evaluate(dest)
     info = ck["info"]
     manifest = {
-        "checkpoint": dest.name, "sha256": hashlib.sha256(dest.read_bytes()).hexdigest(),
-        "bytes": dest.stat().st_size, "kind": ck["kind"], "anima_version": __version__,
-        "command": info.get("command"), "data_fingerprint": info.get("data_fingerprint"),
-        "dataset": info.get("dataset"), "train_clips": info.get("train_clips"), "train_crops": info.get("train_items"),
-        "steps": ck["step"], "train_wall_s": round(info.get("wall_s", 0.0), 1),
-        "final_loss": round(sum(info["losses"][-50:]) / max(1, len(info["losses"][-50:])), 4) if info.get("losses") else None,
-        "params": sum(p.numel() for p in ck["model"].parameters()), "model_config": ck["model_config"],
+        "checkpoint": dest.name,
+        "sha256": hashlib.sha256(dest.read_bytes()).hexdigest(),
+        "bytes": dest.stat().st_size,
+        "kind": ck["kind"],
+        "anima_version": __version__,
+        "command": info.get("command"),
+        "data_fingerprint": info.get("data_fingerprint"),
+        "dataset": info.get("dataset"),
+        "train_clips": info.get("train_clips"),
+        "train_crops": info.get("train_items"),
+        "steps": ck["step"],
+        "train_wall_s": round(info.get("wall_s", 0.0), 1),
+        "final_loss": round(sum(info["losses"][-50:]) / max(1, len(info["losses"][-50:])), 4)
+        if info.get("losses")
+        else None,
+        "params": sum(p.numel() for p in ck["model"].parameters()),
+        "model_config": ck["model_config"],
         "heldout_metrics": metrics,
     }
     man = write_json(dest.with_suffix(".json"), manifest)

@@ -11,6 +11,7 @@ and training config, normalisation mean and std, the loss Gram matrix, step), we
 (absent in a compact export, whose weights are float16) and info (data fingerprint, command, losses, wall
 time). Training resumes from ``out/checkpoint.pt``.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -73,14 +74,34 @@ def rec_loss(pred, target, mask, std, G, w_rot: float):
 
 # ---- checkpoints -----------------------------------------------------------------------------------
 
-def save_checkpoint(path: Path, *, kind, model, train_cfg: TrainConfig, stats, gram, step, opt=None,
-                    info=None, compact=False, fps: float = TEXT_FPS) -> Path:
+
+def save_checkpoint(
+    path: Path,
+    *,
+    kind,
+    model,
+    train_cfg: TrainConfig,
+    stats,
+    gram,
+    step,
+    opt=None,
+    info=None,
+    compact=False,
+    fps: float = TEXT_FPS,
+) -> Path:
     state = {k: (v.half() if compact and v.is_floating_point() else v) for k, v in model.state_dict().items()}
     tensors = {"state": state}
     if opt is not None and not compact:
         tensors["optimizer"] = opt.state_dict()
-    config = {"model": model.cfg.to_dict(), "train": asdict(train_cfg), "mean": stats[0].tolist(),
-              "std": stats[1].tolist(), "gram": np.asarray(gram).tolist(), "step": step, "fps": fps}
+    config = {
+        "model": model.cfg.to_dict(),
+        "train": asdict(train_cfg),
+        "mean": stats[0].tolist(),
+        "std": stats[1].tolist(),
+        "gram": np.asarray(gram).tolist(),
+        "step": step,
+        "fps": fps,
+    }
     return save_checkpoint_file(path, kind, VERSION, config, tensors, info or {})
 
 
@@ -92,13 +113,26 @@ def load_checkpoint(path: str | Path) -> dict:
     model = build_model(ck.kind, c["model"])
     load_state(model, ck)
     model.eval()
-    return {"kind": ck.kind, "version": ck.version, "model_config": c["model"], "train_config": c["train"],
-            "mean": c["mean"], "std": c["std"], "gram": c["gram"], "step": c["step"], "state": ck.state,
-            "optim": ck.tensors.get("optimizer"), "info": ck.info, "model": model, "path": ck.path,
-            "fps": float(c.get("fps", TEXT_FPS))}
+    return {
+        "kind": ck.kind,
+        "version": ck.version,
+        "model_config": c["model"],
+        "train_config": c["train"],
+        "mean": c["mean"],
+        "std": c["std"],
+        "gram": c["gram"],
+        "step": c["step"],
+        "state": ck.state,
+        "optim": ck.tensors.get("optimizer"),
+        "info": ck.info,
+        "model": model,
+        "path": ck.path,
+        "fps": float(c.get("fps", TEXT_FPS)),
+    }
 
 
 # ---- training --------------------------------------------------------------------------------------
+
 
 def prepare(dataset: str | Path, cfg: TrainConfig):
     clips = load_clips(dataset)
@@ -113,8 +147,9 @@ def prepare(dataset: str | Path, cfg: TrainConfig):
     return clips, pool, E, stats, gram, enc
 
 
-def train(dataset: str | Path, out: str | Path, cfg: TrainConfig, progress: bool = True,
-          command: str = "", prepared=None) -> dict:
+def train(
+    dataset: str | Path, out: str | Path, cfg: TrainConfig, progress: bool = True, command: str = "", prepared=None
+) -> dict:
     out = Path(out)
     ck_path = out / "checkpoint.pt"
     torch.manual_seed(cfg.seed)
@@ -135,11 +170,15 @@ def train(dataset: str | Path, out: str | Path, cfg: TrainConfig, progress: bool
             step, losses = ck["step"], ck["info"].get("losses", [])
             wall0 = ck["info"].get("wall_s", 0.0)
         else:
-            raise InputError(f"{ck_path} exists but was trained with another configuration (or further than "
-                             f"--steps); use another --out")
+            raise InputError(
+                f"{ck_path} exists but was trained with another configuration (or further than "
+                f"--steps); use another --out"
+            )
     std_t, G = torch.tensor(stats[1]), torch.tensor(gram)
     d_r = mcfg.get("d_r", 0)
-    codes = torch.from_numpy(np.random.default_rng(cfg.seed + 1).standard_normal((len(pool), max(d_r, 1))).astype(np.float32))
+    codes = torch.from_numpy(
+        np.random.default_rng(cfg.seed + 1).standard_normal((len(pool), max(d_r, 1))).astype(np.float32)
+    )
     E_t = torch.from_numpy(E)
     motions = [torch.from_numpy((it.motion - stats[0]) / stats[1]) for it in pool]
     fp = fingerprint(clips)
@@ -147,9 +186,16 @@ def train(dataset: str | Path, out: str | Path, cfg: TrainConfig, progress: bool
     model.train()
 
     def info():
-        return {"data_fingerprint": fp, "dataset": str(dataset), "command": command, "losses": losses,
-                "wall_s": wall0 + time.time() - t0, "train_items": len(pool),
-                "train_clips": sum(c.split == "train" for c in clips), "torch": str(torch.__version__)}
+        return {
+            "data_fingerprint": fp,
+            "dataset": str(dataset),
+            "command": command,
+            "losses": losses,
+            "wall_s": wall0 + time.time() - t0,
+            "train_items": len(pool),
+            "train_clips": sum(c.split == "train" for c in clips),
+            "torch": str(torch.__version__),
+        }
 
     bar = tqdm(total=cfg.steps, initial=step, desc=f"train {cfg.kind}", unit="step", disable=not progress)
     while step < cfg.steps:
@@ -161,14 +207,17 @@ def train(dataset: str | Path, out: str | Path, cfg: TrainConfig, progress: bool
         x = torch.zeros(cfg.batch, T, motions[0].shape[1])
         mask = torch.zeros(cfg.batch, T)
         for b, i in enumerate(idx):
-            x[b, :len(motions[i])] = motions[i]
-            mask[b, :len(motions[i])] = 1
+            x[b, : len(motions[i])] = motions[i]
+            mask[b, : len(motions[i])] = 1
         if cfg.kind == "text2face":
             if cfg.restart_every and step % cfg.restart_every == 0:  # stateless: resumes exactly
                 with torch.no_grad():
                     used = model.guide.quantize(model.guide.enc(E_t))[1]
-                model.guide.restart_codes(E_t, torch.bincount(used, minlength=model.cfg.N_emb),
-                                          torch.Generator().manual_seed(cfg.seed * 7919 + step))
+                model.guide.restart_codes(
+                    E_t,
+                    torch.bincount(used, minlength=model.cfg.N_emb),
+                    torch.Generator().manual_seed(cfg.seed * 7919 + step),
+                )
             code = torch.randn(len(idx), d_r) if cfg.fresh_codes else codes[idx, :d_r]
             if cfg.scheme == "teacher":
                 xin = x + cfg.tf_noise * torch.randn_like(x) if cfg.tf_noise else x
@@ -194,8 +243,18 @@ def train(dataset: str | Path, out: str | Path, cfg: TrainConfig, progress: bool
         if step % 20 == 0:
             bar.set_postfix(loss=f"{np.mean(losses[-20:]):.3f}")
         if step % cfg.ckpt_every == 0 or step == cfg.steps:
-            save_checkpoint(ck_path, kind=cfg.kind, model=model, train_cfg=cfg, stats=stats, gram=gram, step=step,
-                            opt=opt, info=info(), fps=clips[0].fps)
+            save_checkpoint(
+                ck_path,
+                kind=cfg.kind,
+                model=model,
+                train_cfg=cfg,
+                stats=stats,
+                gram=gram,
+                step=step,
+                opt=opt,
+                info=info(),
+                fps=clips[0].fps,
+            )
     bar.close()
     model.eval()
     return {"model": model, "path": ck_path, "info": info(), "stats": stats}

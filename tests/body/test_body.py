@@ -1,4 +1,5 @@
 """Body + hands skeleton: definition, assembly on a real gesture clip, cleaning."""
+
 import json
 
 import numpy as np
@@ -35,7 +36,9 @@ def test_assembly_on_real_clip(tango_track):
     body_ok = np.isfinite(J[:, :13]).all((1, 2))
     assert body_ok.mean() > 0.9
     assert np.allclose(J[body_ok, 0], 0)  # pelvis-relative
-    span = np.linalg.norm(J[body_ok, BODY_JOINTS.index("left_shoulder")] - J[body_ok, BODY_JOINTS.index("right_shoulder")], axis=-1)
+    span = np.linalg.norm(
+        J[body_ok, BODY_JOINTS.index("left_shoulder")] - J[body_ok, BODY_JOINTS.index("right_shoulder")], axis=-1
+    )
     assert 0.25 < np.median(span) < 0.5  # metres
     # the subject's left shoulder is on the image right (+x) when facing the camera
     assert np.median(J[body_ok, BODY_JOINTS.index("left_shoulder"), 0]) > 0
@@ -96,6 +99,10 @@ def test_video_without_audio_keeps_motion_and_says_why(d0_path):
     assert seq.speech is None and seq.meta["audio"]["present"] is False
     assert "no audio track" in seq.meta["audio"]["reason"]
     assert seq.body_joints is not None  # a head-and-shoulders clip: body partly in view
-    sep = capture_video(str(d0_path), CaptureConfig(max_frames=20, face_only=True),
-                        audio=str(asset("videoretalking-examples/examples/audio/1.wav")), progress=False)
+    sep = capture_video(
+        str(d0_path),
+        CaptureConfig(max_frames=20, face_only=True),
+        audio=str(asset("videoretalking-examples/examples/audio/1.wav")),
+        progress=False,
+    )
     assert sep.speech.shape == (20, 28) and sep.body_joints is None

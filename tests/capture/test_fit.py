@@ -1,4 +1,5 @@
 """Fitting: exact recovery on synthetic model landmarks (maths), and meaning on a real clip."""
+
 import json
 from pathlib import Path
 
@@ -44,6 +45,7 @@ def test_identity_fit_is_robust_to_outlier_landmarks(face_model):
     rng = np.random.default_rng(5)
     bad = rng.choice(P.shape[1], 20, replace=False)
     P[:, bad, :2] += rng.normal(0, 40, (P.shape[0], 20, 2))  # grossly wrong landmarks
+
     def shape_err(huber):
         est = fit_identity(P, basis, FitConfig(lam_id=0.05, huber_cm=huber))
         return np.abs(basis.shape(est) - basis.shape(ident)).mean()
@@ -64,10 +66,10 @@ def test_d0_blinks_and_smile_where_labelled(d0_capture):
         e = seq.expression[:, n.index(f"eyeBlink_{side}")]
         peak = int(np.argmax(e))
         assert blink[0] - 2 <= peak <= blink[-1] + 2, (side, peak)
-        outside = np.r_[0:blink[0] - 3, blink[-1] + 4:len(e)]
+        outside = np.r_[0 : blink[0] - 3, blink[-1] + 4 : len(e)]
         assert e[peak] > e[outside].max() + 0.1
     a, b = LABELS["smile"]["frames"]
     smile = seq.expression[:, [n.index("mouthSmile_L"), n.index("mouthSmile_R")]].mean(1)
     neutral = np.r_[tuple(slice(x, y + 1) for x, y in LABELS["neutral"])]
-    assert smile[a:b + 1].min() > 0.3
+    assert smile[a : b + 1].min() > 0.3
     assert smile[neutral].max() < 0.15

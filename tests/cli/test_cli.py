@@ -1,4 +1,5 @@
 """End-to-end tests of the ``anima`` command on real data, and its behaviour on bad input."""
+
 import json
 import subprocess
 
@@ -9,9 +10,18 @@ from anima.io.sequence import FLAG_NO_FACE, read_sequence
 
 
 def test_help_for_every_command(cli):
-    for cmd in ([], ["capture"], ["info"], ["export"], ["eval", "landmarks"], ["eval", "stability"],
-                ["facemodel", "import"], ["facemodel", "correspondence"], ["facemodel", "landmarks68"],
-                ["audio", "features"]):
+    for cmd in (
+        [],
+        ["capture"],
+        ["info"],
+        ["export"],
+        ["eval", "landmarks"],
+        ["eval", "stability"],
+        ["facemodel", "import"],
+        ["facemodel", "correspondence"],
+        ["facemodel", "landmarks68"],
+        ["audio", "features"],
+    ):
         r = cli(*cmd, "--help")
         assert r.returncode == 0 and "usage: anima" in r.stdout, cmd
 
@@ -39,9 +49,16 @@ def test_capture_end_to_end_on_real_clip(d0_path, tmp_path, cli):
     assert r.returncode == 0 and (tmp_path / "again.glb").exists()
 
 
-@pytest.mark.parametrize("kind,expect", [("text", "not a readable video"), ("empty", "empty"),
-                                         ("broken_mp4", "not a readable video"), ("noface", "no person"),
-                                         ("tiny", "too small")])
+@pytest.mark.parametrize(
+    "kind,expect",
+    [
+        ("text", "not a readable video"),
+        ("empty", "empty"),
+        ("broken_mp4", "not a readable video"),
+        ("noface", "no person"),
+        ("tiny", "too small"),
+    ],
+)
 def test_bad_input_clear_message_nonzero_exit(videos, tmp_path, kind, expect, cli):
     r = cli("capture", videos[kind], "--out", tmp_path / kind, "--quiet", "--no-render")
     assert r.returncode != 0
@@ -77,8 +94,16 @@ def test_audio_features_command(tmp_path, cli):
     from anima.io.assets import asset
 
     out = tmp_path / "f.npz"
-    r = cli("audio", "features", asset("videoretalking-examples/examples/audio/1.wav"), "--fps", "15", "--out", out,
-            "--json")
+    r = cli(
+        "audio",
+        "features",
+        asset("videoretalking-examples/examples/audio/1.wav"),
+        "--fps",
+        "15",
+        "--out",
+        out,
+        "--json",
+    )
     assert r.returncode == 0, r.stderr
     s = json.loads(r.stdout)
     with np.load(out) as z:
@@ -116,13 +141,36 @@ def test_bad_audio_keeps_motion(videos, tmp_path, d0_path, cli):
     from anima.io.video import FFMPEG
 
     silent = tmp_path / "silent.wav"
-    subprocess.run([FFMPEG, "-v", "error", "-f", "lavfi", "-i", "anullsrc=r=16000:cl=mono", "-t", "2", str(silent)],
-                   check=True)
-    r = cli("capture", d0_path, "--out", tmp_path / "s", "--max-frames", "10", "--audio", silent, "--quiet",
-            "--no-render", "--json")
+    subprocess.run(
+        [FFMPEG, "-v", "error", "-f", "lavfi", "-i", "anullsrc=r=16000:cl=mono", "-t", "2", str(silent)], check=True
+    )
+    r = cli(
+        "capture",
+        d0_path,
+        "--out",
+        tmp_path / "s",
+        "--max-frames",
+        "10",
+        "--audio",
+        silent,
+        "--quiet",
+        "--no-render",
+        "--json",
+    )
     assert r.returncode == 0 and json.loads(r.stdout)["speech"]["silent"] is True
-    r = cli("capture", d0_path, "--out", tmp_path / "u", "--max-frames", "10", "--audio", videos["text"], "--quiet",
-            "--no-render", "--json")
+    r = cli(
+        "capture",
+        d0_path,
+        "--out",
+        tmp_path / "u",
+        "--max-frames",
+        "10",
+        "--audio",
+        videos["text"],
+        "--quiet",
+        "--no-render",
+        "--json",
+    )
     assert r.returncode == 0, r.stderr
     sp = json.loads(r.stdout)["speech"]
     assert sp["present"] is False and "unreadable" in sp["reason"]

@@ -1,4 +1,5 @@
 """Every subcommand's --help runs, and its options' defaults are the config dataclasses' defaults."""
+
 import argparse
 import contextlib
 import dataclasses
@@ -43,6 +44,7 @@ def test_group_alone_prints_its_help(capsys):
 def test_defaults_come_from_the_configs():
     from anima.capture.pipeline import CaptureConfig
     from anima.reenact.pipeline import ReenactConfig
+
     p = build_parser()
     a = p.parse_args(["capture", "v.mp4", "--out", "o"])
     assert a.smooth_sigma == CaptureConfig().smooth_sigma and a.max_gap == CaptureConfig().max_gap
@@ -53,11 +55,16 @@ def test_defaults_come_from_the_configs():
     assert {"n", "a", "smooth", "map_expressions"} <= fields
 
 
-@pytest.mark.parametrize("argv", [["capture", "v.mp4", "--out", "o", "--sigma", "nan"],
-                                  ["capture", "v.mp4", "--out", "o", "--max-frames", "0"],
-                                  ["reenact", "--target", "t.mp4", "--a", "1.5"],
-                                  ["audio", "features", "x.wav", "--fps", "-1"],
-                                  ["text2face", "hi", "--out", "o", "--seconds", "inf"]])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["capture", "v.mp4", "--out", "o", "--sigma", "nan"],
+        ["capture", "v.mp4", "--out", "o", "--max-frames", "0"],
+        ["reenact", "--target", "t.mp4", "--a", "1.5"],
+        ["audio", "features", "x.wav", "--fps", "-1"],
+        ["text2face", "hi", "--out", "o", "--seconds", "inf"],
+    ],
+)
 def test_out_of_range_options_are_one_line_and_exit_2(argv, capsys):
     with pytest.raises(SystemExit) as e:
         main(argv)

@@ -1,4 +1,5 @@
 """Dataset builder: filters, annotation import, pairs, storage, and a resumable Ray build on real clips."""
+
 import json
 import os
 import signal
@@ -14,9 +15,11 @@ from anima.dataset.filters import FilterConfig, cut_clips
 from anima.errors import InputError
 from anima.io.assets import asset
 
-CLIPS = ["gesture-video/tango-interviews/speaker8_jjRWaMCWs44_00-00-30.16_00-00-33.32.mp4",
-         "gesture-video/pats-crops/oliver1_gt.mp4",
-         "liveportrait-examples/assets/examples/driving/d0.mp4"]
+CLIPS = [
+    "gesture-video/tango-interviews/speaker8_jjRWaMCWs44_00-00-30.16_00-00-33.32.mp4",
+    "gesture-video/pats-crops/oliver1_gt.mp4",
+    "liveportrait-examples/assets/examples/driving/d0.mp4",
+]
 
 
 def test_length_rule_cuts_long_videos_into_clips_inside_the_window():
@@ -29,8 +32,19 @@ def test_length_rule_cuts_long_videos_into_clips_inside_the_window():
 
 def test_annotation_import_and_its_errors(tmp_path):
     good = tmp_path / "a.json"
-    good.write_text(json.dumps({"clips": {"d0": {"gender": "male", "actions": [{"name": "Smile", "start": 0.8, "end": 2.5}],
-                                                 "emotions": [["happy", 1.0, 2.0]]}}}))
+    good.write_text(
+        json.dumps(
+            {
+                "clips": {
+                    "d0": {
+                        "gender": "male",
+                        "actions": [{"name": "Smile", "start": 0.8, "end": 2.5}],
+                        "emotions": [["happy", 1.0, 2.0]],
+                    }
+                }
+            }
+        )
+    )
     a = load_annotations(good, ["d0"])
     assert a["d0"]["gender"] == "male" and a["d0"]["events"][0] == ("smile", 0.8, 2.5)
     with pytest.raises(InputError, match="not among the videos"):
@@ -46,14 +60,30 @@ def test_annotation_import_and_its_errors(tmp_path):
 
 def _build_args(out, extra=(), more_videos=()):
     vids = [str(asset(c)) for c in CLIPS] + [str(v) for v in more_videos]
-    return ["dataset", "build", *vids, "--out", str(out), "--min-len", "2", "--max-len", "4", "--workers", "1",
-            "--quiet", "--json", *extra]
+    return [
+        "dataset",
+        "build",
+        *vids,
+        "--out",
+        str(out),
+        "--min-len",
+        "2",
+        "--max-len",
+        "4",
+        "--workers",
+        "1",
+        "--quiet",
+        "--json",
+        *extra,
+    ]
 
 
 def test_build_is_resumable_idempotent_and_readable(tmp_path, videos, cli):
     out = tmp_path / "ds"
     args = _build_args(out, ["--max-frames", "120"], [videos["text"]])
-    p = subprocess.Popen([sys.executable, "-m", "anima", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "anima", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True
+    )
     deadline = time.time() + 240
     while time.time() < deadline and not list((out / "videos").glob("*.json")):
         time.sleep(0.2)

@@ -1,5 +1,6 @@
 """Evaluations on real data: they must run and show what the issue asks (fit beats raw MediaPipe on the
 AFLW2000-3D samples; smoothing removes jitter without costing accuracy)."""
+
 import numpy as np
 
 from anima.capture.calibrate68 import calibrate_ibug68

@@ -1,5 +1,6 @@
 """The §4.4 speech-to-gesture generator and its baselines, FGD, the lip keypoint error, keyword-triggered
 databases and the dataset's face-only windows, on the dataset built from real clips (conftest)."""
+
 import json
 import subprocess
 
@@ -15,19 +16,22 @@ SPEECH = "gesture-video/pats-crops/oliver2_gt.mp4"
 @pytest.fixture(scope="module")
 def windows(ds):
     from anima.dataset.windows import read_windows
+
     return read_windows(str(ds))
 
 
 @pytest.fixture(scope="module")
 def wav(tmp_path_factory):
     p = tmp_path_factory.mktemp("gen") / "s.wav"
-    subprocess.run([FFMPEG, "-v", "error", "-y", "-i", str(asset(SPEECH)), "-t", "5", "-vn", "-ar", "22050",
-                    str(p)], check=True)
+    subprocess.run(
+        [FFMPEG, "-v", "error", "-y", "-i", str(asset(SPEECH)), "-t", "5", "-vn", "-ar", "22050", str(p)], check=True
+    )
     return p
 
 
 def test_dataset_keeps_face_only_windows_with_the_paired_wav(ds, windows):
     from anima.dataset.build import paired_audio
+
     video = asset("styletalk-samples/samples/source_video/video/feifeili_clip3.mp4")
     assert paired_audio(video).name == "feifeili_clip3.wav"  # the video has no audio track
     face_only = [s for s, h in zip(windows.source, windows.has_body) if not h]
@@ -40,6 +44,7 @@ def test_dataset_keeps_face_only_windows_with_the_paired_wav(ds, windows):
 
 def test_short_gaps_are_interpolated_long_ones_kept_missing():
     from anima.dataset.pairs import fill_short_gaps
+
     x = np.arange(12, dtype=np.float64)[:, None].repeat(2, 1)
     x[3:5, 0] = np.nan  # 2 frames: filled
     x[6:11, 1] = np.nan  # 5 frames: too long
@@ -51,6 +56,7 @@ def test_short_gaps_are_interpolated_long_ones_kept_missing():
 
 def test_parts_round_trip(windows):
     from anima.gesture.generator import join_parts, split_parts
+
     i = int(np.flatnonzero(windows.has_body)[0])
     parts = split_parts(windows.body[i], windows.face[i])
     assert {k: v.shape[-1] for k, v in parts.items()} == {"face": 53, "body": 42, "hands": 126}
@@ -68,8 +74,10 @@ def test_generator_trains_and_generates_any_length(windows, kind, tmp_path):
         save_generator,
         train_generator,
     )
-    gen, info = train_generator(windows.speech, windows.body, windows.face, GeneratorConfig(kind=kind),
-                                GeneratorTrainConfig(steps=60, batch=8))
+
+    gen, info = train_generator(
+        windows.speech, windows.body, windows.face, GeneratorConfig(kind=kind), GeneratorTrainConfig(steps=60, batch=8)
+    )
     w = info["loss_weights"]
     assert all(v > 0 for v in w.values()) and info["body_windows"] < info["windows"]
     for part in ("face", "body", "hands"):  # each term starts near 1 (the mean pose) and goes down
@@ -87,6 +95,7 @@ def test_generator_trains_and_generates_any_length(windows, kind, tmp_path):
 def test_frechet_distance_and_lip_error_maths():
     from anima.eval.gesture.metrics import lip_error_mm, mouth_opening_mm
     from anima.gesture.fgd import frechet_distance
+
     rng = np.random.default_rng(0)
     a = rng.normal(size=(4000, 3))
     assert frechet_distance(a, a) == pytest.approx(0, abs=1e-6)
@@ -98,6 +107,7 @@ def test_frechet_distance_and_lip_error_maths():
     assert lip_error_mm(f, f) == 0
     jaw = f.copy()
     from anima.facemodel.ict import load_face_model
+
     jaw[:, load_face_model().expr_names.index("jawOpen")] = 1.0
     assert 2 < lip_error_mm(jaw, f) < 30  # an open jaw moves the lips by millimetres to centimetres
     assert mouth_opening_mm(jaw).mean() > mouth_opening_mm(f).mean() + 5
@@ -105,6 +115,7 @@ def test_frechet_distance_and_lip_error_maths():
 
 def test_fgd_separates_captured_from_shuffled_motion(db):
     from anima.gesture.fgd import train_fgd
+
     G = db.G.reshape(db.M, 64, 165)
     fgd = train_fgd(G, steps=150)
     rng = np.random.default_rng(0)
@@ -116,10 +127,12 @@ def test_keyword_database_takes_over_while_the_word_is_spoken(ds, wav):
     from anima.gesture.database import from_dataset
     from anima.gesture.keywords import parse_keyword
     from anima.gesture.run import synthesize
+
     db = from_dataset(ds, None)
     videos = sorted({s for s, _ in db.source})
     kw_rows = [i for i, (s, _) in enumerate(db.source) if s == videos[0]]
     from anima.gesture.knn import MatchDB
+
     kw_db = MatchDB(db.F[kw_rows], db.P[kw_rows], db.G[kw_rows], [db.source[i] for i in kw_rows], db.S[kw_rows])
     rest = [i for i in range(db.M) if i not in kw_rows]
     main = MatchDB(db.F[rest], db.P[rest], db.G[rest], [db.source[i] for i in rest], db.S[rest])
@@ -137,8 +150,21 @@ def test_keyword_database_takes_over_while_the_word_is_spoken(ds, wav):
 
 def test_generator_commands(ds, wav, tmp_path, cli):
     ck = tmp_path / "gen.pt"
-    r = cli("train", "gesture", "--db", str(ds), "--all-splits", "--model", "generator", "--steps", "20",
-             "--out", str(ck), "--quiet", "--json")
+    r = cli(
+        "train",
+        "gesture",
+        "--db",
+        str(ds),
+        "--all-splits",
+        "--model",
+        "generator",
+        "--steps",
+        "20",
+        "--out",
+        str(ck),
+        "--quiet",
+        "--json",
+    )
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["kind"] == "adversarial" and ck.is_file()
     out = tmp_path / "g"
@@ -148,11 +174,13 @@ def test_generator_commands(ds, wav, tmp_path, cli):
     n = info["frames"]
     assert abs(n - 75) <= 1 and info["model"] == "adversarial"  # 5 s at 15 fps
     from anima.io.sequence import read_sequence
+
     seq = read_sequence(out / "gesture.npz")  # one tracked sequence: the generator's face and body
     assert seq.expression.shape == (n, 53) and seq.body_joints.shape == (n, 55, 3) and seq.tracked.all()
     assert (out / "arkit.csv").read_text().startswith("Timecode")
-    r = cli("gesture", str(wav), "--generator", str(ck), "--out", str(tmp_path / "h"), "--control",
-             "left_wrist_height>=p85")
+    r = cli(
+        "gesture", str(wav), "--generator", str(ck), "--out", str(tmp_path / "h"), "--control", "left_wrist_height>=p85"
+    )
     assert r.returncode == 2 and "k-NN search" in r.stderr
     r = cli("gesture", str(wav), "--out", str(tmp_path / "i"))
     assert r.returncode == 2 and "--generator" in r.stderr

@@ -1,5 +1,6 @@
 """Motion-matching gestures (seed 004 Algorithm 1) on a dataset built from real gesture clips: the fast
 search equals the literal algorithm, controls hold, the command writes its files, bad inputs are clear."""
+
 import json
 import subprocess
 
@@ -13,6 +14,7 @@ SPEECH = "gesture-video/pats-crops/oliver2_gt.mp4"
 
 def test_feature_layout():
     from anima.gesture.features import audio_features, pose_features
+
     S = np.arange(20 * 28, dtype=np.float32).reshape(20, 28)
     f = audio_features(S)
     assert f.shape == (20, 112)
@@ -24,6 +26,7 @@ def test_feature_layout():
 
 def test_fast_rank_sum_keeps_the_stable_order_of_ties():
     from anima.gesture.knn import _rank_sum, _relrank
+
     rng = np.random.default_rng(1)
     for n in (1, 2, 5, 300):
         for decimals in (None, 1):  # all distinct, then many ties
@@ -40,6 +43,7 @@ def test_fast_search_equals_algorithm_1(db):
     from anima.gesture.control import parse_control, step_masks
     from anima.gesture.features import audio_features
     from anima.gesture.knn import search, search_literal
+
     assert db.M >= 6
     F_in = audio_features(features_for_file(asset(SPEECH), 15.0).features)[:80]
     p0 = db.P.reshape(-1, 96).mean(0)
@@ -59,6 +63,7 @@ def test_fast_search_equals_algorithm_1_on_a_larger_perturbed_database(db):
     from anima.audio.features import features_for_file
     from anima.gesture.features import audio_features
     from anima.gesture.knn import MatchDB, search, search_literal
+
     rng = np.random.default_rng(3)
     pick = rng.integers(0, db.M, 150)
     P = db.P[pick] + rng.normal(0, 0.01, db.P[pick].shape).astype(np.float32)
@@ -75,6 +80,7 @@ def test_control_holds_on_first_and_last_frame_of_each_window(db):
     from anima.gesture.control import control_features, parse_control, step_masks
     from anima.gesture.features import audio_features
     from anima.gesture.knn import search
+
     c = parse_control("left_wrist_height>=p70")
     F_in = audio_features(features_for_file(asset(SPEECH), 15.0).features)[:64]
     masks, rep = step_masks(db, [c], 8, 8 / 15)
@@ -88,12 +94,25 @@ def test_control_holds_on_first_and_last_frame_of_each_window(db):
 def test_gesture_command_outputs_and_bad_inputs(ds, tmp_path, cli):
     from anima.io.sequence import read_sequence
     from anima.io.video import probe_video
+
     wav44 = tmp_path / "speech44k.wav"  # a sample rate other than 16 kHz is resampled
-    subprocess.run([FFMPEG, "-v", "error", "-y", "-i", str(asset(SPEECH)), "-t", "4", "-vn", "-ar", "44100",
-                    str(wav44)], check=True)
+    subprocess.run(
+        [FFMPEG, "-v", "error", "-y", "-i", str(asset(SPEECH)), "-t", "4", "-vn", "-ar", "44100", str(wav44)],
+        check=True,
+    )
     out = tmp_path / "g"
-    r = cli("gesture", str(wav44), "--db", str(ds), "--all-splits", "--out", str(out), "--json",
-             "--control", "hand_symmetry>=5.0@0-2s")  # impossible: relaxed, with a note
+    r = cli(
+        "gesture",
+        str(wav44),
+        "--db",
+        str(ds),
+        "--all-splits",
+        "--out",
+        str(out),
+        "--json",
+        "--control",
+        "hand_symmetry>=5.0@0-2s",
+    )  # impossible: relaxed, with a note
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
     assert info["frames"] == 61 and info["controls"][0]["relaxed_to"] is not None
@@ -113,9 +132,12 @@ def test_gesture_command_outputs_and_bad_inputs(ds, tmp_path, cli):
 def test_silent_speech_and_speech_longer_than_the_database(db, tmp_path):
     from anima.gesture.knn import MatchDB
     from anima.gesture.run import synthesize
+
     silent = tmp_path / "silent.wav"
-    subprocess.run([FFMPEG, "-v", "error", "-y", "-f", "lavfi", "-i", "anullsrc=r=16000:cl=mono", "-t", "3",
-                    str(silent)], check=True)
+    subprocess.run(
+        [FFMPEG, "-v", "error", "-y", "-f", "lavfi", "-i", "anullsrc=r=16000:cl=mono", "-t", "3", str(silent)],
+        check=True,
+    )
     J, info = synthesize(str(silent), db)
     assert abs(len(J) - 45) <= 1 and J.shape[1:] == (55, 3) and np.isfinite(J).all()  # 3 s at 15 fps
     assert any("silent" in n for n in info["notes"])
@@ -129,6 +151,7 @@ def test_silent_speech_and_speech_longer_than_the_database(db, tmp_path):
 
 def test_eval_gesture_leave_one_video_out(ds):
     from anima.eval.gesture.run import evaluate
+
     r = evaluate(str(ds), refiner_folds=3, refiner_steps=15, sync_steps=10, generator_steps=10)
     assert r["videos"] == 3 and r["minutes_of_audio_motion"] > 0.2
     assert set(r["minutes_per_speaker"]) == {"oliver", "seth"}
@@ -155,6 +178,7 @@ def test_eval_gesture_leave_one_video_out(ds):
 
 def test_parent_relative_representation_roundtrips(db):
     from anima.gesture.refine import from_parent_relative, to_parent_relative
+
     J = db.G[0].reshape(64, 55, 3)
     R = to_parent_relative(J)
     np.testing.assert_allclose(from_parent_relative(R), J, atol=1e-6)
@@ -166,6 +190,7 @@ def test_refiner_trains_with_wgan_gp_and_the_command_uses_it(ds, db, tmp_path, c
     import torch
 
     from anima.gesture.refine import RefinerTrainConfig, knn_pairs, load_refiner, save_refiner, train_refiner
+
     pairs = knn_pairs(db, ks=(0, 1))
     S, K, R, W = pairs
     assert S.shape[1:] == (64, 28) and K.shape[1:] == (64, 55, 3) and len(S) == 2 * db.M
@@ -178,10 +203,22 @@ def test_refiner_trains_with_wgan_gp_and_the_command_uses_it(ds, db, tmp_path, c
     again = load_refiner(path)
     np.testing.assert_allclose(again.refine(S[0], K[0]), ref.refine(S[0], K[0]), atol=1e-6)
     wav = tmp_path / "s.wav"
-    subprocess.run([FFMPEG, "-v", "error", "-y", "-i", str(asset(SPEECH)), "-t", "3", "-vn", "-ar", "16000",
-                    str(wav)], check=True)
-    r = cli("gesture", str(wav), "--db", str(ds), "--all-splits", "--out", str(tmp_path / "g"), "--refiner", str(path),
-             "--no-render", "--json")
+    subprocess.run(
+        [FFMPEG, "-v", "error", "-y", "-i", str(asset(SPEECH)), "-t", "3", "-vn", "-ar", "16000", str(wav)], check=True
+    )
+    r = cli(
+        "gesture",
+        str(wav),
+        "--db",
+        str(ds),
+        "--all-splits",
+        "--out",
+        str(tmp_path / "g"),
+        "--refiner",
+        str(path),
+        "--no-render",
+        "--json",
+    )
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["refined"] is True
     bad = tmp_path / "bad.pt"
@@ -192,6 +229,7 @@ def test_refiner_trains_with_wgan_gp_and_the_command_uses_it(ds, db, tmp_path, c
 
 def test_sync_pairs_take_off_sync_gestures_from_other_windows():
     from anima.gesture.sync import SyncClassifier, make_pairs
+
     M, T = 5, 64
     S = np.repeat(np.arange(M, dtype=np.float32)[:, None, None], T, 1).repeat(28, 2)
     G = np.repeat(np.arange(M, dtype=np.float32)[:, None, None], T, 1).repeat(165, 2)
@@ -200,4 +238,5 @@ def test_sync_pairs_take_off_sync_gestures_from_other_windows():
     same = s[:, 0, 0] == g[:, 0, 0]
     assert same[y == 1].all() and not same[y == 0].any()
     import torch
+
     assert SyncClassifier()(torch.from_numpy(s[:4]), torch.from_numpy(g[:4])).shape == (4,)

@@ -2,6 +2,7 @@
 
 A crafted checkpoint (a pickle whose loading would create a file) goes through every command that reads a
 checkpoint; each refuses it with one line and exit code 4, and the file is never created."""
+
 import os
 import shutil
 
@@ -29,15 +30,30 @@ class _Evil:
 def evil(tmp_path):
     marker = tmp_path / "pwned"
     path = tmp_path / "evil.pt"
-    torch.save({"format": "anima.checkpoint", "envelope": 1, "kind": "pose_lifter", "version": 2,
-                "meta": "{}", "tensors": {"state": {"w": _Evil(marker)}}}, path)
+    torch.save(
+        {
+            "format": "anima.checkpoint",
+            "envelope": 1,
+            "kind": "pose_lifter",
+            "version": 2,
+            "meta": "{}",
+            "tensors": {"state": {"w": _Evil(marker)}},
+        },
+        path,
+    )
     return path, marker
 
 
 def test_round_trip_and_errors(tmp_path):
     net = torch.nn.Linear(3, 2)
-    p = save_checkpoint(tmp_path / "a.pt", "demo", 3, {"width": 3, "tuple": (1, 2)}, {"state": net.state_dict()},
-                        {"loss": np.float32(0.5), "nan": float("nan")})
+    p = save_checkpoint(
+        tmp_path / "a.pt",
+        "demo",
+        3,
+        {"width": 3, "tuple": (1, 2)},
+        {"state": net.state_dict()},
+        {"loss": np.float32(0.5), "nan": float("nan")},
+    )
     ck = load_checkpoint(p, "demo", 3)
     assert ck.config == {"width": 3, "tuple": [1, 2]} and ck.info == {"loss": 0.5, "nan": None}
     assert torch.equal(ck.state["weight"], net.weight.detach())
@@ -60,20 +76,24 @@ def test_a_crafted_pickle_runs_nothing(evil):
     assert not marker.exists()
 
 
-@pytest.mark.parametrize("how", ["capture", "eval_pose", "train_pose", "default_lifter", "refiner", "generator",
-                                 "text2face", "eval_text2face"])
+@pytest.mark.parametrize(
+    "how",
+    ["capture", "eval_pose", "train_pose", "default_lifter", "refiner", "generator", "text2face", "eval_text2face"],
+)
 def test_every_command_refuses_a_crafted_checkpoint(evil, tmp_path, cli, how, d0_path):
     path, marker = evil
     env = dict(os.environ)
     speech = str(asset(SPEECH))
-    args = {"capture": ["capture", d0_path, "--out", tmp_path / "c", "--body-3d", "lifter", "--pose-model", path],
-            "eval_pose": ["eval", "pose", "--model", path, "--json"],
-            "train_pose": ["train", "pose", "--out", path, "--steps", "1", "--quiet"],
-            "default_lifter": ["eval", "pose", "--json"],
-            "refiner": ["gesture", speech, "--db", tmp_path / "nodb", "--refiner", path, "--out", tmp_path / "g"],
-            "generator": ["gesture", speech, "--generator", path, "--out", tmp_path / "g"],
-            "text2face": ["text2face", "a woman smiles", "--checkpoint", path, "--out", tmp_path / "t"],
-            "eval_text2face": ["eval", "text2face", tmp_path, "--checkpoint", path, "--work", tmp_path / "w"]}[how]
+    args = {
+        "capture": ["capture", d0_path, "--out", tmp_path / "c", "--body-3d", "lifter", "--pose-model", path],
+        "eval_pose": ["eval", "pose", "--model", path, "--json"],
+        "train_pose": ["train", "pose", "--out", path, "--steps", "1", "--quiet"],
+        "default_lifter": ["eval", "pose", "--json"],
+        "refiner": ["gesture", speech, "--db", tmp_path / "nodb", "--refiner", path, "--out", tmp_path / "g"],
+        "generator": ["gesture", speech, "--generator", path, "--out", tmp_path / "g"],
+        "text2face": ["text2face", "a woman smiles", "--checkpoint", path, "--out", tmp_path / "t"],
+        "eval_text2face": ["eval", "text2face", tmp_path, "--checkpoint", path, "--work", tmp_path / "w"],
+    }[how]
     if how == "default_lifter":
         home = tmp_path / "home"
         (home / "models").mkdir(parents=True)
@@ -91,7 +111,10 @@ def test_a_checkpoint_of_another_kind_version_or_cut_short(tmp_path, cli):
     old["version"] = 99
     torch.save(old, tmp_path / "v99.pt")
     (tmp_path / "cut.pt").write_bytes(SHIPPED.read_bytes()[:100_000])
-    for ck, msg in ((other, "'gesture_refiner' checkpoint"), (tmp_path / "v99.pt", "version 99"),
-                    (tmp_path / "cut.pt", "not a loadable")):
+    for ck, msg in (
+        (other, "'gesture_refiner' checkpoint"),
+        (tmp_path / "v99.pt", "version 99"),
+        (tmp_path / "cut.pt", "not a loadable"),
+    ):
         r = cli("text2face", "a woman smiles", "--checkpoint", ck, "--out", tmp_path / "o", "--no-video")
         assert r.returncode == 4 and msg in r.stderr and r.stderr.count("\n") == 1, r.stderr

@@ -105,8 +105,9 @@ def test_glb_passes_khronos_validator(d0_capture, tmp_path):
     node = shutil.which("node")
     assert node, "node is required (the validator is the npm package gltf-validator; .ci/run installs it)"
     assert (REPO / "node_modules" / "gltf-validator").is_dir(), "run `npm ci` (installs gltf-validator)"
-    r = subprocess.run([node, str(REPO / "tools" / "validate_gltf.js"), str(p)], capture_output=True, text=True,
-                       cwd=REPO, timeout=120)
+    r = subprocess.run(
+        [node, str(REPO / "tools" / "validate_gltf.js"), str(p)], capture_output=True, text=True, cwd=REPO, timeout=120
+    )
     rep = json.loads(r.stdout)
     assert r.returncode == 0 and rep["issues"]["numErrors"] == 0, rep["issues"]
     assert rep["info"]["hasMorphTargets"] and rep["info"]["animationCount"] == 1

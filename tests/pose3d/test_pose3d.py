@@ -1,5 +1,6 @@
 """The weakly supervised 3D pose lifter (seed 004 ch. 3): maths on real Human3.6M/HumanEva data, MediaPipe
 mapping on real S9 images, a few training steps on a small slice, checkpoints, masking, capture."""
+
 import dataclasses
 
 import numpy as np
@@ -48,6 +49,7 @@ def test_metrics_protocols():
     rng = np.random.default_rng(0)
     g = rng.normal(size=(4, K, 3)) * 300
     from scipy.spatial.transform import Rotation
+
     R = Rotation.random(4, random_state=1).as_matrix()
     p = 1.2 * np.einsum("nij,nkj->nki", R, g) + 40
     m = pose_metrics(p, g)
@@ -77,6 +79,7 @@ def test_mediapipe_on_real_s9_images_lands_on_the_ground_truth(s9):
     import cv2
 
     from anima.pose3d.data import PoseDetector
+
     folder = asset(pdata.H36M_S9_IMAGES)
     names = {}
     for p in sorted(folder.glob("*.jpg")):
@@ -108,6 +111,7 @@ def test_humaneva_validation_loads_with_camera_frame_ground_truth():
 @pytest.fixture(scope="module")
 def tiny_model(tmp_path_factory):
     from anima.pose3d.train import TrainConfig, train
+
     d = tmp_path_factory.mktemp("lifter")
     cfg = TrainConfig(steps=40, batch=64, every=40, wild=False, model={**TrainConfig().model, "width": 64})
     model, info = train(cfg, d / "tiny.pt", d / "cache", progress=False, resume=False, log_every=10)
@@ -125,6 +129,7 @@ def test_a_few_training_steps_reduce_the_loss(tiny_model):
 def test_checkpoint_round_trip_resume_and_versions(tiny_model, tmp_path):
     from anima.errors import InputError, SchemaError
     from anima.pose3d.train import load_checkpoint, train
+
     model, _, path, cfg = tiny_model
     m2, ck = load_checkpoint(path)
     assert ck["step"] == 40 and ck["config"]["model"]["width"] == 64
@@ -133,6 +138,7 @@ def test_checkpoint_round_trip_resume_and_versions(tiny_model, tmp_path):
     assert torch.allclose(model(x, c)["p3d"], m2(x, c)["p3d"])
     # resume: a longer run continues from step 40
     import shutil
+
     p2 = tmp_path / "resume.pt"
     shutil.copy(path, p2)
     _, info = train(dataclasses.replace(cfg, steps=50), p2, tmp_path / "cache", progress=False, log_every=5)
@@ -154,6 +160,7 @@ def test_checkpoint_round_trip_resume_and_versions(tiny_model, tmp_path):
 def test_masked_joints_are_ignored(tiny_model):
     """b_k = 0: where a masked joint is placed does not change the prediction (eq. 3.3's mask)."""
     from anima.pose3d.train import predict
+
     model = tiny_model[0]
     h = pdata.load_h36m(("S1",), every=500)
     uv, conf = h.uv[:8].astype(np.float64), np.ones((8, K))
@@ -169,10 +176,23 @@ def test_capture_with_the_lifter_body(tiny_model, tmp_path, cli):
     """`anima capture --body-3d lifter` on a real gesture clip: the body comes from the lifter, hands stay
     attached to the wrists; a missing checkpoint is one clear line."""
     from anima.io.sequence import read_sequence
+
     path = tiny_model[2]
     clip = asset("gesture-video/pats-crops/oliver1_gt.mp4")
-    r = cli("capture", clip, "--out", tmp_path / "c", "--max-frames", "12", "--no-render", "--quiet", "--body-3d",
-            "lifter", "--pose-model", path)
+    r = cli(
+        "capture",
+        clip,
+        "--out",
+        tmp_path / "c",
+        "--max-frames",
+        "12",
+        "--no-render",
+        "--quiet",
+        "--body-3d",
+        "lifter",
+        "--pose-model",
+        path,
+    )
     assert r.returncode == 0, r.stderr
     seq = read_sequence(tmp_path / "c" / "capture.npz")
     assert "pose lifter" in seq.meta["skeleton"]["tracker"]
@@ -182,8 +202,20 @@ def test_capture_with_the_lifter_body(tiny_model, tmp_path, cli):
     hand_ok = ok & np.isfinite(J[:, 13]).all(-1)
     if hand_ok.any():  # left-hand wrist joint sits on the body's left wrist
         np.testing.assert_allclose(J[hand_ok, 13], J[hand_ok, 9], atol=1e-6)
-    r = cli("capture", clip, "--out", tmp_path / "d", "--max-frames", "5", "--no-render", "--quiet", "--body-3d",
-            "lifter", "--pose-model", tmp_path / "none.pt")
+    r = cli(
+        "capture",
+        clip,
+        "--out",
+        tmp_path / "d",
+        "--max-frames",
+        "5",
+        "--no-render",
+        "--quiet",
+        "--body-3d",
+        "lifter",
+        "--pose-model",
+        tmp_path / "none.pt",
+    )
     assert r.returncode == 2 and "anima train pose" in r.stderr and "Traceback" not in r.stderr
 
 
@@ -198,11 +230,13 @@ def test_frames_without_a_person_stay_empty(tiny_model):
     """A frame where MediaPipe found no person gives NaN joints, not a made-up pose; a person half out of
     frame (legs not visible) still gets a full 17-joint estimate."""
     from anima.pose3d.infer import lift_frames
+
     h = pdata.load_h36m(("S1",), every=2000)
     mp_px = np.full((3, 33, 2), np.nan)
     vis = np.zeros((3, 33))
     # frames 0 and 2: a person placed at MediaPipe's indices from a real projected H3.6M pose
     from anima.pose3d.joints import _MP
+
     for f in (0, 2):
         mp_px[f] = 0.0  # MediaPipe always returns all 33 landmarks for a found person
         for name, j in _MP.items():
@@ -210,6 +244,7 @@ def test_frames_without_a_person_stay_empty(tiny_model):
             k = src.get(name, None)
             if k is None:
                 from anima.pose3d.joints import H36M_NAMES
+
                 k = H36M_NAMES.index(name)
             mp_px[f, j] = h.uv[f, k]
             vis[f, j] = 0.9

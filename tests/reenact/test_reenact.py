@@ -1,5 +1,6 @@
 """Re-enactment (seed 001): the maths of texture synthesis and blending, the database artifact on a real
 clip, the command end to end (audio, bad inputs) and the live loop on a file paced at its frame rate."""
+
 import json
 from types import SimpleNamespace
 
@@ -72,8 +73,11 @@ def test_lost_actor_face_holds_then_fades():
     flags[10:] = 1  # face lost from frame 10 on
     expr = np.tile(np.linspace(0, 1, F)[:, None], (1, 53)).astype(np.float32)
     db = SimpleNamespace(expression=np.random.default_rng(0).random((200, 53)).astype(np.float32))
-    x, alpha = actor_expressions(SimpleNamespace(expression=expr, flags=flags), db,
-                                 ReenactConfig(map_expressions=False, hold_frames=4, fade_frames=4))
+    x, alpha = actor_expressions(
+        SimpleNamespace(expression=expr, flags=flags),
+        db,
+        ReenactConfig(map_expressions=False, hold_frames=4, fade_frames=4),
+    )
     np.testing.assert_allclose(x[10:], np.repeat(expr[9:10], F - 10, 0))
     assert (alpha[:14] == 1).all() and 0 < alpha[14] < 1 and (alpha[17:] == 0).all()  # 4 held, 4 fading
 
@@ -81,6 +85,7 @@ def test_lost_actor_face_holds_then_fades():
 @pytest.fixture(scope="module")
 def obama_db(tmp_path_factory):
     from anima.reenact.database import build_database, write_database
+
     db, seqs = build_database([str(asset(OBAMA1))], max_frames=160, progress=False)
     path = write_database(db, tmp_path_factory.mktemp("db") / "obama.npz")
     return db, seqs[0], path
@@ -91,6 +96,7 @@ def test_database_on_a_real_clip(obama_db, tmp_path):
     from anima.io.video import read_video
     from anima.reenact.database import read_database
     from anima.reenact.pipeline import Reenactor
+
     db, seq, path = obama_db
     assert db.n >= 150 and db.colors.shape == (db.n, len(db.vertex_ids), 3) and db.colors.dtype == np.uint8
     db2 = read_database(path)
@@ -118,10 +124,23 @@ def test_database_on_a_real_clip(obama_db, tmp_path):
 
 def test_reenact_command_end_to_end(obama_db, tmp_path, cli):
     from anima.io.video import probe_video
+
     path = obama_db[2]
     out = tmp_path / "re.mp4"
-    r = cli("reenact", "--actor", str(asset(ACTOR)), "--target", str(asset(OBAMA1)), "--db", str(path),
-               "--out", str(out), "--side-by-side", "--json", "--quiet")
+    r = cli(
+        "reenact",
+        "--actor",
+        str(asset(ACTOR)),
+        "--target",
+        str(asset(OBAMA1)),
+        "--db",
+        str(path),
+        "--out",
+        str(out),
+        "--side-by-side",
+        "--json",
+        "--quiet",
+    )
     assert r.returncode == 0, r.stderr
     info = probe_video(out)
     assert info.has_audio and info.n_frames == probe_video(asset(ACTOR)).n_frames
@@ -130,18 +149,40 @@ def test_reenact_command_end_to_end(obama_db, tmp_path, cli):
 
 
 def test_reenact_bad_inputs(tmp_path, cli):
-    r = cli("reenact", "--actor", str(asset(ACTOR)), "--target",
-               str(asset("liveportrait-examples/assets/examples/driving/d0.mp4")), "--out", str(tmp_path / "o.mp4"))
+    r = cli(
+        "reenact",
+        "--actor",
+        str(asset(ACTOR)),
+        "--target",
+        str(asset("liveportrait-examples/assets/examples/driving/d0.mp4")),
+        "--out",
+        str(tmp_path / "o.mp4"),
+    )
     assert r.returncode == 2 and "at least 100" in r.stderr and "Traceback" not in r.stderr
-    r = cli("reenact", "--actor", str(tmp_path / "missing.mp4"), "--target", str(asset(OBAMA1)),
-               "--out", str(tmp_path / "o.mp4"))
+    r = cli(
+        "reenact",
+        "--actor",
+        str(tmp_path / "missing.mp4"),
+        "--target",
+        str(asset(OBAMA1)),
+        "--out",
+        str(tmp_path / "o.mp4"),
+    )
     assert r.returncode == 2 and "not found" in r.stderr
 
 
 def test_live_loop_on_a_paced_file(obama_db):
     from anima.reenact.run import reenact_live
-    r = reenact_live(str(asset(ACTOR)), [str(asset(OBAMA1))], None, ReenactConfig(smooth=0),
-                     db_path=str(obama_db[2]), max_seconds=8, progress=False)
+
+    r = reenact_live(
+        str(asset(ACTOR)),
+        [str(asset(OBAMA1))],
+        None,
+        ReenactConfig(smooth=0),
+        db_path=str(obama_db[2]),
+        max_seconds=8,
+        progress=False,
+    )
     assert r["frames_processed"] > 20
     assert r["frames_received"] >= r["frames_processed"]
     assert r["latency_ms"]["median"] < 1000

@@ -1,6 +1,7 @@
 """Text -> facial motion (seed 000 ch. 6-7): the encoder interface, the FaceFormer pieces, the exact
 vertex-offset loss, the cached sampler, the shipped checkpoint, training on a dataset built from real clips,
 and the command with its bad inputs."""
+
 import json
 import warnings
 
@@ -11,17 +12,18 @@ import torch
 from anima.errors import AssetNotFound, InputError, SchemaError
 from anima.io.assets import asset
 
-CLIPS = ["liveportrait-examples/assets/examples/driving/d0.mp4",
-         "liveportrait-examples/assets/examples/driving/d6.mp4"]
+CLIPS = ["liveportrait-examples/assets/examples/driving/d0.mp4", "liveportrait-examples/assets/examples/driving/d6.mp4"]
 
 
 @pytest.fixture(scope="module")
 def encoder():
     from anima.text2face.encoders import get_encoder
+
     return get_encoder("minilm")
 
 
 # ---- encoders ---------------------------------------------------------------------------------------
+
 
 def test_minilm_shape_determinism_and_any_language(encoder):
     texts = ["a woman smiles, then blinks", "una mujer sonríe y luego parpadea", "女人微笑"]
@@ -37,6 +39,7 @@ def test_minilm_shape_determinism_and_any_language(encoder):
 
 def test_clip_encoder_shape_and_determinism_or_a_clear_error():
     from anima.text2face.encoders import OpenClipEncoder
+
     try:
         enc = OpenClipEncoder()
     except AssetNotFound as e:
@@ -49,6 +52,7 @@ def test_clip_encoder_shape_and_determinism_or_a_clear_error():
 
 def test_prompts_empty_refused_long_truncated(encoder):
     from anima.text2face.encoders import clean_prompt
+
     for bad in ["", "   ", None]:
         with pytest.raises(InputError, match="empty"):
             clean_prompt(bad, encoder)
@@ -62,13 +66,15 @@ def test_prompts_empty_refused_long_truncated(encoder):
 
 # ---- model maths --------------------------------------------------------------------------------------
 
+
 def test_temporal_and_alignment_biases_and_periodic_encoding():
     from anima.text2face.model import alignment_bias, periodic_positional_encoding, temporal_bias
+
     B = temporal_bias(4, 15, 40)
     assert B.shape == (4, 40, 40)
     assert torch.isinf(B[:, 3, 4:]).all() and torch.isfinite(B[:, 3, :4]).all()  # causal
     assert (B[:, 20, 6:21] == 0).all() and (B[:, 20, 5] < 0).all()  # same period: no penalty
-    assert (B[0, 39, 0] < B[3, 39, 0])  # steeper slope on head 0
+    assert B[0, 39, 0] < B[3, 39, 0]  # steeper slope on head 0
     A = alignment_bias(5, 7)
     assert (A.diagonal() == 0).all() and torch.isinf(A[0, 1:]).all()
     pe = periodic_positional_encoding(32, 15, 60)
@@ -77,6 +83,7 @@ def test_temporal_and_alignment_biases_and_periodic_encoding():
 
 def _tiny(**over):
     from anima.text2face.model import Text2Face, preset
+
     torch.manual_seed(0)
     m = Text2Face(preset("small", d_m=64, d_t=8, mlp_hidden=32, max_len=60, n_layers=2, **over))
     for p in m.out.parameters():  # the output layer starts at zero; give it values for the tests
@@ -121,6 +128,7 @@ def test_vq_straight_through_reaches_the_encoder_and_codebook_learns_from_vq_onl
 def test_gram_loss_equals_explicit_z_normalised_vertex_offset_mse():
     from anima.text2face.data import FaceGeometry
     from anima.text2face.train import rec_loss
+
     geom = FaceGeometry()
     rng = np.random.default_rng(0)
     expr = rng.random((500, 53)) ** 3
@@ -134,16 +142,19 @@ def test_gram_loss_equals_explicit_z_normalised_vertex_offset_mse():
     p, t = rng.random((1, 3, 56)).astype(np.float32), rng.random((1, 3, 56)).astype(np.float32)
     p[..., 53:] = t[..., 53:]
     explicit = (((p[0, :, :53] - t[0, :, :53]) @ geom.B / sd) ** 2).mean()
-    got = rec_loss(torch.from_numpy(p), torch.from_numpy(t), torch.ones(1, 3), torch.from_numpy(std),
-                   torch.from_numpy(G), 1.0)
+    got = rec_loss(
+        torch.from_numpy(p), torch.from_numpy(t), torch.ones(1, 3), torch.from_numpy(std), torch.from_numpy(G), 1.0
+    )
     assert float(got) == pytest.approx(explicit, rel=2e-3)
 
 
 # ---- the shipped checkpoint ---------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def shipped():
     from anima.text2face.generate import Generator, default_checkpoint
+
     return Generator(default_checkpoint())
 
 
@@ -154,6 +165,7 @@ def test_shipped_checkpoint_is_small_and_carries_its_manifest(shipped):
     assert man["command"].startswith("anima train text2face") and len(man["data_fingerprint"]) == 16
     assert man["heldout_metrics"]["mae_mm"]["mean"] > 0 and man["train_wall_s"] < 1800
     import hashlib
+
     assert hashlib.sha256(p.read_bytes()).hexdigest() == man["sha256"]
 
 
@@ -174,6 +186,7 @@ def test_shipped_model_follows_the_prompt(shipped):
     """The dataset's detectors on generated motion: a smile prompt smiles more than a neutral one."""
     from anima.dataset.attributes import _mean
     from anima.export.framing import generated_sequence
+
     smile = shipped.generate(["The person smiles for a long time"] * 5, 90, seed=3)
     neutral = shipped.generate(["The person keeps a neutral face for a long time"] * 5, 90, seed=3)
     s = [_mean(generated_sequence(30.0, face=m), ["mouthSmile_L", "mouthSmile_R"]).mean() for m in smile]
@@ -183,6 +196,7 @@ def test_shipped_model_follows_the_prompt(shipped):
 
 def test_checkpoint_of_another_version_is_refused(tmp_path, shipped):
     from anima.text2face.train import load_checkpoint
+
     obj = torch.load(shipped.path, weights_only=True)
     obj["version"] = 99
     torch.save(obj, tmp_path / "v99.pt")
@@ -195,23 +209,48 @@ def test_checkpoint_of_another_version_is_refused(tmp_path, shipped):
 
 # ---- training on real clips, and the command ------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def ds(tmp_path_factory, cli):
     out = tmp_path_factory.mktemp("t2fds") / "ds"
-    r = cli("dataset", "build", *[asset(c) for c in CLIPS], "--out", out, "--min-len", "2", "--max-len", "6",
-            "--workers", "1", "--quiet", "--json")
+    r = cli(
+        "dataset",
+        "build",
+        *[asset(c) for c in CLIPS],
+        "--out",
+        out,
+        "--min-len",
+        "2",
+        "--max-len",
+        "6",
+        "--workers",
+        "1",
+        "--quiet",
+        "--json",
+    )
     assert r.returncode == 0, r.stderr[-2000:]
     return out
 
 
 def test_training_learns_resumes_exactly_and_carries_its_config(ds, tmp_path):
     from anima.text2face.train import TrainConfig, load_checkpoint, train
-    cfg = TrainConfig(preset="small", model={"d_m": 64, "d_t": 8, "mlp_hidden": 32}, steps=60, ckpt_every=30,
-                      per_clip=8, min_len=30, max_len=180, lr=1e-3, batch=4)
+
+    cfg = TrainConfig(
+        preset="small",
+        model={"d_m": 64, "d_t": 8, "mlp_hidden": 32},
+        steps=60,
+        ckpt_every=30,
+        per_clip=8,
+        min_len=30,
+        max_len=180,
+        lr=1e-3,
+        batch=4,
+    )
     full = train(ds, tmp_path / "a", cfg, progress=False)
     losses = full["info"]["losses"]
     assert np.mean(losses[-10:]) < np.mean(losses[:10])
     import dataclasses
+
     train(ds, tmp_path / "b", dataclasses.replace(cfg, steps=30), progress=False)
     resumed = train(ds, tmp_path / "b", cfg, progress=False)  # extends the 30-step run to 60
     for (k, v), w in zip(full["model"].state_dict().items(), resumed["model"].state_dict().values()):
@@ -224,6 +263,7 @@ def test_training_learns_resumes_exactly_and_carries_its_config(ds, tmp_path):
 
 def test_text2face_command_writes_its_files_and_refuses_bad_input(tmp_path, cli):
     from anima.io.sequence import read_sequence
+
     out = tmp_path / "gen"
     r = cli("text2face", "a woman smiles, then blinks", "--out", str(out), "--length", "45", "--json")
     assert r.returncode == 0, r.stderr[-2000:]
@@ -233,7 +273,10 @@ def test_text2face_command_writes_its_files_and_refuses_bad_input(tmp_path, cli)
     seq = read_sequence(out / "motion.npz")
     assert seq.n_frames == 45 and seq.fps == 30 and info["frames"] == 45
     assert len((out / "arkit.csv").read_text().splitlines()) == 46
-    for args, code, msg in [(("",), 2, "empty"), (("a person smiles", "--length", "5000"), 2, "trained range"),
-                            (("a person smiles", "--checkpoint", str(tmp_path / "none.pt")), 2, "not found")]:
+    for args, code, msg in [
+        (("",), 2, "empty"),
+        (("a person smiles", "--length", "5000"), 2, "trained range"),
+        (("a person smiles", "--checkpoint", str(tmp_path / "none.pt")), 2, "not found"),
+    ]:
         r = cli("text2face", *args, "--out", str(tmp_path / "bad"), "--no-video")
         assert r.returncode == code and msg in r.stderr and "Traceback" not in r.stderr, r.stderr

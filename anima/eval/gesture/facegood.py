@@ -1,5 +1,6 @@
 """Lip sync of speech-driven faces on FaceGood's real (Mandarin speech, blendshape) recordings, never seen in
 training."""
+
 from __future__ import annotations
 
 import glob
@@ -52,6 +53,7 @@ def facegood_sync(generators: dict, fps: float, max_lag: int = 8) -> dict | None
             a, b = a[:lag], b[-lag:]
         n = min(len(a), len(b))
         return float(np.corrcoef(a[:n], b[:n])[0, 1])
+
     rows = {}
     lags_all = range(-max_lag, max_lag + 1)
     for kind, gens in generators.items():
@@ -65,8 +67,17 @@ def facegood_sync(generators: dict, fps: float, max_lag: int = 8) -> dict | None
             co = [corr(preds[(n + 1) % len(recs)], ref, lag) for lag in lags_all]
             other0.append(co[max_lag])
             other_best.append(max(co))
-        rows[kind] = {"r_lag0": float(np.mean(r0)), "r_best": float(np.mean(best)), "best_lag_frames": lags,
-                      "r_other_speech": float(np.mean(other0)), "r_other_speech_best": float(np.mean(other_best))}
-    return {"recordings": len(recs), "minutes": round(sum(len(r[2]) for r in recs) / fps / 60, 2),
-            "channel": "mouth_stretch_c", "lag_search": f"+-{max_lag} frames for methods and other speech alike",
-            "rows": rows}
+        rows[kind] = {
+            "r_lag0": float(np.mean(r0)),
+            "r_best": float(np.mean(best)),
+            "best_lag_frames": lags,
+            "r_other_speech": float(np.mean(other0)),
+            "r_other_speech_best": float(np.mean(other_best)),
+        }
+    return {
+        "recordings": len(recs),
+        "minutes": round(sum(len(r[2]) for r in recs) / fps / 60, 2),
+        "channel": "mouth_stretch_c",
+        "lag_search": f"+-{max_lag} frames for methods and other speech alike",
+        "rows": rows,
+    }

@@ -2,6 +2,7 @@
 generator with its baselines (direct regression, LSTM), FGD, the lip error (table 4.3) and the sync
 classifier (table 4.4). Every model is trained by its feature package (``anima.gesture``) on the training
 folds' videos and judged on the held-out fold's windows."""
+
 from __future__ import annotations
 
 from collections import defaultdict
@@ -56,8 +57,15 @@ def refiner_rows(db, kept: dict, ks, folds: int, steps: int | None, progress: bo
         bar = tqdm(total=cfg.steps, desc=f"refiner fold {f + 1}/{folds}", disable=not progress, leave=False)
         ref, info = train_refiner(None, cfg, progress=lambda s: bar.update(1), pairs=(S[tr], K[tr], R[tr], W[tr]))
         bar.close()
-        logs.append({"fold": f, "train_pairs": int(tr.sum()), "test_windows": len(test), "wall_s": info["wall_s"],
-                     "critic_last": float(np.mean(info["log"]["critic"][-50:]))})
+        logs.append(
+            {
+                "fold": f,
+                "train_pairs": int(tr.sum()),
+                "test_windows": len(test),
+                "wall_s": info["wall_s"],
+                "critic_last": float(np.mean(info["log"]["critic"][-50:])),
+            }
+        )
         for i in test:
             gt = db.G[i].reshape(T, -1, 3)
             outs = [ref.refine(db.S[i], o) for o in kept["outs"][i]]
@@ -76,10 +84,13 @@ def refiner_rows(db, kept: dict, ks, folds: int, steps: int | None, progress: bo
                 out, thr = per[i]
                 adherence[c]["values"].append(control_features(ref.refine(db.S[i], out).reshape(1, T, -1), fps))
                 adherence[c].setdefault("thresholds", []).append(thr)
-    return {"protocol": f"{folds}-fold cross-validation by video; WGAN-GP, {cfg.critic_steps} critic steps per "
-                        f"generator step, {cfg.steps} generator steps, L1 weight {cfg.l1}",
-            "metrics": {k: float(np.nanmean(v)) for k, v in res.items()},
-            "control_adherence": adherence_table(adherence, T), "folds": logs}
+    return {
+        "protocol": f"{folds}-fold cross-validation by video; WGAN-GP, {cfg.critic_steps} critic steps per "
+        f"generator step, {cfg.steps} generator steps, L1 weight {cfg.l1}",
+        "metrics": {k: float(np.nanmean(v)) for k, v in res.items()},
+        "control_adherence": adherence_table(adherence, T),
+        "folds": logs,
+    }
 
 
 def sync_rows(db, folds: int, lengths=(16, 32, 64), steps: int = 300) -> dict:
@@ -100,16 +111,21 @@ def sync_rows(db, folds: int, lengths=(16, 32, 64), steps: int = 300) -> dict:
 
             def norm(m):
                 return ((db.S[m] - S_mean) / S_std).astype(np.float32), ((db.G[m] - G_mean) / G_std).astype(np.float32)
+
             net, _ = train_sync(*norm(tr), L, steps=steps, seed=f)
             accs.append(accuracy(net, *norm(te), L))
             ns.append(int(te.sum()))
-        rows[f"{L}_frames"] = {"accuracy": float(np.average(accs, weights=ns)) if accs else float("nan"),
-                               "per_fold": [round(a, 3) for a in accs], "test_windows": ns}
+        rows[f"{L}_frames"] = {
+            "accuracy": float(np.average(accs, weights=ns)) if accs else float("nan"),
+            "per_fold": [round(a, 3) for a in accs],
+            "test_windows": ns,
+        }
     return rows
 
 
-def generator_rows(w: Windows, kept: dict, knn_db, folds: int, steps: int | None, progress: bool,
-                   refined_outs: dict | None) -> dict:
+def generator_rows(
+    w: Windows, kept: dict, knn_db, folds: int, steps: int | None, progress: bool, refined_outs: dict | None
+) -> dict:
     """The §4.4 generator (adversarial), direct regression (no adversarial term) and the LSTM baseline,
     cross-validated by video with the refiner's folds; FGD for every method; lip error (table 4.3).
     ``w``: every window of the dataset (face-only ones train the face decoder)."""
@@ -137,12 +153,25 @@ def generator_rows(w: Windows, kept: dict, knn_db, folds: int, steps: int | None
             continue
         for kind in KINDS:
             bar = tqdm(total=cfg.steps, desc=f"{kind} fold {f + 1}/{folds}", disable=not progress, leave=False)
-            gen, inf = train_generator(w.speech[tr], w.body[tr], w.face[tr], GeneratorConfig(kind=kind, fps=w.fps),
-                                       cfg, progress=lambda s: bar.update(1))
+            gen, inf = train_generator(
+                w.speech[tr],
+                w.body[tr],
+                w.face[tr],
+                GeneratorConfig(kind=kind, fps=w.fps),
+                cfg,
+                progress=lambda s: bar.update(1),
+            )
             bar.close()
             gens[kind].append(gen)
-            info[kind].append({"fold": f, "train_windows": inf["windows"], "train_body_windows": inf["body_windows"],
-                               "wall_s": inf["wall_s"], "loss_weights": inf["loss_weights"]})
+            info[kind].append(
+                {
+                    "fold": f,
+                    "train_windows": inf["windows"],
+                    "train_body_windows": inf["body_windows"],
+                    "wall_s": inf["wall_s"],
+                    "loss_weights": inf["loss_weights"],
+                }
+            )
             for n in te:
                 J, face = gen.generate(w.speech[n])
                 lip[kind].append(lip_error_mm(face, w.face[n], model))
@@ -167,29 +196,43 @@ def generator_rows(w: Windows, kept: dict, knn_db, folds: int, steps: int | None
     train_rows = [i for i, (s, st) in enumerate(knn_db.source) if w.split[key[(s, round(st, 3))]] == "train"]
     fgd = train_fgd(knn_db.G[train_rows].reshape(len(train_rows), T, -1))
     real = np.stack([knn_db.G[i].reshape(T, -1) for i, _ in judged])
-    fgd_rows = {kind: fgd.distance(real, np.stack([gen_windows[kind][n].reshape(T, -1) for _, n in judged]))
-                for kind in KINDS}
+    fgd_rows = {
+        kind: fgd.distance(real, np.stack([gen_windows[kind][n].reshape(T, -1) for _, n in judged])) for kind in KINDS
+    }
     fgd_rows["knn"] = fgd.distance(real, np.stack([kept["outs"][i][0].reshape(T, -1) for i, _ in judged]))
     if refined_outs:
         fgd_rows["knn_cgan"] = fgd.distance(real, np.stack([refined_outs[i].reshape(T, -1) for i, _ in judged]))
     # two random halves of the captured windows against each other: what sampling noise alone gives
     half = len(real) // 2
     perm = np.random.default_rng(0).permutation(len(real))
-    fgd_rows["captured_half_vs_half"] = (fgd.distance(real[perm[:half]], real[perm[half:2 * half]]) if half >= 2
-                                         else float("nan"))
-    rows = {kind: {**{k: float(np.nanmean(v)) for k, v in res[kind].items()}, "diversity_cm": 0.0,
-                   "lip_error_mm": float(np.mean(lip[kind])), "fgd": fgd_rows[kind], "folds": info[kind]}
-            for kind in KINDS}
+    fgd_rows["captured_half_vs_half"] = (
+        fgd.distance(real[perm[:half]], real[perm[half : 2 * half]]) if half >= 2 else float("nan")
+    )
+    rows = {
+        kind: {
+            **{k: float(np.nanmean(v)) for k, v in res[kind].items()},
+            "diversity_cm": 0.0,
+            "lip_error_mm": float(np.mean(lip[kind])),
+            "fgd": fgd_rows[kind],
+            "folds": info[kind],
+        }
+        for kind in KINDS
+    }
     face_only = defaultdict(lambda: defaultdict(list))
     for s_, st, h in zip(w.source, w.start_s, has_body):
         if not h:
             face_only[speaker_of(s_)][s_].append(st)
-    return {"protocol": f"{folds}-fold cross-validation by video (the refiner's folds; face-only windows from "
-                        f"talking-head clips train the face decoder); {cfg.steps} steps, batch {cfg.batch}, Adam "
-                        f"{cfg.lr}, adversarial weight {cfg.adv_weight}; deterministic, so diversity is 0",
-            "windows_judged": len(judged), "lip_windows": len(lip["adversarial"]), "rows": rows,
-            "lip_error_mm_random_other_video": float(np.mean(lip_random)),
-            "face_only_windows_per_speaker": {k: sum(len(x) for x in v.values()) for k, v in sorted(face_only.items())},
-            "face_only_minutes_per_speaker": {k: minutes_covered(v.items(), T / fps)
-                                              for k, v in sorted(face_only.items())},
-            "fgd": fgd_rows, "fgd_autoencoder": fgd.info, "facegood_lip_sync": facegood_sync(gens, fps)}
+    return {
+        "protocol": f"{folds}-fold cross-validation by video (the refiner's folds; face-only windows from "
+        f"talking-head clips train the face decoder); {cfg.steps} steps, batch {cfg.batch}, Adam "
+        f"{cfg.lr}, adversarial weight {cfg.adv_weight}; deterministic, so diversity is 0",
+        "windows_judged": len(judged),
+        "lip_windows": len(lip["adversarial"]),
+        "rows": rows,
+        "lip_error_mm_random_other_video": float(np.mean(lip_random)),
+        "face_only_windows_per_speaker": {k: sum(len(x) for x in v.values()) for k, v in sorted(face_only.items())},
+        "face_only_minutes_per_speaker": {k: minutes_covered(v.items(), T / fps) for k, v in sorted(face_only.items())},
+        "fgd": fgd_rows,
+        "fgd_autoencoder": fgd.info,
+        "facegood_lip_sync": facegood_sync(gens, fps),
+    }

@@ -1,6 +1,7 @@
 """Metrics of generated gestures and faces (seed 004 ch. 4-5), as plain functions. Each docstring names its
 protocol; every function takes the frame rate of the motion it is given.
 """
+
 from __future__ import annotations
 
 import librosa
@@ -19,7 +20,7 @@ def jerk(J: np.ndarray, fps: float) -> float:
     """Mean magnitude of the third time derivative of both wrists (m/s^3), finite differences at ``fps``,
     over all frames of ``J [T, 55, 3]``. Captured motion at 15 fps reads about 25 on the shared clips."""
     w = J[:, WRISTS]
-    return float(np.linalg.norm(np.diff(w, 3, axis=0) * fps ** 3, axis=-1).mean()) if len(w) > 3 else float("nan")
+    return float(np.linalg.norm(np.diff(w, 3, axis=0) * fps**3, axis=-1).mean()) if len(w) > 3 else float("nan")
 
 
 def wrist_motion(J: np.ndarray) -> float:
@@ -42,7 +43,7 @@ def beat_consistency(J: np.ndarray, onsets_s: np.ndarray, fps: float) -> float:
     if len(beats) == 0 or len(onsets_s) == 0:
         return float("nan")
     d = np.abs(beats[:, None] - onsets_s[None]).min(1)
-    return float(np.exp(-d ** 2 / (2 * 0.1 ** 2)).mean())
+    return float(np.exp(-(d**2) / (2 * 0.1**2)).mean())
 
 
 def l1_cm(pred: np.ndarray, gt: np.ndarray) -> float:
@@ -52,7 +53,7 @@ def l1_cm(pred: np.ndarray, gt: np.ndarray) -> float:
 
 def diversity_cm(outs: list[np.ndarray]) -> float:
     """Mean L1 (cm) between every pair of syntheses of the same speech (e.g. k = 0..4)."""
-    return float(np.mean([np.abs(a - b).mean() * 100 for j, a in enumerate(outs) for b in outs[j + 1:]]))
+    return float(np.mean([np.abs(a - b).mean() * 100 for j, a in enumerate(outs) for b in outs[j + 1 :]]))
 
 
 def lip_keypoints(face56: np.ndarray, model: FaceModel | None = None) -> np.ndarray:

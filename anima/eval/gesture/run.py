@@ -18,6 +18,7 @@ generator, direct regression, the LSTM baseline, the sync classifier) are cross-
 * lip sync on FaceGood's (Mandarin speech, blendshape) recordings: correlation of the predicted mouth opening
   with FaceGood's jaw-open curve, at lag 0 and at the best lag.
 """
+
 from __future__ import annotations
 
 from collections import defaultdict
@@ -87,9 +88,16 @@ def knn_rows(db, ks) -> tuple[dict, dict, dict]:
     return res, adherence_table(adherence, T), kept
 
 
-def evaluate(folder: str, ks=(0, 1, 2, 3, 4), refiner_folds: int = 3, refiner_steps: int | None = None,
-             progress: bool = False, sync_steps: int = 300, generator_steps: int | None = None,
-             speaker: str | None = None) -> dict:
+def evaluate(
+    folder: str,
+    ks=(0, 1, 2, 3, 4),
+    refiner_folds: int = 3,
+    refiner_steps: int | None = None,
+    progress: bool = False,
+    sync_steps: int = 300,
+    generator_steps: int | None = None,
+    speaker: str | None = None,
+) -> dict:
     """``speaker``: evaluate on that speaker's windows only (databases, training and tests), the seed's
     subject-specific protocol; default: all speakers together."""
     db = from_dataset(folder, None)
@@ -107,10 +115,16 @@ def evaluate(folder: str, ks=(0, 1, 2, 3, 4), refiner_folds: int = 3, refiner_st
     starts = defaultdict(list)
     for src, st in db.source:
         starts[src].append(st)
-    out = {"protocol": __doc__.split("\n\n", 1)[1].strip(), "speaker": speaker or "all",
-           "videos": len(videos), "windows": db.M, "fps": db.fps,
-           "minutes_of_audio_motion": minutes_covered(starts.items(), window_s),
-           "knn": {k: float(np.nanmean(v)) for k, v in res.items()}, "control_adherence": table}
+    out = {
+        "protocol": __doc__.split("\n\n", 1)[1].strip(),
+        "speaker": speaker or "all",
+        "videos": len(videos),
+        "windows": db.M,
+        "fps": db.fps,
+        "minutes_of_audio_motion": minutes_covered(starts.items(), window_s),
+        "knn": {k: float(np.nanmean(v)) for k, v in res.items()},
+        "control_adherence": table,
+    }
     if refiner_folds:
         out["knn_cgan"] = refiner_rows(db, kept, ks, refiner_folds, refiner_steps, progress)
         folds = max(2, min(refiner_folds, len(videos)))
