@@ -24,6 +24,7 @@ from anima.capture.pipeline import CaptureConfig, capture_video
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
 from anima.io.assets import asset
+from anima.io.atomic import write_json
 from anima.io.video import iter_frames, probe_video
 
 
@@ -71,8 +72,7 @@ def main() -> None:
         "raw_s": raw_t,
         "capture_s": full_t,
     }
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(res, indent=2))
+    write_json(a.out, res)
     print(json.dumps({k: v for k, v in res.items() if not k.endswith("_s")}, indent=2))
 
 

@@ -26,6 +26,7 @@ from anima.capture.pipeline import CaptureConfig, capture_face, fit_landmark_seq
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
 from anima.io.assets import asset
+from anima.io.atomic import write_json
 from anima.io.video import iter_frames, probe_video
 
 
@@ -99,8 +100,7 @@ def main() -> None:
         "end_to_end_s": e2e_t,
         "fit_s": fit_t,
     }
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(res, indent=2))
+    write_json(a.out, res)
     print(json.dumps({k: v for k, v in res.items() if not k.endswith("_s")}, indent=2))
 
 

@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 from anima.io.assets import asset
+from anima.io.atomic import write_json
 
 CLIPS = "gesture-video/pats-crops"
 
@@ -81,8 +82,7 @@ def main() -> None:
         "note": "wall includes starting Ray (~4 s) and the final statistics pass; frames_per_s_per_core is "
         "captured frames / summed per-video task seconds",
     }
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(res, indent=2))
+    write_json(a.out, res)
     print(json.dumps(res, indent=2))
 
 

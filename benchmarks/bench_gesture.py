@@ -31,6 +31,7 @@ from anima.gesture.database import from_dataset
 from anima.gesture.features import T_MATCH, audio_features, pose_features
 from anima.gesture.knn import MatchDB, search, search_literal
 from anima.io.assets import asset
+from anima.io.atomic import write_json
 
 CLIPS = [f"gesture-video/pats-crops/{c}_gt.mp4" for c in ("oliver1", "oliver3", "oliver8", "seth3", "noah2", "noah3")]
 SPEECH = "gesture-video/pats-crops/oliver2_gt.mp4"
@@ -120,8 +121,7 @@ def main() -> None:
         "identical_on_2_steps": bool(pa == pb and np.array_equal(ga, gb)),
         "target": {"speedup": ">= 100", "fast_60s_speech_s": "< 1"},
     }
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(res, indent=2))
+    write_json(a.out, res)
     print(json.dumps(res, indent=2))
 
 

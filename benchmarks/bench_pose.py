@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from anima.io.atomic import write_json
 from anima.pose3d.data import load_h36m
 from anima.pose3d.model import Lifter, LifterConfig
 from anima.pose3d.train import load_checkpoint, predict
@@ -68,8 +69,7 @@ def main() -> None:
         "batched_runs": batched,
         "single_runs": single,
     }
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(res, indent=2))
+    write_json(a.out, res)
     print(json.dumps({k: v for k, v in res.items() if not k.endswith("_runs")}, indent=2))
 
 

@@ -27,6 +27,7 @@ import numpy as np
 os.environ.setdefault("GLOG_minloglevel", "2")
 
 from anima.io.assets import asset
+from anima.io.atomic import write_json
 from anima.io.video import FFMPEG, read_video
 
 OBAMA = [f"styletalk-samples/samples/source_video/video/Obama_clip{i}.mp4" for i in (1, 2, 3)]
@@ -132,8 +133,7 @@ def main() -> None:
         "target": {"fps": ">= 30 end to end excluding decode/encode"},
         "seed_table_4_9": "160 ms/frame on a laptop GPU (face detection, feature extraction, texture, render, blend)",
     }
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(res, indent=2))
+    write_json(a.out, res)
     print(json.dumps(res, indent=2))
 
 

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from anima.io.atomic import write_json
 from anima.text2face.generate import Generator
 from anima.text2face.model import Text2Face, preset
 
@@ -84,8 +85,7 @@ def main() -> None:
         "uncached_runs": ur,
         "prompt_to_motion_runs": fr,
     }
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(res, indent=2))
+    write_json(a.out, res)
     print(json.dumps({k: v for k, v in res.items() if not k.endswith("_runs")}, indent=2))
 
 

@@ -150,13 +150,42 @@ def videos(tmp_path_factory, d0_path) -> dict:
     return out
 
 
+GESTURE_CLIPS = [
+    "gesture-video/pats-crops/oliver1_gt.mp4",
+    "gesture-video/pats-crops/oliver3_gt.mp4",
+    "gesture-video/pats-crops/seth3_gt.mp4",
+    "styletalk-samples/samples/source_video/video/feifeili_clip3.mp4",
+]
+
+
+@pytest.fixture(scope="session")
+def gesture_ds(tmp_path_factory, cli):
+    """A dataset built once from real clips: three PATS gesture clips (body, hands and speech) and one StyleTalk
+    talking head whose speech ships as a separate WAV (face-only windows)."""
+    out = tmp_path_factory.mktemp("gds") / "ds"
+    r = cli("dataset", "build", *[asset(c) for c in GESTURE_CLIPS], "--out", out, "--min-len", "2", "--quiet", "--json")
+    assert r.returncode == 0, r.stderr[-2000:]
+    return out
+
+
 def synthetic_rng(seed: int = 0) -> np.random.Generator:
     return np.random.default_rng(seed)
 
 
 # Fixtures that run MediaPipe, the command line or training on real clips: a test that uses one is `slow`
 # (`./dev test -m "not slow"` is the quick loop; CI runs everything).
-SLOW_FIXTURES = {"cli", "d0_capture", "videos", "ds", "db", "obama_db", "tiny_model", "windows", "shipped"}
+SLOW_FIXTURES = {
+    "cli",
+    "d0_capture",
+    "videos",
+    "ds",
+    "db",
+    "obama_db",
+    "tiny_model",
+    "windows",
+    "shipped",
+    "gesture_ds",
+}
 
 
 def pytest_collection_modifyitems(config, items):

@@ -21,6 +21,7 @@ import numpy as np
 
 from anima.errors import InputError
 from anima.io.atomic import atomic_path
+from anima.io.outdir import check_out_file
 from anima.io.video import FFMPEG
 
 SR = 16000
@@ -150,6 +151,8 @@ def write_speech_features(
 ) -> dict:
     """``anima audio features``: the features of ``path`` written to ``out`` (default ``<path>.speech.npz``:
     ``features [F, 28]``, ``valid [F]``, ``fps``, ``names``). Returns a summary."""
+    dest = Path(out) if out else Path(path).with_suffix(".speech.npz")
+    check_out_file(dest)
     x = read_audio(path)
     longest = 2 * int(np.ceil(len(x) / SR * fps)) + 1
     if n_frames is not None and not 1 <= n_frames <= longest:
@@ -158,7 +161,6 @@ def write_speech_features(
             f"{fps:g} fps (2 x its length)"
         )
     f = speech_features(x, fps, n_frames)
-    dest = Path(out) if out else Path(path).with_suffix(".speech.npz")
     with atomic_path(dest) as tmp:
         np.savez_compressed(
             tmp, features=f.features, valid=f.valid, fps=np.float32(f.fps), names=np.asarray(FEATURE_NAMES)

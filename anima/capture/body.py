@@ -175,11 +175,15 @@ def clean(
     # body joints: each joint on its own
     for j in range(13):
         J[:, j], interp[:, j] = _interp_gaps(J[:, j], max_gap)
-    # hands: wrist-relative shape, re-attached to the (interpolated) body wrist
+    # hands: wrist-relative shape, re-attached to the (interpolated) body wrist; where the body wrist was
+    # dropped as unsure but the hand was seen, the hand keeps its own wrist (where the detector put it)
     for sl, wrist in ((LEFT_HAND, BODY_JOINTS.index("left_wrist")), (RIGHT_HAND, BODY_JOINTS.index("right_wrist"))):
         rel = (J[:, sl] - J[:, sl][:, :1]).reshape(len(J), -1)
         rel, f = _interp_gaps(rel, max_gap)
-        J[:, sl] = rel.reshape(len(J), -1, 3) + J[:, wrist][:, None]
+        anchor = J[:, wrist].copy()
+        own = ~np.isfinite(anchor).all(-1) & np.isfinite(track.joints[:, sl][:, 0]).all(-1)
+        anchor[own] = track.joints[own, sl.start]
+        J[:, sl] = rel.reshape(len(J), -1, 3) + anchor[:, None]
         interp[:, sl] = f[:, None] & np.isfinite(J[:, sl]).all(-1)
     # interpolated frames get the clip's median bone lengths (a spline per coordinate does not keep them)
     if interp.any():
@@ -191,7 +195,7 @@ def clean(
         J[rows] = np.where(interp[rows][..., None], fixed, J[rows])
     # hand scale: the per-frame metres-per-pixel estimate jitters; bring each frame's hand to the clip's
     # median hand size (median ratio of its bone lengths to their clip medians), keeping its shape
-    for sl, wrist in ((LEFT_HAND, BODY_JOINTS.index("left_wrist")), (RIGHT_HAND, BODY_JOINTS.index("right_wrist"))):
+    for sl in (LEFT_HAND, RIGHT_HAND):
         L = bone_lengths(J)[:, sl][:, 1:]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # frames / clips without this hand
@@ -199,12 +203,14 @@ def clean(
             ratio = np.nanmedian(L / med, 1) if np.isfinite(med).all() and (med > 0).all() else None
         if ratio is not None:
             ok = np.isfinite(ratio) & (ratio > 0)
-            rel = J[ok][:, sl] - J[ok][:, wrist][:, None]
-            J[np.flatnonzero(ok)[:, None], np.arange(sl.start, sl.stop)[None]] = (
-                rel / ratio[ok][:, None, None] + J[ok][:, wrist][:, None]
-            )
+            own_wrist = J[ok][:, sl][:, :1]  # the body wrist, or the hand's own where that was unsure
+            J[np.flatnonzero(ok)[:, None], np.arange(sl.start, sl.stop)[None]] = (J[ok][:, sl] - own_wrist) / ratio[ok][
+                :, None, None
+            ] + own_wrist
     if sigma > 0:
-        # hands are smoothed wrist-relative and re-attached, so they stay on the (smoothed) body wrists
+        # hands are smoothed wrist-relative and re-attached, so they stay on the (smoothed) body wrists (or on
+        # their own smoothed wrist where the body wrist was unsure)
+        own = {"L": J[:, LEFT_HAND.start].copy(), "R": J[:, RIGHT_HAND.start].copy()}
         rel = {"L": J[:, LEFT_HAND] - J[:, LEFT_HAND][:, :1], "R": J[:, RIGHT_HAND] - J[:, RIGHT_HAND][:, :1]}
         for j in range(N_JOINTS):
             src = J[:, j] if j < 13 else (rel["L"][:, j - 13] if j < 34 else rel["R"][:, j - 34])
@@ -216,8 +222,13 @@ def clean(
                 rel["L"][:, j - 13] = sm
             else:
                 rel["R"][:, j - 34] = sm
-        J[:, LEFT_HAND] = rel["L"] + J[:, BODY_JOINTS.index("left_wrist")][:, None]
-        J[:, RIGHT_HAND] = rel["R"] + J[:, BODY_JOINTS.index("right_wrist")][:, None]
+        for key, sl, wrist in (("L", LEFT_HAND, "left_wrist"), ("R", RIGHT_HAND, "right_wrist")):
+            anchor = J[:, BODY_JOINTS.index(wrist)].copy()
+            ok = np.isfinite(own[key]).all(-1)
+            own_sm = np.where(ok[:, None], gaussian_smooth(np.nan_to_num(own[key]), sigma, ok), np.nan)
+            lost = ~np.isfinite(anchor).all(-1)
+            anchor[lost] = own_sm[lost]
+            J[:, sl] = rel[key] + anchor[:, None]
     fps = track.fps
     conf = np.where(np.isfinite(J).all(-1), np.maximum(track.conf, interp * min_conf), 0.0)
     if resample_fps and abs(resample_fps - fps) > 1e-6:

@@ -6,15 +6,27 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from anima.audio.features import read_audio
 from anima.capture.pipeline import CaptureConfig, Timings, capture_video
 from anima.errors import InputError
 from anima.export.motion import write_motion_outputs
 from anima.io.outdir import OutputFolder
+from anima.io.validate import input_file
+from anima.io.video import probe_video
 from anima.pose3d.config import default_checkpoint
 
 
-def check_capture_inputs(cfg: CaptureConfig) -> None:
-    """Fail before tracking on what would fail after it (a lifter run without a body, a bad checkpoint)."""
+def check_capture_inputs(
+    cfg: CaptureConfig, video: str, audio: str | None = None, audio_optional: bool = False
+) -> None:
+    """Fail before tracking on what would fail after it: an unreadable video or ``--audio`` (unless
+    ``audio_optional``), a lifter run without a body, a bad checkpoint."""
+    probe_video(input_file(video, "video"))
+    if audio is not None and not audio_optional:
+        try:
+            read_audio(input_file(audio, "--audio file"), sr=8000)
+        except InputError as e:
+            raise InputError(f"--audio: {e} (pass --audio-optional to capture the motion without it)") from None
     if cfg.body_3d == "lifter" and cfg.face_only:
         raise InputError("--body-3d lifter needs the body: drop --face-only")
     if cfg.body_3d == "lifter":
@@ -31,12 +43,14 @@ def capture_to_folder(
     render: bool = True,
     progress: bool = True,
     command: str | None = None,
+    audio_optional: bool = False,
 ) -> dict:
     """Capture ``video`` into ``out``; returns the sequence summary with the capture speed, the total time,
     the files written and the warnings."""
     cfg = cfg or CaptureConfig()
-    with OutputFolder(out, kind="capture", command=command) as od:
-        check_capture_inputs(cfg)
+    od = OutputFolder(out, kind="capture", command=command)
+    check_capture_inputs(cfg, video, audio, audio_optional)
+    with od:
         tm = Timings()
         t0 = time.perf_counter()
         seq = capture_video(video, cfg, audio=audio, progress=progress, timings=tm)

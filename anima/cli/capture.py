@@ -29,6 +29,11 @@ def register(sub) -> None:
     c.add_argument("--no-smooth", action="store_true", help="disable temporal smoothing (--sigma 0)")
     c.add_argument("--no-render", action="store_true", help="skip the videos")
     c.add_argument(
+        "--audio-optional",
+        action="store_true",
+        help="if --audio cannot be read, capture the motion without speech features (default: refuse)",
+    )
+    c.add_argument(
         "--audio",
         default=None,
         help="separate WAV/MP3/FLAC for the speech features (default: the video's own audio track)",
@@ -70,13 +75,20 @@ def cmd_capture(a) -> int:
     if a.no_smooth:
         cfg.smooth_sigma = 0.0
     s = capture_to_folder(
-        a.video, a.out, cfg, audio=a.audio, render=not a.no_render, progress=not a.quiet, command=command_line(a)
+        a.video,
+        a.out,
+        cfg,
+        audio=a.audio,
+        render=not a.no_render,
+        progress=not a.quiet,
+        command=command_line(a),
+        audio_optional=a.audio_optional,
     )
     return emit(s, a.json, summary_table)
 
 
 def cmd_info(a) -> int:
-    return emit(read_sequence(a.file).summary(), a.json, summary_table)
+    return emit(read_sequence(a.file, landmarks=False).summary(), a.json, summary_table)
 
 
 def cmd_export(a) -> int:

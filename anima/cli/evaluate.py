@@ -6,13 +6,14 @@ from pathlib import Path
 
 from anima.cli.common import emit, group
 from anima.cli.options import number, positive_int
-from anima.errors import InputError
+from anima.dataset.storage import check_dataset
 from anima.eval.annotations import evaluate_annotations
 from anima.eval.body import evaluate_body
 from anima.eval.landmarks import evaluate_aflw
 from anima.eval.pose import evaluate_pose
 from anima.eval.reenact import evaluate as evaluate_reenact
 from anima.eval.stability import evaluate_stability
+from anima.io.outdir import check_out_dir
 
 
 def register(sub) -> None:
@@ -181,14 +182,14 @@ def cmd_pose(a) -> int:
 
 
 def cmd_reenact(a) -> int:
-    return emit(evaluate_reenact(Path(a.out) if a.out else None, progress=not a.json), True)
+    out = check_out_dir(a.out) if a.out else None
+    return emit(evaluate_reenact(out, progress=not a.json), True)
 
 
 def cmd_gesture(a) -> int:
+    check_dataset(a.db)  # before torch loads
     from anima.eval.gesture.run import evaluate  # lazy: torch
 
-    if not Path(a.db).exists():
-        raise InputError(f"no dataset at {a.db}")
     return emit(
         evaluate(
             a.db,
@@ -203,10 +204,9 @@ def cmd_gesture(a) -> int:
 
 
 def cmd_text2face(a) -> int:
+    check_dataset(a.dataset)  # before torch loads
     from anima.eval.text2face import evaluate  # lazy: torch
 
-    if not Path(a.dataset).exists():
-        raise InputError(f"no dataset at {a.dataset}")
     return emit(
         evaluate(
             a.dataset,

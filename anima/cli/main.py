@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+import threading
 
 os.environ.setdefault("GLOG_minloglevel", "2")
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
@@ -55,6 +57,11 @@ def _one_line(e: BaseException) -> str:
     return text if len(text) <= 400 else text[:397] + "..."
 
 
+def _terminate(signum, frame):
+    """SIGTERM ends a command like Ctrl-C: cleanup code runs (temporary files removed, Ray shut down)."""
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     argv = sys.argv[1:] if argv is None else list(argv)
@@ -62,6 +69,8 @@ def main(argv: list[str] | None = None) -> int:
     a.argv = argv  # recorded in manifests (the command that made an artifact)
     if not a.debug and not os.environ.get("ANIMA_NATIVE_LOGS"):
         _silence_native_stderr()
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _terminate)
     if not getattr(a, "func", None):
         (getattr(a, "group_parser", None) or parser).print_help()
         return 0 if a.command is None else 2

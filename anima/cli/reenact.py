@@ -22,7 +22,13 @@ def register(sub) -> None:
         "at its frame rate), dropping frames rather than falling behind.",
     )
     re_.add_argument("--actor", help="actor video (its audio is used)")
-    re_.add_argument("--live", default=None, metavar="SOURCE", help="camera index, stream URL or video file")
+    re_.add_argument(
+        "--live",
+        default=None,
+        metavar="SOURCE",
+        help="camera index, video file, or rtsp/rtmp/http(s) URL (with --allow-network)",
+    )
+    re_.add_argument("--allow-network", action="store_true", help="let --live read a network stream")
     re_.add_argument(
         "--target", nargs="+", required=True, help="target video(s) of one person; the first is the background"
     )
@@ -49,6 +55,7 @@ def cmd_reenact(a) -> int:
         db_path=a.db,
         max_seconds=a.max_seconds,
         progress=not a.quiet,
+        allow_network=a.allow_network,
     )
     notes(r.get("notes"))
     return emit(r, a.json, _text)

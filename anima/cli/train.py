@@ -7,6 +7,7 @@ from pathlib import Path
 
 from anima.cli.common import add_json_quiet, command_line, emit, group
 from anima.cli.options import add_options, config_from_args, number
+from anima.dataset.storage import check_dataset
 from anima.pose3d.config import TrainConfig as PoseTrainConfig
 from anima.pose3d.config import default_cache, default_checkpoint
 from anima.text2face.config import TrainConfig as FaceTrainConfig
@@ -99,6 +100,7 @@ def cmd_pose(a) -> int:
 
 
 def cmd_text2face(a) -> int:
+    check_dataset(a.dataset)  # before torch loads
     from anima.eval.text2face import quick_metrics  # lazy: torch
     from anima.text2face.ship import ship  # lazy: torch
     from anima.text2face.train import train  # lazy: torch
@@ -121,6 +123,7 @@ def cmd_text2face(a) -> int:
 
 
 def cmd_gesture(a) -> int:
+    check_dataset(a.db)  # before torch loads
     from anima.gesture.train import train_from_dataset  # lazy: torch
 
     msg = train_from_dataset(

@@ -19,10 +19,11 @@ CelebV-Text's own per-clip lists ``[[name, start, end], ...]`` under "actions"/"
 
 from __future__ import annotations
 
-import json
+import math
 from pathlib import Path
 
 from anima.errors import InputError
+from anima.io.validate import read_json
 
 
 def _events(items, where: str) -> list[tuple[str, float, float]]:
@@ -40,6 +41,8 @@ def _events(items, where: str) -> list[tuple[str, float, float]]:
             s, e = float(s), float(e)
         except (TypeError, ValueError):
             raise InputError(f"{where}[{k}]: start/end must be numbers (seconds)") from None
+        if not (math.isfinite(s) and math.isfinite(e)):
+            raise InputError(f"{where}[{k}]: start/end must be finite numbers (seconds)")
         if not isinstance(name, str) or not name or e <= s or s < 0:
             raise InputError(f"{where}[{k}]: need a name and 0 <= start < end")
         out.append((name.lower(), s, e))
@@ -49,12 +52,7 @@ def _events(items, where: str) -> list[tuple[str, float, float]]:
 def load_annotations(path: str | Path, known_videos: list[str] | None = None) -> dict[str, dict]:
     """``{video stem: {"gender": ..., "events": [(name, start, end), ...]}}``."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"annotation file not found: {path}")
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as e:
-        raise InputError(f"{path}: not valid JSON ({e.msg} at line {e.lineno})") from None
+    data = read_json(path, "annotation file")
     clips = data.get("clips") if isinstance(data, dict) else None
     if not isinstance(clips, dict):
         raise InputError(f"{path}: expected an object with a 'clips' mapping (see anima/dataset/annotations.py)")

@@ -23,11 +23,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from anima import __version__
 from anima.audio.features import NoAudio, read_audio, speech_features
 from anima.capture.pipeline import CaptureConfig, capture_video
 from anima.core.contract import HOP, WINDOW
+from anima.dataset import ray_guard
 from anima.dataset.annotations import load_annotations
 from anima.dataset.attributes import DetectorConfig, detect
 from anima.dataset.describe import describe_many, segment_timeline
@@ -35,7 +37,9 @@ from anima.dataset.filters import RULES, FilterConfig, clip_rejection, cut_clips
 from anima.dataset.pairs import GESTURE_FPS, audio_motion_windows, text_motion_clip
 from anima.dataset.storage import SCHEMA, VERSION, check_dataset, read_table, write_shard
 from anima.errors import InputError
-from anima.io.atomic import atomic_path
+from anima.io.atomic import write_json
+from anima.io.outdir import check_out_dir, lock_folder, unlock_folder
+from anima.io.video import probe_video
 
 VIDEO_EXT = (".mp4", ".mov", ".mkv", ".webm", ".avi", ".m4v")
 
@@ -204,8 +208,7 @@ def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | 
 
 
 def _write_json(path: Path, obj) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(obj, indent=1))
+    write_json(path, obj, indent=1)
 
 
 def _task(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | None) -> dict:
@@ -213,17 +216,21 @@ def _task(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | None) ->
     try:
         return process_video(path, out_dir, cfg, annotation)
     except Exception as e:
-        msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-        res = {
-            "video_id": video_id(path),
-            "source": str(path),
-            "status": "error",
-            "error": msg,
-            "kind": type(e).__name__,
-            "traceback": traceback.format_exc(limit=4),
-        }
-        _write_json(Path(out_dir) / "errors" / f"{video_id(path)}.json", res)
-        return res
+        return _record_error(path, Path(out_dir), e, traceback.format_exc(limit=4))
+
+
+def _record_error(path, out: Path, e: Exception, tb: str = "") -> dict:
+    msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+    res = {
+        "video_id": video_id(path),
+        "source": str(path),
+        "status": "error",
+        "error": msg,
+        "kind": type(e).__name__,
+        "traceback": tb,
+    }
+    _write_json(out / "errors" / f"{video_id(path)}.json", res)
+    return res
 
 
 def _start_ray(address: str | None, num_workers: int | None):
@@ -243,6 +250,7 @@ def _start_ray(address: str | None, num_workers: int | None):
         worker_env["RAY_AUTH_MODE"] = "disabled"
     import ray
 
+    started = False
     if not ray.is_initialized():
         kw = dict(
             include_dashboard=False, log_to_driver=False, configure_logging=False, runtime_env={"env_vars": worker_env}
@@ -250,8 +258,10 @@ def _start_ray(address: str | None, num_workers: int | None):
         if address:
             ray.init(address=address, **kw)
         else:
+            ray_guard.start()  # kills this instance's processes if the driver dies without shutting it down
             ray.init(num_cpus=num_workers or os.cpu_count(), **kw)
-    return ray
+            started = True
+    return ray, started
 
 
 def build_summary(m: dict) -> dict:
@@ -281,44 +291,72 @@ def build_dataset(
     progress: bool = True,
     command: str | None = None,
 ) -> dict:
-    from tqdm import tqdm
 
     cfg = cfg or BuildConfig()
-    out = Path(out_dir)
+    out = check_out_dir(out_dir)
+    if cfg.filters.min_s > cfg.filters.max_s:
+        raise InputError(f"--min-len {cfg.filters.min_s} is longer than --max-len {cfg.filters.max_s}")
     videos = expand_videos(inputs)
     if not videos:
         raise InputError("no videos found in the given paths")
+    missing = [str(p) for p in videos if not p.is_file()]
+    if missing:
+        raise InputError(
+            f"video not found: {missing[0]}" + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else "")
+        )
     if (out / "manifest.json").exists():
         check_dataset(out)  # refuses a dataset folder of another schema version
     ann = load_annotations(annotations, [p.stem for p in videos]) if annotations else {}
-    pending = [p for p in videos if not (out / "videos" / f"{video_id(p)}.json").exists()]
+    lock = lock_folder(out)
+    try:
+        return _build(videos, out, cfg, ann, address, num_workers, progress, command)
+    finally:
+        unlock_folder(lock)
+
+
+def _build(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_workers, progress, command) -> dict:
+    todo = [p for p in videos if not (out / "videos" / f"{video_id(p)}.json").exists()]
     _write_json(out / "manifest.json", _manifest(out, videos, cfg, status="building"))
     t0 = time.perf_counter()
+    pending = []
+    for p in todo:  # unreadable videos are recorded here, before any worker starts
+        try:
+            probe_video(p)
+            pending.append(p)
+        except InputError as e:
+            _record_error(p, out, e)
     if pending:
-        ray = _start_ray(address, num_workers)
-        task = ray.remote(num_cpus=1, max_retries=0)(_task)
-        cfg_ref = ray.put(cfg)
-        futs = {task.remote(str(p), str(out), cfg_ref, ann.get(p.stem)): p for p in pending}
-        bar = tqdm(total=len(futs), desc="videos", unit="video", disable=not progress)
-        remaining = list(futs)
-        while remaining:
-            done, remaining = ray.wait(remaining, num_returns=1)
-            r = ray.get(done[0])
-            bar.set_postfix_str(f"{r['video_id'][:24]} {r['status']}")
-            bar.update(1)
-        bar.close()
+        ray, started = _start_ray(address, num_workers)
+        try:
+            task = ray.remote(num_cpus=1, max_retries=0)(_task)
+            cfg_ref = ray.put(cfg)
+            futs = {task.remote(str(p), str(out), cfg_ref, ann.get(p.stem)): p for p in pending}
+            bar = tqdm(total=len(futs), desc="videos", unit="video", disable=not progress)
+            remaining = list(futs)
+            while remaining:
+                done, remaining = ray.wait(remaining, num_returns=1)
+                r = ray.get(done[0])
+                bar.set_postfix_str(f"{r['video_id'][:24]} {r['status']}")
+                bar.update(1)
+            bar.close()
+        finally:
+            if started:  # our own local instance: shut it down on success, error or interrupt
+                ray.shutdown()
     wall = time.perf_counter() - t0
     stats = compute_stats(out)
     _write_json(out / "stats.json", stats)
     manifest = _manifest(out, videos, cfg, status="complete")
     manifest["last_run"] = {
-        "videos_processed": len(pending),
+        "videos_processed": len(todo),
         "wall_s": round(wall, 2),
         "workers": num_workers or os.cpu_count(),
         "address": address,
         "command": command,
     }
     _write_json(out / "manifest.json", manifest)
+    if manifest["videos_done"] == 0:
+        first = manifest["videos_failed"][0] if manifest["videos_failed"] else {"source": "?", "error": "?"}
+        raise InputError(f"no video could be used: {first['source']}: {first['error']}")
     return manifest
 
 

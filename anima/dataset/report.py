@@ -16,6 +16,7 @@ import numpy as np
 
 from anima.capture.pipeline import CaptureConfig, capture_video
 from anima.dataset.storage import check_dataset, read_table
+from anima.io.atomic import write_figure, write_image, write_text
 from anima.io.video import read_video
 from anima.render.face import render_mesh
 from anima.render.videos import SequenceMesh
@@ -31,7 +32,7 @@ def _bar(
         ax.set_title(title)
     plt.setp(ax.get_xticklabels(), rotation=rotation, ha="right")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(path, fig, dpi=110)
     plt.close(fig)
     return path.name
 
@@ -49,7 +50,7 @@ def _plots(out: Path, lengths: list[float], attr_frac: dict[str, float], removed
     ax.set_ylabel("clips")
     ax.set_title("Clip lengths (kept clips)")
     fig.tight_layout()
-    fig.savefig(out / "clip_lengths.png", dpi=110)
+    write_figure(out / "clip_lengths.png", fig, dpi=110)
     plt.close(fig)
     files.append("clip_lengths.png")
     if attr_frac:
@@ -94,7 +95,7 @@ def contact_sheet(source: str, start_s: float, end_s: float, path: Path, n: int 
             else frames[f]
         )
         tiles.append(cv2.resize(np.concatenate([frames[f], img], 0), (size, 2 * size * info.height // info.width)))
-    cv2.imwrite(str(path), np.concatenate(tiles, 1)[:, :, ::-1])
+    write_image(path, np.concatenate(tiles, 1))
     return True
 
 
@@ -162,7 +163,7 @@ def write_report(folder: str | Path, n_examples: int = 4, sheets: int = 3) -> Pa
     md += ["", "## Contact sheets (top: frames, bottom: fitted mesh)", ""]
     md += [f"**{cid}**\n\n![{name}]({name})\n" for name, cid in sheet_files]
     text = "\n".join(md)
-    (rep / "report.md").write_text(text)
+    write_text(rep / "report.md", text)
     body = []
     for line in text.splitlines():
         if line.startswith("!["):
@@ -189,7 +190,7 @@ def write_report(folder: str | Path, n_examples: int = 4, sheets: int = 3) -> Pa
             out_html.append("</table>")
             in_table = False
         out_html.append(b)
-    (rep / "report.html").write_text(
-        "<html><body style='font-family:sans-serif'>" + "\n".join(out_html) + "</body></html>"
+    write_text(
+        rep / "report.html", "<html><body style='font-family:sans-serif'>" + "\n".join(out_html) + "</body></html>"
     )
     return rep / "report.md"

@@ -23,7 +23,6 @@ Both read with pyarrow, pandas, ``ray.data.read_parquet(folder/shards/<kind>)`` 
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +31,7 @@ import pyarrow.parquet as pq
 
 from anima.errors import InputError, SchemaError
 from anima.io.atomic import atomic_path
+from anima.io.validate import read_json
 
 SCHEMA = "anima.dataset"
 VERSION = 1
@@ -88,12 +88,18 @@ def write_shard(rows: list[dict], path: Path, kind: str) -> Path:
 def check_dataset(folder: str | Path) -> dict:
     folder = Path(folder)
     m = folder / "manifest.json"
+    if not folder.is_dir():
+        raise InputError(
+            f"no dataset at {folder}" if not folder.exists() else f"{folder}: a file, not a dataset folder"
+        )
     if not m.is_file():
         raise InputError(f"{folder}: not an anima dataset (no manifest.json)")
-    manifest = json.loads(m.read_text())
+    manifest = read_json(m, "dataset manifest")
+    if not isinstance(manifest, dict):
+        raise SchemaError(f"{m}: not an anima dataset manifest")
     if manifest.get("schema") != SCHEMA:
         raise SchemaError(f"{folder}: schema {manifest.get('schema')!r}, expected {SCHEMA!r}")
-    if int(manifest.get("version", -1)) != VERSION:
+    if manifest.get("version") != VERSION:
         raise SchemaError(
             f"{folder}: dataset schema version {manifest.get('version')} (this anima reads "
             f"{VERSION}); rebuild it with `anima dataset build`"
@@ -107,7 +113,16 @@ def read_table(folder: str | Path, kind: str, split: str | None = None) -> pa.Ta
     files = sorted((Path(folder) / "shards" / kind).glob("*.parquet"))
     if not files:
         return SCHEMAS[kind].empty_table()
-    t = pa.concat_tables([pq.read_table(f, schema=SCHEMAS[kind]) for f in files])
+    tables = []
+    for f in files:
+        try:
+            tables.append(pq.read_table(f, schema=SCHEMAS[kind]))
+        except (pa.ArrowException, OSError, ValueError) as e:
+            raise InputError(
+                f"{f}: damaged Parquet shard ({str(e).splitlines()[0][:120]}); rebuild its video with "
+                "`anima dataset build` (delete the shard and its videos/*.json first)"
+            ) from None
+    t = pa.concat_tables(tables)
     if split is not None:
         t = t.filter(pa.compute.equal(t["split"], split))
     return t
@@ -115,4 +130,4 @@ def read_table(folder: str | Path, kind: str, split: str | None = None) -> pa.Ta
 
 def load_stats(folder: str | Path) -> dict:
     p = Path(folder) / "stats.json"
-    return json.loads(p.read_text()) if p.is_file() else {}
+    return read_json(p, "dataset statistics") if p.is_file() else {}

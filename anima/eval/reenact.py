@@ -27,6 +27,7 @@ import numpy as np
 from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.capture.pipeline import capture_face
 from anima.io.assets import asset
+from anima.io.atomic import write_figure, write_image
 from anima.io.video import read_video
 from anima.reenact.database import build_database, sample_colors
 from anima.reenact.pipeline import ReenactConfig, Reenactor, Smoother
@@ -149,9 +150,7 @@ def self_reenactment(
         name = Path(clips[0]).stem
         picks = np.linspace(10, len(gt) - 10, 4).astype(int)
         rows = [np.hstack([gt[i], outs["method1"][i], outs["method2"][i]]) for i in picks]
-        cv2.imwrite(
-            str(save_dir / f"{name}_real_method1_method2.png"), cv2.cvtColor(np.vstack(rows), cv2.COLOR_RGB2BGR)
-        )
+        write_image(save_dir / f"{name}_real_method1_method2.png", np.vstack(rows))
     return res
 
 
@@ -194,7 +193,7 @@ def nbest_curves(
         ax.set_title("n-best candidates, actor -> Obama database")
         ax.legend()
         fig.tight_layout()
-        fig.savefig(save_dir / "nbest_l2.png", dpi=120)
+        write_figure(save_dir / "nbest_l2.png", fig, dpi=120)
         plt.close(fig)
     return out
 
@@ -214,8 +213,7 @@ def plot_ssim_vs_n(results: dict, path: Path) -> None:
     ax.set_ylabel("SSIM (face box)")
     ax.legend()
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    write_figure(path, fig, dpi=120)
     plt.close(fig)
 
 

@@ -21,7 +21,6 @@ Protocol (``anima eval text2face DATASET``):
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -33,6 +32,7 @@ from anima.core.contract import TEXT_FPS
 from anima.dataset.attributes import ATTRIBUTES, detect
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
+from anima.io.atomic import write_json
 from anima.text2face.data import EVAL_LEN, FaceGeometry, eval_items, split_clips
 from anima.text2face.encoders import encode_cached
 from anima.text2face.evaluator import load_evaluator, r_precision, save_evaluator, train_evaluator
@@ -326,7 +326,7 @@ def tables_markdown(res: dict) -> str:
 
 
 def dump(res: dict, path: Path) -> None:
-    path.write_text(json.dumps(res, indent=2))
+    write_json(path, res)
 
 
 def quick_metrics(dataset, checkpoint, reps: int = 5) -> dict:

@@ -14,6 +14,7 @@ from anima.facemodel.ict import load_face_model
 from anima.io.arkit import write_live_link_csv
 from anima.io.bvh import write_bvh
 from anima.io.gltf import write_glb
+from anima.io.outdir import check_out_file
 from anima.io.sequence import TrackedSequence, read_sequence
 
 FORMATS = ("arkit", "glb", "bvh")
@@ -51,6 +52,8 @@ def export_bvh(seq: TrackedSequence, path: str | Path, fps: float | None = None)
     """Upper body + hands as BVH (cm, fixed median bone lengths), optionally resampled to ``fps``."""
     if seq.body_joints is None:
         raise InputError("this sequence has no body (captured with --face-only, or schema v1): nothing to export")
+    if not has_body(seq):
+        raise InputError("no frame of this sequence has the whole body tracked: no BVH can be made from it")
     J, rate = seq.body_joints, seq.fps
     if fps and abs(fps - rate) > 1e-6:
         conf = seq.body_conf if seq.body_conf is not None else np.ones(J.shape[:2])
@@ -61,11 +64,14 @@ def export_bvh(seq: TrackedSequence, path: str | Path, fps: float | None = None)
 
 def export_file(fmt: str, sequence_path: str | Path, out: str | Path, fps: float | None = None) -> Path:
     """``anima export FORMAT FILE --out OUT``: read a tracked sequence and write one export."""
-    seq = read_sequence(sequence_path)
+    check_out_file(out)
+    seq = read_sequence(sequence_path, landmarks=False)
     if fmt == "bvh":
         return export_bvh(seq, out, fps)
     if fps is not None:
         raise InputError("--fps applies to the BVH export only")
+    if not seq.tracked.any():
+        raise InputError(f"no frame of {sequence_path} has a face: no {fmt} export can be made from it")
     if fmt == "arkit":
         return export_arkit_csv(seq, out)
     if fmt == "glb":

@@ -39,7 +39,7 @@ from anima.core.skeleton import BODY
 from anima.errors import InputError
 from anima.gesture.refine import unet_decode, unet_decoder, unet_encode, unet_encoder
 from anima.gesture.sync import SyncClassifier
-from anima.io.checkpoint import load_checkpoint, load_state, save_checkpoint
+from anima.io.checkpoint import load_checkpoint, load_state, rebuilding, save_checkpoint
 
 KIND = "gesture_generator"
 VERSION = 2  # 1: its own envelope; 2: anima.io.checkpoint
@@ -275,7 +275,9 @@ def save_generator(path, gen: GestureGenerator, info: dict):
 
 def load_generator(path) -> GestureGenerator:
     ck = load_checkpoint(path, KIND, (1, VERSION), train_hint="train one with `anima train gesture --model generator`")
-    cfg = GeneratorConfig.from_dict(ck.config["model"])
-    net = build_model(cfg)
+    with rebuilding(ck):
+        cfg = GeneratorConfig.from_dict(ck.config["model"])
+        net = build_model(cfg)
+        stats = dict(ck.config["stats"])
     load_state(net, ck)
-    return GestureGenerator(net, cfg, ck.config["stats"])
+    return GestureGenerator(net, cfg, stats)

@@ -20,6 +20,7 @@ from anima.errors import InputError
 from anima.gesture.database import from_dataset
 from anima.gesture.generator import GeneratorConfig, GeneratorTrainConfig, save_generator, train_generator
 from anima.gesture.refine import RefinerTrainConfig, knn_pairs, save_refiner, train_refiner
+from anima.io.outdir import check_out_file
 
 MODELS = ("refiner", "generator", "regression", "lstm")
 
@@ -41,6 +42,7 @@ def train_from_dataset(
         raise InputError(f"unknown --model {model!r}: one of {', '.join(MODELS)}")
     if steps is not None and steps < 1:
         raise InputError("--steps must be >= 1")
+    check_out_file(out)
     split = None if all_splits else "train"
     if model == "refiner":
         match_db = from_dataset(db, split)

@@ -98,3 +98,23 @@ def remove_stale_temps(folder: str | os.PathLike) -> int:
         except OSError:
             pass
     return n
+
+
+def write_image(path: str | os.PathLike, rgb) -> Path:
+    """An RGB uint8 image ``(H, W, 3)`` as PNG/JPEG (by extension), atomically."""
+    import cv2
+    import numpy as np
+
+    ok, buf = cv2.imencode(Path(path).suffix or ".png", np.ascontiguousarray(np.asarray(rgb)[..., ::-1]))
+    if not ok:
+        raise ValueError(f"cannot encode an image as {Path(path).suffix}")
+    return write_bytes(path, buf.tobytes())
+
+
+def write_figure(path: str | os.PathLike, fig, **savefig_kw) -> Path:
+    """A matplotlib figure, atomically (format from the extension)."""
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format=Path(path).suffix.lstrip(".") or "png", **savefig_kw)
+    return write_bytes(path, buf.getvalue())

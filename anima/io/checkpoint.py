@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -173,6 +174,18 @@ def _from_legacy(obj: dict, p: Path) -> dict:
         "meta": json.dumps({"config": _plain(config), "info": _plain(info)}),
         "tensors": tensors,
     }
+
+
+@contextmanager
+def rebuilding(ck: Checkpoint):
+    """Around rebuilding a model from ``ck.config``: a config that does not fit (missing or unknown keys,
+    wrong types) is a :class:`CheckpointError`, not a crash."""
+    try:
+        yield
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise CheckpointError(
+            f"{ck.path}: its config does not describe a {ck.kind} model ({type(e).__name__}: {str(e)[:100]})"
+        ) from None
 
 
 def load_state(module, ck: Checkpoint, key: str = "state", float32: bool = True) -> None:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import fcntl
 import hashlib
 import os
+import tempfile
 import time
 from pathlib import Path
 
@@ -32,14 +33,60 @@ SCHEMA = "anima.result"
 VERSION = 1
 
 
-def check_out_dir(path: str | os.PathLike) -> Path:
-    """Refuse, before any work, an output folder that cannot be one: an existing file, or not writable."""
+def _can_create_in(folder: Path) -> bool:
+    """Whether an entry can really be made in ``folder`` (tried, then removed: permissions, read-only file
+    systems and pseudo file systems all answer)."""
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".anima-probe-", dir=folder))
+        return True
+    except OSError:
+        return False
+
+
+def check_out_dir(path: str | os.PathLike, flag: str = "--out") -> Path:
+    """Refuse, before any work, an output folder that cannot be one: an existing file, or a place where it
+    cannot be created or written."""
     p = Path(path)
     if p.exists() and not p.is_dir():
-        raise InputError(f"--out {p} is an existing file, not a folder")
-    parent = next((q for q in [p, *p.parents] if q.exists()), Path("."))
-    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
-        raise InputError(f"--out {p}: {parent} is not writable")
+        raise InputError(f"{flag} {p} is an existing file, not a folder")
+    base = next((q for q in [p, *p.parents] if q.exists()), Path("."))
+    if not base.is_dir() or not _can_create_in(base):
+        raise InputError(f"{flag} {p}: cannot write in {base}")
+    return p
+
+
+def lock_folder(path: Path) -> int:
+    """Create ``path`` and take its exclusive lock (``.anima.lock``, ``flock``: released by the kernel when the
+    process dies, so a killed run never leaves the folder locked). A second holder is refused."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as e:
+        raise InputError(f"--out {path}: cannot write there ({e.strerror or e})") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        raise InputError(
+            f"--out {path}: another anima run is writing into this folder; wait for it or choose another --out"
+        ) from None
+    return fd
+
+
+def unlock_folder(fd: int) -> None:
+    fcntl.flock(fd, fcntl.LOCK_UN)
+    os.close(fd)
+
+
+def check_out_file(path: str | os.PathLike, flag: str = "--out") -> Path:
+    """Refuse, before any work, an output file path that cannot be written: a folder, or a place where the
+    file cannot be created."""
+    p = Path(path)
+    if p.is_dir():
+        raise InputError(f"{flag} {p} is a folder: give a file path")
+    base = next((q for q in p.parents if q.exists()), Path("."))
+    if not base.is_dir() or not _can_create_in(base):
+        raise InputError(f"{flag} {p}: cannot write in {base}")
     return p
 
 
@@ -63,19 +110,8 @@ class OutputFolder:
         self._previous: list[str] = []
 
     def __enter__(self) -> OutputFolder:
-        try:
-            self.path.mkdir(parents=True, exist_ok=True)
-            fd = os.open(self.path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as e:
-            raise InputError(f"--out {self.path}: cannot write there ({e.strerror or e})") from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(fd)
-            raise InputError(
-                f"--out {self.path}: another anima run is writing into this folder; wait for it or choose another --out"
-            ) from None
-        self._lock_fd = fd
+        self._created = not self.path.exists()
+        self._lock_fd = lock_folder(self.path)
         remove_stale_temps(self.path)
         old = self.path / MANIFEST
         if old.is_file():
@@ -102,9 +138,13 @@ class OutputFolder:
                 self._finish()
         finally:
             if self._lock_fd is not None:
-                fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
-                os.close(self._lock_fd)
+                unlock_folder(self._lock_fd)
                 self._lock_fd = None
+            if exc_type is not None and self._created:  # a failed first run leaves no empty folder behind
+                remove_stale_temps(self.path)
+                if [p.name for p in self.path.iterdir()] == [LOCK]:
+                    (self.path / LOCK).unlink()
+                    self.path.rmdir()
 
     def _finish(self) -> None:
         written = [n for n in self.files if (self.path / n).is_file()]

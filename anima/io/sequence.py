@@ -37,15 +37,26 @@ Readers of a newer or unknown version fail with a clear :class:`SchemaError`.
 from __future__ import annotations
 
 import json
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from anima.core.contract import N_JOINTS
 from anima.core.rotations import matrix_to_euler, rotvec_to_matrix
 from anima.core.skeleton import LEFT_HAND, RIGHT_HAND
 from anima.errors import InputError, SchemaError
 from anima.io.atomic import atomic_path
+from anima.io.validate import (
+    MAX_FRAMES,
+    MAX_JSON_BYTES,
+    check_expansion,
+    finite_number,
+    input_file,
+    npz_headers,
+    parse_json,
+)
 
 SCHEMA = "anima.tracked_sequence"
 VERSION = 2
@@ -68,7 +79,7 @@ class TrackedSequence:
     fit_error_px: np.ndarray
     fit_nme: np.ndarray
     flags: np.ndarray
-    landmarks: np.ndarray
+    landmarks: np.ndarray | None  # None when read with landmarks=False
     expr_names: list[str]
     meta: dict = field(default_factory=dict)
     body_joints: np.ndarray | None = None
@@ -94,6 +105,9 @@ class TrackedSequence:
         """(yaw, pitch, roll) radians ``[F, 3]``, ARKit order (see anima.core)."""
         return matrix_to_euler(self.rotation_matrices())
 
+    def body_summary(self) -> dict:
+        return _body_summary(self)
+
     def summary(self) -> dict:
         tr = self.tracked
         ok = tr & np.isfinite(self.fit_error_px)
@@ -110,17 +124,43 @@ class TrackedSequence:
             "source": self.meta.get("source", {}).get("path"),
         }
         if self.body_joints is not None:
-            raw = np.isfinite(self.body_joints_raw).all(-1) if self.body_joints_raw is not None else None
-            fin = np.isfinite(self.body_joints).all(-1)
-            out["body_tracked_fraction"] = round(float(raw[:, :13].all(1).mean()), 4) if raw is not None else None
-            for name, sl in (("left_hand", LEFT_HAND), ("right_hand", RIGHT_HAND)):
-                if raw is not None:
-                    out[f"{name}_tracked_fraction"] = round(float(raw[:, sl].all(1).mean()), 4)
-                out[f"{name}_after_interpolation"] = round(float(fin[:, sl].all(1).mean()), 4)
+            out.update(self.body_summary())
         out["speech"] = None if self.speech is None else self.meta.get("audio", {})
         if self.speech is None and "audio" in self.meta:
             out["speech"] = self.meta["audio"]
         return out
+
+
+JOINT_GROUPS = {
+    "hips": [1, 2],
+    "torso_head": [3, 4, 5, 6],
+    "arms": [7, 8, 9, 10, 11, 12],
+    "left_hand": list(range(LEFT_HAND.start, LEFT_HAND.stop)),
+    "right_hand": list(range(RIGHT_HAND.start, RIGHT_HAND.stop)),
+}
+
+
+def _body_summary(seq: TrackedSequence) -> dict:
+    """Tracked fractions **after the confidence filter** of capture (a joint counts where it was detected with
+    at least the cleaning's ``min_conf``), per joint group; ``body_tracked_fraction`` is the upper body the
+    gestures use (torso, head and arms; the hips, often out of view, are their own group)."""
+    raw = seq.body_joints_raw if seq.body_joints_raw is not None else seq.body_joints
+    conf = seq.body_conf if seq.body_conf is not None else np.isfinite(raw).all(-1).astype(np.float32)
+    min_conf = float(seq.meta.get("skeleton", {}).get("cleaning", {}).get("min_conf", 0.5))
+    kept = np.isfinite(raw).all(-1) & (conf >= min_conf)
+    kept[:, 0] |= np.isfinite(raw[:, 0]).all(-1)  # the pelvis is the origin by construction
+    fin = np.isfinite(seq.body_joints).all(-1)
+    groups = {g: round(float(kept[:, j].all(1).mean()), 4) for g, j in JOINT_GROUPS.items()}
+    out = {"body_tracked_fraction": round(float(kept[:, 3:13].all(1).mean()), 4), "joint_groups_tracked": groups}
+    for name, sl in (("left_hand", LEFT_HAND), ("right_hand", RIGHT_HAND)):
+        out[f"{name}_tracked_fraction"] = groups[name]
+        out[f"{name}_after_interpolation"] = round(float(fin[:, sl].all(1).mean()), 4)
+    out["bvh"] = (
+        "written"
+        if fin.all(1).any()
+        else "not written: no frame has every joint after cleaning (see joint_groups_tracked)"
+    )
+    return out
 
 
 def write_sequence(seq: TrackedSequence, path: str | Path) -> Path:
@@ -145,32 +185,64 @@ def write_sequence(seq: TrackedSequence, path: str | Path) -> Path:
         elif arrays[k].dtype.kind == "b":
             arrays[k] = arrays[k].astype(np.uint8)
     arrays["flags"] = arrays["flags"].astype(np.uint8)
-    with atomic_path(path, ".tmp.npz") as tmp:
+    with atomic_path(path) as tmp:
         np.savez_compressed(tmp, meta=np.asarray(json.dumps(meta)), **arrays)
     return Path(path)
 
 
-def read_sequence(path: str | Path) -> TrackedSequence:
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"tracked sequence not found: {path}")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            if "meta" not in z.files:
-                raise SchemaError(f"{path} is not an anima tracked sequence (no meta)")
-            meta = json.loads(str(z["meta"]))
-            arrays = {k: z[k] for k in z.files if k != "meta"}
-    except (OSError, ValueError) as e:
-        raise InputError(f"cannot read {path}: not a valid .npz ({e})") from None
-    if meta.get("schema") != SCHEMA:
-        raise SchemaError(f"{path}: schema {meta.get('schema')!r}, expected {SCHEMA!r}")
-    if int(meta.get("version", -1)) > VERSION:
-        raise SchemaError(
-            f"{path}: schema version {meta.get('version')} is newer than this anima (reads <= {VERSION}); upgrade anima"
-        )
-    missing = [k for k in ARRAYS if k not in arrays]
+# per-frame arrays: trailing shape (None: any size, checked against another array) and whether every value
+# must be finite (NaN allowed where the artifact documents "missing")
+_FRAME_ARRAYS = {
+    "expression": ((None,), True),
+    "rotation": ((3,), True),
+    "scale": ((), True),
+    "translation": ((3,), True),
+    "fit_error_px": ((), False),
+    "fit_nme": ((), False),
+    "flags": ((), True),
+    "landmarks": ((None, 3), False),
+    "body_joints": ((None, 3), False),
+    "body_joints_raw": ((None, 3), False),
+    "body_conf": ((None,), False),
+    "body_interpolated": ((None,), True),
+    "body_image": ((None, 2), False),
+    "speech": ((None,), False),
+    "speech_valid": ((), True),
+}
+
+
+def _meta_of(path: Path, raw) -> dict:
+    meta = parse_json(str(raw[()]), f"{path} (meta)")
+    if not isinstance(meta, dict):
+        raise SchemaError(f"{path}: meta is not a JSON object")
+    return meta
+
+
+def read_sequence(path: str | Path, landmarks: bool = True) -> TrackedSequence:
+    """Read and validate a tracked sequence (see the module docstring). Every problem is one clear error:
+    :class:`InputError` (missing, not an npz, damaged, inconsistent) or :class:`SchemaError` (another schema, a
+    newer version). ``landmarks=False`` skips the raw landmarks (``None``), which summaries and exports do
+    not need (they are most of the file's memory)."""
+    path = input_file(path, "tracked sequence")
+    headers = npz_headers(path)
+    if "meta" not in headers:
+        raise SchemaError(f"{path} is not an anima tracked sequence (no meta)")
+    if headers["meta"][0] != () or headers["meta"][1].kind != "U" or headers["meta"][1].itemsize > MAX_JSON_BYTES:
+        raise SchemaError(f"{path}: meta is not a JSON string")
+    wanted = [k for k in headers if k != "meta" and (landmarks or k != "landmarks")]
+    check_expansion(path, headers, wanted)
+    missing = [k for k in ARRAYS if k not in headers]
     if missing:
         raise SchemaError(f"{path}: missing arrays {missing}")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            meta = _meta_of(path, z["meta"])
+            _check_meta(path, meta)
+            _check_shapes(path, meta, headers)
+            arrays = {k: z[k] for k in wanted}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
+        raise InputError(f"cannot read {path}: damaged .npz ({str(e).splitlines()[0][:120]})") from None
+    _check_values(path, arrays)
     opt = {k: arrays.get(k) for k in OPTIONAL}
     for k in ("body_interpolated", "speech_valid"):
         if opt[k] is not None:
@@ -181,6 +253,63 @@ def read_sequence(path: str | Path) -> TrackedSequence:
         height=int(meta["height"]),
         expr_names=list(meta["expr_names"]),
         meta=meta,
-        **{k: arrays[k] for k in ARRAYS},
+        **{k: arrays.get(k) for k in ARRAYS},
         **opt,
     )
+
+
+def _check_meta(path: Path, meta: dict) -> None:
+    if meta.get("schema") != SCHEMA:
+        raise SchemaError(f"{path}: schema {meta.get('schema')!r}, expected {SCHEMA!r}")
+    try:
+        version = int(meta.get("version", -1))
+    except (TypeError, ValueError):
+        raise SchemaError(f"{path}: schema version {meta.get('version')!r} is not a number") from None
+    if version > VERSION:
+        raise SchemaError(
+            f"{path}: schema version {version} is newer than this anima (reads <= {VERSION}); upgrade anima"
+        )
+    finite_number(meta.get("fps"), f"{path}: fps", 1e-3, 10_000)
+    n = meta.get("n_frames")
+    if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_FRAMES:
+        raise InputError(f"{path}: n_frames is {n!r}: expected 1 to {MAX_FRAMES} frames")
+    for k in ("width", "height"):
+        if not isinstance(meta.get(k), int) or not 1 <= meta[k] <= 100_000:
+            raise InputError(f"{path}: {k} is {meta.get(k)!r}: expected a positive integer")
+    names = meta.get("expr_names")
+    if not isinstance(names, list) or not all(isinstance(x, str) for x in names):
+        raise InputError(f"{path}: expr_names is not a list of names")
+
+
+def _check_shapes(path: Path, meta: dict, headers: dict) -> None:
+    """Shapes and dtypes of every member, from the headers (before loading; skipped members too)."""
+    F = meta["n_frames"]
+    shapes = {k: sh for k, (sh, _) in headers.items() if k != "meta"}
+    for k, (shape, dtype) in headers.items():
+        if k == "meta":
+            continue
+        if dtype.kind not in "biuf":
+            raise SchemaError(f"{path}: array {k!r} has dtype {dtype}, expected numbers")
+        if k in _FRAME_ARRAYS:
+            tail = _FRAME_ARRAYS[k][0]
+            bad_tail = any(t not in (None, d) for t, d in zip(tail, shape[1:]))
+            if len(shape) != 1 + len(tail) or shape[0] != F or bad_tail:
+                raise InputError(f"{path}: {k} has shape {shape}, expected {F} frames (n_frames) x {tail}")
+    if shapes["expression"][1] != len(meta["expr_names"]):
+        n = len(meta["expr_names"])
+        raise InputError(f"{path}: {shapes['expression'][1]} expression weights but {n} expr_names")
+    if len(shapes["identity"]) != 1:
+        raise InputError(f"{path}: identity must be a vector")
+    if "body_joints" in shapes and shapes["body_joints"][1] != N_JOINTS:
+        raise InputError(f"{path}: body_joints has {shapes['body_joints'][1]} joints, expected {N_JOINTS}")
+    for k in ("body_joints_raw", "body_conf", "body_interpolated", "body_image"):
+        if k in shapes and shapes[k][1] != N_JOINTS:
+            raise InputError(f"{path}: {k} has {shapes[k][1]} joints, expected {N_JOINTS}")
+
+
+def _check_values(path: Path, arrays: dict) -> None:
+    for k, a in arrays.items():
+        if k in _FRAME_ARRAYS and _FRAME_ARRAYS[k][1] and a.dtype.kind == "f" and not np.isfinite(a).all():
+            raise InputError(f"{path}: {k} holds NaN or infinite values")
+    if not np.isfinite(arrays["identity"]).all():
+        raise InputError(f"{path}: identity holds NaN or infinite values")

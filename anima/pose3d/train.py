@@ -27,7 +27,7 @@ import torch
 
 from anima.errors import CheckpointError
 from anima.io.checkpoint import load_checkpoint as load_checkpoint_file
-from anima.io.checkpoint import load_state
+from anima.io.checkpoint import load_state, rebuilding
 from anima.io.checkpoint import save_checkpoint as save_checkpoint_file
 from anima.pose3d.config import LifterConfig, TrainConfig
 from anima.pose3d.data import (
@@ -154,7 +154,8 @@ def save_checkpoint(path: Path, model: Lifter, cfg: TrainConfig, step: int, opt=
 def load_checkpoint(path: Path) -> tuple[Lifter, dict]:
     """(model, checkpoint dict with ``config``, ``step``, ``state_dict``, ``optimizer``, ``extra``)."""
     ck = load_checkpoint_file(path, KIND, (1, VERSION), train_hint=f"train one with `anima train pose --out {path}`")
-    model = Lifter(LifterConfig(**ck.config["model"]))
+    with rebuilding(ck):
+        model = Lifter(LifterConfig(**ck.config["model"]))
     load_state(model, ck)
     model.eval()
     return model, {

@@ -18,6 +18,8 @@ from anima.core.camera import mediapipe_to_camera
 from anima.errors import InputError
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
+from anima.io.outdir import check_out_file
+from anima.io.validate import input_file
 from anima.io.video import VideoWriter, iter_frames, probe_video
 from anima.reenact.database import build_database, read_database, write_database
 from anima.reenact.pipeline import ReenactConfig, Reenactor, Smoother, actor_expressions
@@ -148,6 +150,30 @@ def _reenact_video(actor, targets, out, cfg, sbs, db_path, progress) -> dict:
         "notes": notes,
         "mean_ms": {k: float(np.mean(v)) for k, v in vars(rx.times).items() if v},
     }
+
+
+NETWORK_SCHEMES = ("rtsp://", "rtsps://", "rtmp://", "rtmps://", "http://", "https://")
+
+
+def check_live_source(source: str, allow_network: bool = False) -> str:
+    """A ``--live`` source: a camera index, an existing video file, or (with ``allow_network``) an
+    rtsp/rtmp/http(s) URL. Anything else OpenCV's FFmpeg would interpret (``concat:``, ``subfile,``,
+    ``file:``, image patterns, other protocols) is refused."""
+    s = str(source).strip()
+    if s.isdigit() and len(s) <= 3:
+        return s
+    low = s.lower()
+    if low.startswith(NETWORK_SCHEMES):
+        if not allow_network:
+            raise InputError(f"--live {s!r} is a network stream: pass --allow-network to read it")
+        return s
+    if "://" in s or (":" in s.split("/")[0] and not Path(s).exists()) or "%" in s or "," in s.split("/")[0]:
+        raise InputError(f"--live {s!r}: not a camera index, a video file or an rtsp/rtmp/http(s) URL")
+    p = Path(s)
+    if not p.is_file():
+        raise InputError(f"--live source not found: {s} (a camera index, a video file, or a URL with --allow-network)")
+    probe_video(p)  # a file must be a readable video
+    return str(p.resolve())
 
 
 class PacedReader:
@@ -299,17 +325,25 @@ def run_reenact(
     db_path: str | None = None,
     max_seconds: float | None = None,
     progress: bool = True,
+    allow_network: bool = False,
 ) -> dict:
     """``anima reenact``: check every input, then re-enact an actor video (or a live source) on the targets."""
     if not actor and live is None:
         raise InputError("give --actor VIDEO or --live SOURCE")
+    if actor and live is not None:
+        raise InputError("give --actor or --live, not both")
     if actor and not out:
         raise InputError("give --out OUT.mp4")
     for t in targets:
-        if not Path(t).exists():
-            raise InputError(f"target video not found: {t}")
-    if actor and not Path(actor).exists():
-        raise InputError(f"actor video not found: {actor}")
+        probe_video(input_file(t, "target video"))
+    if actor:
+        probe_video(input_file(actor, "actor video"))
+    if live is not None:
+        live = check_live_source(live, allow_network)
+    if out:
+        check_out_file(out)
+    if db_path:
+        check_out_file(db_path, "--db")
     if live is not None:
         return reenact_live(live, targets, out, cfg, db_path, max_seconds, progress=progress)
     return reenact_video(actor, targets, out, cfg, sbs, db_path, progress=progress)

@@ -130,10 +130,16 @@ def get_encoder(name: str = "minilm") -> TextEncoder:
     return ENCODERS[name]()
 
 
-def clean_prompt(text: str, encoder: TextEncoder) -> str:
-    """Strip, refuse an empty prompt, truncate one longer than the encoder's window (with a warning)."""
+def require_prompt(text: str | None) -> str:
+    """Refuse an empty prompt (before any model loads)."""
     if text is None or not str(text).strip():
         raise InputError('the prompt is empty: describe the facial motion, e.g. "a woman smiles, then blinks"')
+    return str(text)
+
+
+def clean_prompt(text: str, encoder: TextEncoder) -> str:
+    """Strip, refuse an empty prompt, truncate one longer than the encoder's window (with a warning)."""
+    require_prompt(text)
     text = " ".join(str(text).split())
     cut = len(text) > MAX_CHARS
     text = text[:MAX_CHARS]

@@ -10,7 +10,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from anima.io.checkpoint import load_checkpoint, load_state, save_checkpoint
+from anima.io.checkpoint import load_checkpoint, load_state, rebuilding, save_checkpoint
 
 
 class MotionTextEvaluator(nn.Module):
@@ -106,7 +106,8 @@ def save_evaluator(path, ev: MotionTextEvaluator) -> None:
 
 def load_evaluator(path) -> MotionTextEvaluator:
     ck = load_checkpoint(path, EVALUATOR_KIND, EVALUATOR_VERSION)
-    ev = MotionTextEvaluator(int(ck.config["d_c"]))
+    with rebuilding(ck):
+        ev = MotionTextEvaluator(int(ck.config["d_c"]))
     load_state(ev, ck)
     ev.eval()
     return ev

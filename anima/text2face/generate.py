@@ -22,7 +22,7 @@ from anima.export.framing import generated_sequence
 from anima.export.motion import write_motion_outputs
 from anima.io.outdir import OutputFolder
 from anima.text2face.config import PromptConfig
-from anima.text2face.encoders import clean_prompt, get_encoder
+from anima.text2face.encoders import clean_prompt, get_encoder, require_prompt
 from anima.text2face.train import load_checkpoint
 
 SHIPPED = Path(__file__).parent / "checkpoints" / "text2face.pt"
@@ -43,7 +43,11 @@ class Generator:
         self.cfg = self.model.cfg
         self.mean = np.asarray(ck["mean"], np.float32)
         self.std = np.asarray(ck["std"], np.float32)
-        self.encoder = get_encoder(self.cfg.encoder)
+
+    @property
+    def encoder(self):
+        """The frozen text encoder of the checkpoint (loaded on first use: it takes seconds)."""
+        return get_encoder(self.cfg.encoder)
 
     @property
     def length_range(self) -> tuple[int, int]:
@@ -95,6 +99,7 @@ def text_to_folder(
     before the model loads. Returns the run's info (frames, fps, seed, sampling time, warnings, files)."""
     cfg = cfg or PromptConfig()
     seed = cfg.seed
+    require_prompt(prompt)
     with OutputFolder(out, kind="text2face", command=command) as od:
         gen = Generator(checkpoint)
         n = gen.check_length(int(round(cfg.seconds * gen.fps)) if cfg.seconds else cfg.length)

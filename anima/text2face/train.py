@@ -27,7 +27,7 @@ from tqdm import tqdm
 from anima.core.contract import N_EXPR, TEXT_FPS
 from anima.errors import InputError, SchemaError
 from anima.io.checkpoint import load_checkpoint as load_checkpoint_file
-from anima.io.checkpoint import load_state
+from anima.io.checkpoint import load_state, rebuilding
 from anima.io.checkpoint import save_checkpoint as save_checkpoint_file
 from anima.text2face.config import TrainConfig
 from anima.text2face.data import FaceGeometry, crop_pool, load_clips, motion_stats, split_clips
@@ -110,7 +110,10 @@ def load_checkpoint(path: str | Path) -> dict:
     with the rebuilt model under ``model``."""
     ck = load_checkpoint_file(path, KINDS, (1, VERSION), train_hint="train one with `anima train text2face`")
     c = ck.config
-    model = build_model(ck.kind, c["model"])
+    with rebuilding(ck):
+        model = build_model(ck.kind, c["model"])
+        for k in ("train", "mean", "std", "gram", "step"):
+            c[k]
     load_state(model, ck)
     model.eval()
     return {

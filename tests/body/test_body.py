@@ -106,3 +106,36 @@ def test_video_without_audio_keeps_motion_and_says_why(d0_path):
         progress=False,
     )
     assert sep.speech.shape == (20, 28) and sep.body_joints is None
+
+
+def test_hands_whose_wrist_is_unsure_are_kept(tango_track):
+    """A seen hand survives a body wrist dropped by the confidence filter for longer than the gap filling:
+    it keeps its own wrist (where the detector put it) instead of vanishing."""
+    import dataclasses
+
+    from anima.core.skeleton import BODY_JOINTS
+
+    track = dataclasses.replace(tango_track, conf=tango_track.conf.copy())
+    lw = BODY_JOINTS.index("left_wrist")
+    seen = np.isfinite(track.joints[:, LEFT_HAND]).all((1, 2))
+    assert seen.sum() > 30
+    span = np.flatnonzero(seen)[5:25]  # 20 frames: longer than max_gap
+    track.conf[span, lw] = 0.1  # the body wrist is unsure there
+    out = clean(track, min_conf=0.5, max_gap=8)
+    assert not np.isfinite(out.joints[span, lw]).all()  # the unsure body wrist is dropped ...
+    assert np.isfinite(out.joints[span][:, LEFT_HAND]).all()  # ... the hand is not
+    hand = out.joints[span][:, LEFT_HAND]
+    size = np.linalg.norm(hand[:, 12] - hand[:, 0], axis=-1)  # wrist to middle fingertip
+    assert (0.05 < size).all() and (size < 0.3).all()
+
+
+def test_summary_counts_joints_after_the_confidence_filter(tmp_path, tango_track):
+    """Tracked fractions are read after the confidence filter, per joint group: a clip whose hips are never
+    confidently seen reads hips 0, whatever the raw detector returned."""
+    from anima.capture.pipeline import CaptureConfig, capture_video
+
+    seq = capture_video(str(asset(TANGO)), CaptureConfig(max_frames=30), progress=False)
+    seq.body_conf[:, 1:3] = 0.2  # hips below the filter's 0.5
+    s = seq.summary()
+    assert s["joint_groups_tracked"]["hips"] == 0.0 and s["body_tracked_fraction"] > 0.9
+    assert s["bvh"].startswith("written")

@@ -158,6 +158,10 @@ def test_bad_audio_keeps_motion(videos, tmp_path, d0_path, cli):
         "--json",
     )
     assert r.returncode == 0 and json.loads(r.stdout)["speech"]["silent"] is True
+    # an --audio that cannot be read is refused before any tracking ...
+    r = cli("capture", d0_path, "--out", tmp_path / "v", "--max-frames", "10", "--audio", videos["text"], "--quiet")
+    assert r.returncode == 2 and "--audio-optional" in r.stderr and not (tmp_path / "v" / "capture.npz").exists()
+    # ... unless the user says the motion alone will do
     r = cli(
         "capture",
         d0_path,
@@ -167,6 +171,7 @@ def test_bad_audio_keeps_motion(videos, tmp_path, d0_path, cli):
         "10",
         "--audio",
         videos["text"],
+        "--audio-optional",
         "--quiet",
         "--no-render",
         "--json",

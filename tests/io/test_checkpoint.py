@@ -92,8 +92,10 @@ def test_every_command_refuses_a_crafted_checkpoint(evil, tmp_path, cli, how, d0
         "refiner": ["gesture", speech, "--db", tmp_path / "nodb", "--refiner", path, "--out", tmp_path / "g"],
         "generator": ["gesture", speech, "--generator", path, "--out", tmp_path / "g"],
         "text2face": ["text2face", "a woman smiles", "--checkpoint", path, "--out", tmp_path / "t"],
-        "eval_text2face": ["eval", "text2face", tmp_path, "--checkpoint", path, "--work", tmp_path / "w"],
+        "eval_text2face": ["eval", "text2face", tmp_path / "ds", "--checkpoint", path, "--work", tmp_path / "w"],
     }[how]
+    (tmp_path / "ds").mkdir()  # a dataset folder (its shards are read after the checkpoint)
+    (tmp_path / "ds" / "manifest.json").write_text('{"schema": "anima.dataset", "version": 1}')
     if how == "default_lifter":
         home = tmp_path / "home"
         (home / "models").mkdir(parents=True)

@@ -1,0 +1,584 @@
+"""The exit-code contract on a matrix of bad inputs, generated for every command: missing, empty, random,
+truncated and wrong-kind files, unicode paths, crafted npz / JSON / Parquet / checkpoints, out-of-range
+numbers, unusable output paths, unsafe live sources. Every case must be refused with exit code 2, 3 or 4 and
+exactly one line on stderr (``anima: error: ...``), never a traceback, never accepted."""
+
+import json
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from anima.io.assets import asset
+
+REPO = Path(__file__).resolve().parents[2]
+pytestmark = pytest.mark.slow  # hundreds of command runs (about three minutes)
+D0 = "liveportrait-examples/assets/examples/driving/d0.mp4"
+SPEECH = "videoretalking-examples/examples/audio/1.wav"
+PATS = "gesture-video/pats-crops/oliver1_gt.mp4"
+
+
+def _sequence(path: Path, **meta_edits):
+    """A valid tracked sequence (generated face + body), then ``meta_edits`` applied to its meta."""
+    from anima.export.framing import generated_sequence
+    from anima.io.sequence import write_sequence
+
+    rng = np.random.default_rng(0)
+    face = np.concatenate([rng.random((20, 53)) * 0.3, rng.normal(0, 0.05, (20, 3))], 1).astype(np.float32)
+    body = rng.normal(0, 0.2, (20, 55, 3)).astype(np.float32)
+    write_sequence(generated_sequence(15.0, face=face, body=body), path)
+    if meta_edits:
+        _edit(path, meta=meta_edits)
+    return path
+
+
+def _edit(path: Path, meta: dict | None = None, arrays: dict | None = None, drop=()):
+    with np.load(path) as z:
+        d = {k: z[k] for k in z.files}
+    m = json.loads(str(d["meta"]))
+    m.update(meta or {})
+    d["meta"] = np.asarray(json.dumps(m))
+    d.update(arrays or {})
+    for k in drop:
+        d.pop(k)
+    np.savez(path, **d)
+    return path
+
+
+def _files(d: Path) -> dict:
+    """Generic bad files (and a few good ones to pair with bad options)."""
+    from anima.io.video import FFMPEG
+
+    f = {"missing": d / "missing.mp4", "unicode_missing": d / "vidéo manquante ✓.mp4", "dir": d / "a_folder"}
+    f["dir"].mkdir()
+    _put(f, "empty", d / "empty.mp4").write_bytes(b"")
+    _put(f, "random", d / "random.mp4").write_bytes(np.random.default_rng(1).bytes(4096))
+    _put(f, "text", d / "notes.mp4").write_text("not a video\n" * 50)
+    raw = asset(D0).read_bytes()
+    _put(f, "cut", d / "cut.mp4").write_bytes(raw[: len(raw) // 3])
+    import cv2
+
+    cv2.imwrite(str(f.setdefault("png", d / "image.png")), np.full((64, 64, 3), 128, np.uint8))
+    run = lambda *a: subprocess.run([FFMPEG, "-v", "error", "-y", *a], check=True)
+    run("-f", "lavfi", "-i", "sine=f=220:d=1", str(f.setdefault("wav", d / "tone.wav")))
+    run("-f", "lavfi", "-i", "color=c=gray:s=2x2:d=1", "-pix_fmt", "yuv420p", str(f.setdefault("tiny", d / "tiny.mp4")))
+    run(
+        "-f",
+        "lavfi",
+        "-i",
+        "testsrc=size=128x128:rate=10",
+        "-t",
+        "1",
+        "-pix_fmt",
+        "yuv420p",
+        str(f.setdefault("noface", d / "noface.mp4")),
+    )
+    run("-i", str(asset(SPEECH)), "-t", "0.3", str(f.setdefault("short_wav", d / "short.wav")))
+    f["novideo_audio"] = asset(D0)  # a video without an audio track
+    return f
+
+
+def _put(store: dict, key, path: Path) -> Path:
+    store[key] = path
+    return path
+
+
+def _copy(src: Path, dst: Path) -> Path:
+    dst.write_bytes(src.read_bytes())
+    return dst
+
+
+def _npz_variants(d: Path) -> dict:
+    """Crafted tracked sequences for info / export."""
+    v = {}
+    base = _sequence(d / "base.npz")
+    rng = np.random.default_rng(2)
+    _put(v, "zeros", d / "not_a_zip.npz").write_bytes(b"PK\x03\x04" + bytes(100))
+    np.savez(v.setdefault("no_meta", d / "no_meta.npz"), x=np.zeros(3))
+    np.savez(
+        v.setdefault("meta_not_json", d / "meta_not_json.npz"), meta=np.asarray("{nope"), expression=np.zeros((2, 53))
+    )
+    np.savez(v.setdefault("meta_list", d / "meta_list.npz"), meta=np.asarray("[1, 2]"))
+    np.savez(v.setdefault("meta_array", d / "meta_array.npz"), meta=np.arange(4))
+    np.savez(v.setdefault("meta_deep", d / "meta_deep.npz"), meta=np.asarray("[" * 100_000 + "]" * 100_000))
+    np.savez(v.setdefault("meta_nan", d / "meta_nan.npz"), meta=np.asarray('{"fps": NaN}'))
+    for name, edits in {
+        "other_schema": {"schema": "someone.else"},
+        "newer": {"version": 99},
+        "version_text": {"version": "two"},
+        "fps0": {"fps": 0},
+        "fps_neg": {"fps": -15},
+        "fps_str": {"fps": "fast"},
+        "frames0": {"n_frames": 0},
+        "frames_more": {"n_frames": 21},
+        "frames_huge": {"n_frames": 10**9},
+        "width0": {"width": 0},
+        "names_short": {"expr_names": ["a", "b"]},
+        "names_not_list": {"expr_names": "smile"},
+    }.items():
+        v[name] = _edit(_copy(base, d / f"{name}.npz"), meta=edits)
+    arrays = {
+        "expr_nan": {"expression": np.full((20, 53), np.nan, np.float32)},
+        "expr_inf": {"expression": np.full((20, 53), np.inf, np.float32)},
+        "rot_nan": {"rotation": np.full((20, 3), np.nan, np.float32)},
+        "scale_short": {"scale": np.ones(19, np.float32)},
+        "expr_2d_wrong": {"expression": np.zeros((20, 7), np.float32)},
+        "body_joints_wrong": {"body_joints": np.zeros((20, 54, 3), np.float32)},
+        "identity_nan": {"identity": np.full(100, np.nan, np.float32)},
+        "flags_str": {"flags": np.array(["x"] * 20)},
+        "landmarks_bad": {"landmarks": np.zeros((20, 478), np.float32)},
+    }
+    for name, arr in arrays.items():
+        v[name] = _edit(_copy(base, d / f"{name}.npz"), arrays=arr)
+    v["missing_arrays"] = _edit(_copy(base, d / "missing_arrays.npz"), drop=("expression",))
+    obj = d / "object.npz"
+    obj.write_bytes(base.read_bytes())
+    with zipfile.ZipFile(obj, "a") as z:  # a pickled object array member
+        import io
+
+        buf = io.BytesIO()
+        np.save(buf, np.array([{"a": 1}], dtype=object), allow_pickle=True)
+        z.writestr("evil.npy", buf.getvalue())
+    v["object"] = obj
+    bomb = d / "bomb.npz"  # kilobytes that declare gigabytes
+    with zipfile.ZipFile(bomb, "w", zipfile.ZIP_DEFLATED) as z:
+        meta = json.loads(str(np.load(base)["meta"]))
+        meta["n_frames"] = 30_000
+        buf = __import__("io").BytesIO()
+        np.save(buf, np.asarray(json.dumps(meta)))
+        z.writestr("meta.npy", buf.getvalue())
+        header = __import__("io").BytesIO()
+        np.lib.format.write_array_header_1_0(
+            header, {"descr": "<f4", "fortran_order": False, "shape": (30_000, 478, 3)}
+        )
+        with z.open("landmarks.npy", "w", force_zip64=True) as fh:
+            fh.write(header.getvalue())
+            zero = bytes(1 << 20)
+            for _ in range(165):
+                fh.write(zero)
+    v["bomb"] = bomb
+    data = base.read_bytes()
+    _put(v, "truncated", d / "truncated.npz").write_bytes(data[: len(data) // 2])
+    _put(v, "random", d / "random.npz").write_bytes(rng.bytes(3000))
+    v["face_only"] = _edit(
+        _copy(base, d / "face_only.npz"), drop=("body_joints", "body_joints_raw", "body_conf", "body_interpolated")
+    )
+    v["no_face"] = _edit(_copy(base, d / "no_face.npz"), arrays={"flags": np.ones(20, np.uint8)})
+    v["body_all_nan"] = _edit(
+        _copy(base, d / "body_nan.npz"), arrays={"body_joints": np.full((20, 55, 3), np.nan, np.float32)}
+    )
+    return v, base
+
+
+def _datasets(d: Path) -> dict:
+    out = {}
+    _put(out, "empty_dir", d / "ds_empty").mkdir()
+    for name, text in {
+        "bad_json": "{nope",
+        "wrong_schema": '{"schema": "x", "version": 1}',
+        "old_version": '{"schema": "anima.dataset", "version": 0}',
+        "non_utf8": None,
+        "list": "[1, 2, 3]",
+    }.items():
+        p = d / f"ds_{name}"
+        p.mkdir()
+        if text is None:
+            (p / "manifest.json").write_bytes(b'{"schema": "\xff\xfe"}')
+        else:
+            (p / "manifest.json").write_text(text)
+        out[name] = p
+    p = d / "ds_corrupt_shard"
+    (p / "shards" / "audio_motion").mkdir(parents=True)
+    (p / "shards" / "text_motion").mkdir(parents=True)
+    (p / "manifest.json").write_text('{"schema": "anima.dataset", "version": 1}')
+    (p / "shards" / "audio_motion" / "x.parquet").write_bytes(b"PAR1" + bytes(200))
+    (p / "shards" / "text_motion" / "x.parquet").write_bytes(b"PAR1" + bytes(200))
+    out["corrupt_shard"] = p
+    p = d / "ds_no_windows"
+    p.mkdir()
+    (p / "manifest.json").write_text('{"schema": "anima.dataset", "version": 1}')
+    out["no_windows"] = p
+    out["a_file"] = d / "ds_file"
+    out["a_file"].write_text("x")
+    out["missing"] = d / "ds_missing"
+    return out
+
+
+def _annotations(d: Path) -> dict:
+    a = {}
+    for name, text in {
+        "invalid": "{nope",
+        "list": "[]",
+        "no_clips": '{"x": 1}',
+        "nan": '{"clips": {"d0": {"actions": [["smile", NaN, 2]]}}}',
+        "inf": '{"clips": {"d0": {"actions": [["smile", 0, Infinity]]}}}',
+        "reversed": '{"clips": {"d0": {"actions": [["smile", 3, 1]]}}}',
+        "neg": '{"clips": {"d0": {"actions": [["smile", -1, 1]]}}}',
+        "gender": '{"clips": {"d0": {"gender": "robot"}}}',
+        "unknown_clip": '{"clips": {"zzz": {"actions": []}}}',
+        "deep": '{"clips": ' + "[" * 50_000 + "]" * 50_000 + "}",
+        "deep_ok_json": '{"clips": {"d0": {"actions": ' + "[" * 100 + "]" * 100 + "}}}",
+    }.items():
+        _put(a, name, d / f"ann_{name}.json").write_text(text)
+    _put(a, "non_utf8", d / "ann_latin1.json").write_bytes('{"clips": {"d0": {"gender": "mâle"}}}'.encode("latin-1"))
+    _put(a, "empty", d / "ann_empty.json").write_bytes(b"")
+    big = d / "ann_big.json"  # a sparse 80 MB file: refused by size before reading
+    with open(big, "wb") as fh:
+        fh.truncate(80 * 2**20)
+    a["big"] = big
+    a["missing"] = d / "ann_missing.json"
+    return a
+
+
+def _checkpoints(d: Path, files: dict) -> dict:
+    import torch
+
+    from anima.io.checkpoint import save_checkpoint
+    from anima.text2face.generate import SHIPPED
+
+    c = {k: files[k] for k in ("missing", "empty", "random", "text", "dir")}
+
+    class Evil:
+        def __reduce__(self):
+            return (open, (str(d / "pwned"), "w"))
+
+    torch.save({"x": Evil()}, c.setdefault("crafted", d / "crafted.pt"))
+    save_checkpoint(c.setdefault("other_kind", d / "other_kind.pt"), "pose_lifter", 2, {}, {"state": {}})
+    data = SHIPPED.read_bytes()
+    _put(c, "truncated", d / "truncated.pt").write_bytes(data[: len(data) // 3])
+    old = torch.load(SHIPPED, weights_only=True)
+    old["version"] = 99
+    torch.save(old, c.setdefault("newer", d / "newer.pt"))
+    torch.save(
+        {
+            "format": "anima.checkpoint",
+            "envelope": 1,
+            "kind": "gesture_generator",
+            "version": 2,
+            "meta": "{not json",
+            "tensors": {"state": {}},
+        },
+        c.setdefault("bad_meta", d / "bad_meta.pt"),
+    )
+    return c
+
+
+NUM_BAD = ["0", "-1", "nan", "inf", "abc", "1e30"]
+
+
+def cases(d: Path) -> list[tuple[str, list, dict]]:
+    files = _files(d)
+    npz, base = _npz_variants(d)
+    ds = _datasets(d)
+    ann = _annotations(d)
+    ck = _checkpoints(d, files)
+    d0, speech, pats = str(asset(D0)), str(asset(SPEECH)), str(asset(PATS))
+    out = d / "out"
+    c = []
+
+    def add(name, *argv, env=None):
+        c.append((name, [str(a) for a in argv], env or {}))
+
+    video_bad = ["missing", "unicode_missing", "dir", "empty", "random", "text", "cut", "png", "wav", "tiny", "noface"]
+    for k in video_bad:
+        add(f"capture video {k}", "capture", files[k], "--out", out / f"c_{k}", "--quiet", "--no-render")
+        add(f"capture face-only video {k}", "capture", files[k], "--out", out / f"cf_{k}", "--face-only", "--quiet")
+    for k in ("missing", "dir", "empty", "random", "text", "png", "novideo_audio"):
+        add(f"capture --audio {k}", "capture", d0, "--out", out / f"ca_{k}", "--audio", files[k], "--quiet")
+    for opt in ("--sigma", "--max-frames", "--max-gap"):
+        for v in NUM_BAD:
+            if v == "0" and opt in ("--sigma", "--max-gap"):  # valid: no smoothing, no gap filling
+                continue
+            add(f"capture {opt} {v}", "capture", d0, "--out", out / "c_opt", opt, v, "--quiet")
+    add("capture --body-3d bogus", "capture", d0, "--out", out / "c3", "--body-3d", "bogus")
+    add(
+        "capture lifter missing model",
+        "capture",
+        pats,
+        "--out",
+        out / "c4",
+        "--body-3d",
+        "lifter",
+        "--pose-model",
+        files["missing"],
+    )
+    add(
+        "capture lifter crafted model",
+        "capture",
+        pats,
+        "--out",
+        out / "c5",
+        "--body-3d",
+        "lifter",
+        "--pose-model",
+        ck["crafted"],
+    )
+    add("capture lifter face-only", "capture", pats, "--out", out / "c6", "--body-3d", "lifter", "--face-only")
+    add("capture --out is a file", "capture", d0, "--out", files["text"], "--quiet")
+    add("capture --out in /proc", "capture", d0, "--out", "/proc/anima-out/x", "--quiet")
+    add("capture no --out", "capture", d0)
+    add("capture two videos", "capture", d0, d0, "--out", out / "c7")
+
+    seq_bad = [k for k in npz if k not in ("face_only", "no_face", "body_all_nan")]
+    for k in seq_bad + ["missing_file", "dir_file", "empty_file"]:
+        other = {"missing_file": files["missing"], "dir_file": files["dir"], "empty_file": files["empty"]}
+        f = other.get(k, npz.get(k))
+        add(f"info {k}", "info", f, "--json")
+        for fmt in ("arkit", "glb", "bvh"):
+            add(f"export {fmt} {k}", "export", fmt, f, "--out", out / f"e_{k}.{fmt}")
+    add("export bvh of a face-only sequence", "export", "bvh", npz["face_only"], "--out", out / "x.bvh")
+    add("export bvh with no full body", "export", "bvh", npz["body_all_nan"], "--out", out / "y.bvh")
+    add("export arkit with no face", "export", "arkit", npz["no_face"], "--out", out / "z.csv")
+    add("export glb with no face", "export", "glb", npz["no_face"], "--out", out / "z.glb")
+    for v in NUM_BAD + ["1000000"]:
+        add(f"export bvh --fps {v}", "export", "bvh", base, "--out", out / "f.bvh", "--fps", v)
+    add("export arkit --fps", "export", "arkit", base, "--out", out / "f.csv", "--fps", "30")
+    add("export --out is a folder", "export", "arkit", base, "--out", files["dir"])
+    add("export --out in /proc", "export", "glb", base, "--out", "/proc/anima/x.glb")
+    add("export bogus format", "export", "fbx", base, "--out", out / "f.fbx")
+
+    for k in ("missing", "unicode_missing", "dir", "empty", "random", "text", "png", "novideo_audio", "cut"):
+        add(f"audio features {k}", "audio", "features", files[k], "--out", out / f"a_{k}.npz")
+    for opt, vals in (("--fps", NUM_BAD + ["1000000"]), ("--frames", ["0", "-1", "abc", "1.5", "100000000"])):
+        for v in vals:
+            add(f"audio {opt} {v}", "audio", "features", files["wav"], opt, v, "--out", out / "a.npz")
+    add("audio --out is a folder", "audio", "features", files["wav"], "--out", files["dir"])
+
+    for k in ("missing", "text", "empty", "random", "png"):
+        add(f"dataset build only {k}", "dataset", "build", files[k], "--out", out / f"ds_{k}", "--quiet")
+    add("dataset build nothing found", "dataset", "build", str(d / "nothing" / "*.mp4"), "--out", out / "ds_n")
+    add("dataset build --out is a file", "dataset", "build", d0, "--out", files["text"])
+    add("dataset build of another schema", "dataset", "build", d0, "--out", ds["old_version"])
+    add("dataset build bad manifest", "dataset", "build", d0, "--out", ds["bad_json"])
+    add("dataset build min > max", "dataset", "build", d0, "--out", out / "ds_mm", "--min-len", "9", "--max-len", "3")
+    for opt in ("--min-len", "--max-len", "--max-yaw", "--max-fit-nme", "--descriptions", "--workers", "--max-frames"):
+        for v in ("-1", "nan", "abc"):
+            add(f"dataset build {opt} {v}", "dataset", "build", d0, "--out", out / "ds_o", opt, v)
+    for k, p in ann.items():
+        add(f"dataset build --annotations {k}", "dataset", "build", d0, "--out", out / f"ds_a_{k}", "--annotations", p)
+    for k, p in ds.items():
+        if k not in ("corrupt_shard", "no_windows"):
+            add(f"dataset report {k}", "dataset", "report", p)
+    add("dataset report --sheets -1", "dataset", "report", ds["empty_dir"], "--sheets", "-1")
+
+    for k, p in ds.items():
+        add(f"gesture --db {k}", "gesture", speech, "--db", p, "--out", out / f"g_{k}", "--no-render")
+        add(f"train gesture --db {k}", "train", "gesture", "--db", p, "--out", out / f"t_{k}.pt", "--quiet")
+        add(
+            f"train gesture generator --db {k}",
+            "train",
+            "gesture",
+            "--db",
+            p,
+            "--model",
+            "generator",
+            "--out",
+            out / f"tg_{k}.pt",
+            "--quiet",
+        )
+        add(f"eval gesture --db {k}", "eval", "gesture", "--db", p, "--json")
+        add(f"train text2face {k}", "train", "text2face", p, "--out", out / f"tt_{k}", "--quiet")
+        add(f"eval text2face {k}", "eval", "text2face", p, "--work", out / f"et_{k}", "--json")
+    for k in ("missing", "unicode_missing", "dir", "empty", "random", "text", "png", "novideo_audio", "short_wav"):
+        add(f"gesture speech {k}", "gesture", files[k], "--db", ds["corrupt_shard"], "--out", out / f"gs_{k}")
+    for k, p in ck.items():
+        add(f"gesture --generator {k}", "gesture", speech, "--generator", p, "--out", out / f"gg_{k}", "--no-render")
+        add(
+            f"gesture --refiner {k}",
+            "gesture",
+            speech,
+            "--db",
+            ds["corrupt_shard"],
+            "--refiner",
+            p,
+            "--out",
+            out / f"gr_{k}",
+        )
+        add(f"text2face --checkpoint {k}", "text2face", "a woman smiles", "--checkpoint", p, "--out", out / f"tc_{k}")
+        add(f"eval pose --model {k}", "eval", "pose", "--model", p, "--json")
+        add(f"capture lifter {k}", "capture", pats, "--out", out / f"cl_{k}", "--body-3d", "lifter", "--pose-model", p)
+    for opt, v in (
+        ("--k", "-1"),
+        ("--k", "abc"),
+        ("--init", "bogus"),
+        ("--control", "elbow_twist>=p50"),
+        ("--control", "left_wrist_height>>p50"),
+        ("--control", "left_wrist_height>=p50@5-1s"),
+        ("--keyword", "yes at 3s"),
+        ("--keyword", "yes@2-1s"),
+        ("--keyword-db", "yes"),
+        ("--keyword-db", f"yes={d / 'nope'}"),
+    ):
+        add(f"gesture {opt} {v}", "gesture", speech, "--db", ds["corrupt_shard"], opt, v, "--out", out / "go")
+    add("gesture neither --db nor --generator", "gesture", speech, "--out", out / "gn")
+    add(
+        "gesture --generator with --control",
+        "gesture",
+        speech,
+        "--generator",
+        ck["random"],
+        "--control",
+        "left_wrist_height>=p50",
+        "--out",
+        out / "gc",
+    )
+    add("gesture --out is a file", "gesture", speech, "--db", ds["corrupt_shard"], "--out", files["text"])
+    add(
+        "train gesture --model bogus",
+        "train",
+        "gesture",
+        "--db",
+        ds["corrupt_shard"],
+        "--model",
+        "bogus",
+        "--out",
+        out / "tb.pt",
+    )
+    add("train gesture --steps 0", "train", "gesture", "--db", ds["corrupt_shard"], "--steps", "0", "--out", out / "t0")
+    add("train gesture --out is a folder", "train", "gesture", "--db", ds["corrupt_shard"], "--out", files["dir"])
+
+    for prompt in ("", "   ", "\n\t"):
+        add(f"text2face prompt {prompt!r}", "text2face", prompt, "--out", out / "tp", "--no-video")
+    for opt, vals in (("--length", ["0", "-1", "abc", "5", "100000"]), ("--seconds", NUM_BAD), ("--seed", ["abc"])):
+        for v in vals:
+            add(f"text2face {opt} {v}", "text2face", "a woman smiles", opt, v, "--out", out / "tl", "--no-video")
+    add("text2face --out is a file", "text2face", "a woman smiles", "--out", files["text"])
+    for opt, vals in (
+        ("--steps", ["0", "-1", "abc"]),
+        ("--lr", ["0", "nan", "-1"]),
+        ("--tf-drop", ["1.5", "-0.1"]),
+        ("--kind", ["bogus"]),
+        ("--batch", ["0"]),
+        ("--codebook", ["1"]),
+    ):
+        for v in vals:
+            add(f"train text2face {opt} {v}", "train", "text2face", ds["corrupt_shard"], opt, v, "--quiet")
+    for opt, v in (("--steps", "0"), ("--batch", "1"), ("--width", "2"), ("--steps", "nan")):
+        add(f"train pose {opt} {v}", "train", "pose", opt, v, "--out", out / "p.pt", "--quiet")
+
+    target = str(asset("styletalk-samples/samples/source_video/video/Obama_clip1.mp4"))
+    for k in ("missing", "unicode_missing", "dir", "empty", "random", "text", "png", "cut"):
+        add(f"reenact actor {k}", "reenact", "--actor", files[k], "--target", target, "--out", out / "r.mp4")
+        add(f"reenact target {k}", "reenact", "--actor", d0, "--target", files[k], "--out", out / "r.mp4")
+    for opt, vals in (
+        ("--n", ["0", "-1", "abc"]),
+        ("--a", ["0", "1", "nan", "2"]),
+        ("--smooth", ["-1", "abc"]),
+        ("--max-seconds", ["0", "nan"]),
+    ):
+        for v in vals:
+            add(f"reenact {opt} {v}", "reenact", "--actor", d0, "--target", target, "--out", out / "r.mp4", opt, v)
+    add("reenact no --out", "reenact", "--actor", d0, "--target", target)
+    add("reenact neither actor nor live", "reenact", "--target", target, "--out", out / "r.mp4")
+    add("reenact --out is a folder", "reenact", "--actor", d0, "--target", target, "--out", files["dir"])
+    add(
+        "reenact --db is a folder",
+        "reenact",
+        "--actor",
+        d0,
+        "--target",
+        target,
+        "--out",
+        out / "r.mp4",
+        "--db",
+        files["dir"],
+    )
+    add("reenact actor and live", "reenact", "--actor", d0, "--live", "0", "--target", target, "--out", out / "r.mp4")
+    for src in (
+        f"concat:{d0}|{d0}",
+        f"subfile,,start,0,end,100,,:{d0}",
+        f"file://{d0}",
+        "http://127.0.0.1:9/x.mp4",
+        "rtsp://127.0.0.1:9/x",
+        "https://example.com/a.mp4",
+        str(d / "frame%03d.png"),
+        "tcp://127.0.0.1:9",
+        "udp://127.0.0.1:9",
+        f"pipe:{d0}",
+        str(files["missing"]),
+        str(files["text"]),
+        "data:text/plain,hi",
+        "12345",
+    ):
+        add(f"reenact --live {src[:40]}", "reenact", "--live", src, "--target", target, "--max-seconds", "1")
+
+    add("eval body matches nothing", "eval", "body", "no-such-folder/*.mp4", "--json")
+    add("eval stability missing clip", "eval", "stability", files["missing"], "--json")
+    add("eval stability text clip", "eval", "stability", files["text"], "--json")
+    add("eval pose --ablation-steps 0", "eval", "pose", "--ablation", out / "abl", "--ablation-steps", "0")
+    add("eval text2face --reps 0", "eval", "text2face", ds["corrupt_shard"], "--reps", "0")
+    add("eval gesture --refiner-folds -1", "eval", "gesture", "--db", ds["corrupt_shard"], "--refiner-folds", "-1")
+    add("eval reenact --out is a file", "eval", "reenact", "--out", files["text"])
+
+    for k in ("missing", "dir", "text", "empty"):
+        add(f"facemodel import {k}", "facemodel", "import", files[k], "--out", out / "fm.npz")
+    add("facemodel import --out is a folder", "facemodel", "import", files["dir"], "--out", files["dir"])
+    for k in ("missing", "text", "empty", "random", "dir"):
+        add(
+            f"facemodel correspondence image {k}",
+            "facemodel",
+            "correspondence",
+            "--images",
+            files[k],
+            "--out",
+            out / "corr.npz",
+        )
+    for v in ("0", "-1", "nan", "abc"):
+        add(f"facemodel landmarks68 --radius {v}", "facemodel", "landmarks68", "--radius", v, "--out", out / "l.json")
+
+    add("unknown command", "fly")
+    add("unknown option", "info", "--frobnicate")
+    add("eval unknown", "eval", "everything")
+    add("train unknown", "train", "dragon")
+    return c
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    d = tmp_path_factory.mktemp("bad inputs ✓")
+    cs = cases(d)
+    lines = "".join(
+        json.dumps({"id": i, "argv": argv, "env": env, "timeout": 120}) + "\n" for i, (_, argv, env) in enumerate(cs)
+    )
+    half = [lines.splitlines(keepends=True)[k::2] for k in range(2)]  # two runners for two cores
+    procs = [
+        subprocess.Popen(
+            [sys.executable, str(REPO / "tests" / "forkrun.py")],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            cwd=d,
+        )
+        for _ in half
+    ]
+    outs = [p.communicate("".join(h), timeout=3000)[0] for p, h in zip(procs, half)]
+    res = {r["id"]: r for o in outs for r in map(json.loads, o.splitlines())}
+    assert not (d / "pwned").exists(), "a crafted checkpoint ran code"
+    if os.environ.get("ANIMA_BAD_INPUT_LOG"):
+        Path(os.environ["ANIMA_BAD_INPUT_LOG"]).write_text(
+            json.dumps([{"name": n, **res[i]} for i, (n, _, _) in enumerate(cs)], indent=1)
+        )
+    return [(name, argv, res[i]) for i, (name, argv, _) in enumerate(cs)]
+
+
+def test_at_least_300_cases_over_every_command(results):
+    from anima.cli.main import build_parser
+
+    sub = next(a for a in build_parser()._actions if a.__class__.__name__ == "_SubParsersAction")
+    assert len(results) >= 300
+    assert set(sub.choices) <= {argv[0] for _, argv, _ in results}, set(sub.choices) - {a[0] for _, a, _ in results}
+
+
+def test_every_bad_input_is_one_line_and_exit_2_3_or_4(results):
+    bad = []
+    for name, _argv, r in results:
+        err = r["stderr"]
+        one_line = err.count("\n") == 1 and err.startswith("anima: error:") and "Traceback" not in err
+        ok = r["rc"] in (2, 3, 4) and one_line
+        if not ok:
+            bad.append(f"{name}: rc {r['rc']}, stderr {err[-300:]!r}, stdout {r['stdout'][-200:]!r}")
+    assert not bad, f"{len(bad)} of {len(results)} cases broke the contract:\n" + "\n".join(bad)

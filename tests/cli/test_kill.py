@@ -1,0 +1,196 @@
+"""Killed at any moment, a command leaves the previous complete result or no result, never a partial file that
+a reader accepts. Each command runs once to completion (its duration sets the kill window), then is killed
+with SIGKILL at seeded random points, half of the time over a complete earlier result; after every kill each
+file in the output is either absent, hidden (an unfinished temporary file, which no reader takes and the
+next run removes) or complete by its own reader."""
+
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+
+from anima.io.assets import asset
+from anima.io.video import FFMPEG, probe_video
+
+D0 = "liveportrait-examples/assets/examples/driving/d0.mp4"
+SPEECH = "videoretalking-examples/examples/audio/1.wav"
+OBAMA = "styletalk-samples/samples/source_video/video/Obama_clip1.mp4"
+pytestmark = pytest.mark.slow  # dozens of real runs, killed (about four minutes)
+KILLS = {"capture": 12, "export": 10, "text2face": 6, "gesture": 10, "reenact": 8, "dataset": 5}
+
+
+def _run(argv, timeout=600):
+    return subprocess.run(
+        [sys.executable, "-m", "anima", *map(str, argv)], capture_output=True, text=True, timeout=timeout
+    )
+
+
+def _killed(argv, after_s: float) -> None:
+    p = subprocess.Popen(
+        [sys.executable, "-m", "anima", *map(str, argv)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    try:
+        p.wait(timeout=after_s)
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.wait()
+
+
+def check_file(p: Path, frames: int | None) -> str | None:
+    """None if ``p`` is complete by its reader, else what is wrong."""
+    from anima.io.bvh import read_bvh
+    from anima.io.sequence import read_sequence
+
+    try:
+        if p.name.startswith("."):
+            return None if ".anima-tmp-" in p.name or p.name == ".anima.lock" else f"unknown hidden file {p.name}"
+        if p.suffix == ".npz":
+            read_sequence(p, landmarks=False)
+        elif p.suffix == ".csv":
+            rows = p.read_text().splitlines()
+            if frames is not None and len(rows) != frames + 1:
+                return f"{len(rows) - 1} CSV rows of {frames}"
+        elif p.suffix == ".glb":
+            data = p.read_bytes()
+            if data[:4] != b"glTF" or int.from_bytes(data[8:12], "little") != len(data):
+                return "GLB length does not match"
+        elif p.suffix == ".bvh":
+            b = read_bvh(p)
+            if frames is not None and len(b.motion) != frames:
+                return f"{len(b.motion)} BVH frames of {frames}"
+        elif p.suffix == ".mp4":
+            info = probe_video(p)
+            if frames is not None and abs(info.n_frames - frames) > 1:
+                return f"{info.n_frames} video frames of {frames}"
+        elif p.suffix == ".json":
+            json.loads(p.read_text())
+        elif p.suffix == ".parquet":
+            import pyarrow.parquet as pq
+
+            pq.read_table(p)
+    except Exception as e:
+        return f"{type(e).__name__}: {e}"
+    return None
+
+
+def check_folder(d: Path, frames: int | None = None) -> list[str]:
+    """Problems in a result folder after a kill (see the module docstring); ``frames``: the expected frame
+    count when the folder holds no sequence to read it from."""
+    from anima.io.outdir import MANIFEST, check_complete
+
+    if not d.exists():
+        return []
+    problems = []
+    seqs = [p for p in d.glob("*.npz") if not p.name.startswith(".")]
+    if seqs:
+        from anima.io.sequence import read_sequence
+
+        try:
+            frames = read_sequence(seqs[0], landmarks=False).n_frames
+        except Exception as e:
+            return [f"{seqs[0].name}: {e}"]
+    for p in d.rglob("*"):
+        if p.is_file():
+            why = check_file(p, frames if p.parent == d else None)
+            if why:
+                problems.append(f"{p.relative_to(d)}: {why}")
+    if (d / MANIFEST).exists() and '"anima.result"' in (d / MANIFEST).read_text():
+        try:
+            check_complete(d)
+        except Exception as e:
+            problems.append(f"manifest.json written but the folder is not complete: {e}")
+    return problems
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory, gesture_ds):
+    d = tmp_path_factory.mktemp("kill")
+    actor = d / "actor.mp4"
+    subprocess.run(
+        [FFMPEG, "-v", "error", "-y", "-i", str(asset(D0)), "-t", "1.2", "-c:v", "libx264", str(actor)], check=True
+    )
+    seq = d / "seq"
+    assert _run(["capture", asset(D0), "--out", seq, "--max-frames", "60", "--quiet", "--no-render"]).returncode == 0
+    db = d / "obama.npz"
+    r = _run(["reenact", "--actor", actor, "--target", asset(OBAMA), "--out", d / "warm.mp4", "--db", db, "--quiet"])
+    assert r.returncode == 0, r.stderr
+    return {"dir": d, "actor": actor, "seq": seq / "capture.npz", "db": db, "ds": gesture_ds}
+
+
+def _command(kind: str, inp: dict, out: Path) -> list:
+    return {
+        "capture": ["capture", asset(D0), "--out", out, "--max-frames", "40", "--quiet"],
+        "export": ["export", "glb", inp["seq"], "--out", out / "face.glb"],
+        "text2face": ["text2face", "a woman smiles, then blinks", "--out", out, "--length", "60"],
+        "gesture": ["gesture", asset(SPEECH), "--db", inp["ds"], "--all-splits", "--out", out],
+        "reenact": [
+            "reenact",
+            "--actor",
+            inp["actor"],
+            "--target",
+            asset(OBAMA),
+            "--db",
+            inp["db"],
+            "--out",
+            out / "re.mp4",
+            "--quiet",
+        ],
+        "dataset": [
+            "dataset",
+            "build",
+            asset("gesture-video/pats-crops/oliver4_gt.mp4"),
+            asset("gesture-video/pats-crops/seth2_gt.mp4"),
+            "--out",
+            out,
+            "--min-len",
+            "2",
+            "--max-frames",
+            "60",
+            "--workers",
+            "1",
+            "--quiet",
+        ],
+    }[kind]
+
+
+def _one_kind(kind: str, inp: dict) -> list[str]:
+    rng = random.Random(f"kill-{kind}")
+    base = inp["dir"] / kind
+    t0 = time.perf_counter()
+    full = base / "full"
+    full.mkdir(parents=True)
+    r = _run(_command(kind, inp, full))
+    assert r.returncode == 0, (kind, r.stderr[-1000:])
+    duration = time.perf_counter() - t0
+    frames = probe_video(inp["actor"]).n_frames if kind == "reenact" else None
+    problems = [f"{kind} (full run): {p}" for p in check_folder(full, frames)]
+    out = base / "killed"  # every kill runs into what the previous one left; every third over a complete result
+    out.mkdir()
+    for k in range(KILLS[kind]):
+        if k % 3 == 1:
+            assert _run(_command(kind, inp, out)).returncode == 0
+        _killed(_command(kind, inp, out), rng.uniform(0.3, duration))
+        problems += [f"{kind} kill {k}: {p}" for p in check_folder(out, frames)]
+    r = _run(_command(kind, inp, out))  # and a rerun after the last kill completes
+    assert r.returncode == 0, (kind, r.stderr[-1000:])
+    problems += [f"{kind} rerun after the kills: {p}" for p in check_folder(out, frames)]
+    print(f"{kind}: full run {duration:.1f} s, {KILLS[kind]} kills, {time.perf_counter() - t0:.0f} s in all")
+    return problems
+
+
+def test_kills_leave_complete_results_or_none(inputs):
+    assert sum(KILLS.values()) >= 50
+    with ThreadPoolExecutor(2) as pool:
+        results = list(pool.map(lambda k: _one_kind(k, inputs), KILLS))
+    problems = [p for r in results for p in r]
+    assert not problems, "\n".join(problems)
