@@ -122,6 +122,11 @@ def register(sub) -> None:
         default=None,
         help="§4.4 generator and baselines: training steps per fold (default 1000)",
     )
+    eg.add_argument(
+        "--no-blend",
+        action="store_true",
+        help="k-NN rows with the seed's raw concatenation of windows (no blended joins, no no-repeat rule)",
+    )
     eg.add_argument("--json", action="store_true", help="(the result is JSON either way)")
     eg.set_defaults(func=cmd_gesture)
 
@@ -198,6 +203,7 @@ def cmd_gesture(a) -> int:
             progress=not a.json,
             generator_steps=a.generator_steps,
             speaker=a.speaker,
+            blend=not a.no_blend,
         ),
         True,
     )

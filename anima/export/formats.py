@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.core import rig
 from anima.core.filters import resample_joints
 from anima.core.rotations import matrix_to_euler, matrix_to_quat
-from anima.core.skeleton import JOINT_NAMES, PARENTS
 from anima.errors import InputError
 from anima.facemodel.ict import load_face_model
 from anima.io.arkit import write_live_link_csv
@@ -44,22 +44,27 @@ def export_glb(seq: TrackedSequence, path: str | Path, animate_head: bool = True
 
 
 def has_body(seq: TrackedSequence) -> bool:
-    """True when some frame has every joint (a BVH needs at least one)."""
+    """True when some frame has every joint."""
     return seq.body_joints is not None and bool(np.isfinite(seq.body_joints).all(-1).all(-1).any())
 
 
 def export_bvh(seq: TrackedSequence, path: str | Path, fps: float | None = None) -> Path:
-    """Upper body + hands as BVH (cm, fixed median bone lengths), optionally resampled to ``fps``."""
+    """Upper body + hands on the canonical rig (``anima.core.rig``: T-pose rest, conventional names, the clip's
+    bone lengths with human-size hands), centimetres, optionally resampled to ``fps``."""
     if seq.body_joints is None:
         raise InputError("this sequence has no body (captured with --face-only, or schema v1): nothing to export")
-    if not has_body(seq):
-        raise InputError("no frame of this sequence has the whole body tracked: no BVH can be made from it")
+    if not np.isfinite(seq.body_joints).all(-1).any():
+        raise InputError("no body joint was tracked in any frame of this sequence: no BVH can be made from it")
     J, rate = seq.body_joints, seq.fps
     if fps and abs(fps - rate) > 1e-6:
         conf = seq.body_conf if seq.body_conf is not None else np.ones(J.shape[:2])
         J, _, _ = resample_joints(J, conf, np.zeros(J.shape[:2], bool), rate, fps)
         rate = fps
-    return write_bvh(path, J, JOINT_NAMES, PARENTS, rate)
+    lengths, _ = rig.measure_lengths(seq.body_joints)
+    root, local, _ = rig.rig_rotations(J, lengths)
+    leaves = np.array([not (rig.PARENTS_RIG == j).any() for j in range(rig.N_RIG)])
+    ends = np.where(leaves[:, None], rig.REST_DIRECTIONS * 0.02, 0.0)  # 2 cm end sites along the last bone
+    return write_bvh(path, rig.NAMES, rig.PARENTS_RIG, rig.rest_offsets(lengths), root, local, rate, ends)
 
 
 def export_file(fmt: str, sequence_path: str | Path, out: str | Path, fps: float | None = None) -> Path:

@@ -2,20 +2,23 @@
 
 :func:`write_motion_outputs` writes, into an :class:`anima.io.outdir.OutputFolder`:
 
-=====================  ==========================================================  ======================
+=====================  ==========================================================  =======================
 file                   what                                                        when
-=====================  ==========================================================  ======================
+=====================  ==========================================================  =======================
 ``<name>.npz``         the tracked sequence (``anima.io.sequence``)                always, written first
 ``arkit.csv``          Live Link Face CSV (52 ARKit weights + head)                a face in some frame
 ``face.glb``           ICT face with 53 morph targets, animated                    a face in some frame
-``body.bvh``           upper body + hands                                          a fully tracked frame
+``body.bvh``           upper body + hands on the canonical rig (T-pose rest)       a body joint tracked
+``avatar.glb``         the rig with the ICT head on its head joint, one timeline   a face or a body
+                       (the head alone without a body)
+``speech.wav``         the speech the motion goes with (offset 0 s)                the source has speech
 ``overlay.mp4``        the fitted mesh over the source video                       a face and a source
 ``mesh.mp4``           the fitted mesh alone                                       a face and a source
 ``face.mp4``           the animated neutral face (generated motion)                a face, no source
 ``skeleton_overlay``   2D joints over the source video (``.mp4``)                  a body and a source
-``skeleton3d.mp4``     front and 3/4 views of the 3D skeleton                      a body
-``info.json``          what made it (prompt, settings, notes, summary)             always
-=====================  ==========================================================  ======================
+``avatar.mp4``         the rig and its head, front and 3/4 views                   a body
+``info.json``          what made it (prompt, settings, notes, summary, avatar)     always
+=====================  ==========================================================  =======================
 
 Videos carry the source's audio track, else ``audio`` (the speech motion was made from). The sequence is
 written first, so a failing render loses nothing already computed; every file is atomic.
@@ -25,7 +28,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from anima.export.formats import export_arkit_csv, export_bvh, export_glb, has_body
+import numpy as np
+
+from anima.export.avatar import render_avatar_preview, write_avatar, write_speech
+from anima.export.formats import export_arkit_csv, export_bvh, export_glb
 from anima.io.atomic import write_json
 from anima.io.outdir import OutputFolder
 from anima.io.sequence import TrackedSequence, write_sequence
@@ -46,11 +52,20 @@ def write_motion_outputs(
     """Write the output set of ``seq`` (see the module table); returns ``{role: path}``."""
     files = {"sequence": write_sequence(seq, out.file(name))}
     face = bool(seq.tracked.any())
+    body = seq.body_joints is not None and bool(np.isfinite(seq.body_joints).all(-1).any())
     if face:
         files["arkit_csv"] = export_arkit_csv(seq, out.file("arkit.csv"))
         files["glb"] = export_glb(seq, out.file("face.glb"))
-    if has_body(seq):
+    if body:
         files["bvh"] = export_bvh(seq, out.file("body.bvh"))
+    speech = _speech_source(seq, source_video, audio)
+    if speech is not None:
+        files["speech"] = write_speech(speech, out.file("speech.wav"))
+    if face or body:
+        avatar = write_avatar(seq, out.file("avatar.glb"), speech="speech.wav" if speech else None)
+        files["avatar"] = out.path / "avatar.glb"
+        if info is not None:
+            info = {**info, "avatar": avatar}
     if render and face:
         if source_video is not None:
             render_videos(
@@ -60,12 +75,23 @@ def write_motion_outputs(
         else:
             render_videos(seq, None, None, out.file("face.mp4"), progress=progress, audio=audio)
             files["face_video"] = out.path / "face.mp4"
-    if render and seq.body_joints is not None:
-        overlay = out.file("skeleton_overlay.mp4") if source_video is not None and seq.body_image is not None else None
-        render_skeleton_videos(seq, source_video, overlay, out.file("skeleton3d.mp4"), progress=progress, audio=audio)
-        if overlay is not None:
+    if render and body:
+        if source_video is not None and seq.body_image is not None:
+            overlay = out.file("skeleton_overlay.mp4")
+            render_skeleton_videos(seq, source_video, overlay, None, progress=progress, audio=audio)
             files["skeleton_overlay_video"] = overlay
-        files["skeleton_video"] = out.path / "skeleton3d.mp4"
+        render_avatar_preview(seq, out.file("avatar.mp4"), audio=speech, progress=progress)
+        files["avatar_video"] = out.path / "avatar.mp4"
     if info is not None:
         files["info"] = write_json(out.file("info.json"), {**info, "files": {k: p.name for k, p in files.items()}})
     return files
+
+
+def _speech_source(seq: TrackedSequence, source_video: str | None, audio: str | None) -> str | None:
+    """The file whose audio the motion goes with: ``audio`` (given speech), else the source video when the
+    capture found speech in it."""
+    if audio is not None:
+        return audio if seq.meta.get("audio", {}).get("present", True) else None
+    if source_video is not None and seq.meta.get("audio", {}).get("present"):
+        return source_video
+    return None

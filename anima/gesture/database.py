@@ -10,8 +10,30 @@ import numpy as np
 
 from anima.dataset.windows import read_windows
 from anima.errors import InputError
-from anima.gesture.features import T_MATCH, audio_features, pose_features
+from anima.gesture.features import POSE_OFFSETS, T_MATCH, audio_features, pose_features
 from anima.gesture.knn import MatchDB
+
+LOOKAHEAD = max(POSE_OFFSETS)
+
+
+def _with_future(J: np.ndarray, sources: list, starts: list, fps: float) -> list[np.ndarray]:
+    """Each window's joints followed by the next frames of its video where another window holds them (windows
+    overlap), so a pose feature near a window's end looks ahead into the real motion, as it does inside:
+    the last frame of one window and the same frame in the next window get the same feature, and the search
+    continues across window ends exactly."""
+    T = J.shape[1]
+    out = []
+    by_time = {(s, round(t * fps)): i for i, (s, t) in enumerate(zip(sources, starts))}
+    for i, (s, t) in enumerate(zip(sources, starts)):
+        f0 = round(t * fps)
+        ext = J[i]
+        for k in range(1, T):  # a window starting k frames later holds frames T .. T + LOOKAHEAD - 1
+            j = by_time.get((s, f0 + k))
+            if j is not None and T - k + LOOKAHEAD <= T:
+                ext = np.concatenate([J[i], J[j][T - k : T - k + LOOKAHEAD]])
+                break
+        out.append(ext)
+    return out
 
 
 def from_dataset(folder: str | Path, split: str | None = "train") -> MatchDB:
@@ -25,7 +47,8 @@ def from_dataset(folder: str | Path, split: str | None = "train") -> MatchDB:
     J = w.body[keep].reshape(len(keep), T_MATCH, -1, 3)
     S = w.speech[keep]
     F = np.stack([audio_features(s) for s in S])
-    P = np.stack([pose_features(j) for j in J])
+    ext = _with_future(J, [w.source[i] for i in keep], [w.start_s[i] for i in keep], w.fps)
+    P = np.stack([pose_features(j)[:T_MATCH] for j in ext])
     G = w.body[keep]
     src = [(w.source[i], w.start_s[i]) for i in keep]
     return MatchDB(F, P, G, src, S, fps=w.fps)

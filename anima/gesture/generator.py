@@ -37,6 +37,7 @@ from torch import nn
 from anima.core.contract import GESTURE_FPS, HEAD_ROT_DIM, N_BODY_JOINTS, N_EXPR, N_HAND_JOINTS, N_JOINTS, SPEECH_DIM
 from anima.core.skeleton import BODY
 from anima.errors import InputError
+from anima.gesture.post import one_skeleton, skeleton_lengths, smooth
 from anima.gesture.refine import unet_decode, unet_decoder, unet_encode, unet_encoder
 from anima.gesture.sync import SyncClassifier
 from anima.io.checkpoint import load_checkpoint, load_state, rebuilding, save_checkpoint
@@ -45,6 +46,7 @@ KIND = "gesture_generator"
 VERSION = 2  # 1: its own envelope; 2: anima.io.checkpoint
 PARTS = {"face": N_EXPR, "body": 3 * N_BODY_JOINTS + HEAD_ROT_DIM, "hands": 3 * 2 * N_HAND_JOINTS}
 KINDS = ("adversarial", "regression", "lstm")
+SMOOTH_SIGMA = 1.5  # frames: the Gaussian filter seed 004 applies to its generated body, hands and head (§4.5)
 
 
 # ---- representation (pure) ------------------------------------------------------------------------
@@ -144,6 +146,7 @@ class GestureGenerator:
         self.net = net.eval()
         self.cfg = cfg
         self.stats = {k: np.asarray(v, np.float32) for k, v in stats.items()}
+        self.postprocess = True
 
     @property
     def fps(self) -> float:
@@ -161,6 +164,11 @@ class GestureGenerator:
         parts = {p: out[p][0].numpy()[:T] * self.stats[f"{p}_std"] + self.stats[f"{p}_mean"] for p in PARTS}
         parts["face"] = np.clip(parts["face"], 0, 1)
         J, face = join_parts(parts)
+        if self.postprocess:  # the seed's temporal filter (§4.5) and one skeleton: the training data's
+            J = smooth(J, SMOOTH_SIGMA)
+            face[:, N_EXPR:] = smooth(face[:, N_EXPR:], SMOOTH_SIGMA)
+            lengths = self.stats.get("bone_lengths")
+            J = one_skeleton(J, lengths if lengths is not None else skeleton_lengths(J))
         return J.astype(np.float32), face.astype(np.float32)
 
 
@@ -176,12 +184,14 @@ class GeneratorTrainConfig:
     seed: int = 0
 
 
-def part_stats(S: np.ndarray, parts: dict, has_body: np.ndarray) -> dict:
+def part_stats(S: np.ndarray, parts: dict, has_body: np.ndarray, body: np.ndarray | None = None) -> dict:
     st = {"speech_mean": S.reshape(-1, SPEECH_DIM).mean(0), "speech_std": S.reshape(-1, SPEECH_DIM).std(0) + 1e-4}
     for p, d in PARTS.items():
         x = parts[p] if p == "face" else parts[p][has_body]
         x = x.reshape(-1, d)
         st[f"{p}_mean"], st[f"{p}_std"] = x.mean(0), x.std(0) + 1e-4
+    if body is not None and has_body.any():  # the skeleton every output is re-posed on
+        st["bone_lengths"] = skeleton_lengths(body[has_body].reshape(-1, body.shape[1], N_JOINTS, 3))
     return st
 
 
@@ -200,7 +210,7 @@ def train_generator(
     if not has_body.any():
         raise InputError("no training window has a tracked body and hands")
     parts = split_parts(np.where(has_body[:, None, None], body, 0.0), face)
-    stats = part_stats(S, parts, has_body)
+    stats = part_stats(S, parts, has_body, body)
     # w_i: 1 / (each term for the training mean pose), in the data's units (see the module doc)
     mean_pred = {p: torch.from_numpy(np.broadcast_to(stats[f"{p}_mean"], parts[p].shape).copy()) for p in PARTS}
     tgt_raw = {p: torch.from_numpy(parts[p].astype(np.float32)) for p in PARTS}

@@ -6,7 +6,11 @@ and gestures G (64, 165). Every N = 8 frames: per database window, the frame r w
 then the M candidates are ranked by audio (cosine distance of f at r to the input f_t) and by pose, the two
 ranks are added, and the k-th best candidate (0 = best) gives the next N frames.
 
-Two readings of the algorithm's text are made explicit here (both implementations follow them):
+Three readings of the algorithm's text are made explicit here (both implementations follow them):
+* a candidate start r is matched on the pose feature of frame r - 1 (:attr:`MatchDB.P_match`): the previous
+  output's last frame is compared with the frame *before* the start, so a window that continues goes on
+  from r + N. Matching frame r itself (the literal reading) made the best candidate repeat the last output
+  frame at 20-33 % of the joins;
 * a window can only start where N frames fit (r <= T_MATCH - N), so that N output frames exist;
 * a database window with no frame allowed by the control is not a candidate (Algorithm 1 would keep its
   frame 0, which breaks the control).
@@ -27,6 +31,7 @@ import numpy as np
 
 from anima.core.contract import GESTURE_FPS
 from anima.gesture.features import N_STEP, T_MATCH
+from anima.gesture.post import skeleton_lengths
 
 N_PROJ = 48  # principal directions of the pose feature used for the lower bounds
 N_FIRST = 24  # of which the first bound reads the first 24 for every frame
@@ -74,6 +79,34 @@ class MatchDB:
             self.fps,
         )
 
+    @property
+    def P_match(self) -> np.ndarray:
+        """The pose feature each window start is matched on: for a start at frame s, the feature of frame
+        s - 1, the frame the output would have come from. The last output frame's feature then matches the
+        frame that follows it (distance 0 when the same window continues), so the search continues from
+        r + N instead of repeating frame r + N - 1."""
+        if getattr(self, "_pm", None) is None:
+            self._pm = np.ascontiguousarray(np.concatenate([self.P[:, :1], self.P[:, :-1]], 1))
+        return self._pm
+
+    @property
+    def video_frames(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per window: its video (an index) and its first frame in that video's timeline."""
+        if getattr(self, "_vf", None) is None:
+            names = sorted({v for v, _ in self.source}) if self.source else []
+            vid = np.array([names.index(v) for v, _ in self.source]) if self.source else np.arange(self.M)
+            f0 = np.array([round(t * self.fps) for _, t in self.source]) if self.source else np.zeros(self.M, int)
+            self._vf = (vid, f0)
+        return self._vf
+
+    @property
+    def bone_lengths(self) -> np.ndarray:
+        """The database's skeleton: each bone's median length over all its frames (``[55]``, metres); every
+        output is re-posed on it, so switching between speakers does not change the body's size."""
+        if getattr(self, "_lengths", None) is None:
+            self._lengths = skeleton_lengths(self.G.reshape(self.M, self.G.shape[1], -1, 3))
+        return self._lengths
+
     def audio_norms(self) -> np.ndarray:
         """|f| per database frame, computed as the literal search computes it (float64, per row)."""
         if getattr(self, "_fnorm", None) is None:
@@ -90,7 +123,7 @@ class MatchDB:
         first 24 directions are stored [M, 24, T], a lower bound read for every frame (24 bytes per frame),
         the other 24 [M, T, 24], read only for the frames the first bound keeps."""
         if self._layout is None:
-            P = self.P
+            P = self.P_match
             sample = P.reshape(-1, P.shape[-1])[:: max(1, P.shape[0] * P.shape[1] // 20000)].astype(np.float64)
             dims = np.argsort(-sample.var(0), kind="stable")
             mu = sample.mean(0)
@@ -153,11 +186,30 @@ def _cosine(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return 1.0 - (a * b).sum(-1) / np.maximum(na * nb, 1e-12)
 
 
+def recent_mask(db: MatchDB, picks: list, mask: np.ndarray, steps: int) -> np.ndarray:
+    """``mask`` without the starts whose N frames would replay source frames output in the last ``steps``
+    steps (same video, overlapping frames): the output cannot loop over one stretch of motion. A continuation
+    is never affected (its frames are new). Where that leaves no candidate, ``mask`` as it was. Not in the
+    seed (its database had hours of windows to choose from); 0 turns it off."""
+    if steps <= 0 or not picks:
+        return mask
+    vid, f0 = db.video_frames
+    out = mask.copy()
+    s = np.arange(mask.shape[1])
+    for m, r in picks[-steps:]:
+        e = f0[m] + r  # first source frame of that step
+        same = vid == vid[m]
+        start = f0[same][:, None] + s[None]
+        out[same] &= ~((start > e - N_STEP) & (start < e + N_STEP))
+    return out if out.any() else mask
+
+
 def search_literal(
-    db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray, control: list | None = None
+    db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray, control: list | None = None, no_repeat_steps: int = 0
 ) -> tuple[np.ndarray, list]:
     """Algorithm 1 as written (Python loops). ``control``: per search step a (M, T) window-start mask or
-    None. Returns the gestures (T, 165) and the chosen (window, frame) per step."""
+    None; ``no_repeat_steps``: see :func:`recent_mask`. Returns the gestures (T, 165) and the chosen (window,
+    frame) per step."""
     T = len(F_in)
     G, picks = [], []
     p_prev = np.asarray(p_init, np.float64)
@@ -165,12 +217,13 @@ def search_literal(
     step = 0
     while t < T:
         mask = db.start_mask(None) if control is None or control[step] is None else control[step]
+        mask = recent_mask(db, picks, mask, no_repeat_steps)
         cand, pd, fd = [], [], []
         for m in range(db.M):
             r, pdist = -1, np.inf
             for s in range(1, T_MATCH):
-                if mask[m, s]:
-                    d = float(np.sqrt(((db.P[m, s].astype(np.float64) - p_prev) ** 2).sum()))
+                if mask[m, s]:  # the pose feature of frame s - 1 (MatchDB.P_match): the output continues at s
+                    d = float(np.sqrt(((db.P_match[m, s].astype(np.float64) - p_prev) ** 2).sum()))
                     if d < pdist:
                         pdist, r = d, s
             if r < 0:
@@ -337,7 +390,7 @@ def _rank_sum(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
 
 
 def search(
-    db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray, control: list | None = None
+    db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray, control: list | None = None, no_repeat_steps: int = 0
 ) -> tuple[np.ndarray, list]:
     """The same search, fast: a numba pass over all windows and frames per step (partial distance search),
     then the ranking on the M pre-selected candidates. Identical output to :func:`search_literal`."""
@@ -359,6 +412,7 @@ def search(
     comb_buf = np.empty(db.M, np.int64)
     while t < T:
         mask = base if control is None or control[step] is None else control[step]
+        mask = recent_mask(db, picks, mask, no_repeat_steps)
         _preselect(
             L.P,
             L.Qa,

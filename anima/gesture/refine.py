@@ -29,7 +29,9 @@ from torch import nn
 from anima.core.contract import BODY_DIM, SPEECH_DIM
 from anima.core.skeleton import PARENTS
 from anima.errors import InputError
+from anima.gesture.features import N_STEP
 from anima.gesture.knn import search
+from anima.gesture.post import finish_knn
 from anima.io.checkpoint import load_checkpoint, load_state, rebuilding, save_checkpoint
 
 KIND = "gesture_refiner"
@@ -178,9 +180,9 @@ def knn_pairs(db, ks=(0, 1, 2, 3, 4), windows=None):
         sub = db.subset(rest)
         p0 = sub.P.reshape(-1, sub.P.shape[-1]).mean(0)
         for k in ks:
-            g = search(sub, db.F[i], min(k, len(rest) - 1), p0)[0]
+            g = finish_knn(*search(sub, db.F[i], min(k, len(rest) - 1), p0), sub.bone_lengths, N_STEP)
             S.append(db.S[i])
-            K.append(g.reshape(len(g), -1, 3))
+            K.append(g)
             R.append(db.G[i].reshape(len(g), -1, 3))
             W.append(i)
     if not S:

@@ -21,6 +21,7 @@ from anima.gesture.database import from_dataset
 from anima.gesture.features import N_STEP, audio_features
 from anima.gesture.keywords import keyword_masks, parse_keyword, union
 from anima.gesture.knn import search
+from anima.gesture.post import finish_knn, joins_of, one_skeleton
 from anima.io.outdir import OutputFolder
 
 
@@ -42,6 +43,12 @@ class GestureConfig:
     its --keyword-db (repeatable)."""
     keyword_db: list = field(default_factory=list, metadata={"metavar": "WORD=DATASET", "repeat": True})
     """The gesture database of a keyword: a dataset folder (repeatable)."""
+    no_repeat_s: float = field(default=4.0, metadata={"range": (0.0, 60.0)})
+    """Do not replay a stretch of database motion output within the last this-many seconds (variety; 0 = the
+    seed's search, which can loop over a few windows)."""
+    blend: bool = True
+    """Blend the joins between database windows (inertialization over one 8-frame step; off: --no-blend, the
+    seed's raw concatenation)."""
 
 
 def synthesize(
@@ -54,10 +61,13 @@ def synthesize(
     refiner=None,
     keywords: list | None = None,
     keyword_dbs: dict | None = None,
+    blend: bool = True,
+    no_repeat_s: float = 4.0,
 ) -> tuple[np.ndarray, dict]:
     """k-NN search (and, with ``refiner`` from ``anima.gesture.refine.load_refiner``, the cGAN refinement)
     at the database's frame rate. ``keywords`` (``anima.gesture.keywords.Keyword``) switch the search to
-    ``keyword_dbs[word]`` (MatchDB) while the word is spoken."""
+    ``keyword_dbs[word]`` (MatchDB) while the word is spoken. ``blend``: inertialized joins
+    (:mod:`anima.gesture.post`); the output is always re-posed on the database's one skeleton."""
     fps = db.fps
     feats, notes = read_speech(speech_path, fps)
     T = len(feats.features)
@@ -82,12 +92,16 @@ def synthesize(
         masks, used = keyword_masks(db, part, names, keywords or [], n_steps, N_STEP / fps, masks if controls else None)
     if T > db.M * db.P.shape[1]:
         notes.append("the speech is longer than the database: database windows are reused")
-    G, picks = search(db, F_in, k, p0, masks)
-    J = G.reshape(len(G), -1, 3)
-    if refiner is not None:
-        J = refiner.refine(feats.features[: len(J)], J)
+    G, picks = search(db, F_in, k, p0, masks, no_repeat_steps=round(no_repeat_s * fps / N_STEP))
+    J = finish_knn(G, picks, db.bone_lengths, N_STEP, blend=blend)
+    if refiner is not None:  # the refiner works on the blended output, and keeps the one skeleton
+        J = one_skeleton(refiner.refine(feats.features[: len(J)], J), db.bone_lengths)
+    joins = joins_of(picks, N_STEP)
     info = {
         "frames": len(G),
+        "joins_s": [round(t / fps, 3) for t in joins],
+        "distinct_windows": len({m for m, _ in picks}),
+        "blended": blend,
         "fps": fps,
         "controls": report,
         "notes": notes,
@@ -164,7 +178,19 @@ def gesture_to_folder(
                 ref = load_refiner(refiner)
             match_db = from_dataset(db, None if cfg.all_splits else "train")
             kw_dbs = {w: from_dataset(f, None) for w, f in kw_folders.items()}
-            J, info = synthesize(speech, match_db, cfg.k, controls, cfg.init, cfg.seed, ref, keywords, kw_dbs)
+            J, info = synthesize(
+                speech,
+                match_db,
+                cfg.k,
+                controls,
+                cfg.init,
+                cfg.seed,
+                ref,
+                keywords,
+                kw_dbs,
+                blend=cfg.blend,
+                no_repeat_s=cfg.no_repeat_s,
+            )
             face = None
             info = {k: v for k, v in info.items() if k != "picks"} | {"database_windows": match_db.M}
         seq = generated_sequence(

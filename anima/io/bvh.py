@@ -1,11 +1,9 @@
 """BVH (Biovision hierarchy) writer for anima skeletons and a general BVH reader with forward kinematics.
 
-Writer (:func:`write_bvh`): every joint has channels ``Zrotation Xrotation Yrotation`` (the root also
-``Xposition Yposition Zposition``), units centimetres, Y up. Bone lengths are fixed to their median over the
-clip first. **Rest pose**: the clip's reference frame (the first frame where every joint is tracked) with
-those bone lengths; rotations are relative to that pose. Joint positions are turned into rotations with
-:func:`anima.core.bvh_math.positions_to_rotations`. Frames with missing joints hold the nearest tracked
-values (the tracked-sequence file keeps the flags). Leaf joints get an ``End Site`` of zero length.
+Writer (:func:`write_bvh`): a skeleton given by its rest offsets and its motion as root positions and local
+rotations relative to that rest pose; every joint has channels ``Zrotation Xrotation Yrotation`` (the root
+also ``Xposition Yposition Zposition``), units centimetres, Y up. anima's exports write the canonical rig
+(``anima.core.rig``: T-pose rest, conventional names) through it (``anima.export.formats.export_bvh``).
 
 Reader (:func:`read_bvh`): any channel order, position channels on any joint, End Sites; returns names,
 parents, offsets, frame time and joint positions by forward kinematics.
@@ -21,11 +19,8 @@ import numpy as np
 from anima.core.bvh_math import (
     axis_matrix,
     forward_kinematics,
-    local_rotations,
     matrix_to_euler_zxy,
-    positions_to_rotations,
 )
-from anima.core.skeleton import fix_bone_lengths
 from anima.errors import InputError
 from anima.io.atomic import write_text
 
@@ -135,46 +130,25 @@ def read_bvh(path: str | Path) -> BVH:
     )
 
 
-def _hold_missing(P: np.ndarray) -> np.ndarray:
-    P = P.copy()
-    F = len(P)
-    for j in range(P.shape[1]):
-        ok = np.isfinite(P[:, j]).all(-1)
-        if ok.all() or not ok.any():
-            continue
-        idx = np.flatnonzero(ok)
-        near = idx[np.clip(np.searchsorted(idx, np.arange(F)), 0, len(idx) - 1)]
-        prev = idx[np.clip(np.searchsorted(idx, np.arange(F)) - 1, 0, len(idx) - 1)]
-        pick = np.where(np.abs(prev - np.arange(F)) < np.abs(near - np.arange(F)), prev, near)
-        P[~ok, j] = P[pick[~ok], j]
-    return P
-
-
-def skeleton_rest_offsets(P: np.ndarray, parents: np.ndarray) -> tuple[np.ndarray, int]:
-    """Rest offsets ``[J, 3]`` (reference frame's bone directions, median bone lengths) and the reference
-    frame index."""
-    ok = np.isfinite(P).all((1, 2))
-    if not ok.any():
-        raise InputError("no frame where every joint is tracked: cannot define a rest pose")
-    ref = int(np.flatnonzero(ok)[0])
-    par = np.where(parents < 0, 0, parents)
-    vec = P - P[:, par]
-    lengths = np.nanmedian(np.linalg.norm(vec, axis=-1), 0)
-    d = vec[ref]
-    n = np.linalg.norm(d, axis=-1, keepdims=True)
-    off = np.where(n > 1e-9, d / np.maximum(n, 1e-9), 0.0) * lengths[:, None]
-    off[parents < 0] = P[ref, parents < 0]
-    return off, ref
-
-
-def write_bvh(path: str | Path, joints_m: np.ndarray, names: list[str], parents: np.ndarray, fps: float) -> Path:
-    """Write joint positions ``[F, J, 3]`` (metres) as a BVH in centimetres."""
+def write_bvh(
+    path: str | Path,
+    names: list[str],
+    parents: np.ndarray,
+    offsets_m: np.ndarray,
+    root_m: np.ndarray,
+    local_rotations_: np.ndarray,
+    fps: float,
+    end_sites_m: np.ndarray | None = None,
+) -> Path:
+    """Write a skeleton and its motion as BVH, in centimetres: rest offsets ``[J, 3]`` (the rest pose: every
+    local rotation identity), root positions ``[F, 3]``, local rotations ``[F, J, 3, 3]`` relative to the rest
+    pose (channels Zrotation Xrotation Yrotation; the root also Xposition Yposition Zposition), and for each
+    leaf an End Site ``end_sites_m[j]`` (default zero). Written atomically."""
     parents = np.asarray(parents)
-    P = fix_bone_lengths(_hold_missing(np.asarray(joints_m, np.float64)) * M_TO_CM, parents=parents)
-    offsets, _ = skeleton_rest_offsets(P, parents)
-    G = positions_to_rotations(P, parents, offsets)
-    L = local_rotations(G, parents)
-    eul = matrix_to_euler_zxy(L)  # (F, J, 3)
+    offsets = np.asarray(offsets_m, np.float64) * M_TO_CM
+    root = np.asarray(root_m, np.float64) * M_TO_CM
+    ends = np.zeros_like(offsets) if end_sites_m is None else np.asarray(end_sites_m, np.float64) * M_TO_CM
+    eul = matrix_to_euler_zxy(local_rotations_)  # (F, J, 3)
     kids = {j: [int(c) for c in np.flatnonzero(parents == j)] for j in range(len(names))}
     lines = ["HIERARCHY"]
 
@@ -192,9 +166,10 @@ def write_bvh(path: str | Path, joints_m: np.ndarray, names: list[str], parents:
         for c in kids[j]:
             emit(c, depth + 1)
         if not kids[j]:
+            e = ends[j]
             lines.append(f"{ind}\tEnd Site")
             lines.append(f"{ind}\t{{")
-            lines.append(f"{ind}\t\tOFFSET 0.000000 0.000000 0.000000")
+            lines.append(f"{ind}\t\tOFFSET {e[0]:.6f} {e[1]:.6f} {e[2]:.6f}")
             lines.append(f"{ind}\t}}")
         lines.append(f"{ind}}}")
 
@@ -205,12 +180,12 @@ def write_bvh(path: str | Path, joints_m: np.ndarray, names: list[str], parents:
         for c in kids[j]:
             dfs(c)
 
-    root = int(np.flatnonzero(parents < 0)[0])
-    emit(root, 0)
-    dfs(root)
-    lines += ["MOTION", f"Frames: {len(P)}", f"Frame Time: {1.0 / fps:.8f}"]
-    for f in range(len(P)):
-        row = [*P[f, root]] + [v for j in order for v in eul[f, j]]
+    r = int(np.flatnonzero(parents < 0)[0])
+    emit(r, 0)
+    dfs(r)
+    lines += ["MOTION", f"Frames: {len(root)}", f"Frame Time: {1.0 / fps:.8f}"]
+    for f in range(len(root)):
+        row = [*root[f]] + [v for j in order for v in eul[f, j]]
         lines.append(" ".join(f"{v:.5f}" for v in row))
     return write_text(path, "\n".join(lines) + "\n")
 

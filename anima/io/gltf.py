@@ -88,6 +88,121 @@ def write_glb(
             samplers.append({"input": t_acc, "output": r_acc, "interpolation": "LINEAR"})
             channels.append({"sampler": 1, "target": {"node": 0, "path": "rotation"}})
         gltf["animations"] = [{"name": "capture", "samplers": samplers, "channels": channels}]
+    return _pack(path, gltf, buf)
+
+
+UBYTE, USHORT = 5121, 5123
+
+
+def write_avatar_glb(
+    path: str | Path,
+    joint_names: list[str],
+    parents: np.ndarray,
+    rest_offsets_m: np.ndarray,
+    root_positions_m: np.ndarray,
+    local_quats_xyzw: np.ndarray,
+    head_joint: int,
+    head_vertices_m: np.ndarray,
+    tris: np.ndarray,
+    expr_deltas_m: np.ndarray,
+    expr_names: list[str],
+    weights: np.ndarray,
+    fps: float,
+    extras: dict | None = None,
+) -> Path:
+    """A skeleton and a head in one animated glTF 2.0 binary (one timeline):
+
+    * one node per joint (``joint_names``, ``parents``), rest translation ``rest_offsets_m [J, 3]``, the rest
+      pose's rotations identity; a skin over all of them (inverse bind matrices of the rest pose);
+    * the head mesh ``head_vertices_m [V, 3]`` (in the rest pose, metres) skinned wholly to ``head_joint``,
+      with ``expr_deltas_m [E, V, 3]`` as morph targets named ``expr_names`` (``mesh.extras.targetNames``);
+    * one animation: the root's translation ``[F, 3]``, every joint's local rotation ``[F, J, 4]`` (x, y, z, w)
+      and the morph ``weights [F, E]``, LINEAR, at ``fps``.
+    """
+    J = len(joint_names)
+    F = len(root_positions_m)
+    buf = _Buffer()
+    nodes = []
+    for j in range(J):
+        nodes.append({"name": joint_names[j], "translation": [float(x) for x in rest_offsets_m[j]]})
+    for j in range(J):
+        kids = [int(c) for c in np.flatnonzero(np.asarray(parents) == j)]
+        if kids:
+            nodes[j]["children"] = kids
+    rest = np.zeros((J, 3))
+    for j in range(J):
+        rest[j] = (rest[parents[j]] if parents[j] >= 0 else 0.0) + rest_offsets_m[j]
+    ibm = np.tile(np.eye(4, dtype=np.float32), (J, 1, 1))
+    ibm[:, :3, 3] = -rest
+    ibm_acc = buf.add(ibm.transpose(0, 2, 1).reshape(J, 16), FLOAT, "MAT4")  # column-major
+    pos = buf.add(np.asarray(head_vertices_m, np.float32), FLOAT, "VEC3", ARRAY_BUFFER, minmax=True)
+    idx = buf.add(np.asarray(tris, np.uint32).ravel(), UINT, "SCALAR", ELEMENT_ARRAY_BUFFER)
+    V = len(head_vertices_m)
+    jnt = np.zeros((V, 4), np.uint16 if J > 255 else np.uint8)
+    jnt[:, 0] = head_joint
+    jnt_acc = buf.add(jnt, USHORT if J > 255 else UBYTE, "VEC4", ARRAY_BUFFER)
+    wgt = np.zeros((V, 4), np.float32)
+    wgt[:, 0] = 1.0
+    wgt_acc = buf.add(wgt, FLOAT, "VEC4", ARRAY_BUFFER)
+    targets = [
+        {"POSITION": buf.add(np.asarray(d, np.float32), FLOAT, "VEC3", ARRAY_BUFFER, minmax=True)}
+        for d in expr_deltas_m
+    ]
+    mesh_node = len(nodes)
+    nodes.append({"name": "head_mesh", "mesh": 0, "skin": 0})
+    root = int(np.flatnonzero(np.asarray(parents) < 0)[0])
+    times = (np.arange(F, dtype=np.float32) / np.float32(fps)).astype(np.float32)
+    t_acc = buf.add(times, FLOAT, "SCALAR", minmax=True)
+    samplers = [
+        {
+            "input": t_acc,
+            "output": buf.add(np.asarray(root_positions_m, np.float32), FLOAT, "VEC3"),
+            "interpolation": "LINEAR",
+        }
+    ]
+    channels = [{"sampler": 0, "target": {"node": root, "path": "translation"}}]
+    q = np.asarray(local_quats_xyzw, np.float64)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    for j in range(J):
+        samplers.append(
+            {"input": t_acc, "output": buf.add(q[:, j].astype(np.float32), FLOAT, "VEC4"), "interpolation": "LINEAR"}
+        )
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": j, "path": "rotation"}})
+    samplers.append(
+        {
+            "input": t_acc,
+            "output": buf.add(np.clip(weights, 0, 1).astype(np.float32).ravel(), FLOAT, "SCALAR"),
+            "interpolation": "LINEAR",
+        }
+    )
+    channels.append({"sampler": len(samplers) - 1, "target": {"node": mesh_node, "path": "weights"}})
+    gltf = {
+        "asset": {"version": "2.0", "generator": "anima", **({"extras": extras} if extras else {})},
+        "scene": 0,
+        "scenes": [{"name": "avatar", "nodes": [root, mesh_node]}],
+        "nodes": nodes,
+        "skins": [{"name": "rig", "joints": list(range(J)), "skeleton": root, "inverseBindMatrices": ibm_acc}],
+        "meshes": [
+            {
+                "name": "ict_head",
+                "primitives": [
+                    {
+                        "attributes": {"POSITION": pos, "JOINTS_0": jnt_acc, "WEIGHTS_0": wgt_acc},
+                        "indices": idx,
+                        "targets": targets,
+                        "mode": 4,
+                    }
+                ],
+                "weights": [0.0] * len(targets),
+                "extras": {"targetNames": list(expr_names)},
+            }
+        ],
+        "animations": [{"name": "motion", "samplers": samplers, "channels": channels}],
+    }
+    return _pack(path, gltf, buf)
+
+
+def _pack(path, gltf: dict, buf: _Buffer) -> Path:
     while len(buf.data) % 4:
         buf.data += b"\0"
     gltf["buffers"] = [{"byteLength": len(buf.data)}]

@@ -88,6 +88,10 @@ def test_generator_trains_and_generates_any_length(windows, kind, tmp_path):
     J, face = gen.generate(windows.speech[0][:37])  # fully convolutional: any length
     assert J.shape == (37, 55, 3) and face.shape == (37, 56) and np.isfinite(J).all()
     assert (face[:, :53] >= 0).all() and (face[:, :53] <= 1).all()
+    from anima.core.skeleton import bone_lengths
+
+    L = bone_lengths(J)[:, 1:]  # the output keeps the training data's skeleton: no bone changes length
+    np.testing.assert_allclose(L, np.broadcast_to(gen.stats["bone_lengths"][1:], L.shape), atol=1e-5)
     again = load_generator(save_generator(tmp_path / "g.pt", gen, info))
     np.testing.assert_allclose(again.generate(windows.speech[1])[0], gen.generate(windows.speech[1])[0], atol=1e-6)
 

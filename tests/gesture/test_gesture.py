@@ -55,6 +55,10 @@ def test_fast_search_equals_algorithm_1(db):
     a, pa = search_literal(db, F_in, 0, p0, masks)
     b, pb = search(db, F_in, 0, p0, masks)
     assert pa == pb and np.array_equal(a, b)
+    for n in (2, 4):  # with the no-repeat rule
+        a, pa = search_literal(db, F_in, 0, p0, masks, no_repeat_steps=n)
+        b, pb = search(db, F_in, 0, p0, masks, no_repeat_steps=n)
+        assert pa == pb and np.array_equal(a, b)
 
 
 def test_fast_search_equals_algorithm_1_on_a_larger_perturbed_database(db):
@@ -120,7 +124,7 @@ def test_gesture_command_outputs_and_bad_inputs(ds, tmp_path, cli):
     J = read_sequence(out / "gesture.npz").body_joints
     assert J.shape == (61, 55, 3) and np.isfinite(J).all()
     assert (out / "body.bvh").read_text().startswith("HIERARCHY")
-    assert probe_video(out / "skeleton3d.mp4").has_audio
+    assert probe_video(out / "avatar.mp4").has_audio and (out / "speech.wav").is_file()
     r = cli("gesture", str(wav44), "--db", str(ds), "--out", str(tmp_path / "x"), "--control", "elbow_twist>=p50")
     assert r.returncode == 2 and "unknown control" in r.stderr and "Traceback" not in r.stderr
     short = tmp_path / "short.wav"
@@ -240,3 +244,54 @@ def test_sync_pairs_take_off_sync_gestures_from_other_windows():
     import torch
 
     assert SyncClassifier()(torch.from_numpy(s[:4]), torch.from_numpy(g[:4])).shape == (4,)
+
+
+def test_joins_continue_without_repeating_and_blend(db, tmp_path):
+    """On real windows and unseen speech: the search continues from r + 8 (no join repeats the last frame), the
+    output keeps one skeleton, and blended joins move the wrists no more than the frames inside windows do."""
+    from anima.core.skeleton import JOINT_NAMES, PARENTS
+    from anima.gesture.post import joins_of
+    from anima.gesture.run import synthesize
+
+    speech = tmp_path / "s.wav"
+    subprocess.run([FFMPEG, "-v", "error", "-y", "-i", str(asset(SPEECH)), "-t", "8", "-vn", str(speech)], check=True)
+    raw, info_raw = synthesize(str(speech), db, blend=False)
+    J, info = synthesize(str(speech), db)
+    picks = info["picks"]
+    steps = np.arange(len(picks)) * 8
+    assert not any((raw[t] == raw[t - 1]).all() for t in steps[1:])  # no repeated frame at any step
+    L = np.linalg.norm(J - J[:, np.maximum(PARENTS, 0)], axis=-1)
+    assert np.allclose(L, L[:1], atol=1e-6)  # one skeleton over the whole output
+    w = [JOINT_NAMES.index("left_wrist"), JOINT_NAMES.index("right_wrist")]
+    joins = joins_of(picks, 8)
+    assert joins and info["joins_s"] == [round(t / 15.0, 3) for t in joins]
+
+    def step(X):
+        d = np.linalg.norm(np.diff(X[:, w], axis=0), axis=-1).mean(-1)  # per-frame wrist displacement
+        at = np.array(joins) - 1
+        inside = np.setdiff1d(np.arange(len(d)), at)
+        return d[at].mean(), d[inside].mean()
+
+    j_raw, in_raw = step(raw)
+    j_bl, in_bl = step(J)
+    assert j_bl < j_raw and j_bl < 1.5 * in_bl, (j_raw, in_raw, j_bl, in_bl)
+
+
+def test_no_repeat_keeps_variety_under_a_control(db):
+    """A control narrows the database; without the no-repeat rule the output loops over a few windows. With it,
+    a controlled output uses at least half as many distinct database windows as an uncontrolled one."""
+    from anima.audio.features import features_for_file
+    from anima.gesture.control import parse_control, step_masks
+    from anima.gesture.features import audio_features
+    from anima.gesture.knn import search
+
+    F_in = audio_features(features_for_file(asset(SPEECH), 15.0).features)
+    steps = -(-len(F_in) // 8)
+    p0 = db.P.reshape(-1, 96).mean(0)
+    masks, _ = step_masks(db, [parse_control("left_wrist_height>=p70")], steps, 8 / 15)
+
+    def distinct(masks, n):
+        return len({(m, r // 8) for m, r in search(db, F_in, 0, p0, masks, no_repeat_steps=n)[1]})
+
+    free, looped, varied = distinct(None, 8), distinct(masks, 0), distinct(masks, 8)
+    assert varied > looped and varied >= free / 2, (free, looped, varied)

@@ -3,10 +3,9 @@ import glob
 import numpy as np
 import pytest
 
-from anima.core.skeleton import JOINT_NAMES, PARENTS, fix_bone_lengths
 from anima.errors import InputError
 from anima.io.assets import asset
-from anima.io.bvh import bvh_to_anima_order, read_bvh, write_bvh
+from anima.io.bvh import read_bvh
 
 
 def test_reader_on_third_party_files():
@@ -34,15 +33,25 @@ def test_reader_rejects_garbage(tmp_path):
 
 
 def test_capture_to_bvh_round_trip_under_1cm(tmp_path):
+    """A real capture exported to BVH and read back: the canonical rig's names, its T-pose rest, and forward
+    kinematics of the file within 1 cm of the rig's posed joints (the clip's motion with the rig's bone
+    lengths)."""
     from anima.capture.pipeline import CaptureConfig, capture_video
+    from anima.core import rig
+    from anima.export.formats import export_bvh
 
     clip = "gesture-video/pats-crops/oliver1_gt.mp4"
     seq = capture_video(str(asset(clip)), CaptureConfig(max_frames=120), progress=False)
-    p = write_bvh(tmp_path / "a.bvh", seq.body_joints, JOINT_NAMES, PARENTS, seq.fps)
+    p = export_bvh(seq, tmp_path / "a.bvh")
     b = read_bvh(p)
-    assert sorted(b.names) == sorted(JOINT_NAMES) and b.frame_time == pytest.approx(1 / seq.fps)
-    back = bvh_to_anima_order(b, JOINT_NAMES) / 100.0
-    ref = fix_bone_lengths(seq.body_joints)  # the BVH carries fixed (median) bone lengths
-    ok = np.isfinite(ref).all(-1)
-    err = np.linalg.norm(back - ref, axis=-1)[ok]
-    assert err.mean() < 0.01, err.mean()
+    assert b.names == rig.NAMES and b.frame_time == pytest.approx(1 / seq.fps)
+    lengths, _ = rig.measure_lengths(seq.body_joints)
+    np.testing.assert_allclose(b.offsets[1:] / 100.0, rig.rest_offsets(lengths)[1:], atol=1e-5)  # T-pose rest
+    arm = b.offsets[rig.NAMES.index("LeftForeArm")]
+    assert arm[0] > 0 and abs(arm[1]) < 1e-6 and abs(arm[2]) < 1e-6  # the left upper arm out along +x
+    ref = rig.pose_on_rig(seq.body_joints, lengths)
+    err = np.linalg.norm(b.positions() / 100.0 - ref, axis=-1)
+    assert err.mean() < 0.01 and err.max() < 0.02, (err.mean(), err.max())
+    # one skeleton: every frame has the rig's bone lengths
+    L = np.linalg.norm(b.positions() - b.positions()[:, np.maximum(b.parents, 0)], axis=-1)[:, 1:]
+    assert np.allclose(L, np.linalg.norm(b.offsets[1:], axis=-1), atol=1e-3)

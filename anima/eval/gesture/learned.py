@@ -28,6 +28,7 @@ from anima.facemodel.ict import load_face_model
 from anima.gesture.control import control_features
 from anima.gesture.fgd import train_fgd
 from anima.gesture.generator import KINDS, GeneratorConfig, GeneratorTrainConfig, train_generator
+from anima.gesture.post import one_skeleton
 from anima.gesture.refine import RefinerTrainConfig, train_refiner
 from anima.gesture.sync import accuracy, train_sync
 
@@ -68,7 +69,7 @@ def refiner_rows(db, kept: dict, ks, folds: int, steps: int | None, progress: bo
         )
         for i in test:
             gt = db.G[i].reshape(T, -1, 3)
-            outs = [ref.refine(db.S[i], o) for o in kept["outs"][i]]
+            outs = [one_skeleton(ref.refine(db.S[i], o), db.bone_lengths) for o in kept["outs"][i]]
             g = outs[0]
             kept.setdefault("refined", {})[i] = g
             res["l1_cm"].append(l1_cm(g, gt))
@@ -82,7 +83,8 @@ def refiner_rows(db, kept: dict, ks, folds: int, steps: int | None, progress: bo
             adherence["none"]["values"].append(control_features(g.reshape(1, T, -1), fps))
             for c, per in kept["ctrl"].items():
                 out, thr = per[i]
-                adherence[c]["values"].append(control_features(ref.refine(db.S[i], out).reshape(1, T, -1), fps))
+                refined = one_skeleton(ref.refine(db.S[i], out), db.bone_lengths)
+                adherence[c]["values"].append(control_features(refined.reshape(1, T, -1), fps))
                 adherence[c].setdefault("thresholds", []).append(thr)
     return {
         "protocol": f"{folds}-fold cross-validation by video; WGAN-GP, {cfg.critic_steps} critic steps per "

@@ -43,20 +43,25 @@ from anima.gesture.control import control_features, parse_control, step_masks
 from anima.gesture.database import from_dataset
 from anima.gesture.features import N_STEP
 from anima.gesture.knn import search
+from anima.gesture.post import finish_knn
+from anima.gesture.run import GestureConfig
 
+NO_REPEAT_S = GestureConfig().no_repeat_s
 CONTROLS = ["left_wrist_height>=p85", "left_wrist_height<=p15", "left_wrist_speed>=p85", "left_wrist_speed<=p15"]
 
 
-def knn_rows(db, ks) -> tuple[dict, dict, dict]:
+def knn_rows(db, ks, blend: bool = True) -> tuple[dict, dict, dict]:
     """Leave-one-video-out k-NN synthesis of every window: (metrics per window, table 5.3 adherence, what the
     learned rows reuse: per window the k-NN outputs, the controlled outputs and the audio onsets)."""
     T, fps = db.G.shape[1], db.fps
+    no_repeat = round(NO_REPEAT_S * fps / N_STEP) if blend else 0  # the command's defaults (--no-blend: the seed)
     by_video = defaultdict(list)
     for i, (src, _) in enumerate(db.source):
         by_video[src].append(i)
     res = defaultdict(list)
     adherence = {c: {"values": []} for c in ["none"] + CONTROLS}
     kept = {"outs": {}, "ctrl": defaultdict(dict), "onsets": {}}
+    distinct = defaultdict(list)  # database windows used per synthesis (variety), uncontrolled and per control
     for idx in by_video.values():
         own = set(idx)
         sub = db.subset([i for i in range(db.M) if i not in own])
@@ -67,8 +72,10 @@ def knn_rows(db, ks) -> tuple[dict, dict, dict]:
             controlled[c] = (masks, rep[0]["relaxed_to"] if rep[0]["relaxed_to"] is not None else rep[0]["threshold"])
         for i in idx:
             F_in, gt = db.F[i], db.G[i].reshape(T, -1, 3)
-            outs = [search(sub, F_in, k, p0)[0].reshape(T, -1, 3) for k in ks]
+            found = [search(sub, F_in, k, p0, no_repeat_steps=no_repeat) for k in ks]
+            outs = [finish_knn(G, picks, sub.bone_lengths, N_STEP, blend) for G, picks in found]
             g = outs[0]
+            distinct["none"].append(len({m for m, _ in found[0][1]}))
             on = audio_onsets(db.S[i], fps)
             res["l1_cm"].append(l1_cm(g, gt))
             res["diversity_cm"].append(diversity_cm(outs))
@@ -81,11 +88,16 @@ def knn_rows(db, ks) -> tuple[dict, dict, dict]:
             res["beat_consistency_captured"].append(beat_consistency(gt, on, fps))
             adherence["none"]["values"].append(control_features(g.reshape(1, T, -1), fps))
             for c, (masks, thr) in controlled.items():
-                out = search(sub, F_in, 0, p0, masks)[0].reshape(1, T, -1)
+                G, picks = search(sub, F_in, 0, p0, masks, no_repeat_steps=no_repeat)
+                distinct[c].append(len({m for m, _ in picks}))
+                out = finish_knn(G, picks, sub.bone_lengths, N_STEP, blend).reshape(1, T, -1)
                 adherence[c]["values"].append(control_features(out, fps))
                 adherence[c].setdefault("thresholds", []).append(thr)
                 kept["ctrl"][c][i] = (out[0].reshape(T, -1, 3), thr)
-    return res, adherence_table(adherence, T), kept
+    table = adherence_table(adherence, T)
+    for c, v in distinct.items():
+        table[c]["distinct_windows_per_synthesis"] = float(np.mean(v))
+    return res, table, kept
 
 
 def evaluate(
@@ -97,6 +109,7 @@ def evaluate(
     sync_steps: int = 300,
     generator_steps: int | None = None,
     speaker: str | None = None,
+    blend: bool = True,
 ) -> dict:
     """``speaker``: evaluate on that speaker's windows only (databases, training and tests), the seed's
     subject-specific protocol; default: all speakers together."""
@@ -111,13 +124,14 @@ def evaluate(
     if len(videos) < 2:
         raise InputError("leave-one-video-out needs windows from at least two videos")
     window_s = db.G.shape[1] / db.fps
-    res, table, kept = knn_rows(db, ks)
+    res, table, kept = knn_rows(db, ks, blend)
     starts = defaultdict(list)
     for src, st in db.source:
         starts[src].append(st)
     out = {
         "protocol": __doc__.split("\n\n", 1)[1].strip(),
         "speaker": speaker or "all",
+        "joins": "inertialized over one step, one skeleton" if blend else "raw concatenation (--no-blend)",
         "videos": len(videos),
         "windows": db.M,
         "fps": db.fps,

@@ -1,0 +1,81 @@
+"""Post-processing of generated gestures so an animator can use them (pure functions on ``[T, 55, 3]`` metres):
+
+* :func:`blend_joins`: the k-NN output is a chain of N-frame windows; at each join where the output switches
+  to another place of the database, the jump in position and velocity is carried as an offset that decays to
+  zero over the next window (inertialization: a cubic Hermite from the offset and its velocity to zero with
+  zero velocity). The chosen frames' content is kept: only the offset is added, and it is zero where a
+  window continues the previous one.
+* :func:`one_skeleton`: every frame re-posed with one set of bone lengths (each bone keeps its direction), so
+  the output does not change size when it switches between speakers.
+* :func:`smooth`: the seed's temporal filter of the learned generators' output (Gaussian, sigma 1.5 frames,
+  seed 004 §4.5).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from anima.core.filters import gaussian_smooth
+from anima.core.skeleton import PARENTS, bone_lengths, fix_bone_lengths
+
+
+def joins_of(picks: list[tuple[int, int]], n_step: int) -> list[int]:
+    """Output frames where the search switched place: step i starts at frame i * n_step, and is a join unless
+    it continues the previous step's window (same window, start ``r + n_step``)."""
+    out = []
+    for i in range(1, len(picks)):
+        (m0, r0), (m1, r1) = picks[i - 1], picks[i]
+        if not (m1 == m0 and r1 == r0 + n_step):
+            out.append(i * n_step)
+    return out
+
+
+def blend_joins(J: np.ndarray, joins: list[int], length: int) -> np.ndarray:
+    """Inertialized joins (see the module docstring) over ``length`` frames after each join."""
+    out = np.array(J, np.float64, copy=True)
+    T = len(out)
+    for t in joins:
+        if t < 2 or t >= T:
+            continue
+        prev_v = out[t - 1] - out[t - 2]
+        new_v = (J[t + 1] - J[t]) if t + 1 < T else prev_v
+        o0 = out[t - 1] + prev_v - J[t]  # where the motion was heading minus where the new window starts
+        v0 = prev_v - new_v
+        n = min(length, T - t)
+        u = np.arange(n) / length
+        h00 = 2 * u**3 - 3 * u**2 + 1
+        h10 = u**3 - 2 * u**2 + u
+        out[t : t + n] = J[t : t + n] + h00[:, None, None] * o0 + (h10 * length)[:, None, None] * v0
+    return out.astype(np.asarray(J).dtype)
+
+
+def skeleton_lengths(J: np.ndarray) -> np.ndarray:
+    """Per-bone median length over every frame of ``J [..., T, 55, 3]`` (one skeleton for an output)."""
+    L = bone_lengths(np.asarray(J, np.float64).reshape(-1, *np.shape(J)[-2:]))
+    return np.nan_to_num(np.nanmedian(L, axis=0))
+
+
+def one_skeleton(J: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """Every frame with the bone ``lengths`` (directions kept, from the root outwards)."""
+    return fix_bone_lengths(np.asarray(J, np.float64), lengths, PARENTS).astype(np.asarray(J).dtype)
+
+
+def smooth(x: np.ndarray, sigma: float = 1.5) -> np.ndarray:
+    """Zero-phase Gaussian smoothing over time (axis 0)."""
+    shape = np.shape(x)
+    return (
+        gaussian_smooth(np.asarray(x, np.float64).reshape(shape[0], -1), sigma)
+        .reshape(shape)
+        .astype(np.asarray(x).dtype)
+    )
+
+
+def finish_knn(
+    G: np.ndarray, picks: list[tuple[int, int]], lengths: np.ndarray, n_step: int, blend: bool = True
+) -> np.ndarray:
+    """The k-NN search's raw output ``G [T, 165]`` -> joints ``[T, 55, 3]``: joins blended over one step,
+    then one skeleton (``lengths``, e.g. :attr:`MatchDB.bone_lengths`)."""
+    J = np.asarray(G).reshape(len(G), -1, 3)
+    if blend:
+        J = blend_joins(J, joins_of(picks, n_step), n_step)
+    return one_skeleton(J, lengths)
