@@ -27,7 +27,8 @@ LAYERS: dict[str, int] = {
     "dataset": 6,  # stage: tracked sequences -> training pairs
     "text2face": 7,
     "gesture": 7,
-    "reenact": 7,  # features (independent of each other)
+    "reenact": 7,
+    "view": 7,  # features (independent of each other)
     "eval": 8,  # metrics and evaluation runners
     "cli": 9,
     "__main__": 10,  # the command line, and `python -m anima`

@@ -15,17 +15,18 @@ os.environ.setdefault("GLOG_minloglevel", "2")
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
 from anima import __version__
-from anima.cli import audio, capture, dataset, evaluate, facemodel, generate, reenact, train
+from anima.cli import audio, capture, dataset, evaluate, facemodel, generate, reenact, train, view
 from anima.errors import AnimaError
 
-GROUPS = (capture, audio, dataset, train, generate, reenact, evaluate, facemodel)
+GROUPS = (capture, audio, dataset, train, generate, reenact, evaluate, facemodel, view)
 
 
 class Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line on stderr (``anima: error: ...``) and exit code 2."""
 
     def error(self, message: str):
-        self.exit(2, f"anima: error: {self.prog.removeprefix('anima ') or 'anima'}: {message} (see --help)\n")
+        where = self.prog.removeprefix("anima").strip()
+        self.exit(2, f"anima: error: {where + ': ' if where else ''}{message} (see --help)\n")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -102,7 +102,15 @@ def step_masks(
                 stacklevel=2,
             )
         masks_by_control.append(fm)
-        report.append({"control": c.text, "threshold": thr, "relaxed_to": relaxed_to})
+        report.append(
+            {
+                "control": c.text,
+                "threshold": thr,
+                "relaxed_to": relaxed_to,
+                "start_s": c.start_s,
+                "end_s": None if c.end_s == float("inf") else c.end_s,
+            }
+        )
     out = []
     for k in range(n_steps):
         t = k * step_s

@@ -3,6 +3,7 @@ its real frame rate) re-enactment on a target database."""
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 import warnings
@@ -18,6 +19,7 @@ from anima.core.camera import mediapipe_to_camera
 from anima.errors import InputError
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
+from anima.io.atomic import write_json
 from anima.io.outdir import check_out_file
 from anima.io.validate import input_file
 from anima.io.video import VideoWriter, iter_frames, probe_video
@@ -346,4 +348,17 @@ def run_reenact(
         check_out_file(db_path, "--db")
     if live is not None:
         return reenact_live(live, targets, out, cfg, db_path, max_seconds, progress=progress)
-    return reenact_video(actor, targets, out, cfg, sbs, db_path, progress=progress)
+    r = reenact_video(actor, targets, out, cfg, sbs, db_path, progress=progress)
+    write_json(
+        Path(out).with_suffix(".json"),
+        {
+            "schema": "anima.reenact_run",
+            "version": 1,
+            "actor": str(actor),
+            "targets": [str(t) for t in targets],
+            "side_by_side": sbs,
+            "config": dataclasses.asdict(cfg),
+            "result": r,
+        },
+    )
+    return r

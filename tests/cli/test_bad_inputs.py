@@ -530,6 +530,20 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
     for v in ("0", "-1", "nan", "abc"):
         add(f"facemodel landmarks68 --radius {v}", "facemodel", "landmarks68", "--radius", v, "--out", out / "l.json")
 
+    # anima view: every crafted sequence in a result folder, every broken dataset, and bad places to write to
+    for k in seq_bad:
+        f = d / "view_in" / k
+        f.mkdir(parents=True, exist_ok=True)
+        (f / "capture.npz").write_bytes(Path(npz[k]).read_bytes())
+        add(f"view capture.npz {k}", "view", f, "--static", out / f"v_{k}")
+    for k, f in ds.items():
+        add(f"view dataset {k}", "view", f, "--static", out / f"vd_{k}")
+    for k in ("missing", "text", "empty", "dir"):
+        add(f"view folder {k}", "view", files[k], "--no-browser")
+    add("view --static is a file", "view", d / "view_in" / seq_bad[0], "--static", files["text"])
+    for v in ("0", "-1", "65536", "abc"):
+        add(f"view --port {v}", "view", files["dir"], "--port", v, "--no-browser")
+
     add("unknown command", "fly")
     add("unknown option", "info", "--frobnicate")
     add("eval unknown", "eval", "everything")

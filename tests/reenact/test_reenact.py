@@ -146,6 +146,15 @@ def test_reenact_command_end_to_end(obama_db, tmp_path, cli):
     assert info.has_audio and info.n_frames == probe_video(asset(ACTOR)).n_frames
     assert info.width > info.height  # actor | output
     assert "frame rates differ" in r.stderr  # 22 fps actor on a 30 fps target is handled and said
+    # the run's record beside the video, which `anima view` reads (the video or its folder)
+    rec = json.loads(out.with_suffix(".json").read_text())
+    assert rec["schema"] == "anima.reenact_run" and rec["result"]["frames"] == info.n_frames
+    assert rec["side_by_side"] and rec["config"]["n"] == 100
+    r = cli("view", out, "--static", tmp_path / "page")
+    assert r.returncode == 0, r.stderr
+    assert "reenact page written" in r.stdout and (tmp_path / "page" / "re.mp4").is_file()
+    data = json.loads((tmp_path / "page" / "view-data.js").read_text().split("=", 1)[1].rstrip().rstrip(";"))
+    assert data["kind"] == "reenact" and data["videos"] == [{"file": "re.mp4", "role": "re-enactment (actor | output)"}]
 
 
 def test_reenact_bad_inputs(tmp_path, cli):

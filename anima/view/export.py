@@ -1,0 +1,307 @@
+"""What the viewer page reads: a small, versioned export of an anima result (schema ``anima.view`` version 1,
+docs/artifacts.md), written by :func:`build_view` next to a copy of the page. The page never parses an npz:
+everything it shows comes from here.
+
+* ``view-data.js``: ``window.ANIMA_VIEW = {...}``: kind, title, fps, frames, the media files, curves (chosen
+  ARKit weights and wrist speeds per frame), timeline marks (capture flags, gesture joins) and ranges (gesture
+  controls), notes; for a dataset its clips (descriptions, attributes, expression weights per frame).
+* ``avatar-glb.js``: ``window.ANIMA_GLB = "<base64>"``: the result's ``avatar.glb`` (rig + head, or the head
+  alone), or the neutral head with its morph targets for a dataset. Script files, not fetched data, so the
+  page also works opened from disk (``file://``), where browsers refuse to fetch.
+* the videos and ``speech.wav`` beside it, copied (a missing one is a note on the page, the 3D plays alone).
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+from pathlib import Path
+
+import numpy as np
+
+from anima import __version__
+from anima.core.contract import TEXT_FPS
+from anima.core.skeleton import JOINT_NAMES, LEFT_HAND, RIGHT_HAND
+from anima.dataset.storage import check_dataset
+from anima.dataset.windows import read_clips
+from anima.errors import AssetNotFound, InputError, SchemaError
+from anima.export.formats import export_glb
+from anima.export.framing import generated_sequence
+from anima.io.atomic import copy_file, write_text
+from anima.io.outdir import MANIFEST, read_manifest
+from anima.io.sequence import FLAG_LOW_CONFIDENCE, FLAG_NO_FACE, read_sequence
+from anima.io.validate import read_json
+
+SCHEMA = "anima.view"
+VERSION = 1
+STATIC = Path(__file__).parent / "static"
+CURVES = (
+    "jawOpen",
+    "mouthSmile_L",
+    "eyeBlink_L",
+    "eyeBlink_R",
+    "browInnerUp_L",
+    "browDown_L",
+    "mouthFrown_L",
+    "eyeWide_L",
+)
+# the videos shown beside the 3D view (the fitted-mesh and avatar renders repeat what the 3D view shows; each
+# more video costs the page decoding time)
+VIDEO_ROLES = {"overlay.mp4": "fit over the video", "skeleton_overlay.mp4": "skeleton over the video"}
+PLAYABLE = {".mp4", ".webm", ".m4v", ".mov"}  # containers a browser plays (with H.264 / VP8 / VP9 / AV1 inside)
+SEQUENCES = {"capture": "capture.npz", "text2face": "motion.npz", "gesture": "gesture.npz"}
+
+
+def viewer_files() -> list[Path]:
+    """The page's own files, built by ``./dev setup`` (three.js and the app bundled with esbuild)."""
+    files = [STATIC / "index.html", STATIC / "viewer.js"]
+    if not all(f.is_file() for f in files):
+        raise AssetNotFound(
+            f"the viewer is not built ({STATIC / 'viewer.js'} is missing): run ./dev setup (it needs Node.js and npm)"
+        )
+    return files
+
+
+def _js(name: str, value) -> str:
+    return f"window.{name} = {json.dumps(value, separators=(',', ':'))};\n"
+
+
+def _reenact_records(path: Path) -> list[Path]:
+    """The re-enactment records (``OUT.json`` beside ``anima reenact --out OUT.mp4``) that ``path`` names: the
+    record of a video or a record itself, or every record in a folder, newest first."""
+    if path.is_file():
+        cands = [path.with_suffix(".json")]
+    else:
+        cands = sorted(path.glob("*.json"), key=lambda p: p.stat().st_mtime, reverse=True)
+    found = []
+    for r in cands:
+        if not r.is_file() or r.stat().st_size > 10_000_000:
+            continue
+        try:
+            d = read_json(r)
+        except InputError:
+            continue
+        if isinstance(d, dict) and d.get("schema") == "anima.reenact_run":
+            if d.get("version") != 1:
+                raise SchemaError(f"{r}: re-enactment record version {d.get('version')}; this anima reads 1")
+            found.append(r)
+    return found
+
+
+def detect(folder: Path) -> str:
+    """The kind of anima result in ``folder``: capture, text2face, gesture, reenact or dataset. A re-enacted
+    video (or its ``.json`` record) may be given instead of a folder."""
+    if not folder.exists():
+        raise InputError(f"no such folder: {folder}")
+    if folder.is_file():
+        if _reenact_records(folder):
+            return "reenact"
+        raise InputError(f"{folder}: not a result folder (nor a video made by anima reenact)")
+    m = folder / MANIFEST
+    if m.is_file():
+        data = read_json(m, "manifest")
+        if isinstance(data, dict) and data.get("schema") == "anima.dataset":
+            check_dataset(folder)
+            return "dataset"
+        manifest = read_manifest(folder)
+        if manifest.get("kind") in SEQUENCES:
+            return manifest["kind"]
+    if _reenact_records(folder):
+        return "reenact"
+    for kind, name in SEQUENCES.items():  # an older result (no manifest): its sequence file
+        if (folder / name).is_file():
+            return kind
+    raise InputError(f"{folder} holds no anima result (capture, text2face, gesture, reenact or dataset)")
+
+
+def _speeds(J: np.ndarray, fps: float) -> dict:
+    out = {}
+    for name in ("left_wrist", "right_wrist"):
+        p = J[:, JOINT_NAMES.index(name)]
+        v = np.linalg.norm(np.diff(p, axis=0, prepend=p[:1]), axis=-1) * fps
+        out[f"{name}_speed"] = [None if not np.isfinite(x) else round(float(x), 4) for x in v]
+    return out
+
+
+def _sequence_view(folder: Path, kind: str, out: Path, notes: list) -> dict:
+    seq = read_sequence(folder / SEQUENCES[kind], landmarks=False)
+    info = {}
+    if (folder / "info.json").is_file():
+        info = read_json(folder / "info.json", "info.json")
+    F = seq.n_frames
+    curves = {
+        n: [round(float(x), 4) for x in seq.expression[:, seq.expr_names.index(n)]]
+        for n in CURVES
+        if n in seq.expr_names and seq.tracked.any()
+    }
+    marks, ranges = [], []
+    if kind == "capture":
+        for f in np.flatnonzero(seq.flags & FLAG_NO_FACE):
+            marks.append({"frame": int(f), "kind": "no_face", "label": "face lost"})
+        for f in np.flatnonzero(seq.flags & FLAG_LOW_CONFIDENCE):
+            marks.append({"frame": int(f), "kind": "low_confidence", "label": "low confidence"})
+        if seq.body_interpolated is not None:
+            for side, sl in (("left", LEFT_HAND), ("right", RIGHT_HAND)):
+                for f in np.flatnonzero(seq.body_interpolated[:, sl].any(1)):
+                    marks.append({"frame": int(f), "kind": "interpolated", "label": f"{side} hand interpolated"})
+    if kind == "gesture":
+        for t in info.get("joins_s", []):
+            marks.append({"frame": int(round(t * seq.fps)), "kind": "join", "label": "window join"})
+        for c in info.get("controls", []):
+            a, b = c.get("start_s", 0.0), c.get("end_s", F / seq.fps)
+            b = F / seq.fps if b is None or b == float("inf") else b
+            ranges.append(
+                {
+                    "start": int(round(a * seq.fps)),
+                    "end": int(min(F, round(b * seq.fps))),
+                    "label": c.get("control", "control"),
+                }
+            )
+    joints = {}
+    if seq.body_joints is not None and np.isfinite(seq.body_joints).any():
+        curves.update(_speeds(seq.body_joints, seq.fps))
+        joints = {"names": ["Head", "LeftHand", "RightHand", "Spine"]}  # shown from avatar.glb's bones
+    videos = []
+    src = seq.meta.get("source", {}).get("path")
+    if kind == "capture" and src:
+        s = Path(src)
+        if not s.is_file():
+            notes.append(f"the source video {src} is not there")
+        elif s.suffix.lower() not in PLAYABLE or seq.meta["source"].get("codec") not in ("h264", "vp8", "vp9", "av1"):
+            notes.append(f"the source video {s.name} ({seq.meta['source'].get('codec')}) does not play in a browser")
+        else:
+            copy_file(s, out / f"source{s.suffix.lower()}")
+            videos.append({"file": f"source{s.suffix.lower()}", "role": "source video"})
+    for name, role in VIDEO_ROLES.items():
+        if (folder / name).is_file():
+            copy_file(folder / name, out / name)
+            videos.append({"file": name, "role": role})
+    if kind == "capture" and not (folder / "overlay.mp4").is_file():
+        notes.append("no overlay video beside the capture (captured with --no-render?): the 3D plays alone")
+    audio = None
+    if (folder / "speech.wav").is_file():
+        copy_file(folder / "speech.wav", out / "speech.wav")
+        audio = "speech.wav"
+    glb = folder / "avatar.glb"
+    if not glb.is_file():
+        glb = out / "_head.glb"
+        export_glb(seq, glb)
+        notes.append("no avatar.glb in the folder (an older result): the head alone, made from the sequence")
+    write_text(out / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(glb.read_bytes()).decode()))
+    title = {
+        "capture": f"capture of {Path(src).name if src else folder.name}",
+        "text2face": f"text to face: “{info.get('prompt', seq.meta.get('prompt', ''))}”",
+        "gesture": f"gestures for {Path(str(seq.meta.get('speech', ''))).name}",
+    }[kind]
+    return {
+        "kind": kind,
+        "title": title,
+        "fps": seq.fps,
+        "frames": F,
+        "videos": videos,
+        "audio": audio,
+        "prompt": info.get("prompt"),
+        "curves": curves,
+        "marks": marks,
+        "ranges": ranges,
+        "joints": joints,
+        "summary": {k: v for k, v in info.items() if isinstance(v, (int, float, str)) and k != "prompt"},
+    }
+
+
+def _dataset_view(folder: Path, out: Path, notes: list, max_clips: int = 200) -> dict:
+    clips = read_clips(folder)
+    if not clips:
+        raise InputError(f"{folder}: the dataset has no (text, motion) clips to show")
+    if len(clips) > max_clips:
+        notes.append(f"{len(clips)} clips: the first {max_clips} are shown")
+    names = list(generated_sequence(TEXT_FPS, face=np.zeros((1, 56), np.float32)).expr_names)
+    rows = []
+    for c in clips[:max_clips]:
+        rows.append(
+            {
+                "id": c.clip_id,
+                "split": c.split,
+                "source": Path(c.source).name,
+                "start_s": c.start_s,
+                "fps": c.fps,
+                "frames": len(c.motion),
+                "texts": c.texts[:3],
+                "events": [[n, round(s, 2), round(e, 2)] for n, s, e in c.events],
+                "weights": base64.b64encode(np.ascontiguousarray(c.motion[:, :53], np.float32).tobytes()).decode(),
+                "rotation": base64.b64encode(np.ascontiguousarray(c.motion[:, 53:], np.float32).tobytes()).decode(),
+            }
+        )
+    head = out / "_head.glb"
+    export_glb(generated_sequence(TEXT_FPS, face=np.zeros((1, 56), np.float32)), head, animate_head=False)
+    write_text(out / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(head.read_bytes()).decode()))
+    head.unlink()
+    return {
+        "kind": "dataset",
+        "title": f"dataset {folder.name}: {len(clips)} clips",
+        "fps": clips[0].fps,
+        "frames": len(clips[0].motion),
+        "videos": [],
+        "audio": None,
+        "curves": {},
+        "marks": [],
+        "ranges": [],
+        "joints": {},
+        "expr_names": names,
+        "clips": rows,
+    }
+
+
+def _reenact_view(path: Path, out: Path, notes: list) -> dict:
+    records = _reenact_records(path)
+    if len(records) > 1:
+        notes.append(f"{len(records)} re-enactments in {path}: showing the newest, {records[0].stem}")
+    rec = read_json(records[0])
+    video = Path(rec["result"]["output"])
+    if not video.is_file() and (records[0].with_suffix(".mp4")).is_file():  # moved with its record
+        video = records[0].with_suffix(".mp4")
+    videos = []
+    if video.is_file():
+        copy_file(video, out / video.name)
+        role = "re-enactment" + (" (actor | output)" if rec.get("side_by_side") else "")
+        videos.append({"file": video.name, "role": role})
+    else:
+        notes.append(f"the re-enactment video {video} is not there")
+    title = f"re-enactment: {Path(rec['actor']).name} on {Path(rec['targets'][0]).name}"
+    return {
+        "kind": "reenact",
+        "title": title,
+        "fps": rec["result"]["fps"],
+        "frames": rec["result"]["frames"],
+        "videos": videos,
+        "audio": None,
+        "curves": {},
+        "marks": [],
+        "ranges": [],
+        "joints": {},
+        "no3d": True,
+        "summary": {k: v for k, v in rec["result"].items() if isinstance(v, (int, float, str))},
+    }
+
+
+def build_view(folder: str | Path, out: str | Path) -> dict:
+    """Write the page for the result in ``folder`` into ``out`` (created); returns the page's data."""
+    folder, out = Path(folder), Path(out)
+    kind = detect(folder)
+    files = viewer_files()
+    out.mkdir(parents=True, exist_ok=True)
+    notes: list[str] = []
+    if kind == "dataset":
+        data = _dataset_view(folder, out, notes)
+    elif kind == "reenact":
+        data = _reenact_view(folder, out, notes)
+        write_text(out / "avatar-glb.js", _js("ANIMA_GLB", None))
+    else:
+        data = _sequence_view(folder, kind, out, notes)
+    data.update(schema=SCHEMA, version=VERSION, anima_version=__version__, notes=notes, source=str(folder))
+    write_text(out / "view-data.js", _js("ANIMA_VIEW", data))
+    for f in files:
+        copy_file(f, out / f.name)
+    if (out / "_head.glb").exists():
+        (out / "_head.glb").unlink()
+    return data

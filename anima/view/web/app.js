@@ -1,0 +1,483 @@
+// anima viewer: the animated avatar (three.js), the videos and the speech in sync on one timeline, curves of
+// ARKit weights and wrist speeds, and the evidence marks of each kind of result. Bundled by esbuild at set-up
+// (./dev setup) into anima/view/static/viewer.js; it reads window.ANIMA_VIEW and window.ANIMA_GLB (script files
+// written by `anima view`), so it needs no network and also works opened from disk.
+import * as THREE from "three";
+import { GLTFLoader } from "three/examples/jsm/loaders/GLTFLoader.js";
+import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
+
+const V = window.ANIMA_VIEW;
+const t0 = performance.now();
+const $ = (id) => document.getElementById(id);
+const api = { ready: false, frame: 0, playing: false, readyMs: null, rendered: 0, renderedFrames: 0 };
+window.anima = api;
+
+function b64ToBuffer(s) {
+  const bin = atob(s);
+  const out = new Uint8Array(bin.length);
+  for (let i = 0; i < bin.length; i++) out[i] = bin.charCodeAt(i);
+  return out.buffer;
+}
+
+if (V.no3d) document.body.classList.add("no3d");
+// ---- page text ----------------------------------------------------------------------------------------
+document.title = `anima: ${V.title}`;
+$("title").textContent = V.title;
+if (V.prompt) $("prompt").textContent = `prompt: “${V.prompt}”`;
+for (const n of V.notes || []) {
+  const p = document.createElement("div");
+  p.className = "note";
+  p.textContent = n;
+  $("notes").appendChild(p);
+}
+const summary = V.summary || {};
+$("summary").textContent = Object.entries(summary)
+  .slice(0, 12)
+  .map(([k, v]) => `${k}: ${v}`)
+  .join("  ·  ");
+
+// ---- media ------------------------------------------------------------------------------------------------
+const videos = [];
+for (const v of V.videos || []) {
+  const box = document.createElement("figure");
+  const el = document.createElement("video");
+  el.src = v.file;
+  el.muted = true;
+  el.preload = "auto";
+  el.playsInline = true;
+  el.dataset.role = v.role;
+  const cap = document.createElement("figcaption");
+  cap.textContent = v.role;
+  box.appendChild(el);
+  box.appendChild(cap);
+  $("videos").appendChild(box);
+  videos.push(el);
+}
+let audio = null;
+if (V.audio) {
+  audio = new Audio(V.audio);
+  audio.preload = "auto";
+}
+const fps = V.fps;
+let frames = V.frames;
+
+// ---- 3D ---------------------------------------------------------------------------------------------------
+const canvas = $("view3d");
+// no MSAA and a Lambert material: without a GPU (SwiftShader, a laptop's iGPU) the page still draws the clip's
+// frame rate
+const renderer = new THREE.WebGLRenderer({ canvas, antialias: false });
+renderer.setPixelRatio(1);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0x1c1c1c);
+const camera = new THREE.PerspectiveCamera(30, 1, 0.01, 100);
+scene.add(new THREE.HemisphereLight(0xffffff, 0x444444, 2.2));
+const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+sun.position.set(0.5, 1, 1.5);
+scene.add(sun);
+const controls = new OrbitControls(camera, canvas);
+let mixer = null;
+let morphMesh = null;
+let bones = {};
+let headNode = null;
+let clipIndex = 0;
+
+function resize() {
+  const w = canvas.clientWidth;
+  const h = canvas.clientHeight;
+  renderer.setSize(w, h, false);
+  camera.aspect = w / h;
+  camera.updateProjectionMatrix();
+}
+window.addEventListener("resize", resize);
+
+// Aim the camera at what is drawn at the current frame: the bones (a body in its first pose, not its T-pose)
+// and the head's vertices.
+function frameView() {
+  scene.updateMatrixWorld(true);
+  const box = new THREE.Box3();
+  for (const b of Object.values(bones)) box.expandByPoint(b.getWorldPosition(new THREE.Vector3()));
+  if (morphMesh) box.union(new THREE.Box3().setFromObject(morphMesh, true));
+  if (box.isEmpty()) return;
+  const c = box.getCenter(new THREE.Vector3());
+  const size = box.getSize(new THREE.Vector3());
+  const fov = (camera.fov * Math.PI) / 180;
+  const dist = (0.5 * Math.max(size.y, size.x / camera.aspect)) / Math.tan(fov / 2) + size.z;
+  controls.target.copy(c);
+  camera.position.set(c.x, c.y, c.z + dist * 1.15);
+  camera.near = dist / 100;
+  camera.far = dist * 100;
+  camera.updateProjectionMatrix();
+  controls.update();
+}
+
+function load3d() {
+  return new Promise((resolve, reject) => {
+    if (!window.ANIMA_GLB || V.no3d) {
+      $("view3d").style.display = "none";
+      resolve();
+      return;
+    }
+    new GLTFLoader().parse(
+      b64ToBuffer(window.ANIMA_GLB),
+      "",
+      (gltf) => {
+        const root = gltf.scene;
+        scene.add(root);
+        root.traverse((o) => {
+          if (o.isMesh) {
+            o.material = new THREE.MeshLambertMaterial({ color: 0xd9d2cc });
+            o.frustumCulled = false;
+            if (o.morphTargetDictionary) {
+              morphMesh = o;
+              setupCpuMorph(o);
+            }
+          }
+          if (o.isBone) bones[o.name] = o;
+        });
+        headNode = morphMesh && !Object.keys(bones).length ? root.getObjectByName("face") || morphMesh : null;
+        if (Object.keys(bones).length) {
+          const helper = new THREE.SkeletonHelper(root);
+          helper.material.linewidth = 2;
+          scene.add(helper);
+        }
+        if (gltf.animations.length) {
+          mixer = new THREE.AnimationMixer(root);
+          const action = mixer.clipAction(gltf.animations[0]);
+          action.play();
+        }
+        resize();
+        resolve();
+      },
+      reject,
+    );
+  });
+}
+
+// ---- face morphs on the CPU ---------------------------------------------------------------------------------
+// The head has 53 morph targets over 11k vertices: blending them in the vertex shader costs 40 ms a frame on
+// a software GL (SwiftShader, no GPU). Each target moves few vertices, so the page keeps them sparse and
+// blends them here (a few ms), only when the weights change; three.js then draws a plain (skinned) mesh.
+let cpuMorph = null;
+function setupCpuMorph(mesh) {
+  const g = mesh.geometry;
+  const targets = g.morphAttributes.position || [];
+  const relative = g.morphTargetsRelative;
+  const base = g.attributes.position.array;
+  const sparse = targets.map((a) => {
+    const d = a.array;
+    const idx = [];
+    const val = [];
+    for (let i = 0; i < d.length; i += 3) {
+      const dx = relative ? d[i] : d[i] - base[i];
+      const dy = relative ? d[i + 1] : d[i + 1] - base[i + 1];
+      const dz = relative ? d[i + 2] : d[i + 2] - base[i + 2];
+      if (dx !== 0 || dy !== 0 || dz !== 0) {
+        idx.push(i);
+        val.push(dx, dy, dz);
+      }
+    }
+    return { idx: Int32Array.from(idx), val: Float32Array.from(val) };
+  });
+  cpuMorph = { base: Float32Array.from(base), sparse, last: null };
+  g.morphAttributes = {}; // the dictionary and the influences stay: the animation drives them, we draw them
+}
+function updateMorph() {
+  if (!cpuMorph || !morphMesh) return;
+  const w = morphMesh.morphTargetInfluences;
+  const key = w.join(",");
+  if (key === cpuMorph.last) return;
+  cpuMorph.last = key;
+  const g = morphMesh.geometry;
+  const pos = g.attributes.position.array;
+  pos.set(cpuMorph.base);
+  for (let k = 0; k < cpuMorph.sparse.length; k++) {
+    const wk = w[k];
+    if (!wk) continue;
+    const { idx, val } = cpuMorph.sparse[k];
+    for (let j = 0; j < idx.length; j++) {
+      const i = idx[j];
+      pos[i] += wk * val[3 * j];
+      pos[i + 1] += wk * val[3 * j + 1];
+      pos[i + 2] += wk * val[3 * j + 2];
+    }
+  }
+  g.attributes.position.needsUpdate = true;
+  g.computeVertexNormals();
+}
+
+// ---- dataset clips ----------------------------------------------------------------------------------------
+let clipWeights = null;
+let clipRot = null;
+function f32(b64) {
+  return new Float32Array(b64ToBuffer(b64));
+}
+function selectClip(i) {
+  clipIndex = i;
+  const c = V.clips[i];
+  clipWeights = f32(c.weights);
+  clipRot = f32(c.rotation);
+  frames = c.frames;
+  $("prompt").textContent = c.texts[0];
+  $("events").textContent = c.events.map((e) => `${e[0]} ${e[1]}–${e[2]} s`).join(", ") || "no attribute events";
+  for (const li of $("clips").children) li.classList.toggle("active", Number(li.dataset.i) === i);
+  setupTimeline();
+  seek(0);
+}
+function listClips() {
+  $("videos").appendChild($("clips")); // the clips take the videos' column
+  $("clips").style.display = "block";
+  V.clips.forEach((c, i) => {
+    const li = document.createElement("li");
+    li.dataset.i = i;
+    li.innerHTML = `<b>${c.source}</b> ${c.start_s.toFixed(1)} s <span class="split">${c.split}</span><br>${c.texts[0]}`;
+    li.onclick = () => selectClip(i);
+    $("clips").appendChild(li);
+  });
+}
+
+// ---- timeline ---------------------------------------------------------------------------------------------
+const slider = $("slider");
+function setupTimeline() {
+  slider.max = frames - 1;
+  const marks = $("marks");
+  marks.innerHTML = "";
+  for (const r of V.ranges || []) {
+    const d = document.createElement("div");
+    d.className = "range";
+    d.style.left = `${(100 * r.start) / frames}%`;
+    d.style.width = `${(100 * (r.end - r.start)) / frames}%`;
+    d.title = r.label;
+    marks.appendChild(d);
+  }
+  for (const m of V.marks || []) {
+    const d = document.createElement("div");
+    d.className = `mark ${m.kind}`;
+    d.style.left = `${(100 * m.frame) / frames}%`;
+    d.title = `${m.label} (frame ${m.frame})`;
+    marks.appendChild(d);
+  }
+}
+slider.oninput = () => {
+  pause();
+  seek(Number(slider.value));
+};
+$("play").onclick = () => (api.playing ? pause() : play());
+$("prev").onclick = () => {
+  pause();
+  seek(Math.max(0, api.frame - 1));
+};
+$("next").onclick = () => {
+  pause();
+  seek(Math.min(frames - 1, api.frame + 1));
+};
+window.addEventListener("keydown", (e) => {
+  if (e.key === " ") {
+    e.preventDefault();
+    api.playing ? pause() : play();
+  } else if (e.key === "ArrowRight") $("next").onclick();
+  else if (e.key === "ArrowLeft") $("prev").onclick();
+});
+
+// ---- curves -----------------------------------------------------------------------------------------------
+const curveNames = Object.keys(V.curves || {});
+const colors = ["#f4a261", "#2a9d8f", "#e9c46a", "#e76f51", "#8ab17d", "#a8dadc", "#c77dff", "#ffafcc", "#90be6d"];
+let curveCache = null; // the curves drawn once (per size); each frame adds the cursor and the legend
+function drawCurves() {
+  const c = $("curves");
+  if (!curveNames.length) {
+    c.style.display = "none";
+    return;
+  }
+  const w = c.clientWidth;
+  const h = c.clientHeight;
+  if (!curveCache || curveCache.width !== w || curveCache.height !== h) {
+    curveCache = document.createElement("canvas");
+    curveCache.width = w;
+    curveCache.height = h;
+    const g = curveCache.getContext("2d");
+    g.fillStyle = "#111";
+    g.fillRect(0, 0, w, h);
+    curveNames.forEach((n, k) => {
+      const ys = V.curves[n];
+      let hi = 1e-6;
+      for (const y of ys) if (y !== null && y > hi) hi = y;
+      g.strokeStyle = colors[k % colors.length];
+      g.beginPath();
+      let pen = false;
+      ys.forEach((y, i) => {
+        if (y === null) {
+          pen = false;
+          return;
+        }
+        const x = (i / Math.max(1, ys.length - 1)) * w;
+        const yy = h - 4 - (y / hi) * (h - 8);
+        pen ? g.lineTo(x, yy) : g.moveTo(x, yy);
+        pen = true;
+      });
+      g.stroke();
+    });
+  }
+  if (c.width !== w) c.width = w;
+  if (c.height !== h) c.height = h;
+  const g = c.getContext("2d");
+  g.drawImage(curveCache, 0, 0);
+  const x = (api.frame / Math.max(1, frames - 1)) * w;
+  g.strokeStyle = "#fff";
+  g.beginPath();
+  g.moveTo(x, 0);
+  g.lineTo(x, h);
+  g.stroke();
+  $("legend").innerHTML = curveNames
+    .map((n, k) => {
+      const ys = V.curves[n];
+      const v = ys[Math.min(api.frame, ys.length - 1)];
+      return `<span style="color:${colors[k % colors.length]}">${n} ${v === null ? "–" : v.toFixed(3)}</span>`;
+    })
+    .join(" ");
+}
+
+// ---- playback -----------------------------------------------------------------------------------------------
+let clockStart = 0;
+let clockFrom = 0;
+// One clock: the first video's when there is one (the 3D view then shows the frame that video shows), else the
+// speech's, else the wall clock. The other media follow it and are only re-seeked when they drift by more than
+// a frame (video) or 80 ms (audio): seeking on every frame would stall a software-decoding browser.
+function masterTime() {
+  if (!api.playing) return api.frame / fps;
+  if (videos.length && !videos[0].paused) return videos[0].currentTime;
+  if (audio && !audio.paused) return audio.currentTime;
+  return clockFrom + (performance.now() - clockStart) / 1000;
+}
+function apply(f) {
+  api.frame = f;
+  if (V.kind === "dataset" && clipWeights && morphMesh) {
+    const n = morphMesh.morphTargetInfluences.length;
+    for (let k = 0; k < n; k++) morphMesh.morphTargetInfluences[k] = clipWeights[f * n + k];
+    const r = new THREE.Vector3(clipRot[f * 3], clipRot[f * 3 + 1], clipRot[f * 3 + 2]);
+    const a = r.length();
+    morphMesh.parent.quaternion.setFromAxisAngle(a > 1e-9 ? r.normalize() : new THREE.Vector3(1, 0, 0), a);
+  } else if (mixer) {
+    mixer.setTime(f / fps);
+  }
+  updateMorph();
+  slider.value = f;
+  $("frame").textContent = `frame ${f} / ${frames - 1}   ${(f / fps).toFixed(2)} s`;
+  drawCurves();
+}
+function syncMedia(t, force) {
+  videos.forEach((v, i) => {
+    if (!force && i === 0 && api.playing) return; // the master
+    if (force || Math.abs(v.currentTime - t) > 1 / fps) v.currentTime = Math.min(t, (v.duration || t) - 1e-3);
+  });
+  if (audio && (force || Math.abs(audio.currentTime - t) > 0.08)) audio.currentTime = t;
+}
+function seek(f) {
+  f = Math.max(0, Math.min(frames - 1, Math.round(f)));
+  apply(f);
+  syncMedia(f / fps + 0.5 / fps, true);
+}
+function play() {
+  if (api.frame >= frames - 1) seek(0);
+  api.playing = true;
+  clockFrom = api.frame / fps;
+  clockStart = performance.now();
+  syncMedia(clockFrom, true);
+  for (const v of videos) v.play().catch(() => {});
+  if (audio) audio.play().catch(() => {});
+  $("play").textContent = "||";
+}
+function pause() {
+  api.playing = false;
+  for (const v of videos) v.pause();
+  if (audio) audio.pause();
+  $("play").textContent = "▶";
+}
+let lastFrame = -1;
+function tick() {
+  if (api.playing) {
+    const t = masterTime();
+    const f = Math.floor(t * fps + 1e-6);
+    if (f >= frames) {
+      pause();
+      apply(frames - 1);
+    } else if (f !== api.frame) {
+      apply(f);
+      syncMedia(t, false);
+    }
+  }
+  renderer.render(scene, camera);
+  api.rendered += 1;
+  if (api.frame !== lastFrame) {
+    api.renderedFrames += 1;
+    lastFrame = api.frame;
+  }
+  requestAnimationFrame(tick);
+}
+
+// ---- what the tests read ----------------------------------------------------------------------------------
+api.seek = seek;
+api.play = play;
+api.pause = pause;
+api.state = () => {
+  const morphs = {};
+  if (morphMesh) {
+    for (const [name, k] of Object.entries(morphMesh.morphTargetDictionary))
+      morphs[name] = morphMesh.morphTargetInfluences[k];
+  }
+  const joints = {};
+  scene.updateMatrixWorld(true);
+  for (const [name, b] of Object.entries(bones)) {
+    const p = b.getWorldPosition(new THREE.Vector3());
+    joints[name] = [p.x, p.y, p.z];
+  }
+  return {
+    frame: api.frame,
+    time: api.frame / fps,
+    playing: api.playing,
+    morphs,
+    joints,
+    videoTimes: videos.map((v) => v.currentTime),
+    audioTime: audio ? audio.currentTime : null,
+    clip: V.kind === "dataset" ? V.clips[clipIndex].id : null,
+  };
+};
+api.selectClip = (i) => selectClip(i);
+api._debug = { scene, renderer, camera, get mesh() { return morphMesh; } };
+// where the head is drawn: page pixels of the face mesh's centre (tests look for the head there)
+api.headOnScreen = () => {
+  if (!morphMesh) return null;
+  scene.updateMatrixWorld(true);
+  const box = new THREE.Box3().setFromObject(morphMesh, true);
+  const p = box.getCenter(new THREE.Vector3()).project(camera);
+  const r = canvas.getBoundingClientRect();
+  const size = box.getSize(new THREE.Vector3());
+  const q = box.getCenter(new THREE.Vector3()).add(new THREE.Vector3(size.x / 2, 0, 0)).project(camera);
+  return {
+    x: r.left + ((p.x + 1) / 2) * r.width,
+    y: r.top + ((1 - p.y) / 2) * r.height,
+    halfWidth: (Math.abs(q.x - p.x) / 2) * r.width,
+    canvas: [r.left, r.top, r.width, r.height],
+  };
+};
+
+load3d()
+  .then(() => {
+    resize();
+    if (V.kind === "dataset") {
+      listClips();
+      selectClip(0);
+    } else {
+      setupTimeline();
+      seek(0);
+    }
+    frameView();
+    api.ready = true;
+    api.readyMs = performance.now(); // since the page began to load (navigation start)
+    api.scriptMs = performance.now() - t0;
+    $("status").textContent = `ready in ${api.readyMs.toFixed(0)} ms`;
+    requestAnimationFrame(tick);
+  })
+  .catch((e) => {
+    $("status").textContent = `could not load the 3D: ${e}`;
+    api.error = String(e);
+  });
