@@ -6,6 +6,10 @@ exactly on ``round(t_i * sr)``; the log mean energy is the log of the mean power
 period centred on t_i. Samples outside the audio count as silence. First derivatives are centred
 differences along the motion-frame axis (``librosa.feature.delta``, width 3).
 
+The maths is librosa's (Slaney mel filters, orthonormal DCT-II, Savitzky-Golay deltas), written out in
+numpy and ``scipy.fft`` so a command does not pay librosa's import (about 1.5 s of numba compilation);
+``tests/audio`` checks every step against librosa itself.
+
 Loudness: the signal is scaled so that its active part (frames within 40 dB of the loudest) has an RMS of
 -20 dBFS, so features do not depend on recording gain.
 """
@@ -16,8 +20,8 @@ import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
-import librosa
 import numpy as np
+import scipy.fft
 
 from anima.errors import InputError
 from anima.io.atomic import atomic_path
@@ -89,10 +93,59 @@ def read_audio(path: str | Path, sr: int = SR) -> np.ndarray:
     return x.copy()
 
 
+def frame_signal(x: np.ndarray, length: int, hop: int) -> np.ndarray:
+    """``librosa.util.frame``: windows of ``length`` samples every ``hop`` samples, ``[length, n]`` (a view)."""
+    return np.lib.stride_tricks.sliding_window_view(x, length)[::hop].T
+
+
+def hann(n: int) -> np.ndarray:
+    """Periodic Hann window (``scipy.signal.get_window("hann", n, fftbins=True)``)."""
+    return 0.5 - 0.5 * np.cos(2 * np.pi * np.arange(n) / n)
+
+
+def _hz_to_mel(f):
+    """Slaney's mel scale (librosa's default, ``htk=False``): linear below 1 kHz, logarithmic above."""
+    f = np.asarray(f, np.float64)
+    f_sp, min_log_hz = 200.0 / 3, 1000.0
+    min_log_mel, logstep = min_log_hz / f_sp, np.log(6.4) / 27.0
+    return np.where(f >= min_log_hz, min_log_mel + np.log(np.maximum(f, 1e-12) / min_log_hz) / logstep, f / f_sp)
+
+
+def _mel_to_hz(m):
+    m = np.asarray(m, np.float64)
+    f_sp, min_log_hz = 200.0 / 3, 1000.0
+    min_log_mel, logstep = min_log_hz / f_sp, np.log(6.4) / 27.0
+    return np.where(m >= min_log_mel, min_log_hz * np.exp(logstep * (m - min_log_mel)), f_sp * m)
+
+
+def mel_filters(sr: int = SR, n_fft: int = N_FFT, n_mels: int = N_MELS) -> np.ndarray:
+    """``librosa.filters.mel(sr=sr, n_fft=n_fft, n_mels=n_mels)``: triangular filters on Slaney's mel scale
+    from 0 Hz to sr / 2, each of unit area ("slaney" norm), ``[n_mels, 1 + n_fft / 2]`` float32."""
+    fft_f = np.fft.rfftfreq(n_fft, 1.0 / sr)
+    mel_f = _mel_to_hz(np.linspace(_hz_to_mel(0.0), _hz_to_mel(sr / 2.0), n_mels + 2))
+    fdiff = np.diff(mel_f)
+    ramps = np.subtract.outer(mel_f, fft_f)
+    lower = -ramps[:-2] / fdiff[:-1, None]
+    upper = ramps[2:] / fdiff[1:, None]
+    w = np.maximum(0.0, np.minimum(lower, upper))
+    w *= (2.0 / (mel_f[2 : n_mels + 2] - mel_f[:n_mels]))[:, None]
+    return w.astype(np.float32)
+
+
+def delta3(x: np.ndarray) -> np.ndarray:
+    """``librosa.feature.delta(x, width=3, order=1, axis=0)`` (Savitzky-Golay, mode "interp"): centred
+    differences (x[i+1] - x[i-1]) / 2 inside; the two first and two last rows take the slope of the line
+    through their three-row window's ends. Needs at least 3 rows."""
+    d = np.empty_like(x)
+    d[1:-1] = (x[2:] - x[:-2]) / 2
+    d[0], d[-1] = d[1], d[-2]
+    return d
+
+
 def normalize_loudness(x: np.ndarray, sr: int = SR) -> tuple[np.ndarray, float, bool]:
     """Scale the active part to TARGET_DBFS RMS. Returns (signal, gain in dB, silent?)."""
     hop = sr // 100
-    frames = librosa.util.frame(np.pad(x, (0, max(0, hop * 2 - len(x)))), frame_length=hop * 2, hop_length=hop)
+    frames = frame_signal(np.pad(x, (0, max(0, hop * 2 - len(x)))), hop * 2, hop)
     rms = np.sqrt((frames.astype(np.float64) ** 2).mean(0) + 1e-20)
     db = 20 * np.log10(rms)
     if db.max() < SILENCE_DBFS:
@@ -125,16 +178,16 @@ def speech_features(
     if normalize:
         x, gain, silent = normalize_loudness(x, sr)
     centres = np.round(np.arange(n_frames) / fps * sr).astype(np.int64)
-    win = librosa.filters.get_window("hann", WIN, fftbins=True)
-    fr = _centred_frames(x, centres, WIN) * win[None]
+    fr = _centred_frames(x, centres, WIN) * hann(WIN)[None]
     spec = np.abs(np.fft.rfft(fr, n=N_FFT, axis=1)) ** 2  # (F, 257)
-    mel = librosa.filters.mel(sr=sr, n_fft=N_FFT, n_mels=N_MELS) @ spec.T  # (40, F)
-    mfcc = librosa.feature.mfcc(S=librosa.power_to_db(mel, ref=1.0, amin=1e-10, top_db=None), n_mfcc=N_MFCC)
+    mel = mel_filters(sr, N_FFT, N_MELS) @ spec.T  # (40, F)
+    db = 10.0 * np.log10(np.maximum(mel, 1e-10))  # librosa.power_to_db(ref=1, amin=1e-10, top_db=None)
+    mfcc = scipy.fft.dct(db, type=2, norm="ortho", axis=0)[:N_MFCC]  # librosa.feature.mfcc
     period = max(int(round(sr / fps)), 1)
     energy = np.log((_centred_frames(x, centres, period).astype(np.float64) ** 2).mean(1) + 1e-10)
     base = np.concatenate([mfcc.T, energy[:, None]], 1)  # (F, 14)
     if n_frames >= 3:
-        d = librosa.feature.delta(base, width=3, order=1, axis=0)
+        d = delta3(base)
     else:
         d = np.zeros_like(base)
     feats = np.concatenate([base, d], 1).astype(np.float32)

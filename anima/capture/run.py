@@ -8,6 +8,7 @@ from pathlib import Path
 
 from anima.audio.features import read_audio
 from anima.capture.pipeline import CaptureConfig, Timings, capture_video
+from anima.core.clock import Stopwatch
 from anima.errors import InputError
 from anima.export.motion import write_motion_outputs
 from anima.io.outdir import OutputFolder
@@ -50,15 +51,29 @@ def capture_to_folder(
     cfg = cfg or CaptureConfig()
     od = OutputFolder(out, kind="capture", command=command)
     check_capture_inputs(cfg, video, audio, audio_optional)
+    sw = Stopwatch()
     with od:
         tm = Timings()
         t0 = time.perf_counter()
-        seq = capture_video(video, cfg, audio=audio, progress=progress, timings=tm)
+        with sw("capture"):
+            seq = capture_video(video, cfg, audio=audio, progress=progress, timings=tm)
         s = seq.summary()
         s["capture_fps"] = round(tm.frames / max(tm.decode_track_s + tm.fit_s, 1e-9), 1)
         s["warnings"] = seq.meta.get("source", {}).get("warnings", [])
         od.info = s
         files = write_motion_outputs(
-            seq, od, "capture.npz", source_video=video, audio=audio, render=render, info=s, progress=progress
+            seq,
+            od,
+            "capture.npz",
+            source_video=video,
+            audio=audio,
+            render=render,
+            info=s,
+            progress=progress,
+            sw=sw,
         )
-    return s | {"total_s": round(time.perf_counter() - t0, 2), "outputs": [str(p) for p in files.values()]}
+    return s | {
+        "total_s": round(time.perf_counter() - t0, 2),
+        "time_s": sw.report(),
+        "outputs": [str(p) for p in files.values()],
+    }

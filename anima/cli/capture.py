@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from anima.capture.pipeline import CaptureConfig
 from anima.capture.run import capture_to_folder
-from anima.cli.common import add_json_quiet, command_line, emit
+from anima.cli.common import add_json_quiet, command_line, emit, time_split
 from anima.cli.options import add_options, config_from_args, number
 from anima.export.formats import FORMATS, export_file
 from anima.io.sequence import read_sequence
@@ -127,6 +127,8 @@ def summary_table(s: dict) -> str:
             ("capture speed", f"{s['capture_fps']} frames/s (decode+track+fit)"),
             ("total time", f"{s.get('total_s', '-')} s"),
         ]
+    if s.get("time_s"):
+        rows.append(("time split", time_split(s["time_s"])))
     w = max(len(k) for k, _ in rows)
     lines = [f"  {k:<{w}}  {v}" for k, v in rows]
     lines += [f"  wrote {p}" for p in s.get("outputs", [])]

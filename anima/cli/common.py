@@ -42,3 +42,9 @@ def add_json_quiet(p, quiet: bool = True) -> None:
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     if quiet:
         p.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def time_split(t: dict) -> str:
+    """``{stage: seconds}`` as one line: ``start 1.2 s, capture 4.1 s, ... (total 9.0 s)``."""
+    parts = [f"{k} {v:.1f} s" for k, v in t.items() if k != "total" and v is not None]
+    return ", ".join(parts) + f"  (total {t.get('total', 0):.1f} s)"

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from anima.cli.common import command_line, emit, notes
+from anima.cli.common import command_line, emit, notes, time_split
 from anima.cli.options import add_options, config_from_args
 from anima.gesture.run import GestureConfig, gesture_to_folder
 from anima.text2face.config import PromptConfig
@@ -36,8 +36,8 @@ def register(sub) -> None:
         "(cosine) + pose rank; the k-th best continues the motion. Controls restrict the search "
         "without retraining, in time ranges. With --generator, the §4.4 generator instead (it also "
         "gives the face). Writes into --out: gesture.npz (a tracked sequence), body.bvh, "
-        "skeleton3d.mp4 (with the speech), with the generator also arkit.csv, face.glb, face.mp4; "
-        "info.json and manifest.json.",
+        "avatar.glb (the rig), speech.wav, avatar.mp4 (with the speech), with the generator also "
+        "arkit.csv, face.glb, face.mp4; info.json and manifest.json. --json adds the time per stage.",
     )
     ge.add_argument("speech", help="speech audio (WAV/MP3/FLAC or a video's audio; resampled to 16 kHz)")
     ge.add_argument("--db", default=None, help="dataset folder from `anima dataset build` (k-NN search)")
@@ -84,4 +84,4 @@ def cmd_gesture(a) -> int:
         command=command_line(a),
     )
     notes(info["notes"])
-    return emit(info, a.json, lambda i: "wrote " + ", ".join(i["written"]))
+    return emit(info, a.json, lambda i: "wrote " + ", ".join(i["written"]) + "\n  time: " + time_split(i["time_s"]))

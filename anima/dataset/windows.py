@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.compute  # for pa.compute
 
 from anima.core.contract import BODY_DIM, FACE_DIM, SPEECH_DIM
 from anima.dataset.storage import read_table
@@ -77,33 +79,44 @@ def _array(values, n: int, dim: int, what: str, row: str) -> np.ndarray:
     return a.reshape(n, dim)
 
 
+def _list_column(t, name: str, n_frames: np.ndarray, dim: int, ids: list) -> np.ndarray:
+    """A list column of ``t`` as one ``[rows, T, dim]`` float32 array, read by Arrow in one pass (no Python
+    object per value); every row must hold ``n_frames x dim`` values."""
+    col = t[name].combine_chunks() if t.num_rows else None
+    if col is None:
+        return np.zeros((0, 0, dim), np.float32)
+    sizes = pa.compute.list_value_length(col).to_numpy(zero_copy_only=False)
+    bad = np.flatnonzero(sizes != n_frames * dim)
+    if len(bad):
+        i = int(bad[0])
+        raise SchemaError(f"{ids[i]}: {name} has {int(sizes[i])} values, expected {int(n_frames[i])} frames x {dim}")
+    return np.asarray(col.flatten().to_numpy(zero_copy_only=False), np.float32).reshape(len(sizes), -1, dim)
+
+
 def read_windows(folder: str | Path, split: str | None = None) -> Windows:
     """All (audio, motion) windows of a dataset (one split, or all), face-only windows included."""
-    t = read_table(folder, "audio_motion", split).to_pydict()
-    n_rows = len(t["window_id"])
-    fps = _one_rate(t["fps"], folder, "audio_motion")
-    lengths = sorted(set(int(n) for n in t["n_frames"]))
+    t = read_table(folder, "audio_motion", split)
+    meta = t.select(["window_id", "fps", "n_frames", "source", "start_s", "split"]).to_pydict()
+    fps = _one_rate(meta["fps"], folder, "audio_motion")
+    lengths = sorted(set(int(n) for n in meta["n_frames"]))
     if len(lengths) > 1:
         raise SchemaError(f"{folder}: (audio, motion) windows of several lengths {lengths}")
-    S, B, Fc = [], [], []
-    for i in range(n_rows):
-        n, row = int(t["n_frames"][i]), t["window_id"][i]
-        S.append(_array(t["speech"][i], n, SPEECH_DIM, "speech", row))
-        B.append(_array(t["body"][i], n, BODY_DIM, "body", row))
-        Fc.append(_array(t["face"][i], n, FACE_DIM, "face", row))
     T = lengths[0] if lengths else 0
+    n_frames = np.asarray(meta["n_frames"], np.int64)
+    ids = meta["window_id"]
 
-    def stack(xs, d):
-        return np.stack(xs) if xs else np.zeros((0, T, d), np.float32)
+    def column(name, d):
+        a = _list_column(t, name, n_frames, d, ids)
+        return a if len(a) else np.zeros((0, T, d), np.float32)
 
     return Windows(
-        stack(S, SPEECH_DIM),
-        stack(B, BODY_DIM),
-        stack(Fc, FACE_DIM),
-        list(t["source"]),
-        [float(s) for s in t["start_s"]],
-        list(t["split"]),
-        list(t["window_id"]),
+        column("speech", SPEECH_DIM),
+        column("body", BODY_DIM),
+        column("face", FACE_DIM),
+        list(meta["source"]),
+        [float(s) for s in meta["start_s"]],
+        list(meta["split"]),
+        list(ids),
         fps,
     )
 

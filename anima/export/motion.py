@@ -26,10 +26,14 @@ written first, so a failing render loses nothing already computed; every file is
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
+from anima.core.clock import Stopwatch
 from anima.export.avatar import render_avatar_preview, write_avatar, write_speech
 from anima.export.formats import export_arkit_csv, export_bvh, export_glb
 from anima.io.atomic import write_json
@@ -48,8 +52,52 @@ def write_motion_outputs(
     render: bool = True,
     info: dict | None = None,
     progress: bool = True,
+    sw: Stopwatch | None = None,
 ) -> dict[str, Path]:
-    """Write the output set of ``seq`` (see the module table); returns ``{role: path}``."""
+    """Write the output set of ``seq`` (see the module table); returns ``{role: path}``. ``sw``: a stopwatch
+    given the stages ``write`` (files) and ``render`` (videos)."""
+    sw = sw or Stopwatch()
+    with sw("write"):
+        files, speech, info = _write_files(seq, out, name, source_video, audio, info)
+    face = bool(seq.tracked.any())
+    body = seq.body_joints is not None and bool(np.isfinite(seq.body_joints).all(-1).any())
+    jobs = []  # (roles and paths, render call): independent videos, rendered side by side
+    if render and face:
+        if source_video is not None:
+            ov, me = out.file("overlay.mp4"), out.file("mesh.mp4")
+            jobs.append(
+                (
+                    {"overlay_video": ov, "mesh_video": me},
+                    lambda: render_videos(seq, source_video, ov, me, progress=progress, audio=audio),
+                )
+            )
+        else:
+            fv = out.file("face.mp4")
+            jobs.append(
+                ({"face_video": fv}, lambda: render_videos(seq, None, None, fv, progress=progress, audio=audio))
+            )
+    if render and body:
+        if source_video is not None and seq.body_image is not None:
+            so = out.file("skeleton_overlay.mp4")
+            jobs.append(
+                (
+                    {"skeleton_overlay_video": so},
+                    lambda: render_skeleton_videos(seq, source_video, so, None, progress=progress, audio=audio),
+                )
+            )
+        av = out.file("avatar.mp4")
+        jobs.append(({"avatar_video": av}, lambda: render_avatar_preview(seq, av, audio=speech, progress=progress)))
+    with sw("render"):
+        files.update(run_renders(jobs))
+    if info is not None:
+        with sw("write"):
+            files["info"] = write_json(out.file("info.json"), {**info, "files": {k: p.name for k, p in files.items()}})
+    return files
+
+
+def _write_files(seq, out, name, source_video, audio, info) -> tuple[dict, str | None, dict | None]:
+    """The sequence and the files made from it (no videos): ``({role: path}, the speech source, info with
+    the avatar's description)``."""
     files = {"sequence": write_sequence(seq, out.file(name))}
     face = bool(seq.tracked.any())
     body = seq.body_joints is not None and bool(np.isfinite(seq.body_joints).all(-1).any())
@@ -66,25 +114,27 @@ def write_motion_outputs(
         files["avatar"] = out.path / "avatar.glb"
         if info is not None:
             info = {**info, "avatar": avatar}
-    if render and face:
-        if source_video is not None:
-            render_videos(
-                seq, source_video, out.file("overlay.mp4"), out.file("mesh.mp4"), progress=progress, audio=audio
-            )
-            files["overlay_video"], files["mesh_video"] = out.path / "overlay.mp4", out.path / "mesh.mp4"
-        else:
-            render_videos(seq, None, None, out.file("face.mp4"), progress=progress, audio=audio)
-            files["face_video"] = out.path / "face.mp4"
-    if render and body:
-        if source_video is not None and seq.body_image is not None:
-            overlay = out.file("skeleton_overlay.mp4")
-            render_skeleton_videos(seq, source_video, overlay, None, progress=progress, audio=audio)
-            files["skeleton_overlay_video"] = overlay
-        render_avatar_preview(seq, out.file("avatar.mp4"), audio=speech, progress=progress)
-        files["avatar_video"] = out.path / "avatar.mp4"
-    if info is not None:
-        files["info"] = write_json(out.file("info.json"), {**info, "files": {k: p.name for k, p in files.items()}})
-    return files
+    return files, speech, info
+
+
+def run_renders(jobs: list) -> dict[str, Path]:
+    """Run the render calls of ``jobs`` ``[(roles, call)]`` in a thread pool: the rasterizer, OpenCV and the
+    ffmpeg pipes release the GIL and each encoder is its own process, so the videos render side by side
+    instead of one after another. Every job runs to its end; the first failure is raised afterwards (each
+    video is atomic, so a failed one leaves nothing behind). One BLAS thread meanwhile. Returns the roles of
+    the jobs that finished."""
+    with threadpool_limits(1, user_api="blas"):  # small matrices: BLAS threads would only spin against the jobs
+        if len(jobs) <= 1:
+            for _, call in jobs:
+                call()
+            return {k: Path(v) for roles, _ in jobs for k, v in roles.items()}
+        with ThreadPoolExecutor(max_workers=min(len(jobs), max(2, os.cpu_count() or 1))) as pool:
+            futures = [(roles, pool.submit(call)) for roles, call in jobs]
+            errors = [f.exception() for _, f in futures]
+    for e in errors:
+        if e is not None:
+            raise e
+    return {k: Path(v) for roles, _ in futures for k, v in roles.items()}
 
 
 def _speech_source(seq: TrackedSequence, source_video: str | None, audio: str | None) -> str | None:

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from anima.audio.features import read_audio, speech_features
+from anima.core.clock import Stopwatch
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
 from anima.export.motion import write_motion_outputs
@@ -63,13 +64,17 @@ def synthesize(
     keyword_dbs: dict | None = None,
     blend: bool = True,
     no_repeat_s: float = 4.0,
+    sw: Stopwatch | None = None,
 ) -> tuple[np.ndarray, dict]:
     """k-NN search (and, with ``refiner`` from ``anima.gesture.refine.load_refiner``, the cGAN refinement)
     at the database's frame rate. ``keywords`` (``anima.gesture.keywords.Keyword``) switch the search to
     ``keyword_dbs[word]`` (MatchDB) while the word is spoken. ``blend``: inertialized joins
-    (:mod:`anima.gesture.post`); the output is always re-posed on the database's one skeleton."""
+    (:mod:`anima.gesture.post`); the output is always re-posed on the database's one skeleton. ``sw``: a
+    stopwatch given the stages ``speech``, ``search`` and ``post``."""
+    sw = sw or Stopwatch()
     fps = db.fps
-    feats, notes = read_speech(speech_path, fps)
+    with sw("speech"):
+        feats, notes = read_speech(speech_path, fps)
     T = len(feats.features)
     F_in = audio_features(feats.features)
     if init == "mean":
@@ -92,10 +97,12 @@ def synthesize(
         masks, used = keyword_masks(db, part, names, keywords or [], n_steps, N_STEP / fps, masks if controls else None)
     if T > db.M * db.P.shape[1]:
         notes.append("the speech is longer than the database: database windows are reused")
-    G, picks = search(db, F_in, k, p0, masks, no_repeat_steps=round(no_repeat_s * fps / N_STEP))
-    J = finish_knn(G, picks, db.bone_lengths, N_STEP, blend=blend)
-    if refiner is not None:  # the refiner works on the blended output, and keeps the one skeleton
-        J = one_skeleton(refiner.refine(feats.features[: len(J)], J), db.bone_lengths)
+    with sw("search"):
+        G, picks = search(db, F_in, k, p0, masks, no_repeat_steps=round(no_repeat_s * fps / N_STEP))
+    with sw("post"):
+        J = finish_knn(G, picks, db.bone_lengths, N_STEP, blend=blend)
+        if refiner is not None:  # the refiner works on the blended output, and keeps the one skeleton
+            J = one_skeleton(refiner.refine(feats.features[: len(J)], J), db.bone_lengths)
     joins = joins_of(picks, N_STEP)
     info = {
         "frames": len(G),
@@ -148,7 +155,9 @@ def gesture_to_folder(
     progress: bool = False,
 ) -> dict:
     """``anima gesture``: check every input, then search (``db``) or generate (``generator``) and write the
-    result folder. Returns the run's info (notes, controls, files written)."""
+    result folder. Returns the run's info (notes, controls, files written, and ``time_s``: seconds per stage,
+    start-up included)."""
+    sw = Stopwatch()
     if not Path(speech).is_file():
         raise InputError(f"speech file not found: {speech}")
     controls = [parse_control(c) for c in cfg.control]
@@ -169,15 +178,19 @@ def gesture_to_folder(
         if generator:
             from anima.gesture.generator import load_generator  # lazy: torch
 
-            J, face, info = generate(speech, load_generator(generator))
+            with sw("load"):
+                gen = load_generator(generator)
+            with sw("generate"):
+                J, face, info = generate(speech, gen)
         else:
             ref = None
-            if refiner:  # checkpoints first: a bad one fails before the database loads
-                from anima.gesture.refine import load_refiner  # lazy: torch
+            with sw("load"):
+                if refiner:  # checkpoints first: a bad one fails before the database loads
+                    from anima.gesture.refine import load_refiner  # lazy: torch
 
-                ref = load_refiner(refiner)
-            match_db = from_dataset(db, None if cfg.all_splits else "train")
-            kw_dbs = {w: from_dataset(f, None) for w, f in kw_folders.items()}
+                    ref = load_refiner(refiner)
+                match_db = from_dataset(db, None if cfg.all_splits else "train")
+                kw_dbs = {w: from_dataset(f, None) for w, f in kw_folders.items()}
             J, info = synthesize(
                 speech,
                 match_db,
@@ -190,6 +203,7 @@ def gesture_to_folder(
                 kw_dbs,
                 blend=cfg.blend,
                 no_repeat_s=cfg.no_repeat_s,
+                sw=sw,
             )
             face = None
             info = {k: v for k, v in info.items() if k != "picks"} | {"database_windows": match_db.M}
@@ -205,6 +219,6 @@ def gesture_to_folder(
         )
         od.info = info
         files = write_motion_outputs(
-            seq, od, "gesture.npz", audio=str(speech), render=render, info=info, progress=progress
+            seq, od, "gesture.npz", audio=str(speech), render=render, info=info, progress=progress, sw=sw
         )
-    return info | {"written": [str(p) for p in files.values()]}
+    return info | {"written": [str(p) for p in files.values()], "time_s": sw.report()}

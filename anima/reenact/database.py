@@ -42,6 +42,7 @@ from anima.errors import InputError, SchemaError
 from anima.facemodel.ict import load_face_model
 from anima.io.atomic import atomic_path
 from anima.io.video import iter_frames, probe_video
+from anima.reenact.render import visible_vertices
 
 SCHEMA = "anima.reenact_db"
 VERSION = 1
@@ -91,6 +92,33 @@ def region_ids(model) -> np.ndarray:
     return np.unique(np.concatenate([lower[inside], interior])).astype(np.int32)
 
 
+INTERIOR = REGION[1:]
+RING_CM = 1.0  # skin ring: lower-face skin farther than this from every lip landmark (neutral mesh)
+
+
+def skin_ring(model, vertex_ids: np.ndarray) -> np.ndarray:
+    """Boolean mask over ``vertex_ids``: the lower-face skin around the mouth (not the mouth interior, not
+    within ``RING_CM`` of the lips), whose colour tells a frame's lighting and white balance and hardly
+    changes with the expression. ``model`` is the full face model."""
+    vertex_ids = np.asarray(vertex_ids, np.int64)
+    interior = np.concatenate([model.region(r) for r in INTERIOR])
+    lips = model.neutral[model.landmarks68[48:68]]
+    d = np.linalg.norm(model.neutral[vertex_ids][:, None] - lips[None], axis=-1).min(1)
+    return np.isin(vertex_ids, model.region("lower_face")) & ~np.isin(vertex_ids, interior) & (d > RING_CM)
+
+
+def seen_region(model, vertex_ids: np.ndarray, tris: np.ndarray, seen: np.ndarray) -> np.ndarray:
+    """The region's vertices worth keeping: all skin, and the mouth interior's vertices on a triangle that
+    has a vertex the z-buffer showed in some database frame (``seen``, over ``vertex_ids``). Teeth, gums and
+    tongue never seen in the target only cost texture and raster time, and their colours would be sampled
+    from whatever covers them. Returns a boolean mask over ``vertex_ids``."""
+    interior = np.isin(vertex_ids, np.concatenate([model.region(r) for r in INTERIOR]))
+    keep = ~interior
+    on_seen = seen[tris].any(1)
+    keep[np.unique(tris[on_seen])] = True
+    return keep
+
+
 def sample_colors(frame: np.ndarray, uv: np.ndarray) -> np.ndarray:
     """Bilinear RGB at pixel positions ``uv`` (V, 2) (pixel centres at integer + 0.5 as in the rasterizer)."""
     import cv2
@@ -106,15 +134,19 @@ def build_database(
     progress: bool = True,
     exclude: dict[int, tuple[int, int]] | None = None,
     seqs: list | None = None,
+    visible_only: bool = True,
 ):
     """Capture each target video (face only; or take the given ``seqs``), then sample the region's colours
-    in every well-tracked frame. ``exclude``: per video index, a frame range kept out of the database
-    (self-re-enactment). Returns (database, the target sequences)."""
+        in every well-tracked frame. ``exclude``: per video index, a frame range kept out of the database
+        (self-re-enactment). ``visible_only``: drop the mouth-interior vertices the z-buffer never showed in any
+    kept frame (:func:`seen_region`). Returns (database, the target sequences)."""
     from tqdm import tqdm
 
     model = load_face_model()
     vid = region_ids(model)
     sub = model.subset(vid)
+    tris = sub.triangles()
+    seen = np.zeros(len(vid), bool)
     rows = {k: [] for k in ("expression", "rotation", "scale", "translation", "video", "frame", "colors")}
     identities, metas, out_seqs = [], [], []
     for vi, path in enumerate(videos):
@@ -151,6 +183,7 @@ def build_database(
             if not good[f] or lo <= f < hi:
                 continue
             rows["colors"].append(sample_colors(rgb, uv[f]))
+            seen |= visible_vertices(np.concatenate([uv[f], X[f, :, 2:3]], 1), tris)
             rows["expression"].append(seq.expression[f])
             rows["rotation"].append(seq.rotation[f])
             rows["scale"].append(seq.scale[f])
@@ -163,7 +196,10 @@ def build_database(
             f"the target gives {n} usable frames; the database needs at least {MIN_FRAMES} "
             f"(the seed's n = 100 nearest frames): use a longer target video or several"
         )
+    keep = seen_region(model, vid, tris, seen) if visible_only else np.ones(len(vid), bool)
     arr = {k: np.asarray(v) for k, v in rows.items()}
+    arr["colors"] = arr["colors"][:, keep]
+    vid = vid[keep]
     return ReenactDB(
         arr["expression"].astype(np.float32),
         arr["rotation"].astype(np.float32),
@@ -174,7 +210,13 @@ def build_database(
         np.asarray(identities, np.float32),
         arr["colors"].astype(np.uint8),
         vid,
-        {"videos": metas, "region": list(REGION), "anima_version": __version__, "face_model": "ICT-FaceKit light"},
+        {
+            "videos": metas,
+            "region": list(REGION),
+            "region_vertices": {"all": int(len(keep)), "kept": int(keep.sum()), "visible_only": visible_only},
+            "anima_version": __version__,
+            "face_model": "ICT-FaceKit light",
+        },
     ), out_seqs
 
 

@@ -13,9 +13,18 @@ import numpy as np
 from anima.core.rotations import rotvec_to_matrix
 from anima.facemodel.ict import load_face_model
 from anima.io.sequence import FLAG_NO_FACE
-from anima.reenact.database import ReenactDB
+from anima.reenact.database import ReenactDB, sample_colors, skin_ring
 from anima.reenact.render import composite, posed_uvz
-from anima.reenact.synth import adaptive_sigma, expression_mapping, nearest, weighted_median, weights
+from anima.reenact.synth import (
+    adaptive_sigma,
+    color_transfer,
+    expression_mapping,
+    nearest,
+    normalized_vnc,
+    skin_stats,
+    weighted_median,
+    weights,
+)
 
 
 @dataclass
@@ -31,6 +40,9 @@ class ReenactConfig:
     blur: float = 0.10  # mask feather, fraction of the region's height
     map_expressions: bool = field(default=True, metadata={"flag": "--no-mapping"})
     """Identity mismatch: normalise the actor's expression statistics to the target's (off: --no-mapping)."""
+    color_transfer: bool = field(default=True, metadata={"flag": "--no-color-transfer"})
+    """Colour and lighting per frame: every database frame's colours moved to a common skin reference before
+    the weighted median, the result moved to the output frame's own skin (off: --no-color-transfer)."""
     hold_frames: int = 8  # actor face lost: hold the last expression this many frames ...
     fade_frames: int = 8  # ... then fade to the target's own frame over these
 
@@ -53,6 +65,16 @@ class Reenactor:
         self.deltas = np.ascontiguousarray(self.sub.expr_deltas.reshape(len(self.sub.expr_deltas), -1))
         self._shapes = {}
         self.times = StageTimes()
+        self.skin = skin_ring(model, db.vertex_ids)
+        self.colors_vnc = db.colors_vnc
+        if self.cfg.color_transfer:
+            mu, sd = skin_stats(db.colors, self.skin)
+            self.ref = (mu.mean(0), sd.mean(0))  # the common reference: the database's average skin
+            self.colors_vnc = normalized_vnc(db.colors, mu, sd, *self.ref)
+
+    def frame_skin(self, frame: np.ndarray, uvz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Skin statistics of a target frame under its own fitted geometry ``uvz`` (where the output goes)."""
+        return skin_stats(sample_colors(frame, uvz[:, :2]), self.skin)
 
     def shape(self, identity: np.ndarray) -> np.ndarray:
         key = identity.tobytes()
@@ -60,12 +82,16 @@ class Reenactor:
             self._shapes[key] = self.sub.vertices(identity)
         return self._shapes[key]
 
-    def texture(self, x: np.ndarray, n: int | None = None) -> np.ndarray:
-        """Weighted-median colours ``(V, 3)`` for expression ``x`` (seed eqs. 3.3-3.4, Listing 1)."""
+    def texture(self, x: np.ndarray, n: int | None = None, skin=None) -> np.ndarray:
+        """Weighted-median colours ``(V, 3)`` for expression ``x`` (seed eqs. 3.3-3.4, Listing 1). With colour
+        transfer on, the median is taken over colours moved to the common reference and moved to ``skin``
+        (the output frame's :meth:`frame_skin`; without it the result stays at the reference)."""
         t0 = time.perf_counter()
         idx, d2 = nearest(self.db.expression, x, n or self.cfg.n)
         sigma = adaptive_sigma(d2, idx, self.cfg.a)
-        out = weighted_median(self.db.colors_vnc, idx, weights(d2[idx], sigma))
+        out = weighted_median(self.colors_vnc, idx, weights(d2[idx], sigma))
+        if self.cfg.color_transfer and skin is not None:
+            out = np.clip(color_transfer(out, *self.ref, *skin), 0, 255)
         self.times.texture_ms.append(1e3 * (time.perf_counter() - t0))
         return out
 
@@ -74,10 +100,33 @@ class Reenactor:
     ) -> np.ndarray:
         """The target's identity with expression ``x`` under the target frame's pose and camera -> uvz."""
         t0 = time.perf_counter()
-        V = self.shape(identity) + (np.asarray(x, np.float32) @ self.deltas).reshape(-1, 3)
-        uvz = posed_uvz(V, float(scale), rotvec_to_matrix(np.asarray(rotation, np.float64)), translation)
+        uvz = self._posed(x, identity, scale, rotation, translation)
         self.times.geometry_ms.append(1e3 * (time.perf_counter() - t0))
         return uvz
+
+    def _posed(self, x, identity, scale, rotation, translation) -> np.ndarray:
+        V = self.shape(identity) + (np.asarray(x, np.float32) @ self.deltas).reshape(-1, 3)
+        return posed_uvz(V, float(scale), rotvec_to_matrix(np.asarray(rotation, np.float64)), translation)
+
+    def target_skin(self, frames, seq, j: int, identity: np.ndarray):
+        """The skin statistics of target frame ``j`` (``frames[j]`` under ``seq``'s own fit of that frame;
+        a badly tracked frame takes its nearest well-tracked one's), cached per frame; None when colour
+        transfer is off or nothing is tracked."""
+        if not self.cfg.color_transfer:
+            return None
+        cache = self.__dict__.setdefault("_skin_cache", {})
+        if id(seq) != cache.get("seq"):
+            cache.clear()
+            cache["seq"] = id(seq)
+            cache["good"] = np.flatnonzero(seq.flags[: len(frames)] == 0)
+        good = cache["good"]
+        if not len(good):
+            return None
+        k = int(good[np.argmin(np.abs(good - j))])
+        if k not in cache:
+            uvz = self._posed(seq.expression[k], identity, seq.scale[k], seq.rotation[k], seq.translation[k])
+            cache[k] = self.frame_skin(frames[k], uvz)
+        return cache[k]
 
     def blend(self, target: np.ndarray, uvz: np.ndarray, colors: np.ndarray, alpha: float = 1.0) -> np.ndarray:
         t0 = time.perf_counter()

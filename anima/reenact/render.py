@@ -18,6 +18,29 @@ def posed_uvz(V: np.ndarray, scale: float, R: np.ndarray, t: np.ndarray) -> np.n
     return np.stack([X[:, 0], -X[:, 1], X[:, 2]], -1)
 
 
+def visible_vertices(uvz: np.ndarray, tris: np.ndarray, eps: float = 1.0) -> np.ndarray:
+    """Which vertices the z-buffer shows: ``(V,)`` bool, a vertex being visible where its depth is within
+    ``eps`` (depth units = pixels) of the nearest surface at one of the four pixels around it. Rasterizes the
+    region's box only."""
+    uv = uvz[:, :2]
+    if not np.isfinite(uvz).all():
+        return np.zeros(len(uvz), bool)
+    x0, y0 = np.floor(uv.min(0)).astype(int) - 1
+    w, h = (np.ceil(uv.max(0)).astype(int) + 2 - (x0, y0)).tolist()
+    local = uvz - np.array([x0, y0, 0.0])
+    _, mask, zbuf = rasterize(local, tris, np.zeros((len(uvz), 1), np.float32), (w, h))
+    # the four pixels whose centres surround the vertex (its bilinear footprint): a vertex on a pixel edge
+    # or corner is judged by the surface drawn next to it
+    vis = np.zeros(len(uvz), bool)
+    x0 = np.floor(local[:, 0] - 0.5).astype(int)
+    y0 = np.floor(local[:, 1] - 0.5).astype(int)
+    for dx in (0, 1):
+        for dy in (0, 1):
+            px, py = np.clip(x0 + dx, 0, w - 1), np.clip(y0 + dy, 0, h - 1)
+            vis |= mask[py, px] & (local[:, 2] >= zbuf[py, px] - eps)
+    return vis
+
+
 def bbox(uv: np.ndarray, size: tuple[int, int], pad: int, align: int) -> tuple[int, int, int, int]:
     """Integer box around ``uv`` padded by ``pad`` px, clipped to the image, with width and height rounded
     up to a multiple of ``align`` where the image allows (pyramid levels)."""

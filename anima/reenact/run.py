@@ -136,7 +136,7 @@ def _reenact_video(actor, targets, out, cfg, sbs, db_path, progress) -> dict:
             if i >= aseq.n_frames:
                 break
             j = int(j_of_i[i])
-            col = rx.texture(x[i])
+            col = rx.texture(x[i], skin=rx.target_skin(tframes, tseq, j, identity))
             uvz = rx.geometry(x[i], identity, tseq.scale[j], tseq.rotation[j], tseq.translation[j])
             emit(sm.push(uvz, col, (j, a_rgb if sbs else None, float(alpha[i]))))
         emit(sm.flush())
@@ -289,7 +289,7 @@ def _reenact_live(source, targets, out, cfg, db_path, max_seconds, progress) -> 
             if x is None:
                 frames = [(None, None, (j, t_cap, 0.0))]
             else:
-                col = rx.texture(x)
+                col = rx.texture(x, skin=rx.target_skin(tframes, tseq, j, db.identity[0]))
                 uvz = rx.geometry(x, db.identity[0], tseq.scale[j], tseq.rotation[j], tseq.translation[j])
                 frames = sm.push(uvz, col, (j, t_cap, alpha))
             for uvz, col, (jj, tc, al) in frames:

@@ -145,3 +145,41 @@ def temporal_mean(x: np.ndarray, T: int) -> np.ndarray:
     from scipy.ndimage import uniform_filter1d
 
     return uniform_filter1d(np.asarray(x, np.float32), size=T, axis=0, mode="nearest")
+
+
+# ---- colour and lighting per frame (issue 21) -------------------------------------------------------------
+GAIN_RANGE = (0.5, 2.0)  # per-channel contrast change allowed between two frames' skin
+
+
+def skin_stats(colors: np.ndarray, skin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-channel mean and standard deviation of the skin vertices' colours. ``colors`` ``(..., V, 3)``
+    (one frame or a stack), ``skin`` a boolean mask over V. Returns two ``(..., 3)`` float32 arrays (the
+    deviation floored at 1 colour level)."""
+    c = np.asarray(colors)[..., skin, :].astype(np.float32)
+    return c.mean(-2), np.maximum(c.std(-2), 1.0)
+
+
+def color_transfer(colors: np.ndarray, mu_from, sd_from, mu_to, sd_to) -> np.ndarray:
+    """Low-order colour transfer (per-channel gain and offset, Reinhard et al. 2001 in RGB): moves colours
+    whose skin has statistics (mu_from, sd_from) to a skin with (mu_to, sd_to). Broadcasts over leading
+    axes: ``colors`` ``(..., V, 3)``, statistics ``(..., 3)``. The gain is clipped to ``GAIN_RANGE`` so one
+    badly sampled frame cannot blow the contrast up. Float32, unclipped."""
+    sd_from, sd_to = np.atleast_1d(np.asarray(sd_from, np.float32)), np.atleast_1d(np.asarray(sd_to, np.float32))
+    gain = np.clip(sd_to / sd_from, *GAIN_RANGE)
+    mu_from, mu_to = np.atleast_1d(np.asarray(mu_from, np.float32)), np.atleast_1d(np.asarray(mu_to, np.float32))
+    return (np.asarray(colors, np.float32) - mu_from[..., None, :]) * gain[..., None, :] + mu_to[..., None, :]
+
+
+def normalized_vnc(colors: np.ndarray, mu: np.ndarray, sd: np.ndarray, mu_ref, sd_ref, chunk: int = 256) -> np.ndarray:
+    """Every database frame's colours ``(N, V, 3)`` moved to the common reference skin (mu_ref, sd_ref),
+    as uint8 laid out vertex-major ``(V, N, 3)`` for :func:`weighted_median`; in frame chunks (no float
+    copy of the whole database)."""
+    N, V, C = colors.shape
+    out = np.empty((V, N, C), np.uint8)
+    ref_mu = np.broadcast_to(np.asarray(mu_ref, np.float32), (N, C))
+    ref_sd = np.broadcast_to(np.asarray(sd_ref, np.float32), (N, C))
+    for a in range(0, N, chunk):
+        b = min(N, a + chunk)
+        c = color_transfer(colors[a:b], mu[a:b], sd[a:b], ref_mu[a:b], ref_sd[a:b])
+        out[:, a:b] = np.clip(np.rint(c), 0, 255).astype(np.uint8).transpose(1, 0, 2)
+    return out

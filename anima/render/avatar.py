@@ -10,7 +10,8 @@ import numpy as np
 from tqdm import tqdm
 
 from anima.io.video import VideoWriter
-from anima.render.face import put_label, render_mesh
+from anima.render.face import compose, put_label, raster_mesh
+from anima.render.parallel import ordered_map
 
 
 def _view(X: np.ndarray, size: int, yaw: float, centre: np.ndarray, scale: float) -> np.ndarray:
@@ -42,27 +43,32 @@ def render_avatar_video(
     centre = np.nanmedian(positions[:, head], axis=0) - np.array([0.0, 0.35, 0.0])
     scale = size / 1.4
     D = np.asarray(deltas, np.float32).reshape(len(deltas), -1)
+
+    def frame(f: int) -> np.ndarray:
+        canvas = np.empty((size, 2 * size, 3), np.uint8)
+        V = (head_verts + (np.asarray(weights[f], np.float32) @ D).reshape(-1, 3)) @ head_rot[f].T
+        V = V + positions[f, head]
+        for k, yaw in enumerate((0.0, np.deg2rad(-60))):
+            img = np.full((size, size, 3), 28, np.uint8)
+            P = _view(positions[f], size, yaw, centre, scale)
+            uv = np.stack([P[:, 0], -P[:, 1]], -1)
+            a, b = uv[parents[1:]], uv[1:]
+            ok = np.isfinite(a).all(1) & np.isfinite(b).all(1) & (np.abs(a - b).sum(1) > 0.5)
+            segs = np.round(np.stack([a[ok], b[ok]], 1)).astype(np.int32)  # [S, 2, 2]
+            cv2.polylines(img, list(segs.reshape(-1, 2, 1, 2)), False, (255, 170, 60), 2, cv2.LINE_AA)
+            X = _view(V, size, yaw, centre, scale).astype(np.float32)  # the head over its bones
+            compose(raster_mesh(X, tris, (size, size)), (size, size), background=img, inplace=True)
+            canvas[:, k * size : (k + 1) * size] = img
+        return put_label(canvas, f"{f / fps:5.2f} s   front | 3/4 view")
+
     with ExitStack() as stack:
         w = stack.enter_context(VideoWriter(path, fps, (2 * size, size), audio))
-        for f in tqdm(range(len(positions)), desc="avatar", unit="fr", disable=not progress, leave=False):
-            canvas = np.full((size, 2 * size, 3), 28, np.uint8)
-            V = (head_verts + (np.asarray(weights[f], np.float32) @ D).reshape(-1, 3)) @ head_rot[f].T
-            V = V + positions[f, head]
-            for k, yaw in enumerate((0.0, np.deg2rad(-60))):
-                img = np.full((size, size, 3), 28, np.uint8)
-                P = _view(positions[f], size, yaw, centre, scale)
-                uv = np.stack([P[:, 0], -P[:, 1]], -1)
-                for j in range(1, len(parents)):
-                    a, b = uv[parents[j]], uv[j]
-                    if np.isfinite(a).all() and np.isfinite(b).all() and np.abs(a - b).sum() > 0.5:
-                        cv2.line(
-                            img,
-                            tuple(int(round(x)) for x in a),
-                            tuple(int(round(x)) for x in b),
-                            (255, 170, 60),
-                            2,
-                            cv2.LINE_AA,
-                        )
-                X = _view(V, size, yaw, centre, scale).astype(np.float32)  # the head over its bones
-                canvas[:, k * size : (k + 1) * size] = render_mesh(X, tris, (size, size), background=img)
-            w.write(put_label(canvas, f"{f / fps:5.2f} s   front | 3/4 view"))
+        for img in tqdm(
+            ordered_map(frame, range(len(positions))),
+            total=len(positions),
+            desc="avatar",
+            unit="fr",
+            disable=not progress,
+            leave=False,
+        ):
+            w.write(img)

@@ -17,6 +17,45 @@ def shade(verts_cam: np.ndarray, tris: np.ndarray, base=SKIN) -> np.ndarray:
     return (0.25 + 0.75 * lam)[:, None] * base[None]
 
 
+def raster_mesh(verts_cam: np.ndarray, tris: np.ndarray, size: tuple[int, int]):
+    """Rasterize camera-space vertices (pixels, +y up) as a shaded mesh, within the mesh's own box only:
+    ``(box, rgb, mask)`` with ``box = (x0, y0, w, h)`` inside ``size`` (W, H), ``rgb`` uint8 and ``mask``
+    bool of the box's size; None when the mesh is off the image."""
+    W, H = size
+    uvz = np.stack([verts_cam[:, 0], -verts_cam[:, 1], verts_cam[:, 2]], -1)
+    ok = np.isfinite(uvz).all(1)
+    if not ok.any():
+        return None
+    lo = np.floor(uvz[ok, :2].min(0)).astype(int)
+    hi = np.ceil(uvz[ok, :2].max(0)).astype(int) + 1
+    x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+    x1, y1 = min(int(hi[0]), W), min(int(hi[1]), H)
+    if x1 <= x0 or y1 <= y0:
+        return None
+    col, mask, _ = rasterize(uvz - np.array([x0, y0, 0.0]), tris, shade(verts_cam, tris), (x1 - x0, y1 - y0))
+    return (x0, y0, x1 - x0, y1 - y0), (col * 255).astype(np.uint8), mask
+
+
+def compose(
+    raster, size: tuple[int, int], background: np.ndarray | None = None, alpha: float = 1.0, inplace: bool = False
+) -> np.ndarray:
+    """An RGB uint8 image of ``size`` (W, H) with a :func:`raster_mesh` result over ``background`` (alpha
+    blended) or over a dark grey; ``inplace`` draws into ``background`` itself."""
+    W, H = size
+    if background is None:
+        out = np.full((H, W, 3), 24, np.uint8)
+    else:
+        out = background if inplace else background.copy()
+    if raster is None:
+        return out
+    (x0, y0, w, h), rgb, mask = raster
+    crop = out[y0 : y0 + h, x0 : x0 + w]
+    if background is not None and alpha < 1.0:
+        rgb = cv2.addWeighted(rgb, float(alpha), crop, 1.0 - float(alpha), 0.0)
+    np.copyto(crop, rgb, where=mask[..., None])
+    return out
+
+
 def render_mesh(
     verts_cam: np.ndarray,
     tris: np.ndarray,
@@ -26,17 +65,7 @@ def render_mesh(
 ) -> np.ndarray:
     """Render camera-space vertices (pixels, +y up) as a shaded mesh into an RGB uint8 image of ``size``
     (W, H), optionally alpha-blended over ``background``."""
-    W, H = size
-    uvz = np.stack([verts_cam[:, 0], -verts_cam[:, 1], verts_cam[:, 2]], -1)
-    col, mask, _ = rasterize(uvz, tris, shade(verts_cam, tris), (W, H))
-    rgb = (col * 255).astype(np.uint8)
-    if background is None:
-        out = np.full((H, W, 3), 24, np.uint8)
-        out[mask] = rgb[mask]
-        return out
-    out = background.copy()
-    out[mask] = (alpha * rgb[mask] + (1 - alpha) * background[mask]).astype(np.uint8)
-    return out
+    return compose(raster_mesh(verts_cam, tris, size), size, background, alpha)
 
 
 def draw_points(img: np.ndarray, uv: np.ndarray, color=(0, 255, 0), radius: int = 1) -> np.ndarray:

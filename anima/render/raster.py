@@ -12,6 +12,7 @@ import numpy as np
 @nb.njit(cache=True, nogil=True)
 def _raster(uvz, tris, colors, img, zbuf, mask):
     H, W = zbuf.shape
+    C = colors.shape[1]
     for t in range(tris.shape[0]):
         i0, i1, i2 = tris[t, 0], tris[t, 1], tris[t, 2]
         x0, y0, z0 = uvz[i0, 0], uvz[i0, 1], uvz[i0, 2]
@@ -24,13 +25,34 @@ def _raster(uvz, tris, colors, img, zbuf, mask):
         xmax = min(int(np.ceil(max(x0, max(x1, x2)))), W - 1)
         ymin = max(int(np.floor(min(y0, min(y1, y2)))), 0)
         ymax = min(int(np.ceil(max(y0, max(y1, y2)))), H - 1)
+        if xmin > xmax or ymin > ymax:
+            continue
         inv = 1.0 / area
+        # barycentric weights as affine functions of the pixel centre: w = a * px + b * py + c
+        a0, b0, c0 = (y1 - y2) * inv, (x2 - x1) * inv, (x1 * y2 - x2 * y1) * inv
+        a1, b1, c1 = (y2 - y0) * inv, (x0 - x2) * inv, (x2 * y0 - x0 * y2) * inv
         for y in range(ymin, ymax + 1):
             py = y + 0.5
-            for x in range(xmin, xmax + 1):
+            r0 = b0 * py + c0
+            r1 = b1 * py + c1
+            # the span of pixel centres inside the triangle on this row (w0, w1, w2 >= 0), widened by one
+            # pixel against rounding; the exact test below decides
+            lo, hi = xmin + 0.5, xmax + 0.5
+            for a, r in ((a0, r0), (a1, r1), (-(a0 + a1), 1.0 - r0 - r1)):
+                if a > 0:
+                    lo = max(lo, -r / a - 1.0)
+                elif a < 0:
+                    hi = min(hi, -r / a + 1.0)
+                elif r < 0:
+                    hi = lo - 1.0
+            if hi < lo:
+                continue
+            xs = max(xmin, int(np.floor(lo - 0.5)))
+            xe = min(xmax, int(np.ceil(hi - 0.5)))
+            for x in range(xs, xe + 1):
                 px = x + 0.5
-                w0 = ((x1 - px) * (y2 - py) - (x2 - px) * (y1 - py)) * inv
-                w1 = ((x2 - px) * (y0 - py) - (x0 - px) * (y2 - py)) * inv
+                w0 = a0 * px + r0
+                w1 = a1 * px + r1
                 w2 = 1.0 - w0 - w1
                 if w0 < 0 or w1 < 0 or w2 < 0:
                     continue
@@ -38,7 +60,7 @@ def _raster(uvz, tris, colors, img, zbuf, mask):
                 if z > zbuf[y, x]:
                     zbuf[y, x] = z
                     mask[y, x] = True
-                    for c in range(colors.shape[1]):
+                    for c in range(C):
                         img[y, x, c] = w0 * colors[i0, c] + w1 * colors[i1, c] + w2 * colors[i2, c]
 
 
@@ -60,20 +82,32 @@ def rasterize(uvz: np.ndarray, tris: np.ndarray, colors: np.ndarray, size: tuple
     return img, mask, zbuf
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _normals(verts, tris, out):
     for t in range(tris.shape[0]):
         a, b, c = tris[t, 0], tris[t, 1], tris[t, 2]
-        e1 = verts[b] - verts[a]
-        e2 = verts[c] - verts[a]
-        n = np.cross(e1, e2)
-        out[a] += n
-        out[b] += n
-        out[c] += n
+        e1x, e1y, e1z = verts[b, 0] - verts[a, 0], verts[b, 1] - verts[a, 1], verts[b, 2] - verts[a, 2]
+        e2x, e2y, e2z = verts[c, 0] - verts[a, 0], verts[c, 1] - verts[a, 1], verts[c, 2] - verts[a, 2]
+        nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+        for v in (a, b, c):
+            out[v, 0] += nx
+            out[v, 1] += ny
+            out[v, 2] += nz
+
+
+@nb.njit(cache=True, nogil=True)
+def _normalize_rows(out):
+    for v in range(out.shape[0]):
+        n = np.sqrt(out[v, 0] ** 2 + out[v, 1] ** 2 + out[v, 2] ** 2)
+        n = max(n, 1e-12)
+        out[v, 0] /= n
+        out[v, 1] /= n
+        out[v, 2] /= n
 
 
 def vertex_normals(verts: np.ndarray, tris: np.ndarray) -> np.ndarray:
     """Area-weighted unit vertex normals ``[V, 3]``."""
     out = np.zeros(verts.shape, np.float64)
     _normals(np.ascontiguousarray(verts, np.float64), np.ascontiguousarray(tris, np.int64), out)
-    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
+    _normalize_rows(out)
+    return out

@@ -11,7 +11,7 @@ from tqdm import tqdm
 from anima.facemodel.ict import load_face_model
 from anima.io.sequence import FLAG_NO_FACE, TrackedSequence
 from anima.io.video import VideoWriter, iter_frames, probe_video
-from anima.render.face import put_label, render_mesh
+from anima.render.face import compose, put_label, raster_mesh
 
 
 class SequenceMesh:
@@ -23,9 +23,10 @@ class SequenceMesh:
         self.seq = seq
         self.base = self.model.vertices(seq.identity)
         self.R = seq.rotation_matrices()
+        self.deltas = np.ascontiguousarray(self.model.expr_deltas.reshape(len(self.model.expr_deltas), -1))
 
     def camera_vertices(self, f: int) -> np.ndarray:
-        V = self.base + np.tensordot(self.seq.expression[f].astype(np.float32), self.model.expr_deltas, 1)
+        V = self.base + (self.seq.expression[f].astype(np.float32) @ self.deltas).reshape(-1, 3)
         return self.seq.scale[f] * V @ self.R[f].T + self.seq.translation[f]
 
 
@@ -60,10 +61,10 @@ def render_videos(
         for f in tqdm(range(seq.n_frames), desc="render", unit="fr", disable=not progress, leave=False):
             frame = next(frames, None) if frames is not None else None
             no_face = bool(seq.flags[f] & FLAG_NO_FACE)
-            X = mesh.camera_vertices(f)
+            r = raster_mesh(mesh.camera_vertices(f), mesh.tris, size)  # once for both videos
             if w_over is not None and frame is not None:
-                img = frame if no_face else render_mesh(X, mesh.tris, size, background=frame, alpha=alpha)
+                img = frame if no_face else compose(r, size, background=frame, alpha=alpha)
                 w_over.write(put_label(img, "no face" if no_face else f"fit {seq.fit_error_px[f]:.1f}px"))
             if w_mesh is not None:
-                img = render_mesh(X, mesh.tris, size)
+                img = compose(r, size)
                 w_mesh.write(put_label(img, "no face (interpolated)") if no_face else img)

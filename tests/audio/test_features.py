@@ -55,3 +55,29 @@ def test_audio_track_of_a_video_and_missing_audio():
         read_audio(asset("liveportrait-examples/assets/examples/driving/d0.mp4"))
     with pytest.raises(InputError):
         read_audio("/nonexistent.wav")
+
+
+def test_each_step_equals_librosa_on_real_speech(speech):
+    """The feature maths is written out in numpy (no librosa import in a command); every step agrees with
+    librosa itself, and so do the features of the old librosa pipeline, on real speech."""
+    import librosa
+    import scipy.signal
+
+    from anima.audio import features as F
+
+    np.testing.assert_allclose(F.hann(400), scipy.signal.get_window("hann", 400, fftbins=True), atol=1e-12)
+    np.testing.assert_allclose(F.mel_filters(), librosa.filters.mel(sr=16000, n_fft=512, n_mels=40), atol=1e-7)
+    x = speech[:48000]
+    np.testing.assert_array_equal(F.frame_signal(x, 320, 160), librosa.util.frame(x, frame_length=320, hop_length=160))
+    base = np.random.default_rng(0).normal(size=(50, 14))
+    np.testing.assert_allclose(F.delta3(base), librosa.feature.delta(base, width=3, order=1, axis=0), atol=1e-12)
+    # the whole pipeline as it was written with librosa
+    fps, n = 30.0, 120
+    y, _, _ = F.normalize_loudness(x)
+    centres = np.round(np.arange(n) / fps * 16000).astype(np.int64)
+    fr = F._centred_frames(y, centres, 400) * librosa.filters.get_window("hann", 400, fftbins=True)[None]
+    mel = librosa.filters.mel(sr=16000, n_fft=512, n_mels=40) @ (np.abs(np.fft.rfft(fr, n=512, axis=1)) ** 2).T
+    mfcc = librosa.feature.mfcc(S=librosa.power_to_db(mel, ref=1.0, amin=1e-10, top_db=None), n_mfcc=13)
+    ours = speech_features(x, fps, n).features
+    np.testing.assert_allclose(ours[:, :13], mfcc.T, atol=2e-4)
+    np.testing.assert_allclose(ours[:, 14:27], librosa.feature.delta(mfcc.T, width=3, order=1, axis=0), atol=2e-4)

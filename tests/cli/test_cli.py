@@ -32,6 +32,7 @@ def test_capture_end_to_end_on_real_clip(d0_path, tmp_path, cli):
     assert r.returncode == 0, r.stderr
     summary = json.loads(r.stdout)
     assert summary["frames"] == 40 and summary["tracked_fraction"] == 1.0
+    assert {"start", "capture", "write", "render", "total"} <= set(summary["time_s"])
     for name in ("capture.npz", "arkit.csv", "face.glb", "overlay.mp4", "mesh.mp4"):
         assert (out / name).stat().st_size > 1000, name
     from anima.io.video import read_video

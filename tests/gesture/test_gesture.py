@@ -120,6 +120,9 @@ def test_gesture_command_outputs_and_bad_inputs(ds, tmp_path, cli):
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
     assert info["frames"] == 61 and info["controls"][0]["relaxed_to"] is not None
+    t = info["time_s"]  # where the command's time went, start-up included
+    assert {"start", "load", "speech", "search", "post", "write", "render", "total"} <= set(t)
+    assert all(v >= 0 for v in t.values()) and t["total"] >= sum(v for k, v in t.items() if k != "total") - 0.01
     assert "relaxed" in r.stderr
     J = read_sequence(out / "gesture.npz").body_joints
     assert J.shape == (61, 55, 3) and np.isfinite(J).all()

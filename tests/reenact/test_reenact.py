@@ -99,6 +99,9 @@ def test_database_on_a_real_clip(obama_db, tmp_path):
 
     db, seq, path = obama_db
     assert db.n >= 150 and db.colors.shape == (db.n, len(db.vertex_ids), 3) and db.colors.dtype == np.uint8
+    # the mouth interior the z-buffer never showed is dropped; all skin stays
+    rv = db.meta["region_vertices"]
+    assert rv["all"] == 11421 and 2000 < rv["kept"] < rv["all"] and rv["kept"] == len(db.vertex_ids)
     db2 = read_database(path)
     np.testing.assert_array_equal(db2.colors, db.colors)
     np.testing.assert_array_equal(db2.expression, db.expression)
@@ -106,7 +109,7 @@ def test_database_on_a_real_clip(obama_db, tmp_path):
     frames, _ = read_video(asset(OBAMA1), max_frames=60)
     rx = Reenactor(db2, ReenactConfig(n=20))
     f = 50
-    col = rx.texture(seq.expression[f])
+    col = rx.texture(seq.expression[f], skin=rx.target_skin(frames, seq, f, db.identity[0]))
     row = int(np.flatnonzero(db.frame == f)[0])
     assert np.abs(col - db.colors[row]).mean() < 12
     uvz = rx.geometry(seq.expression[f], db.identity[0], seq.scale[f], seq.rotation[f], seq.translation[f])
@@ -120,6 +123,67 @@ def test_database_on_a_real_clip(obama_db, tmp_path):
     np.savez(tmp_path / "v9.npz", **d)
     with pytest.raises(SchemaError, match="version 9"):
         read_database(tmp_path / "v9.npz")
+
+
+def test_colour_transfer_maths():
+    from anima.reenact.synth import color_transfer, normalized_vnc, skin_stats
+
+    rng = np.random.default_rng(3)
+    c = rng.normal(120, 20, (4, 300, 3)).astype(np.float32)
+    skin = np.zeros(300, bool)
+    skin[:200] = True
+    mu, sd = skin_stats(c, skin)
+    assert mu.shape == (4, 3) and np.allclose(mu, c[:, :200].mean(1), atol=1e-3)
+    lit = c * np.float32([1.3, 1.1, 0.8]) + np.float32([10, 0, -5])  # another camera's white balance
+    mu2, sd2 = skin_stats(lit, skin)
+    back = color_transfer(lit, mu2, sd2, mu, sd)  # to the first lighting and back again
+    np.testing.assert_allclose(back, c, atol=1e-3)
+    np.testing.assert_allclose(color_transfer(back, mu, sd, mu2, sd2), lit, atol=1e-3)
+    # the gain is bounded: a flat frame cannot blow the contrast up
+    flat = np.full((300, 3), 100, np.float32)
+    assert np.abs(color_transfer(flat + rng.normal(0, 50, (300, 3)), 100, 1, 100, 50) - 100).max() < 400
+    vnc = normalized_vnc(np.clip(lit, 0, 255).astype(np.uint8), mu2, sd2, mu.mean(0), sd.mean(0), chunk=3)
+    assert vnc.shape == (300, 4, 3) and vnc.dtype == np.uint8
+
+
+def test_visible_vertices_zbuffer():
+    from anima.reenact.render import visible_vertices
+
+    # a small far triangle (depth 0) behind a large near one (depth 10): only the near one's corners show
+    uvz = np.array([[5, 5, 0], [9, 5, 0], [5, 9, 0], [0, 0, 10], [30, 0, 10], [0, 30, 10], [40, 40, 0.0]])
+    tris = np.array([[0, 1, 2], [3, 4, 5]])
+    vis = visible_vertices(uvz.astype(np.float64), tris)
+    assert not vis[:3].any() and vis[3:6].sum() >= 2 and not vis[6]  # vertex 6 is on no triangle
+    vis_front = visible_vertices((uvz * [1, 1, -1]).astype(np.float64), tris)  # swap the depths
+    assert vis_front[:3].all()
+
+
+def test_lighting_change_between_target_videos(obama_db):
+    """A target database whose second half was filmed under other light (the real clip with a camera's
+    gain and white balance changed): with colour transfer the texture of a frame from the first half keeps
+    that frame's own colours; without it the other light leaks in."""
+    import dataclasses
+
+    from anima.io.video import read_video
+    from anima.reenact.pipeline import Reenactor
+
+    db, seq, _ = obama_db
+    half = db.n // 2
+    lit = db.colors.astype(np.float32)
+    lit[half:] = lit[half:] * np.float32([1.25, 1.15, 0.75]) + np.float32([25, 15, 0])  # brighter, cooler
+    db2 = dataclasses.replace(db, colors=np.clip(lit, 0, 255).astype(np.uint8), _vnc=None)
+    frames, _ = read_video(asset(OBAMA1), max_frames=60)
+    errs = {}
+    for on in (False, True):
+        rx = Reenactor(db2, ReenactConfig(color_transfer=on))
+        assert rx.skin.sum() > 300
+        e = []
+        for f in range(5, 60, 9):
+            col = rx.texture(seq.expression[f], skin=rx.target_skin(frames, seq, f, db.identity[0]))
+            row = int(np.flatnonzero(db.frame == f)[0])
+            e.append(np.abs(col[rx.skin].mean(0) - db.colors[row][rx.skin].mean(0)).max())
+        errs[on] = float(np.max(e))
+    assert errs[False] > 8 and errs[True] < 3, errs
 
 
 def test_reenact_command_end_to_end(obama_db, tmp_path, cli):

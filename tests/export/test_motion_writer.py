@@ -1,0 +1,90 @@
+"""The one motion writer renders its videos side by side: every video is made and identical to a serial
+render of the same real capture, and a failing render neither stops the others nor leaves a file behind."""
+
+import threading
+
+import numpy as np
+import pytest
+
+from anima.export.motion import run_renders
+from anima.io.assets import asset
+from anima.io.video import read_video
+
+D0 = "liveportrait-examples/assets/examples/driving/d0.mp4"
+
+
+@pytest.fixture(scope="module")
+def seq(tmp_path_factory):
+    from anima.capture.pipeline import CaptureConfig, capture_video
+
+    return capture_video(str(asset(D0)), CaptureConfig(max_frames=24), progress=False)
+
+
+def test_parallel_renders_equal_serial_ones(seq, tmp_path):
+    from anima.render.videos import render_videos
+
+    src = str(asset(D0))
+    threads = set()
+
+    def job(name):
+        def call():
+            threads.add(threading.get_ident())
+            render_videos(seq, src, tmp_path / f"{name}_o.mp4", tmp_path / f"{name}_m.mp4", progress=False)
+
+        return call
+
+    run_renders([({"a": tmp_path / "a_o.mp4"}, job("a")), ({"b": tmp_path / "b_o.mp4"}, job("b"))])
+    assert len(threads) == 2  # really on two threads
+    run_renders([({"s": tmp_path / "s_o.mp4"}, job("s"))])  # one job: serial, in this thread
+    s, _ = read_video(tmp_path / "s_o.mp4")
+    for name in ("a", "b"):
+        v, _ = read_video(tmp_path / f"{name}_o.mp4")
+        assert v.shape == s.shape == (24, 512, 512, 3) and np.array_equal(v, s)
+
+
+def test_a_failing_render_does_not_stop_the_others(seq, tmp_path):
+    from anima.io.video import VideoWriter
+
+    def good():
+        with VideoWriter(tmp_path / "good.mp4", 25, (64, 64)) as w:
+            for i in range(10):
+                w.write(np.full((64, 64, 3), 10 * i, np.uint8))
+
+    def bad():
+        with VideoWriter(tmp_path / "bad.mp4", 25, (64, 64)) as w:
+            w.write(np.zeros((64, 64, 3), np.uint8))
+            raise RuntimeError("render failed")
+
+    with pytest.raises(RuntimeError, match="render failed"):
+        run_renders([({"b": tmp_path / "bad.mp4"}, bad), ({"g": tmp_path / "good.mp4"}, good)])
+    assert len(read_video(tmp_path / "good.mp4")[0]) == 10
+    assert not (tmp_path / "bad.mp4").exists() and [p.name for p in tmp_path.iterdir()] == ["good.mp4"]
+
+
+def test_ordered_map_keeps_order_bounds_work_ahead_and_raises():
+    import time
+
+    from anima.render.parallel import ordered_map
+
+    started = []
+
+    def slow_square(i):
+        started.append(i)
+        time.sleep(0.01 * ((7 * i) % 3))  # finish out of order
+        return i * i
+
+    gen = ordered_map(slow_square, range(40), workers=2, ahead=2)
+    first = [next(gen) for _ in range(3)]
+    assert first == [0, 1, 4] and len(started) <= 3 + 2 * 2  # never more than 4 frames ahead
+    assert first + list(gen) == [i * i for i in range(40)]
+
+    def boom(i):
+        if i == 5:
+            raise ValueError("frame 5")
+        return i
+
+    got = []
+    with pytest.raises(ValueError, match="frame 5"):
+        for x in ordered_map(boom, range(100), workers=2):
+            got.append(x)
+    assert got == [0, 1, 2, 3, 4]
