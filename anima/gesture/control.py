@@ -71,6 +71,13 @@ def parse_control(text: str) -> Control:
     return Control(name, op, float(v), bool(p), float(a) if a else 0.0, float(b) if b else float("inf"), text)
 
 
+def speed_steps(controls: list[Control], n_steps: int, step_s: float) -> set[int]:
+    """The search steps a wrist-speed control applies to (their joins are left unblended)."""
+    return {
+        k for k in range(n_steps) for c in controls if c.name.endswith("_speed") and c.start_s <= k * step_s < c.end_s
+    }
+
+
 def step_masks(
     db, controls: list[Control], n_steps: int, step_s: float, threshold_rows: np.ndarray | None = None
 ) -> tuple[list, list[dict]]:
@@ -79,7 +86,7 @@ def step_masks(
     are taken over the database windows ``threshold_rows`` (default: all)."""
     if not controls:
         return [None] * n_steps, []
-    feats = control_features(db.G)
+    feats = control_features(db.G_rig)
     ref = feats if threshold_rows is None else {k: v[threshold_rows] for k, v in feats.items()}
     report = []
     masks_by_control = []

@@ -31,7 +31,7 @@ import numpy as np
 
 from anima.core.contract import GESTURE_FPS
 from anima.gesture.features import N_STEP, T_MATCH
-from anima.gesture.post import skeleton_lengths
+from anima.gesture.post import one_skeleton, skeleton_lengths
 
 N_PROJ = 48  # principal directions of the pose feature used for the lower bounds
 N_FIRST = 24  # of which the first bound reads the first 24 for every frame
@@ -106,6 +106,16 @@ class MatchDB:
         if getattr(self, "_lengths", None) is None:
             self._lengths = skeleton_lengths(self.G.reshape(self.M, self.G.shape[1], -1, 3))
         return self._lengths
+
+    @property
+    def G_rig(self) -> np.ndarray:
+        """The windows' joints re-posed on :attr:`bone_lengths` (``[M, T, 165]``), as every output is: what
+        the controls' percentiles and masks are measured on, so a threshold means the same on the database
+        and on the output."""
+        if getattr(self, "_g_rig", None) is None:
+            J = self.G.reshape(self.M * self.G.shape[1], -1, 3)
+            self._g_rig = one_skeleton(J, self.bone_lengths).reshape(self.G.shape)
+        return self._g_rig
 
     def audio_norms(self) -> np.ndarray:
         """|f| per database frame, computed as the literal search computes it (float64, per row)."""

@@ -71,11 +71,19 @@ def smooth(x: np.ndarray, sigma: float = 1.5) -> np.ndarray:
 
 
 def finish_knn(
-    G: np.ndarray, picks: list[tuple[int, int]], lengths: np.ndarray, n_step: int, blend: bool = True
+    G: np.ndarray,
+    picks: list[tuple[int, int]],
+    lengths: np.ndarray,
+    n_step: int,
+    blend: bool = True,
+    raw_steps: set | None = None,
 ) -> np.ndarray:
     """The k-NN search's raw output ``G [T, 165]`` -> joints ``[T, 55, 3]``: joins blended over one step,
-    then one skeleton (``lengths``, e.g. :attr:`MatchDB.bone_lengths`)."""
+    then one skeleton (``lengths``, e.g. :attr:`MatchDB.bone_lengths`). Joins at the steps in ``raw_steps``
+    stay as searched (a wrist-speed control: the blend's decaying offset would add the motion the control
+    asked away)."""
     J = np.asarray(G).reshape(len(G), -1, 3)
     if blend:
-        J = blend_joins(J, joins_of(picks, n_step), n_step)
+        joins = [t for t in joins_of(picks, n_step) if t // n_step not in (raw_steps or set())]
+        J = blend_joins(J, joins, n_step)
     return one_skeleton(J, lengths)

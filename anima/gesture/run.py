@@ -17,7 +17,7 @@ from anima.core.clock import Stopwatch
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
 from anima.export.motion import write_motion_outputs
-from anima.gesture.control import parse_control, step_masks
+from anima.gesture.control import parse_control, speed_steps, step_masks
 from anima.gesture.database import from_dataset
 from anima.gesture.features import N_STEP, audio_features
 from anima.gesture.keywords import keyword_masks, parse_keyword, union
@@ -100,7 +100,8 @@ def synthesize(
     with sw("search"):
         G, picks = search(db, F_in, k, p0, masks, no_repeat_steps=round(no_repeat_s * fps / N_STEP))
     with sw("post"):
-        J = finish_knn(G, picks, db.bone_lengths, N_STEP, blend=blend)
+        raw = speed_steps(controls or [], n_steps, N_STEP / fps)
+        J = finish_knn(G, picks, db.bone_lengths, N_STEP, blend=blend, raw_steps=raw)
         if refiner is not None:  # the refiner works on the blended output, and keeps the one skeleton
             J = one_skeleton(refiner.refine(feats.features[: len(J)], J), db.bone_lengths)
     joins = joins_of(picks, N_STEP)

@@ -42,3 +42,18 @@ def test_smoothing_removes_jitter_without_costing_accuracy():
     assert r["tracked"] == 1.0
     assert r["acc_reduction"] >= 0.4
     assert r["error_ratio_smoothed_vs_unsmoothed"] <= 1.10
+
+
+def test_bootstrap_over_videos_resamples_whole_videos():
+    from anima.eval.gesture.metrics import bootstrap_over_groups
+
+    rng = np.random.default_rng(0)
+    groups = np.repeat(np.arange(12), 40)
+    x = (rng.random(len(groups)) < np.repeat(rng.uniform(0.3, 0.9, 12), 40)).astype(float)
+    lo, hi = bootstrap_over_groups(x, groups)
+    assert lo < x.mean() < hi and bootstrap_over_groups(x, groups) == [lo, hi]  # seeded
+    # frames within a video are not independent: the interval over videos is wider than one over frames
+    lo_f, hi_f = bootstrap_over_groups(x, np.arange(len(x)))
+    assert hi - lo > 1.5 * (hi_f - lo_f)
+    # one video: nothing to resample, the interval is its mean
+    assert bootstrap_over_groups(x[:40], groups[:40]) == [x[:40].mean()] * 2

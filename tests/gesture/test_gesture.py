@@ -89,7 +89,7 @@ def test_control_holds_on_first_and_last_frame_of_each_window(db):
     F_in = audio_features(features_for_file(asset(SPEECH), 15.0).features)[:64]
     masks, rep = step_masks(db, [c], 8, 8 / 15)
     _, picks = search(db, F_in, 0, db.P.reshape(-1, 96).mean(0), masks)
-    h = control_features(db.G)["left_wrist_height"]
+    h = control_features(db.G_rig)["left_wrist_height"]  # measured on the one skeleton every output has
     thr = rep[0]["threshold"]
     for m, r in picks:
         assert h[m, r] >= thr and h[m, r + 7] >= thr
@@ -278,6 +278,34 @@ def test_joins_continue_without_repeating_and_blend(db, tmp_path):
     j_raw, in_raw = step(raw)
     j_bl, in_bl = step(J)
     assert j_bl < j_raw and j_bl < 1.5 * in_bl, (j_raw, in_raw, j_bl, in_bl)
+
+
+def test_speed_controlled_joins_are_not_blended(db, tmp_path):
+    """A wrist-speed control asks for stillness (or motion) that the join blend's decaying offset would change:
+    joins inside its time range stay as searched, the others are still blended."""
+    from anima.gesture.control import parse_control, speed_steps
+    from anima.gesture.post import finish_knn, joins_of, one_skeleton
+    from anima.gesture.run import synthesize
+
+    speech = tmp_path / "s.wav"
+    subprocess.run([FFMPEG, "-v", "error", "-y", "-i", str(asset(SPEECH)), "-t", "8", "-vn", str(speech)], check=True)
+    c = parse_control("left_wrist_speed<=p15@0-4s")
+    raw_steps = speed_steps([c], 15, 8 / 15)
+    assert raw_steps == set(range(8))  # steps starting before 4 s
+    assert not speed_steps([parse_control("left_wrist_height>=p85")], 15, 8 / 15)
+    J, info = synthesize(str(speech), db, controls=[c])
+    G = np.concatenate([db.G[m, r : r + 8] for m, r in info["picks"]])[: len(J)]
+    joins = joins_of(info["picks"], 8)
+    plain = one_skeleton(G.reshape(len(G), -1, 3), db.bone_lengths)
+    blended = finish_knn(G, info["picks"], db.bone_lengths, 8)
+    assert np.allclose(J, finish_knn(G, info["picks"], db.bone_lengths, 8, raw_steps=raw_steps))
+    early = [t for t in joins if t < 64]
+    late = [t for t in joins if t >= 64]
+    assert early and late
+    for t in early:  # left as searched
+        assert np.allclose(J[t : t + 8], plain[t : t + 8], atol=1e-6)
+    assert any(not np.allclose(J[t : t + 8], plain[t : t + 8], atol=1e-4) for t in late)  # blended
+    assert not np.allclose(J, blended)  # and it differs from blending every join
 
 
 def test_no_repeat_keeps_variety_under_a_control(db):

@@ -101,9 +101,26 @@ def adherence_table(adherence: dict, window: int) -> dict:
         if c != "none":  # each query against the threshold of its own (leave-one-out) database
             thr = np.repeat(a["thresholds"], window)
             row["threshold"] = float(np.mean(a["thresholds"]))
-            row["satisfied_fraction"] = float((vals >= thr).mean() if ">" in c else (vals <= thr).mean())
+            ok = (vals >= thr) if ">" in c else (vals <= thr)
+            row["satisfied_fraction"] = float(ok.mean())
+            if a.get("videos") is not None:  # the spread over test videos: a bootstrap over them
+                vid = np.repeat(np.asarray(a["videos"]), window)
+                row["satisfied_fraction_ci95_over_videos"] = bootstrap_over_groups(ok.astype(float), vid)
+                row["test_videos"] = int(len(set(a["videos"])))
         table[c] = row
     return table
+
+
+def bootstrap_over_groups(x: np.ndarray, groups: np.ndarray, reps: int = 2000, seed: int = 0) -> list[float]:
+    """95 % interval of the mean of ``x`` when whole groups (videos) are resampled with replacement (each
+    group's sum and count, so a long video weighs as its frames do). Seeded."""
+    keys, inv = np.unique(groups, return_inverse=True)
+    sums = np.bincount(inv, weights=x, minlength=len(keys))
+    counts = np.bincount(inv, minlength=len(keys)).astype(float)
+    rng = np.random.default_rng(seed)
+    pick = rng.integers(0, len(keys), (reps, len(keys)))
+    means = sums[pick].sum(1) / np.maximum(counts[pick].sum(1), 1)
+    return [float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))]
 
 
 def speaker_of(source: str) -> str:

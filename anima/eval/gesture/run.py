@@ -39,7 +39,7 @@ from anima.eval.gesture.metrics import (
     speaker_of,
     wrist_motion,
 )
-from anima.gesture.control import control_features, parse_control, step_masks
+from anima.gesture.control import control_features, parse_control, speed_steps, step_masks
 from anima.gesture.database import from_dataset
 from anima.gesture.features import N_STEP
 from anima.gesture.knn import search
@@ -90,9 +90,11 @@ def knn_rows(db, ks, blend: bool = True) -> tuple[dict, dict, dict]:
             for c, (masks, thr) in controlled.items():
                 G, picks = search(sub, F_in, 0, p0, masks, no_repeat_steps=no_repeat)
                 distinct[c].append(len({m for m, _ in picks}))
-                out = finish_knn(G, picks, sub.bone_lengths, N_STEP, blend).reshape(1, T, -1)
+                raw = speed_steps([parse_control(c)], T // N_STEP, N_STEP / fps)
+                out = finish_knn(G, picks, sub.bone_lengths, N_STEP, blend, raw_steps=raw).reshape(1, T, -1)
                 adherence[c]["values"].append(control_features(out, fps))
                 adherence[c].setdefault("thresholds", []).append(thr)
+                adherence[c].setdefault("videos", []).append(db.source[i][0])
                 kept["ctrl"][c][i] = (out[0].reshape(T, -1, 3), thr)
     table = adherence_table(adherence, T)
     for c, v in distinct.items():
