@@ -66,11 +66,12 @@ class Reenactor:
         self._shapes = {}
         self.times = StageTimes()
         self.skin = skin_ring(model, db.vertex_ids)
-        self.colors_vnc = db.colors_vnc
-        if self.cfg.color_transfer:
+        if self.cfg.color_transfer:  # the normalised vertex-major copy replaces the raw one (made only if used)
             mu, sd = skin_stats(db.colors, self.skin)
             self.ref = (mu.mean(0), sd.mean(0))  # the common reference: the database's average skin
             self.colors_vnc = normalized_vnc(db.colors, mu, sd, *self.ref)
+        else:
+            self.colors_vnc = db.colors_vnc
 
     def frame_skin(self, frame: np.ndarray, uvz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Skin statistics of a target frame under its own fitted geometry ``uvz`` (where the output goes)."""
