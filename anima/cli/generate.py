@@ -8,7 +8,18 @@ from anima.gesture.run import GestureConfig, gesture_to_folder
 from anima.text2face.config import PromptConfig
 
 PROMPT_OPTIONS = ["length", "seconds", "seed"]
-GESTURE_OPTIONS = ["k", "init", "seed", "all_splits", "control", "keyword", "keyword_db", "no_repeat_s", "blend"]
+GESTURE_OPTIONS = [
+    "k",
+    "init",
+    "seed",
+    "all_splits",
+    "control",
+    "control_ends_only",
+    "keyword",
+    "keyword_db",
+    "no_repeat_s",
+    "blend",
+]
 
 
 def register(sub) -> None:

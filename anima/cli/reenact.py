@@ -7,7 +7,7 @@ from anima.cli.options import add_options, config_from_args, number
 from anima.reenact.pipeline import ReenactConfig
 from anima.reenact.run import run_reenact
 
-REENACT_OPTIONS = ["n", "a", "smooth", "map_expressions", "color_transfer"]
+REENACT_OPTIONS = ["n", "a", "smooth", "detail", "map_expressions", "color_transfer"]
 
 
 def register(sub) -> None:

@@ -3,7 +3,8 @@
 Each detector turns a per-frame signal of the tracked sequence (ICT expression weights, head pose from the
 fit, speech energy) into events ``(attribute, start_s, end_s)`` with hysteresis thresholds and minimum
 durations. Thresholds live in :class:`DetectorConfig`; they were calibrated on shared clips against frame
-labels made by watching them (``tests/labels/attributes/*.json``, ``anima eval annotations``).
+labels made by watching them (``anima/eval/labels/attributes/*.json``, ``anima eval annotations``, which
+reports them out of sample: thresholds chosen leave-one-clip-out).
 """
 
 from __future__ import annotations

@@ -71,6 +71,16 @@ class Correspondence:
         """MediaPipe landmarks ``[..., 478, D]`` -> the 68 iBUG points ``[..., 68, D]``."""
         return np.einsum("...kcd,kc->...kd", lm[..., self.ibug_mp_ids, :], self.ibug_mp_bary)
 
+    def reverse_map(self, model: FaceModel, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Any ICT ``vertices`` as barycentric points of MediaPipe's mesh ``(ids [Q, 3], bary [Q, 3])``:
+        each MediaPipe landmark's ICT surface point (on the neutral face) makes a mesh with MediaPipe's
+        triangles, and each vertex is placed at its closest point on it (what :attr:`ibug_mp_ids` is for
+        ICT's own 68, made with the fitted rather than the neutral face)."""
+        V = model.neutral.astype(np.float64)
+        P = np.einsum("kcd,kc->kd", V[self.vertex_ids[:N_MESH]], self.bary[:N_MESH].astype(np.float64))
+        ids, bary, _ = closest_points_on_mesh(V[np.asarray(vertices)], P, mediapipe_triangles(), k=6)
+        return ids, bary
+
 
 def mediapipe_triangles() -> np.ndarray:
     """Triangles of MediaPipe's face mesh from its tessellation edges (3-cliques), ``(T, 3)``."""

@@ -79,11 +79,17 @@ def speed_steps(controls: list[Control], n_steps: int, step_s: float) -> set[int
 
 
 def step_masks(
-    db, controls: list[Control], n_steps: int, step_s: float, threshold_rows: np.ndarray | None = None
+    db,
+    controls: list[Control],
+    n_steps: int,
+    step_s: float,
+    threshold_rows: np.ndarray | None = None,
+    every_frame: bool = True,
 ) -> tuple[list, list[dict]]:
     """Per search step, the window-start mask (None = no control) and a report per control: the threshold
     used, and how far it was relaxed (towards the median) when no database window satisfied it. Percentiles
-    are taken over the database windows ``threshold_rows`` (default: all)."""
+    are taken over the database windows ``threshold_rows`` (default: all). ``every_frame``: a start is allowed
+    when all N frames it gives satisfy the controls (False: its first and last frame, the seed's rule)."""
     if not controls:
         return [None] * n_steps, []
     feats = control_features(db.G_rig)
@@ -94,12 +100,12 @@ def step_masks(
         thr = c.threshold(ref)
         fm = c.frame_mask(feats, thr)
         relaxed_to = None
-        if not db.start_mask(fm).any():
+        if not db.start_mask(fm, every_frame).any():
             med = float(np.median(ref[c.name]))
             for f in np.linspace(0, 1, 21)[1:]:
                 t2 = thr + (med - thr) * f
                 fm = c.frame_mask(feats, t2)
-                if db.start_mask(fm).any():
+                if db.start_mask(fm, every_frame).any():
                     relaxed_to = t2
                     break
             warnings.warn(
@@ -126,6 +132,10 @@ def step_masks(
             out.append(None)
             continue
         fm = np.logical_and.reduce(active)
-        sm = db.start_mask(fm)
-        out.append(sm if sm.any() else db.start_mask(active[0]))
+        sm = db.start_mask(fm, every_frame)
+        for fallback in (db.start_mask(active[0], every_frame), db.start_mask(active[0], False)):
+            if sm.any():
+                break
+            sm = fallback  # the controls together cannot be met: the first one alone, then at its ends
+        out.append(sm if sm.any() else None)
     return out, report

@@ -14,7 +14,8 @@ Three readings of the algorithm's text are made explicit here (both implementati
 * a window can only start where N frames fit (r <= T_MATCH - N), so that N output frames exist;
 * a database window with no frame allowed by the control is not a candidate (Algorithm 1 would keep its
   frame 0, which breaks the control).
-Control masks look at the first and the last frame of each N-frame window (§5.3.2.1).
+Control masks require every frame of the N-frame window to satisfy the control (a departure: the seed's
+§5.3.2.1 looks at its first and last frame only, ``every_frame=False``; see :meth:`MatchDB.start_mask`).
 
 :func:`search_literal` is Algorithm 1 with its loops; :func:`search` is the fast version (all windows and
 frames at once; exact distances in float64 like the literal one, float32 only inside a lower bound with its
@@ -171,16 +172,25 @@ class MatchDB:
             )
         return self._layout
 
-    def start_mask(self, frame_mask: np.ndarray | None) -> np.ndarray:
-        """(M, T) frame eligibility -> (M, T) window-start eligibility: first and last frame of the N-frame
-        window allowed, and the window inside the database window."""
+    def start_mask(self, frame_mask: np.ndarray | None, every_frame: bool = True) -> np.ndarray:
+        """(M, T) frame eligibility -> (M, T) window-start eligibility: the window inside the database window
+        and every one of its N frames allowed (``every_frame=False``: its first and last frame, the seed's
+        §5.3.2.1, which lets the frames between them break the control: a wrist-speed control then held on
+        about half of the output's frames)."""
         M, T = self.P.shape[:2]
         ok = np.zeros((M, T), bool)
         ok[:, 1 : T - N_STEP + 1] = True  # s = 1 .. T - N (Algorithm 1 starts at s = 1)
         if frame_mask is not None:
-            last = np.zeros_like(frame_mask)
-            last[:, : T - N_STEP + 1] = frame_mask[:, N_STEP - 1 :]
-            ok &= frame_mask & last
+            fm = np.asarray(frame_mask, bool)
+            if every_frame:  # number of allowed frames in [s, s + N) == N
+                c = np.concatenate([np.zeros((M, 1), np.int32), np.cumsum(fm, 1, dtype=np.int32)], 1)
+                allowed = np.zeros_like(fm)
+                allowed[:, : T - N_STEP + 1] = (c[:, N_STEP:] - c[:, : T - N_STEP + 1]) == N_STEP
+                ok &= allowed
+            else:
+                last = np.zeros_like(fm)
+                last[:, : T - N_STEP + 1] = fm[:, N_STEP - 1 :]
+                ok &= fm & last
         return ok
 
 

@@ -1,6 +1,7 @@
 """The cGAN refiner of seed 004 §5.3.3: a generator turns a k-NN gesture (with its speech) into a refined
-gesture; a critic judges (speech, gesture) pairs; WGAN-GP (gradient penalty 10), the critic updated 5 times
-per generator step, plus an L1 term that keeps the refined gesture near the k-NN output. Gestures are in
+gesture; a critic judges (speech, gesture) pairs; WGAN-GP, the critic updated 5 times per generator step,
+plus an L1 term that keeps the refined gesture near the k-NN output (weights: see
+:class:`RefinerTrainConfig`). Gestures are in
 the parent-relative representation (each joint minus its parent), which the seed found more stable.
 
 * Generator: 1D U-Net on [speech (28) ; k-NN gesture (165)]: 8 [Conv-BN-ReLU] encoder blocks (kernel 3) with
@@ -11,7 +12,8 @@ the parent-relative representation (each joint minus its parent), which the seed
   linear layer to one score (no sigmoid).
 
 Training pairs (:func:`knn_pairs`): for every training window, the k-NN synthesis of its own speech from a
-database without its video (k = 0..K for variety), beside the captured gesture (the "real" pair).
+database without its video (the seed's mix of k, for variety), beside the captured gesture (the "real"
+pair).
 Checkpoint ``anima.gesture_refiner`` version 1 (:func:`save_refiner` / :func:`load_refiner`).
 """
 
@@ -164,13 +166,23 @@ def gradient_penalty(critic, speech, real, fake):
 # ---- data -------------------------------------------------------------------------------------------
 
 
-def knn_pairs(db, ks=(0, 1, 2, 3, 4), windows=None):
+def seed_draws(rng: np.random.Generator, n: int) -> list[int]:
+    """The seed's k for ``n`` training pairs (§5.3.4): half from k = 1, half uniform over k = 2..15."""
+    return [1 if j % 2 == 0 else int(rng.integers(2, 16)) for j in range(n)]
+
+
+def knn_pairs(db, cfg: RefinerTrainConfig | None = None, windows=None, no_repeat_steps: int = 0):
     """(speech [N, 64, 28], k-NN gesture [N, 64, 55, 3], captured gesture [N, 64, 55, 3], window index [N]):
-    each window's speech matched against a database without its own video."""
+    each window's speech matched against a database without its own video. ``cfg.k_sampling``: ``"seed"``
+    (§5.3.4: ``cfg.pairs_per_window`` syntheses per window, k = 1 for half of them and uniform over 2..15 for
+    the rest, each from a random database frame's pose feature) or ``"ks"`` (one synthesis per k in
+    ``cfg.ks`` from the database's mean pose feature, anima's setting before issue 16)."""
+    cfg = cfg or RefinerTrainConfig()
     if db.S is None:
         raise InputError("the database has no per-frame speech features (build it with from_dataset)")
     videos = sorted({s for s, _ in db.source})
     idx = range(db.M) if windows is None else windows
+    rng = np.random.default_rng(cfg.seed)
     S, K, R, W = [], [], [], []
     for i in idx:
         own = db.source[i][0]
@@ -178,9 +190,9 @@ def knn_pairs(db, ks=(0, 1, 2, 3, 4), windows=None):
         if len(rest) == 0:
             continue
         sub = db.subset(rest)
-        p0 = sub.P.reshape(-1, sub.P.shape[-1]).mean(0)
-        for k in ks:
-            g = finish_knn(*search(sub, db.F[i], min(k, len(rest) - 1), p0), sub.bone_lengths, N_STEP)
+        for k, p0 in pair_draws(sub, cfg, rng):
+            G, picks = search(sub, db.F[i], min(k, len(rest) - 1), p0, no_repeat_steps=no_repeat_steps)
+            g = finish_knn(G, picks, sub.bone_lengths, N_STEP)
             S.append(db.S[i])
             K.append(g)
             R.append(db.G[i].reshape(len(g), -1, 3))
@@ -190,20 +202,42 @@ def knn_pairs(db, ks=(0, 1, 2, 3, 4), windows=None):
     return np.stack(S), np.stack(K), np.stack(R), np.array(W)
 
 
+def pair_draws(sub, cfg: RefinerTrainConfig, rng: np.random.Generator) -> list[tuple[int, np.ndarray]]:
+    """(k, initial pose feature) of each training synthesis of one window (see :func:`knn_pairs`)."""
+    P = sub.P.reshape(-1, sub.P.shape[-1])
+    if cfg.k_sampling == "ks":
+        return [(k, P.mean(0)) for k in cfg.ks]
+    return [(k, P[rng.integers(len(P))]) for k in seed_draws(rng, cfg.pairs_per_window)]
+
+
 # ---- training and checkpoints --------------------------------------------------------------------------
 
 
 @dataclass
 class RefinerTrainConfig:
+    """Defaults are the seed's (§5.3.4: loss weights w1 = 0.1 (L1 to the k-NN), w2 = 1 (adversarial), w3 = 100
+    (gradient penalty); k = 1 for half of the pairs, uniform 2..15 for the rest, random initial pose); only
+    the number of steps is smaller (the seed: 300,000 on hours of data). :meth:`anima_v1` is the setting
+    before issue 16, kept as a measured ablation."""
+
     steps: int = 600  # generator steps
     critic_steps: int = 5
     batch: int = 16
     lr: float = 1e-4
-    gp: float = 10.0
-    l1: float = 10.0  # weight of |G_syn - G_kNN|_1 (normalised units) against the critic term
-    ks: tuple = (0, 1, 2, 3, 4)
+    gp: float = 100.0  # w3
+    l1: float = 0.1  # w1: weight of |G_syn - G_kNN|_1 (normalised units)
+    adv: float = 1.0  # w2: weight of the critic term
+    k_sampling: str = "seed"  # "seed" or "ks" (see knn_pairs)
+    pairs_per_window: int = 4
+    ks: tuple = (0, 1, 2, 3, 4)  # k_sampling "ks" only
     seed: int = 0
     model: dict = field(default_factory=dict)
+
+    @classmethod
+    def anima_v1(cls, **kw) -> RefinerTrainConfig:
+        """anima's refiner before issue 16: L1 10, adversarial 1, gradient penalty 10, k = 0..4 from the mean
+        pose (it kept the refined output within 0.15 cm of the k-NN's)."""
+        return cls(**{"gp": 10.0, "l1": 10.0, "adv": 1.0, "k_sampling": "ks", **kw})
 
 
 class Refiner:
@@ -233,7 +267,7 @@ class Refiner:
 def train_refiner(db, cfg: RefinerTrainConfig, progress=None, pairs=None) -> tuple[Refiner, dict]:
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
-    S, K, R, W = pairs if pairs is not None else knn_pairs(db, cfg.ks)
+    S, K, R, W = pairs if pairs is not None else knn_pairs(db, cfg)
     rel_k = to_parent_relative(K).reshape(len(K), K.shape[1], -1)
     rel_r = to_parent_relative(R).reshape(len(R), R.shape[1], -1)
     allg = np.concatenate([rel_k, rel_r]).reshape(-1, G_DIM)
@@ -268,7 +302,7 @@ def train_refiner(db, cfg: RefinerTrainConfig, progress=None, pairs=None) -> tup
         fake = G(s_t[i], k_t[i])
         adv = -D(s_t[i], fake).mean()
         l1 = (fake - k_t[i]).abs().mean()
-        loss_g = adv + cfg.l1 * l1
+        loss_g = cfg.adv * adv + cfg.l1 * l1
         opt_g.zero_grad()
         loss_g.backward()
         opt_g.step()

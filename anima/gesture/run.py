@@ -50,6 +50,9 @@ class GestureConfig:
     blend: bool = True
     """Blend the joins between database windows (inertialization over one 8-frame step; off: --no-blend, the
     seed's raw concatenation)."""
+    control_ends_only: bool = False
+    """Check a control on the first and last frame of each 8-frame step only, as the seed does (default: on
+    every frame, so the frames between them keep the control too)."""
 
 
 def synthesize(
@@ -65,6 +68,7 @@ def synthesize(
     blend: bool = True,
     no_repeat_s: float = 4.0,
     sw: Stopwatch | None = None,
+    control_every_frame: bool = True,
 ) -> tuple[np.ndarray, dict]:
     """k-NN search (and, with ``refiner`` from ``anima.gesture.refine.load_refiner``, the cGAN refinement)
     at the database's frame rate. ``keywords`` (``anima.gesture.keywords.Keyword``) switch the search to
@@ -90,7 +94,9 @@ def synthesize(
         db, part, names = union(db, keyword_dbs or {})
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        masks, report = step_masks(db, controls or [], n_steps, N_STEP / fps, None if part is None else part == 0)
+        masks, report = step_masks(
+            db, controls or [], n_steps, N_STEP / fps, None if part is None else part == 0, control_every_frame
+        )
     notes += [str(w.message) for w in caught]
     used = None
     if part is not None:
@@ -204,6 +210,7 @@ def gesture_to_folder(
                 kw_dbs,
                 blend=cfg.blend,
                 no_repeat_s=cfg.no_repeat_s,
+                control_every_frame=not cfg.control_ends_only,
                 sw=sw,
             )
             face = None

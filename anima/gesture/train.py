@@ -2,8 +2,9 @@
 checkpoint (:mod:`anima.io.checkpoint`).
 
 * ``refiner``: the cGAN refiner of the k-NN output (§5.3.3): every training window's speech is synthesised by
-  the k-NN search over the other videos (k = 0..4), then the WGAN-GP refiner trains on (speech, k-NN,
-  captured) triples;
+  the k-NN search over the other videos (the seed's k: 1 for half, 2..15 for the rest, from random initial
+  poses; joins blended and the no-repeat rule on, as the command's search), then the WGAN-GP refiner trains
+  on (speech, k-NN, captured) triples with the seed's loss weights;
 * ``generator`` (the §4.4 adversarial U-Net), ``regression`` (without the adversarial term), ``lstm`` (the
   LSTM baseline): trained on every window, face-only windows training the face decoder.
 """
@@ -18,8 +19,10 @@ from tqdm import tqdm
 from anima.dataset.windows import read_windows
 from anima.errors import InputError
 from anima.gesture.database import from_dataset
+from anima.gesture.features import N_STEP
 from anima.gesture.generator import GeneratorConfig, GeneratorTrainConfig, save_generator, train_generator
 from anima.gesture.refine import RefinerTrainConfig, knn_pairs, save_refiner, train_refiner
+from anima.gesture.run import GestureConfig
 from anima.io.outdir import check_out_file
 
 MODELS = ("refiner", "generator", "regression", "lstm")
@@ -49,7 +52,7 @@ def train_from_dataset(
         cfg = RefinerTrainConfig(steps=steps or RefinerTrainConfig().steps, seed=seed)
         if progress:
             print(f"k-NN syntheses of {match_db.M} windows (each against the other videos)...", file=sys.stderr)
-        pairs = knn_pairs(match_db, cfg.ks)
+        pairs = knn_pairs(match_db, cfg, no_repeat_steps=round(GestureConfig().no_repeat_s * match_db.fps / N_STEP))
         with tqdm(total=cfg.steps, desc="train cGAN refiner", unit="step", disable=not progress) as bar:
             ref, info = train_refiner(match_db, cfg, progress=lambda s: bar.update(1), pairs=pairs)
         info.update(dataset=str(db), command=command)

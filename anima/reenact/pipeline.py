@@ -13,12 +13,14 @@ import numpy as np
 from anima.core.rotations import rotvec_to_matrix
 from anima.facemodel.ict import load_face_model
 from anima.io.sequence import FLAG_NO_FACE
-from anima.reenact.database import ReenactDB, sample_colors, skin_ring
+from anima.reenact.database import INTERIOR, ReenactDB, sample_colors, skin_ring
 from anima.reenact.render import composite, posed_uvz
 from anima.reenact.synth import (
     adaptive_sigma,
+    add_detail,
     color_transfer,
     expression_mapping,
+    mesh_smoother,
     nearest,
     normalized_vnc,
     skin_stats,
@@ -43,6 +45,9 @@ class ReenactConfig:
     color_transfer: bool = field(default=True, metadata={"flag": "--no-color-transfer"})
     """Colour and lighting per frame: every database frame's colours moved to a common skin reference before
     the weighted median, the result moved to the output frame's own skin (off: --no-color-transfer)."""
+    detail: float = field(default=0.0, metadata={"range": (0.0, 2.0)})
+    """Mouth-interior detail: add this much of the highest-weight frame's high frequencies (teeth, lip line)
+    to the median there (0 = the seed's median alone)."""
     hold_frames: int = 8  # actor face lost: hold the last expression this many frames ...
     fade_frames: int = 8  # ... then fade to the target's own frame over these
 
@@ -66,6 +71,8 @@ class Reenactor:
         self._shapes = {}
         self.times = StageTimes()
         self.skin = skin_ring(model, db.vertex_ids)
+        self.interior = np.isin(db.vertex_ids, np.concatenate([model.region(r) for r in INTERIOR]))
+        self._smoother = None
         if self.cfg.color_transfer:  # the normalised vertex-major copy replaces the raw one (made only if used)
             mu, sd = skin_stats(db.colors, self.skin)
             self.ref = (mu.mean(0), sd.mean(0))  # the common reference: the database's average skin
@@ -90,7 +97,13 @@ class Reenactor:
         t0 = time.perf_counter()
         idx, d2 = nearest(self.db.expression, x, n or self.cfg.n)
         sigma = adaptive_sigma(d2, idx, self.cfg.a)
-        out = weighted_median(self.colors_vnc, idx, weights(d2[idx], sigma))
+        w = weights(d2[idx], sigma)
+        out = weighted_median(self.colors_vnc, idx, w)
+        if self.cfg.detail > 0:
+            if self._smoother is None:
+                self._smoother = mesh_smoother(self.tris, len(self.db.vertex_ids))
+            best = self.colors_vnc[:, idx[int(np.argmax(w))], :]
+            out = add_detail(out, best, self._smoother, self.interior, self.cfg.detail)
         if self.cfg.color_transfer and skin is not None:
             out = np.clip(color_transfer(out, *self.ref, *skin), 0, 255)
         self.times.texture_ms.append(1e3 * (time.perf_counter() - t0))

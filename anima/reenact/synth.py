@@ -183,3 +183,31 @@ def normalized_vnc(colors: np.ndarray, mu: np.ndarray, sd: np.ndarray, mu_ref, s
         c = color_transfer(colors[a:b], mu[a:b], sd[a:b], ref_mu[a:b], ref_sd[a:b])
         out[:, a:b] = np.clip(np.rint(c), 0, 255).astype(np.uint8).transpose(1, 0, 2)
     return out
+
+
+def mesh_smoother(tris: np.ndarray, n_vertices: int):
+    """The mesh's one-ring average as a sparse ``(V, V)`` operator (each vertex and its neighbours, equal
+    weights): applied to per-vertex colours it keeps their low frequencies."""
+    from scipy.sparse import coo_matrix, diags
+
+    t = np.asarray(tris, np.int64)
+    i = np.concatenate([t[:, 0], t[:, 1], t[:, 2], t[:, 1], t[:, 2], t[:, 0], np.arange(n_vertices)])
+    j = np.concatenate([t[:, 1], t[:, 2], t[:, 0], t[:, 0], t[:, 1], t[:, 2], np.arange(n_vertices)])
+    A = coo_matrix((np.ones(len(i)), (i, j)), shape=(n_vertices, n_vertices)).tocsr()
+    A.data[:] = 1.0  # duplicate edges (shared by two triangles) count once
+    return (diags(1.0 / np.asarray(A.sum(1)).ravel()) @ A).tocsr()
+
+
+def add_detail(median: np.ndarray, best: np.ndarray, smoother, mask: np.ndarray, amount: float, passes: int = 2):
+    """``median`` colours ``(V, C)`` plus ``amount`` times the high frequencies of ``best`` (the colours of the
+    highest-weight frame minus their ``passes``-times mesh-smoothed version) on the vertices in ``mask``: the
+    median's stable low frequencies, one real frame's edges (teeth, lip line) where the median blurs them."""
+    if amount <= 0 or not mask.any():
+        return median
+    b = np.asarray(best, np.float64)
+    low = b
+    for _ in range(passes):
+        low = smoother @ low
+    out = np.array(median, np.float64, copy=True)
+    out[mask] += amount * (b - low)[mask]
+    return np.clip(out, 0, 255).astype(np.asarray(median).dtype)

@@ -52,6 +52,8 @@ class Item:
     events: list[tuple[str, float, float]]
     source: str
     texts: list[str] = field(default_factory=list)
+    video: str = ""  # the held-out video and its split (validation or test), for intervals over videos
+    split: str = ""
 
 
 def load_clips(folder: str | Path) -> list[Clip]:
@@ -109,7 +111,7 @@ def eval_items(
         for a in range(0, len(c.motion) - length + 1, hop):
             ev = crop_events(c.events, a, a + length, c.fps)
             texts = [describe_window(ev, length, rng, c.gender, c.fps) for _ in range(n_texts)]
-            out.append(Item(c.motion[a : a + length], texts[0], ev, f"{c.clip_id}@{a}", texts))
+            out.append(Item(c.motion[a : a + length], texts[0], ev, f"{c.clip_id}@{a}", texts, c.video_id, c.split))
     return out
 
 

@@ -381,6 +381,7 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
             "--quiet",
         )
         add(f"eval gesture --db {k}", "eval", "gesture", "--db", p, "--json")
+        add(f"eval all --db {k}", "eval", "all", "--db", p, "--out", out / f"ea_{k}", "--json")
         add(f"train text2face {k}", "train", "text2face", p, "--out", out / f"tt_{k}", "--quiet")
         add(f"eval text2face {k}", "eval", "text2face", p, "--work", out / f"et_{k}", "--json")
     for k in ("missing", "unicode_missing", "dir", "empty", "random", "text", "png", "novideo_audio", "short_wav"):
@@ -513,6 +514,7 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
     add("eval text2face --reps 0", "eval", "text2face", ds["corrupt_shard"], "--reps", "0")
     add("eval gesture --refiner-folds -1", "eval", "gesture", "--db", ds["corrupt_shard"], "--refiner-folds", "-1")
     add("eval reenact --out is a file", "eval", "reenact", "--out", files["text"])
+    add("eval all --out is a file", "eval", "all", "--db", ds["empty_dir"], "--out", files["text"])
 
     for k in ("missing", "dir", "text", "empty"):
         add(f"facemodel import {k}", "facemodel", "import", files[k], "--out", out / "fm.npz")

@@ -198,9 +198,12 @@ def test_refiner_trains_with_wgan_gp_and_the_command_uses_it(ds, db, tmp_path, c
 
     from anima.gesture.refine import RefinerTrainConfig, knn_pairs, load_refiner, save_refiner, train_refiner
 
-    pairs = knn_pairs(db, ks=(0, 1))
+    pairs = knn_pairs(db, RefinerTrainConfig(pairs_per_window=2))  # the seed's draws: k = 1 and k in 2..15
     S, K, R, W = pairs
     assert S.shape[1:] == (64, 28) and K.shape[1:] == (64, 55, 3) and len(S) == 2 * db.M
+    assert not np.allclose(K[0], K[1])  # two different syntheses of one window
+    old = knn_pairs(db, RefinerTrainConfig.anima_v1(ks=(0, 1)))  # the ablation: k = 0 and 1 from the mean pose
+    assert len(old[0]) == 2 * db.M and np.array_equal(old[2], R)
     ref, info = train_refiner(db, RefinerTrainConfig(steps=12, batch=4), pairs=pairs)
     assert len(info["log"]["critic"]) == 12 and np.isfinite(info["log"]["critic"]).all()
     out = ref.refine(S[0][:50], K[0][:50])  # any length (padded to a multiple of 8 inside)
@@ -326,3 +329,44 @@ def test_no_repeat_keeps_variety_under_a_control(db):
 
     free, looped, varied = distinct(None, 8), distinct(masks, 0), distinct(masks, 8)
     assert varied > looped and varied >= free / 2, (free, looped, varied)
+
+
+def test_control_holds_on_every_frame_of_a_step(db):
+    """A control allows a start only where all eight frames it gives satisfy it (the seed checks the first and
+    last frame, which let a wrist-speed control hold on about half of the frames): every frame of the search
+    output satisfies it, where under the seed's rule frames in between break it."""
+    from anima.audio.features import features_for_file
+    from anima.gesture.control import control_features, parse_control, step_masks
+    from anima.gesture.features import audio_features
+    from anima.gesture.knn import search
+
+    F_in = audio_features(features_for_file(asset(SPEECH), 15.0).features)[:120]
+    steps = len(F_in) // 8
+    p0 = db.P.reshape(-1, 96).mean(0)
+    c = parse_control("left_wrist_speed<=p30")
+    feats = control_features(db.G_rig)
+    fm = c.frame_mask(feats)
+    every, ends = db.start_mask(fm), db.start_mask(fm, every_frame=False)
+    assert every.any() and (every <= ends).all() and every.sum() < ends.sum()
+    for m, s in zip(*np.nonzero(every)):
+        assert fm[m, s : s + 8].all()
+    sat = {}
+    for rule in (True, False):
+        masks, rep = step_masks(db, [c], steps, 8 / 15, every_frame=rule)
+        _, picks = search(db, F_in, 0, p0, masks)
+        thr = rep[0]["relaxed_to"] or rep[0]["threshold"]
+        sat[rule] = np.mean([(feats[c.name][m, r : r + 8] <= thr).mean() for m, r in picks])
+    assert sat[True] == 1.0 and sat[False] < 1.0, sat
+
+
+def test_refiner_defaults_are_the_seeds():
+    """§5.3.4: w1 = 0.1 (L1), w2 = 1 (adversarial), w3 = 100 (gradient penalty); half the pairs from k = 1,
+    the rest uniform over 2..15. anima's earlier setting stays as the named ablation."""
+    from anima.gesture.refine import RefinerTrainConfig, seed_draws
+
+    c = RefinerTrainConfig()
+    assert (c.l1, c.adv, c.gp, c.k_sampling) == (0.1, 1.0, 100.0, "seed")
+    ks = seed_draws(np.random.default_rng(0), 2000)
+    assert ks.count(1) == 1000 and set(ks) - {1} == set(range(2, 16))
+    v1 = RefinerTrainConfig.anima_v1()
+    assert (v1.l1, v1.gp, v1.k_sampling, v1.ks) == (10.0, 10.0, "ks", (0, 1, 2, 3, 4))

@@ -259,3 +259,27 @@ def test_live_loop_on_a_paced_file(obama_db):
     assert r["frames_processed"] > 20
     assert r["frames_received"] >= r["frames_processed"]
     assert r["latency_ms"]["median"] < 1000
+
+
+def test_mouth_detail_adds_only_the_best_frames_high_frequencies_inside_the_mask():
+    """The one-ring smoother keeps a constant colour field (rows sum to 1); the detail term is then zero, and
+    otherwise it changes only the masked vertices, by ``amount`` times (best - smoothed best)."""
+    from anima.facemodel.ict import load_face_model
+    from anima.reenact.synth import add_detail, mesh_smoother
+
+    sub = load_face_model().subset(np.arange(2000))
+    tris = sub.triangles()
+    S = mesh_smoother(tris, 2000)
+    np.testing.assert_allclose(np.asarray(S.sum(1)).ravel(), 1.0)
+    rng = np.random.default_rng(0)
+    median = rng.uniform(50, 200, (2000, 3)).astype(np.float32)
+    mask = np.zeros(2000, bool)
+    mask[:500] = True
+    flat = np.full((2000, 3), 120.0)
+    np.testing.assert_allclose(add_detail(median, flat, S, mask, 1.0), median, atol=1e-4)
+    best = rng.uniform(0, 255, (2000, 3))
+    out = add_detail(median, best, S, mask, 0.5)
+    np.testing.assert_array_equal(out[~mask], median[~mask])
+    want = np.clip(median[mask] + 0.5 * (best - S @ (S @ best))[mask], 0, 255)
+    np.testing.assert_allclose(out[mask], want, rtol=1e-5, atol=1e-3)
+    assert add_detail(median, best, S, mask, 0.0) is median

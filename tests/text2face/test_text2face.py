@@ -280,3 +280,25 @@ def test_text2face_command_writes_its_files_and_refuses_bad_input(tmp_path, cli)
     ]:
         r = cli("text2face", *args, "--out", str(tmp_path / "bad"), "--no-video")
         assert r.returncode == code and msg in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+def test_held_out_errors_get_intervals_over_videos_per_split():
+    """Per split, a mean per-window error with a 95 % interval that resamples whole videos (and the counts);
+    a split with one video has nothing to resample."""
+    from anima.eval.text2face import over_videos
+    from anima.text2face.data import Item
+
+    rng = np.random.default_rng(0)
+    items, x = [], []
+    videos = [("a", "val", 2.0), ("b", "val", 3.0), ("c", "test", 2.5), ("d", "test", 4.0), ("e", "test", 1.0)]
+    for v, split, level in videos:
+        for _ in range(4):
+            items.append(Item(np.zeros((2, 56)), "", [], v, [], v, split))
+            x.append(level + 0.01 * rng.standard_normal())
+    r = over_videos(np.array(x), items)
+    assert set(r) == {"val", "test", "all"}
+    assert (r["val"]["videos"], r["val"]["windows"], r["test"]["videos"], r["all"]["windows"]) == (2, 8, 3, 20)
+    lo, hi = r["test"]["ci95_over_videos"]
+    assert lo < r["test"]["mean"] < hi and lo < 1.6 and hi > 3.3  # the spread between videos, not within
+    one = over_videos(np.array(x[:4]), items[:4])["val"]
+    assert one["ci95_over_videos"][0] == one["ci95_over_videos"][1] == pytest.approx(one["mean"], abs=1e-4)

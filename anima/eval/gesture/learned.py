@@ -5,6 +5,7 @@ folds' videos and judged on the held-out fold's windows."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections import defaultdict
 
 import numpy as np
@@ -16,6 +17,7 @@ from anima.eval.gesture.facegood import facegood_sync
 from anima.eval.gesture.metrics import (
     adherence_table,
     beat_consistency,
+    bootstrap_over_groups,
     diversity_cm,
     jerk,
     l1_cm,
@@ -33,22 +35,30 @@ from anima.gesture.refine import RefinerTrainConfig, train_refiner
 from anima.gesture.sync import accuracy, train_sync
 
 
-def refiner_rows(db, kept: dict, ks, folds: int, steps: int | None, progress: bool) -> dict:
+def refiner_rows(
+    db, kept: dict, ks, folds: int, steps: int | None, progress: bool, cfg: RefinerTrainConfig | None = None
+) -> dict:
     """k-NN + cGAN, cross-validated by video: the videos are split into ``folds`` groups; each group's windows
-    are refined by a refiner trained on the other groups' (k-NN, captured) pairs. The k-NN outputs are those
-    of the leave-one-video-out search, so both rows judge the same windows."""
+    are refined by a refiner trained on the other groups' (k-NN, captured) pairs. Training pairs follow
+    ``cfg.k_sampling`` (default the seed's draws, ``kept["seed_pairs"]``; ``"ks"``: the k = 0..4 outputs);
+    the judged k-NN outputs are those of the leave-one-video-out search, so both rows judge the same
+    windows."""
     T, fps = db.G.shape[1], db.fps
+    cfg = cfg or RefinerTrainConfig()
+    if steps is not None:
+        cfg = dataclasses.replace(cfg, steps=steps)
     windows = sorted(kept["outs"])
     videos = sorted({db.source[i][0] for i in windows})
     folds = max(2, min(folds, len(videos)))
     fold_of = {v: n % folds for n, v in enumerate(videos)}
-    S = np.stack([db.S[i] for i in windows for _ in ks])
-    K = np.stack([kept["outs"][i][n] for i in windows for n in range(len(ks))])
-    R = np.stack([db.G[i].reshape(T, -1, 3) for i in windows for _ in ks])
-    W = np.array([i for i in windows for _ in ks])
-    cfg = RefinerTrainConfig() if steps is None else RefinerTrainConfig(steps=steps)
+    train_outs = kept["outs"] if cfg.k_sampling == "ks" else kept["seed_pairs"]
+    S = np.stack([db.S[i] for i in windows for _ in train_outs[i]])
+    K = np.stack([o for i in windows for o in train_outs[i]])
+    R = np.stack([db.G[i].reshape(T, -1, 3) for i in windows for _ in train_outs[i]])
+    W = np.array([i for i in windows for _ in train_outs[i]])
     res = defaultdict(list)
     adherence = {c: {"values": []} for c in ["none"] + list(kept["ctrl"])}
+    judged_videos = []
     logs = []
     for f in range(folds):
         test = [i for i in windows if fold_of[db.source[i][0]] == f]
@@ -71,7 +81,9 @@ def refiner_rows(db, kept: dict, ks, folds: int, steps: int | None, progress: bo
             gt = db.G[i].reshape(T, -1, 3)
             outs = [one_skeleton(ref.refine(db.S[i], o), db.bone_lengths) for o in kept["outs"][i]]
             g = outs[0]
-            kept.setdefault("refined", {})[i] = g
+            if cfg.k_sampling == "seed":
+                kept.setdefault("refined", {})[i] = g
+            judged_videos.append(db.source[i][0])
             res["l1_cm"].append(l1_cm(g, gt))
             res["l1_to_knn_cm"].append(l1_cm(g, kept["outs"][i][0]))
             res["diversity_cm"].append(diversity_cm(outs))
@@ -86,10 +98,23 @@ def refiner_rows(db, kept: dict, ks, folds: int, steps: int | None, progress: bo
                 refined = one_skeleton(ref.refine(db.S[i], out), db.bone_lengths)
                 adherence[c]["values"].append(control_features(refined.reshape(1, T, -1), fps))
                 adherence[c].setdefault("thresholds", []).append(thr)
+                adherence[c].setdefault("videos", []).append(db.source[i][0])
     return {
         "protocol": f"{folds}-fold cross-validation by video; WGAN-GP, {cfg.critic_steps} critic steps per "
-        f"generator step, {cfg.steps} generator steps, L1 weight {cfg.l1}",
+        f"generator step, {cfg.steps} generator steps, loss weights L1 {cfg.l1} / adversarial {cfg.adv} / "
+        f"gradient penalty {cfg.gp}, training pairs: "
+        + (
+            "the seed's k (1 for half, 2..15) from random initial poses"
+            if cfg.k_sampling == "seed"
+            else f"k in {list(cfg.ks)} from the mean pose"
+        ),
+        "train_config": {k: v for k, v in dataclasses.asdict(cfg).items() if k != "model"},
         "metrics": {k: float(np.nanmean(v)) for k, v in res.items()},
+        "metrics_ci95_over_videos": {
+            k: bootstrap_over_groups(np.asarray(v, float), np.array(judged_videos))
+            for k, v in res.items()
+            if np.isfinite(v).all()
+        },
         "control_adherence": adherence_table(adherence, T),
         "folds": logs,
     }

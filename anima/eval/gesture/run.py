@@ -32,6 +32,7 @@ from anima.eval.gesture.metrics import (
     adherence_table,
     audio_onsets,
     beat_consistency,
+    bootstrap_over_groups,
     diversity_cm,
     jerk,
     l1_cm,
@@ -44,15 +45,18 @@ from anima.gesture.database import from_dataset
 from anima.gesture.features import N_STEP
 from anima.gesture.knn import search
 from anima.gesture.post import finish_knn
+from anima.gesture.refine import RefinerTrainConfig, pair_draws
 from anima.gesture.run import GestureConfig
 
 NO_REPEAT_S = GestureConfig().no_repeat_s
 CONTROLS = ["left_wrist_height>=p85", "left_wrist_height<=p15", "left_wrist_speed>=p85", "left_wrist_speed<=p15"]
 
 
-def knn_rows(db, ks, blend: bool = True) -> tuple[dict, dict, dict]:
+def knn_rows(db, ks, blend: bool = True, seed_rule: bool = True) -> tuple[dict, dict, dict]:
     """Leave-one-video-out k-NN synthesis of every window: (metrics per window, table 5.3 adherence, what the
-    learned rows reuse: per window the k-NN outputs, the controlled outputs and the audio onsets)."""
+    learned rows reuse: per window the k-NN outputs, the controlled outputs and the audio onsets). Table 5.3
+    is measured with the command's rule (every frame of a step satisfies the control) and, with
+    ``seed_rule``, also with the seed's (first and last frame of a step) under ``"seed_rule"``."""
     T, fps = db.G.shape[1], db.fps
     no_repeat = round(NO_REPEAT_S * fps / N_STEP) if blend else 0  # the command's defaults (--no-blend: the seed)
     by_video = defaultdict(list)
@@ -60,7 +64,10 @@ def knn_rows(db, ks, blend: bool = True) -> tuple[dict, dict, dict]:
         by_video[src].append(i)
     res = defaultdict(list)
     adherence = {c: {"values": []} for c in ["none"] + CONTROLS}
-    kept = {"outs": {}, "ctrl": defaultdict(dict), "onsets": {}}
+    seed_adherence = {c: {"values": []} for c in CONTROLS}
+    rules = [("command", True)] + ([("seed", False)] if seed_rule else [])
+    kept = {"outs": {}, "ctrl": defaultdict(dict), "onsets": {}, "videos": [], "seed_pairs": {}}
+    rng = np.random.default_rng(0)
     distinct = defaultdict(list)  # database windows used per synthesis (variety), uncontrolled and per control
     for idx in by_video.values():
         own = set(idx)
@@ -68,8 +75,10 @@ def knn_rows(db, ks, blend: bool = True) -> tuple[dict, dict, dict]:
         p0 = sub.P.reshape(-1, sub.P.shape[-1]).mean(0)
         controlled = {}  # per control: this database's step masks and threshold (the same for all its queries)
         for c in CONTROLS:
-            masks, rep = step_masks(sub, [parse_control(c)], T // N_STEP, N_STEP / fps)
-            controlled[c] = (masks, rep[0]["relaxed_to"] if rep[0]["relaxed_to"] is not None else rep[0]["threshold"])
+            for rule, every in rules:
+                masks, rep = step_masks(sub, [parse_control(c)], T // N_STEP, N_STEP / fps, every_frame=every)
+                relaxed = rep[0]["relaxed_to"]
+                controlled[rule, c] = (masks, relaxed if relaxed is not None else rep[0]["threshold"])
         for i in idx:
             F_in, gt = db.F[i], db.G[i].reshape(T, -1, 3)
             found = [search(sub, F_in, k, p0, no_repeat_steps=no_repeat) for k in ks]
@@ -84,21 +93,31 @@ def knn_rows(db, ks, blend: bool = True) -> tuple[dict, dict, dict]:
             res["wrist_motion_cm"].append(wrist_motion(g))
             res["wrist_motion_cm_captured"].append(wrist_motion(gt))
             kept["outs"][i], kept["onsets"][i] = outs, on
+            draws = pair_draws(sub, RefinerTrainConfig(), rng)  # the refiner's training syntheses (seed's k)
+            found = [search(sub, F_in, min(k, sub.M - 1), p, no_repeat_steps=no_repeat) for k, p in draws]
+            kept["seed_pairs"][i] = [finish_knn(G, picks, sub.bone_lengths, N_STEP) for G, picks in found]
+            kept["videos"].append(db.source[i][0])  # the video of each row of the metrics, in their order
             res["beat_consistency"].append(beat_consistency(g, on, fps))
             res["beat_consistency_captured"].append(beat_consistency(gt, on, fps))
             adherence["none"]["values"].append(control_features(g.reshape(1, T, -1), fps))
-            for c, (masks, thr) in controlled.items():
+            for (rule, c), (masks, thr) in controlled.items():
                 G, picks = search(sub, F_in, 0, p0, masks, no_repeat_steps=no_repeat)
-                distinct[c].append(len({m for m, _ in picks}))
+                distinct[rule, c].append(len({m for m, _ in picks}))
                 raw = speed_steps([parse_control(c)], T // N_STEP, N_STEP / fps)
                 out = finish_knn(G, picks, sub.bone_lengths, N_STEP, blend, raw_steps=raw).reshape(1, T, -1)
-                adherence[c]["values"].append(control_features(out, fps))
-                adherence[c].setdefault("thresholds", []).append(thr)
-                adherence[c].setdefault("videos", []).append(db.source[i][0])
-                kept["ctrl"][c][i] = (out[0].reshape(T, -1, 3), thr)
+                a = adherence if rule == "command" else seed_adherence
+                a[c]["values"].append(control_features(out, fps))
+                a[c].setdefault("thresholds", []).append(thr)
+                a[c].setdefault("videos", []).append(db.source[i][0])
+                if rule == "command":
+                    kept["ctrl"][c][i] = (out[0].reshape(T, -1, 3), thr)
     table = adherence_table(adherence, T)
-    for c, v in distinct.items():
-        table[c]["distinct_windows_per_synthesis"] = float(np.mean(v))
+    table["none"]["distinct_windows_per_synthesis"] = float(np.mean(distinct["none"]))
+    if seed_rule:
+        table["seed_rule"] = adherence_table(seed_adherence, T)
+        table["seed_rule"]["rule"] = "a control checked on the first and last frame of each step (seed 004 §5.3.2.1)"
+    for (rule, c), v in ((k, v) for k, v in distinct.items() if k != "none"):
+        (table[c] if rule == "command" else table["seed_rule"][c])["distinct_windows_per_synthesis"] = float(np.mean(v))
     return res, table, kept
 
 
@@ -112,8 +131,10 @@ def evaluate(
     generator_steps: int | None = None,
     speaker: str | None = None,
     blend: bool = True,
+    refiner_ablation: bool = False,
 ) -> dict:
-    """``speaker``: evaluate on that speaker's windows only (databases, training and tests), the seed's
+    """``refiner_ablation``: also the refiner with anima's earlier loss weights and k (``knn_cgan_anima_v1``).
+    ``speaker``: evaluate on that speaker's windows only (databases, training and tests), the seed's
     subject-specific protocol; default: all speakers together."""
     db = from_dataset(folder, None)
     if speaker is not None:
@@ -127,6 +148,7 @@ def evaluate(
         raise InputError("leave-one-video-out needs windows from at least two videos")
     window_s = db.G.shape[1] / db.fps
     res, table, kept = knn_rows(db, ks, blend)
+    seed_table = table.pop("seed_rule")
     starts = defaultdict(list)
     for src, st in db.source:
         starts[src].append(st)
@@ -139,10 +161,19 @@ def evaluate(
         "fps": db.fps,
         "minutes_of_audio_motion": minutes_covered(starts.items(), window_s),
         "knn": {k: float(np.nanmean(v)) for k, v in res.items()},
+        "knn_ci95_over_videos": {  # each window's value, whole test videos resampled
+            k: bootstrap_over_groups(np.asarray(v, float), np.array([s for s, _ in db.source]))
+            for k, v in res.items()
+            if len(v) == len(kept["videos"]) and np.isfinite(v).all()
+        },
         "control_adherence": table,
+        "control_adherence_seed_rule": seed_table,
     }
     if refiner_folds:
         out["knn_cgan"] = refiner_rows(db, kept, ks, refiner_folds, refiner_steps, progress)
+        if refiner_ablation:  # anima's setting before issue 16, on the same folds and windows
+            v1 = RefinerTrainConfig.anima_v1()
+            out["knn_cgan_anima_v1"] = refiner_rows(db, kept, ks, refiner_folds, refiner_steps, progress, v1)
         folds = max(2, min(refiner_folds, len(videos)))
         w = read_windows(folder)
         if speaker is not None:
