@@ -14,7 +14,7 @@ from anima.text2face.config import TrainConfig as FaceTrainConfig
 
 POSE_OPTIONS = ["steps", "batch", "seed", "wild", "projection", "latent_2d", "bone"]
 FACE_OPTIONS = ["kind", "preset", "scheme", "steps", "batch", "lr", "seed", "encoder", "tf_drop"]
-GESTURE_MODELS = ("refiner", "generator", "regression", "lstm")
+GESTURE_MODELS = ("refiner", "generator", "regression", "lstm", "velocity_adversarial")
 
 
 def register(sub) -> None:
@@ -64,12 +64,14 @@ def register(sub) -> None:
         "gesture",
         help="the cGAN refiner of k-NN gestures (§5.3.3) or the §4.4 generator",
         description="--model refiner (default): synthesises every training window's speech with "
-        "the k-NN search over the other videos (k = 0..4), then trains a 1D U-Net generator "
-        "against a WGAN-GP critic on (speech, gesture) pairs (5 critic steps per generator step, "
-        "L1 to the k-NN output, parent-relative joints); use it with `anima gesture --refiner`. "
+        "the k-NN search over the other videos (the seed's k: 1 for half, 2..15 for the rest), then "
+        "trains a 1D U-Net generator against a WGAN-GP critic on (speech, gesture) pairs (5 critic "
+        "steps per generator step, the seed's weights: L1 to the k-NN output 0.1, adversarial 1, "
+        "gradient penalty 100; parent-relative joints); use it with `anima gesture --refiner`. "
         "--model generator: the §4.4 speech-to-gesture U-Net (face, body and hand decoders) with "
         "its audio+pose discriminator; regression: the same without the adversarial term; lstm: "
-        "the LSTM baseline. Use those with `anima gesture --generator`.",
+        "the LSTM baseline; velocity_adversarial: the Ginosar et al. (2019) baseline (a motion-"
+        "difference discriminator without speech). Use those with `anima gesture --generator`.",
     )
     tg.add_argument("--db", required=True, help="dataset folder from `anima dataset build`")
     tg.add_argument("--out", required=True, help="checkpoint path (.pt)")

@@ -13,6 +13,11 @@ Per frame at 15 fps the generator maps the 28 speech features to
   (the face is excluded from the adversarial term, eq. 4.2).
 * :class:`LSTMBaseline`: Shlizerman et al. (2018) as the seed retrained it: three separate LSTMs (face, body,
   hands) on the speech features, with a time delay so that each output frame hears a little ahead.
+* ``velocity_adversarial``: the speech-to-gesture baseline of Ginosar et al. (2019), which the seed compares
+  against: the same U-Net trained with the regression terms plus an adversarial term whose discriminator
+  sees only the motion's frame-to-frame differences (no speech), weight 1 as in their paper. Their network
+  read a log-mel spectrogram and predicted 2D keypoints; here it reads the same speech features and
+  predicts the same 3D parts as the others, so the rows differ only in the training objective.
 
 Losses (eq. 4.1): L_face = sum_t |face - face^|_2, L_body = sum_t |body - body^|_1, L_hand likewise, in the
 data's own units (expression weights, metres, radians). The seed chose w1..w3 "to ensure that each term is
@@ -45,7 +50,7 @@ from anima.io.checkpoint import load_checkpoint, load_state, rebuilding, save_ch
 KIND = "gesture_generator"
 VERSION = 2  # 1: its own envelope; 2: anima.io.checkpoint
 PARTS = {"face": N_EXPR, "body": 3 * N_BODY_JOINTS + HEAD_ROT_DIM, "hands": 3 * 2 * N_HAND_JOINTS}
-KINDS = ("adversarial", "regression", "lstm")
+KINDS = ("adversarial", "regression", "lstm", "velocity_adversarial")
 SMOOTH_SIGMA = 1.5  # frames: the Gaussian filter seed 004 applies to its generated body, hands and head (§4.5)
 
 
@@ -181,6 +186,7 @@ class GeneratorTrainConfig:
     batch: int = 25
     lr: float = 5e-4
     adv_weight: float = 0.1
+    velocity_adv_weight: float = 1.0  # the velocity-adversarial baseline's (Ginosar et al. 2019: lambda = 1)
     seed: int = 0
 
 
@@ -223,10 +229,12 @@ def train_generator(
     y_t = {p: (tgt_raw[p] - mean[p]) / std[p] for p in PARTS}
     net = build_model(model)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
-    adversarial = model.kind == "adversarial"
+    adversarial = model.kind in ("adversarial", "velocity_adversarial")
+    velocity = model.kind == "velocity_adversarial"  # Ginosar et al.: D sees motion differences, no speech
     if adversarial:
-        D = SyncClassifier(model.disc_widths, SPEECH_DIM + PARTS["body"] + PARTS["hands"])
+        D = SyncClassifier(model.disc_widths, (0 if velocity else SPEECH_DIM) + PARTS["body"] + PARTS["hands"])
         opt_d = torch.optim.Adam(D.parameters(), lr=cfg.lr)
+    adv_weight = cfg.velocity_adv_weight if velocity else cfg.adv_weight
     body_idx = np.flatnonzero(has_body)
     log = {"face": [], "body": [], "hands": [], "adv": [], "disc": []}
     t0 = time.time()
@@ -246,16 +254,20 @@ def train_generator(
             fake_out = net(s_t[j])
             fake = torch.cat([fake_out["body"], fake_out["hands"]], -1)
             real = torch.cat([y_t["body"][j], y_t["hands"][j]], -1)
-            d_real, d_fake = D(s_t[j], real), D(s_t[j], fake.detach())
+            cond = s_t[j]
+            if velocity:
+                fake, real = fake[:, 1:] - fake[:, :-1], real[:, 1:] - real[:, :-1]
+                cond = cond[:, 1:, :0]  # no speech
+            d_real, d_fake = D(cond, real), D(cond, fake.detach())
             loss_d = F.binary_cross_entropy_with_logits(
                 d_real, torch.ones_like(d_real)
             ) + F.binary_cross_entropy_with_logits(d_fake, torch.zeros_like(d_fake))
             opt_d.zero_grad()
             loss_d.backward()
             opt_d.step()
-            g_fake = D(s_t[j], fake)
+            g_fake = D(cond, fake)
             adv = F.binary_cross_entropy_with_logits(g_fake, torch.ones_like(g_fake))
-            loss = loss + cfg.adv_weight * adv
+            loss = loss + adv_weight * adv
             log["adv"].append(round(float(adv.detach()), 4))
             log["disc"].append(round(float(loss_d.detach()), 4))
         opt.zero_grad()

@@ -33,7 +33,7 @@ from anima.core.skeleton import PARENTS
 from anima.errors import InputError
 from anima.gesture.features import N_STEP
 from anima.gesture.knn import search
-from anima.gesture.post import finish_knn
+from anima.gesture.post import finish_knn, smooth
 from anima.io.checkpoint import load_checkpoint, load_state, rebuilding, save_checkpoint
 
 KIND = "gesture_refiner"
@@ -240,12 +240,19 @@ class RefinerTrainConfig:
         return cls(**{"gp": 10.0, "l1": 10.0, "adv": 1.0, "k_sampling": "ks", **kw})
 
 
-class Refiner:
-    """Normalisation + generator: ``refine(speech [T, 28], J [T, 55, 3]) -> [T, 55, 3]`` for any T."""
+CORRECTION_SIGMA = 1.5  # frames: the seed's temporal filter of learned outputs (§4.5), here on the correction
 
-    def __init__(self, G: RefinerG, stats: dict):
+
+class Refiner:
+    """Normalisation + generator: ``refine(speech [T, 28], J [T, 55, 3]) -> [T, 55, 3]`` for any T. The
+    generator's correction to the k-NN gesture is smoothed in time (Gaussian, ``correction_sigma`` frames, the
+    seed's filter of learned outputs) before it is added, so the captured motion's own detail is kept and the
+    network's frame-to-frame noise is not (0 turns it off)."""
+
+    def __init__(self, G: RefinerG, stats: dict, correction_sigma: float = CORRECTION_SIGMA):
         self.G = G.eval()
         self.stats = {k: np.asarray(v, np.float32) for k, v in stats.items()}
+        self.correction_sigma = correction_sigma
 
     def _norm(self, speech, J):
         s = (speech - self.stats["s_mean"]) / self.stats["s_std"]
@@ -261,7 +268,10 @@ class Refiner:
         )
         out = self.G(torch.from_numpy(s)[None], torch.from_numpy(g)[None])[0].numpy()[:T]
         R = (out * self.stats["g_std"] + self.stats["g_mean"]).reshape(T, -1, 3)
-        return from_parent_relative(R).astype(np.float32)
+        refined = from_parent_relative(R)
+        if self.correction_sigma > 0 and T > 1:
+            refined = J + smooth(refined - J, self.correction_sigma)
+        return np.asarray(refined, np.float32)
 
 
 def train_refiner(db, cfg: RefinerTrainConfig, progress=None, pairs=None) -> tuple[Refiner, dict]:

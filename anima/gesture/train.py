@@ -25,7 +25,7 @@ from anima.gesture.refine import RefinerTrainConfig, knn_pairs, save_refiner, tr
 from anima.gesture.run import GestureConfig
 from anima.io.outdir import check_out_file
 
-MODELS = ("refiner", "generator", "regression", "lstm")
+MODELS = ("refiner", "generator", "regression", "lstm", "velocity_adversarial")
 
 
 def train_from_dataset(

@@ -151,7 +151,14 @@ def sync_rows(db, folds: int, lengths=(16, 32, 64), steps: int = 300) -> dict:
 
 
 def generator_rows(
-    w: Windows, kept: dict, knn_db, folds: int, steps: int | None, progress: bool, refined_outs: dict | None
+    w: Windows,
+    kept: dict,
+    knn_db,
+    folds: int,
+    steps: int | None,
+    progress: bool,
+    refined_outs: dict | None,
+    kinds: tuple = KINDS,
 ) -> dict:
     """The §4.4 generator (adversarial), direct regression (no adversarial term) and the LSTM baseline,
     cross-validated by video with the refiner's folds; FGD for every method; lip error (table 4.3).
@@ -167,18 +174,18 @@ def generator_rows(
     fold = np.array([fold_of[s] for s in w.source])
     has_body = w.has_body
     cfg = GeneratorTrainConfig() if steps is None else GeneratorTrainConfig(steps=steps)
-    res = {k: defaultdict(list) for k in KINDS}
-    gen_windows = {k: {} for k in KINDS}
-    lip = {k: [] for k in KINDS}
+    res = {k: defaultdict(list) for k in kinds}
+    gen_windows = {k: {} for k in kinds}
+    lip = {k: [] for k in kinds}
     lip_random = []
     rng = np.random.default_rng(0)
-    gens = {k: [] for k in KINDS}
-    info = {k: [] for k in KINDS}
+    gens = {k: [] for k in kinds}
+    info = {k: [] for k in kinds}
     for f in range(folds):
         tr, te = fold != f, np.flatnonzero(fold == f)
         if not tr.any() or not len(te) or not has_body[tr].any():
             continue
-        for kind in KINDS:
+        for kind in kinds:
             bar = tqdm(total=cfg.steps, desc=f"{kind} fold {f + 1}/{folds}", disable=not progress, leave=False)
             gen, inf = train_generator(
                 w.speech[tr],
@@ -211,9 +218,9 @@ def generator_rows(
     judged = []
     for i in sorted(kept["outs"]):
         n = key.get((knn_db.source[i][0], round(knn_db.source[i][1], 3)))
-        if n is not None and all(n in gen_windows[k] for k in KINDS):
+        if n is not None and all(n in gen_windows[k] for k in kinds):
             judged.append((i, n))
-    for kind in KINDS:
+    for kind in kinds:
         for i, n in judged:
             g, gt = gen_windows[kind][n], knn_db.G[i].reshape(T, -1, 3)
             res[kind]["l1_cm"].append(l1_cm(g, gt))
@@ -224,7 +231,7 @@ def generator_rows(
     fgd = train_fgd(knn_db.G[train_rows].reshape(len(train_rows), T, -1))
     real = np.stack([knn_db.G[i].reshape(T, -1) for i, _ in judged])
     fgd_rows = {
-        kind: fgd.distance(real, np.stack([gen_windows[kind][n].reshape(T, -1) for _, n in judged])) for kind in KINDS
+        kind: fgd.distance(real, np.stack([gen_windows[kind][n].reshape(T, -1) for _, n in judged])) for kind in kinds
     }
     fgd_rows["knn"] = fgd.distance(real, np.stack([kept["outs"][i][0].reshape(T, -1) for i, _ in judged]))
     if refined_outs:
@@ -243,7 +250,7 @@ def generator_rows(
             "fgd": fgd_rows[kind],
             "folds": info[kind],
         }
-        for kind in KINDS
+        for kind in kinds
     }
     face_only = defaultdict(lambda: defaultdict(list))
     for s_, st, h in zip(w.source, w.start_s, has_body):
@@ -252,9 +259,10 @@ def generator_rows(
     return {
         "protocol": f"{folds}-fold cross-validation by video (the refiner's folds; face-only windows from "
         f"talking-head clips train the face decoder); {cfg.steps} steps, batch {cfg.batch}, Adam "
-        f"{cfg.lr}, adversarial weight {cfg.adv_weight}; deterministic, so diversity is 0",
+        f"{cfg.lr}, adversarial weight {cfg.adv_weight} (velocity-adversarial baseline: {cfg.velocity_adv_weight}); "
+        "deterministic, so diversity is 0",
         "windows_judged": len(judged),
-        "lip_windows": len(lip["adversarial"]),
+        "lip_windows": len(lip[kinds[0]]),
         "rows": rows,
         "lip_error_mm_random_other_video": float(np.mean(lip_random)),
         "face_only_windows_per_speaker": {k: sum(len(x) for x in v.values()) for k, v in sorted(face_only.items())},
