@@ -17,6 +17,7 @@ from anima.eval.landmarks import evaluate_aflw
 from anima.eval.pose import evaluate_pose
 from anima.eval.reenact import evaluate as evaluate_reenact
 from anima.eval.stability import evaluate_stability
+from anima.eval.text2face_prompts import evaluate_prompts, load_suite
 from anima.io.outdir import check_out_dir
 
 
@@ -172,6 +173,19 @@ def register(sub) -> None:
     et.add_argument("--no-ablations", action="store_true", help="only the model and the baselines")
     et.add_argument("--seed-preset", action="store_true", help="also train the seed-size model (13.6 M parameters)")
     et.add_argument("--checkpoint", default=None, help="score this checkpoint as 'ours' instead of training it")
+    et.add_argument(
+        "--prompts",
+        nargs="?",
+        const="",
+        default=None,
+        metavar="FILE",
+        help="instead of the tables: the prompt suite (default: the 114 prompts shipped in "
+        "anima/eval/prompts/text2face.json) scored for the timeline method, the seed model (the "
+        "shipped checkpoint or --checkpoint) and retrieval with the dataset's detectors: per-event "
+        "recall and false alarms, order, count and side accuracy, emotion checks, distinct motions "
+        "(about 1 min on 2 cores)",
+    )
+    et.add_argument("--seeds", type=number(int, 1, 100), default=3, help="with --prompts: seeds per prompt")
     et.add_argument("--json", action="store_true", help="(the result is JSON either way)")
     et.set_defaults(func=cmd_text2face)
 
@@ -266,6 +280,9 @@ def cmd_gesture(a) -> int:
 
 def cmd_text2face(a) -> int:
     check_dataset(a.dataset)  # before torch loads
+    if a.prompts is not None:
+        load_suite(a.prompts or None)  # a bad suite fails before any model loads
+        return emit(evaluate_prompts(a.dataset, a.prompts or None, a.seeds, a.checkpoint, progress=not a.json), True)
     from anima.eval.text2face import evaluate  # lazy: torch
 
     return emit(

@@ -7,7 +7,7 @@ from anima.cli.options import add_options, config_from_args
 from anima.gesture.run import GestureConfig, gesture_to_folder
 from anima.text2face.config import PromptConfig
 
-PROMPT_OPTIONS = ["length", "seconds", "seed"]
+PROMPT_OPTIONS = ["length", "seconds", "seed", "method"]
 GESTURE_OPTIONS = [
     "k",
     "init",
@@ -29,12 +29,20 @@ def register(sub) -> None:
         description="Seed 000: a sentence -> 3D facial motion (ICT expression weights + head "
         "rotation, 30 fps). Writes into --out: motion.npz (a tracked sequence: `anima info`, "
         "`anima export`), face.mp4, arkit.csv (Live Link Face), face.glb, info.json and "
-        "manifest.json. Uses the shipped checkpoint unless --checkpoint is given.",
+        "manifest.json. With --db, the timeline method: the prompt is read as events (smile, blink, "
+        "frown, squint, raise eyebrows, surprise, mouth open, yawn, talk, nod, shake head, turn, and "
+        "the emotions happy, sad, angry, disgusted, fearful, contempt, neutral; 'then', 'while', "
+        "'twice', 'slightly', 'left eye') made from the dataset's captured motion; info.json says how "
+        "the prompt was read and what was not understood. Without --db, the seed model (the shipped "
+        "checkpoint unless --checkpoint is given).",
     )
     tf.add_argument("prompt", help='e.g. "a woman smiles, then blinks"')
     tf.add_argument("--out", required=True, help="output folder")
     add_options(tf, PromptConfig, PROMPT_OPTIONS)
-    tf.add_argument("--checkpoint", default=None, help="a checkpoint from `anima train text2face`")
+    tf.add_argument("--checkpoint", default=None, help="a checkpoint from `anima train text2face` (--method model)")
+    tf.add_argument(
+        "--db", default=None, help="dataset folder from `anima dataset build`: the timeline method's captured motion"
+    )
     tf.add_argument("--no-video", action="store_true", help="skip the MP4 render")
     tf.add_argument("--json", action="store_true")
     tf.set_defaults(func=cmd_text2face)
@@ -76,6 +84,7 @@ def cmd_text2face(a) -> int:
         video=not a.no_video,
         progress=not a.json,
         command=command_line(a),
+        db=a.db,
     )
     notes(info["warnings"], "warning")
     return emit(

@@ -30,6 +30,7 @@ from anima.eval.landmarks import evaluate_aflw
 from anima.eval.pose import evaluate_pose
 from anima.eval.reenact import evaluate as evaluate_reenact
 from anima.eval.stability import evaluate_stability
+from anima.eval.text2face_prompts import evaluate_prompts
 from anima.io.assets import data_root
 from anima.io.atomic import write_json, write_text
 from anima.io.outdir import OutputFolder
@@ -206,6 +207,18 @@ def _gesture_summary(r: dict) -> list[str]:
     return out
 
 
+def _prompts_summary(r: dict) -> list[str]:
+    out = [f"{r['protocol']['prompts']} prompts x {r['protocol']['seeds']} seeds."]
+    for name, m in r["methods"].items():
+        out.append(
+            f"{name}: lowest event recall {m['min_recall']}, highest false alarm {m['max_false_alarm']}, "
+            f"order {m['order']['accuracy']}, count {m['count']['accuracy']}, emotion checks "
+            f"{m['emotion_checks']['holds']}/{m['emotion_checks']['of']}, same-motion pairs "
+            f"{m['distinct']['same_motion_pairs']} of {m['distinct']['pairs']}."
+        )
+    return out
+
+
 def default_rows(db: str, out: Path, work: Path, quick: bool = False) -> list[Row]:
     """Every evaluation, each as its command runs it by default. ``quick``: the learned models' rows with few
     training steps (a check that everything runs, not results)."""
@@ -225,6 +238,9 @@ def default_rows(db: str, out: Path, work: Path, quick: bool = False) -> list[Ro
         for m in r["methods"].values():  # the raw samples are for scoring only
             m.pop("generated", None)
         return r
+
+    def prompts():
+        return evaluate_prompts(db, seeds=1 if quick else 3, progress=False)
 
     q = " --quick" if quick else ""
     return [
@@ -248,6 +264,12 @@ def default_rows(db: str, out: Path, work: Path, quick: bool = False) -> list[Ro
         ),
         Row("gesture", f"anima eval gesture --db {db} --json{q}", gesture, _gesture_summary),
         Row("text2face", f"anima eval text2face {db} --work {work} --json{q}", text2face, lambda r: [r["tables"]]),
+        Row(
+            "text2face_prompts",
+            f"anima eval text2face {db} --prompts --seeds {1 if quick else 3} --json",
+            prompts,
+            _prompts_summary,
+        ),
     ]
 
 

@@ -49,4 +49,8 @@ class PromptConfig:
     seconds: float | None = field(default=None, metadata={"range": (0.01, 3600.0)})
     """Length in seconds (overrides --length)."""
     seed: int = 0
-    """Random code seed: other seeds give other motions."""
+    """Random seed: other seeds give other motions."""
+    method: str = field(default="auto", metadata={"choices": ("auto", "timeline", "model")})
+    """timeline: the prompt's events (smile, blink, nod, emotions, ... with "then", counts, "slightly") made
+    from the dataset's captured segments (needs --db; follows prompts: docs/text2face.md); model: the seed's
+    cVQ-VAE + FaceFormer checkpoint; auto: timeline when --db is given, else model."""

@@ -302,3 +302,116 @@ def test_held_out_errors_get_intervals_over_videos_per_split():
     assert lo < r["test"]["mean"] < hi and lo < 1.6 and hi > 3.3  # the spread between videos, not within
     one = over_videos(np.array(x[:4]), items[:4])["val"]
     assert one["ci95_over_videos"][0] == one["ci95_over_videos"][1] == pytest.approx(one["mean"], abs=1e-4)
+
+
+# ---- the timeline method (issue 19): prompts read as events, made from captured segments ------------------
+
+
+def test_prompt_parser_reads_order_counts_intensity_side_and_reports_unknown_words():
+    from anima.text2face.prompt import parse
+
+    p = parse("She smiles slightly, then blinks twice")
+    assert [(e.attribute, e.count, e.clause) for e in p.events] == [("smile", 1, 0), ("blink", 2, 1)]
+    assert p.events[0].intensity < 1.0 and not p.unknown
+    p = parse("he raises his left eyebrow while talking")
+    assert {e.attribute for e in p.events} == {"raise eyebrows", "talk"} and p.n_clauses == 1
+    assert p.events[0].side == "left"
+    p = parse("xyzzy blorf")
+    assert not p.events and p.unknown == ["xyzzy", "blorf"] and any("neutral" in n for n in p.notes)
+    p = parse("eyes closed while winking")  # cannot co-occur: the wink follows
+    assert [e.attribute for e in p.events] == ["close eyes", "blink"] and p.n_clauses == 2 and p.notes
+
+
+def test_prompt_parser_agrees_with_every_annotated_prompt_of_the_suite():
+    """The 114 prompts of the suite: the parser finds each prompt's events in its clauses with its counts."""
+    from anima.eval.text2face_prompts import load_suite
+    from anima.text2face.prompt import parse
+
+    rows = load_suite()
+    assert len(rows) >= 100
+    for r in rows:
+        p = parse(r["prompt"])
+        got = [sorted((e.attribute, e.count) for e in p.events if e.clause == c) for c in range(p.n_clauses)]
+        want = [sorted((e["attribute"], e["count"]) for e in c) for c in r["clauses"]]
+        if r.get("emotion"):
+            want = [[("surprise" if r["emotion"] == "surprised" else r["emotion"], 1)]]
+        if r["kind"] == "neutral":
+            want = [[("neutral", 1)]]
+        assert got == want, r["prompt"]
+
+
+def test_paraphrase_outside_the_lexicon_goes_through_the_sentence_encoder(encoder):
+    from anima.text2face.prompt import parse
+
+    p = parse("her eyelids flicker shut for an instant", encoder)
+    assert [e.attribute for e in p.events] == ["blink"] and p.paraphrased[0]["as"] == "blink"
+
+
+def test_expression_names_of_the_composer_are_the_face_models(face_model):
+    from anima.text2face.compose import EXPR_NAMES
+
+    assert EXPR_NAMES == list(face_model.expr_names)
+
+
+def test_timeline_method_on_real_clips_follows_order_and_counts(ds):
+    """Segments from the captured d0/d6 clips: "smiles, then blinks twice" reads back with the detectors as a
+    smile followed by two blinks; other prompts and other seeds give other motion; a prompt too long for the
+    clip is refused with the length it needs; nothing recognised gives the still, neutral face."""
+    from anima.text2face.compose import Library, compose, detect_motion
+    from anima.text2face.prompt import parse
+
+    lib = Library.from_dataset(ds, splits=("train", "val", "test"))
+    assert lib.counts["smile"] > 0 and lib.counts["blink"] > 0
+    m, rec = compose(parse("she smiles, then blinks twice"), lib, 120, seed=0)
+    assert m.shape == (120, 56) and np.isfinite(m).all() and m[:, :53].min() >= 0 and m[:, :53].max() <= 1
+    ev = detect_motion(m)
+    smiles = [s for a, s, _ in ev if a == "smile"]
+    blinks = [s for a, s, _ in ev if a == "blink"]
+    assert rec["all_found"] and smiles and len(blinks) == 2 and min(smiles) < min(blinks), ev
+    assert rec["events"][0]["from"][0]["clip"] in lib.sources
+    m2, _ = compose(parse("she smiles, then blinks twice"), lib, 120, seed=0)
+    np.testing.assert_array_equal(m, m2)  # seeded
+    m3, _ = compose(parse("a person blinks"), lib, 120, seed=0)
+    assert np.abs(m - m3).max() > 0.1
+    with pytest.raises(InputError, match="at least"):
+        compose(parse("she blinks five times, then smiles, then blinks five times"), lib, 40)
+    still, rec = compose(parse("xyzzy"), lib, 60)
+    assert np.ptp(still, axis=0).max() == 0 and rec["events"] == []
+
+
+def test_text2face_timeline_command_and_its_refusals(ds, tmp_path, cli):
+    out = tmp_path / "tl"
+    r = cli("text2face", "a woman smiles, then blinks", "--db", ds, "--out", out, "--no-video", "--json")
+    assert r.returncode == 0, r.stderr[-2000:]
+    info = json.loads((out / "info.json").read_text())
+    assert info["method"] == "timeline" and [e["attribute"] for e in info["understood"]] == ["smile", "blink"]
+    assert (out / "motion.npz").stat().st_size > 0 and (out / "arkit.csv").stat().st_size > 0
+    r = cli("text2face", "qwerty", "--db", ds, "--out", tmp_path / "q", "--no-video")
+    assert r.returncode == 0 and "not understood: qwerty" in r.stderr
+    for args, msg in [
+        (("a person smiles", "--method", "timeline"), "needs --db"),
+        (("a person nods five times", "--db", str(ds), "--length", "30"), "at least"),
+        (("a person smiles", "--db", str(tmp_path / "nods")), "no dataset"),
+    ]:
+        r = cli("text2face", *args, "--out", str(tmp_path / "bad"), "--no-video")
+        assert r.returncode == 2 and msg in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+def test_prompt_suite_scores_follow_their_definitions():
+    """The scorer on hand-made motions: a blink where one is asked is a hit, a smile where none is asked a
+    false alarm, and two prompts with the same motion are counted as such."""
+    from anima.eval.text2face_prompts import score_runs
+
+    rows = [
+        {"prompt": "blink", "kind": "single", "clauses": [[{"attribute": "blink", "count": 1}]]},
+        {"prompt": "smile", "kind": "single", "clauses": [[{"attribute": "smile", "count": 1}]]},
+        {"prompt": "neutral", "kind": "neutral", "clauses": []},
+    ]
+    still = np.zeros((90, 56), np.float32)
+    blink = still.copy()
+    blink[40:45, 10:12] = 1.0  # eyeBlink_L, eyeBlink_R
+    runs = {0: [blink], 1: [still], 2: [still]}
+    r = score_runs(rows, runs, {})
+    assert r["per_attribute"]["blink"]["recall"] == 1.0 and r["per_attribute"]["smile"]["recall"] == 0.0
+    assert r["per_attribute"]["blink"]["false_alarm"] == 0.0
+    assert r["distinct"]["pairs"] == 3 and r["distinct"]["same_motion_pairs"] == 1

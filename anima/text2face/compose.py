@@ -1,0 +1,511 @@
+"""The timeline method of ``anima text2face`` (issue 19): a prompt's events synthesised from captured motion.
+
+The seed's model (cVQ-VAE + FaceFormer decoder) needs hours of data; on the shared minutes its prompts
+collapse onto a few codebook entries. This method works on minutes and improves with more:
+
+1. :func:`anima.text2face.prompt.parse` turns the prompt into events (attribute or emotion, count,
+   intensity, side) grouped into clauses that follow one another.
+2. Every event is taken from the **captured motion segments the dataset's detectors labelled with it**
+   (``Library``: the (text, motion) clips of the training videos and their events). Emotions have no
+   detector, so their segments are found by motion matching in ARKit space: the frames of the corpus whose
+   offsets from their clip's rest face best match the emotion's action units (``EMOTION_AUS``, after
+   EMFACS: Friesen & Ekman 1983; the channel sets of the issue).
+3. A segment contributes its offsets from its own clip's rest face (``Library.rest``: the 20th percentile
+   of each expression weight, the median head rotation), only on the channels of its event (``CHANNELS``),
+   faded in and out with a raised cosine over its margins, added to a neutral base (the median rest face of
+   the library). Held events (a smile "for a while", an emotion) stretch the middle of their segment; talk
+   is tiled from several talk segments; counted events repeat with different segments.
+4. The result is checked with the same detectors; an event they do not find is made stronger (x1.35, at
+   most 4 times, clipped to the weights' range), so "slightly" is the weakest version that still reads.
+
+Pure: the library is built from arrays (``Library.from_clips``); reading a dataset is ``from_dataset``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from anima.core.contract import FACE_DIM, N_EXPR, TEXT_FPS
+from anima.dataset.attributes import ATTRIBUTES, detect
+from anima.dataset.windows import read_clips
+from anima.errors import InputError
+from anima.export.framing import generated_sequence
+from anima.text2face.prompt import Plan
+
+EXPR_NAMES = [
+    "browDown_L", "browDown_R", "browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOuterUp_R", "cheekPuff_L",
+    "cheekPuff_R", "cheekSquint_L", "cheekSquint_R", "eyeBlink_L", "eyeBlink_R", "eyeLookDown_L", "eyeLookDown_R",
+    "eyeLookIn_L", "eyeLookIn_R", "eyeLookOut_L", "eyeLookOut_R", "eyeLookUp_L", "eyeLookUp_R", "eyeSquint_L",
+    "eyeSquint_R", "eyeWide_L", "eyeWide_R", "jawForward", "jawLeft", "jawOpen", "jawRight", "mouthClose",
+    "mouthDimple_L", "mouthDimple_R", "mouthFrown_L", "mouthFrown_R", "mouthFunnel", "mouthLeft",
+    "mouthLowerDown_L", "mouthLowerDown_R", "mouthPress_L", "mouthPress_R", "mouthPucker", "mouthRight",
+    "mouthRollLower", "mouthRollUpper", "mouthShrugLower", "mouthShrugUpper", "mouthSmile_L", "mouthSmile_R",
+    "mouthStretch_L", "mouthStretch_R", "mouthUpperUp_L", "mouthUpperUp_R", "noseSneer_L", "noseSneer_R",
+]  # fmt: skip
+_IX = {n: i for i, n in enumerate(EXPR_NAMES)}
+HEAD = "head"
+LIPS = [
+    "jawOpen", "mouthClose", "mouthFunnel", "mouthPucker", "mouthLowerDown_L", "mouthLowerDown_R", "mouthUpperUp_L",
+    "mouthUpperUp_R", "mouthPress_L", "mouthPress_R", "mouthStretch_L", "mouthStretch_R", "mouthRollLower",
+    "mouthRollUpper", "mouthShrugLower", "mouthShrugUpper",
+]  # fmt: skip
+
+
+def _both(*stems: str) -> list[str]:
+    return [f"{s}_{k}" for s in stems for k in "LR"]
+
+
+# the channels each event moves (the rest of a captured segment is left out: a blink taken from a talking
+# clip must not bring the talking along)
+CHANNELS: dict[str, list[str]] = {
+    "blink": _both("eyeBlink"),
+    "close eyes": _both("eyeBlink"),
+    "smile": _both("mouthSmile", "cheekSquint", "mouthDimple"),
+    "frown": _both("browDown", "noseSneer"),
+    "squint": _both("eyeSquint", "cheekSquint"),
+    "raise eyebrows": _both("browInnerUp", "browOuterUp"),
+    "surprise": _both("browInnerUp", "browOuterUp", "eyeWide") + LIPS,
+    "mouth open": LIPS,
+    "yawn": LIPS + _both("eyeSquint"),
+    "talk": LIPS,
+    "nod": [HEAD],
+    "shake head": [HEAD],
+    "turn": [HEAD],
+}
+# Emotions as action units in ARKit weights (EMFACS prototypes; the channel sets of issue 19): positive
+# weights pull the match towards the channel, negative ones away from it.
+EMOTION_AUS: dict[str, dict[str, float]] = {
+    "happy": {"mouthSmile_L": 1, "mouthSmile_R": 1, "cheekSquint_L": 0.5, "cheekSquint_R": 0.5},
+    "sad": {"browInnerUp_L": 1, "browInnerUp_R": 1, "mouthFrown_L": 1, "mouthFrown_R": 1, "mouthSmile_L": -1,
+            "mouthSmile_R": -1, "jawOpen": -0.5},
+    "angry": {"browDown_L": 1, "browDown_R": 1, "noseSneer_L": 0.7, "noseSneer_R": 0.7, "mouthPress_L": 0.3,
+              "mouthPress_R": 0.3, "mouthSmile_L": -1, "mouthSmile_R": -1, "browInnerUp_L": -0.5,
+              "browInnerUp_R": -0.5},
+    "disgusted": {"noseSneer_L": 1, "noseSneer_R": 1, "mouthUpperUp_L": 0.7, "mouthUpperUp_R": 0.7,
+                  "browDown_L": 0.5, "browDown_R": 0.5, "mouthSmile_L": -0.5, "mouthSmile_R": -0.5},
+    "fearful": {"browInnerUp_L": 1, "browInnerUp_R": 1, "eyeWide_L": 1, "eyeWide_R": 1, "mouthStretch_L": 0.7,
+                "mouthStretch_R": 0.7, "mouthSmile_L": -0.5, "mouthSmile_R": -0.5},
+    "contempt": {"mouthSmile_L": 1, "mouthDimple_L": 0.7, "mouthSmile_R": -1, "mouthDimple_R": -0.5},
+}  # fmt: skip
+HOLDABLE = {"smile", "frown", "squint", "raise eyebrows", "surprise", "mouth open", "close eyes", "turn"} | set(
+    EMOTION_AUS
+)
+HEAD_AXIS = {"nod": 0, "shake head": 1, "turn": 1}  # rotation-vector component (x: pitch, y: yaw)
+SHAKE_MAX_RAD = 0.3  # 17 degrees either way (the turn detector fires at 20 degrees from the clip's median)
+# Longer holds read as other events to the detectors, which measure against the clip's own rest: an open
+# mouth held over 1 s is a yawn, a raise or a turn held over a quarter of the clip shifts the rest.
+MAX_HOLD_S = {"mouth open": 0.6, "surprise": 0.6, "turn": 0.8, "raise eyebrows": 0.7}
+HOLD_MIN_S = 0.8  # a held event's segment is sped up to this (plus margins) when time is short
+NATURAL_S = {"talk": 1.5, "neutral": 0.8, "close eyes": 1.0}
+GAP_S = {"blink": 0.3, "nod": 0.9, "shake head": 0.9}
+LEAD_S, BETWEEN_S = 0.25, 0.3
+LIP_SMOOTH_S = 0.2  # sigma of the low-pass on a non-talk event's lip weights (speech moves them at 3-6 Hz)
+MARGIN_S = 0.2
+
+
+@dataclass
+class Segment:
+    clip: int
+    a: int  # first frame, margin included
+    b: int  # end frame (exclusive), margin included
+    attribute: str
+    margin: int
+    peak: float = 0.0
+
+
+@dataclass
+class Library:
+    """Captured clips (``motion [F, 56]`` each, 30 fps), their rest faces, and the labelled segments."""
+
+    motion: list[np.ndarray]
+    rest: np.ndarray  # [C, 56]
+    segments: dict[str, list[Segment]]
+    sources: list[str]
+    fps: float = TEXT_FPS
+    neutral: np.ndarray = field(default=None)  # type: ignore[assignment]
+
+    def __post_init__(self):
+        if self.neutral is None:
+            self.neutral = np.median(self.rest, 0) if len(self.rest) else np.zeros(FACE_DIM, np.float32)
+            self.neutral[N_EXPR:] = 0.0
+
+    @property
+    def counts(self) -> dict[str, int]:
+        return {k: len(v) for k, v in self.segments.items()}
+
+    @classmethod
+    def from_clips(cls, motions, events, sources, fps: float = TEXT_FPS, n_emotion: int = 12) -> Library:
+        """``motions[i] [F, 56]``, ``events[i]`` = ``[(attribute, start_s, end_s)]`` (the detectors')."""
+        motions = [np.asarray(m, np.float32) for m in motions]
+        if not motions:
+            raise InputError("the timeline method needs captured clips: the dataset has no (text, motion) clip")
+        rest = np.stack([_rest(m) for m in motions])
+        margin = int(round(MARGIN_S * fps))
+        segs: dict[str, list[Segment]] = {a: [] for a in ATTRIBUTES}
+        for c, (m, evs) in enumerate(zip(motions, events)):
+            for attr, s, e in evs:
+                if attr not in segs:
+                    continue
+                a0, b0 = int(round(s * fps)), int(round(e * fps))
+                a, b = max(0, a0 - margin), min(len(m), b0 + margin)
+                if b0 - a0 < 1 or a0 - a < margin // 2 or b - b0 < margin // 2:
+                    continue  # cut off at the clip's edge: no rest on one side to fade from
+                segs[attr].append(Segment(c, a, b, attr, margin, _peak(m[a:b] - rest[c], attr)))
+        for emo in EMOTION_AUS:
+            segs[emo] = _emotion_segments(motions, rest, emo, fps, n_emotion)
+        return cls(motions, rest, segs, list(sources), fps)
+
+    @classmethod
+    def from_dataset(cls, folder, splits=("train",)) -> Library:
+        """The (text, motion) clips of the dataset's training videos (the held-out ones stay unseen)."""
+        clips = [c for c in read_clips(folder) if c.split in splits]
+        if not clips:
+            raise InputError(f"{folder}: no (text, motion) clip in split(s) {', '.join(splits)}")
+        if abs(clips[0].fps - TEXT_FPS) > 1e-6:
+            raise InputError(f"{folder}: clips at {clips[0].fps} fps; the timeline method works at {TEXT_FPS}")
+        return cls.from_clips(
+            [c.motion for c in clips], [c.events for c in clips], [f"{c.clip_id}" for c in clips], clips[0].fps
+        )
+
+
+def _rest(m: np.ndarray) -> np.ndarray:
+    r = np.zeros(FACE_DIM, np.float32)
+    r[:N_EXPR] = np.percentile(m[:, :N_EXPR], 20, axis=0)
+    r[N_EXPR:] = np.median(m[:, N_EXPR:], axis=0)
+    return r
+
+
+def _channel_idx(attr: str) -> tuple[list[int], bool]:
+    chans = CHANNELS.get(attr) or [k for k, w in EMOTION_AUS.get(attr, {}).items() if w > 0]
+    return [_IX[c] for c in chans if c != HEAD], HEAD in chans
+
+
+def _peak(off: np.ndarray, attr: str) -> float:
+    idx, head = _channel_idx(attr)
+    if head:
+        return float(np.abs(off[:, N_EXPR:] - off[:1, N_EXPR:]).max())
+    return float(np.abs(off[:, idx]).max()) if idx else 0.0
+
+
+def _emotion_score(m: np.ndarray, rest: np.ndarray, emo: str) -> np.ndarray:
+    s = np.zeros(len(m), np.float32)
+    for ch, w in EMOTION_AUS[emo].items():
+        s += w * (m[:, _IX[ch]] - rest[_IX[ch]])
+    return s
+
+
+def _emotion_segments(motions, rest, emo, fps, n) -> list[Segment]:
+    """Motion matching in ARKit space: the best-scoring 1.2 s stretch of each clip, the top ``n`` clips."""
+    half = int(round(0.6 * fps))
+    margin = int(round(MARGIN_S * fps))
+    cands = []
+    for c, m in enumerate(motions):
+        if len(m) < 2 * half + 2 * margin:
+            continue
+        sc = np.convolve(_emotion_score(m, rest[c], emo), np.ones(2 * half) / (2 * half), mode="same")
+        lo, hi = half + margin, len(m) - half - margin
+        t = lo + int(np.argmax(sc[lo:hi]))
+        cands.append((float(sc[t]), Segment(c, t - half - margin, t + half + margin, emo, margin, float(sc[t]))))
+    cands.sort(key=lambda x: -x[0])
+    return [s for v, s in cands[:n] if v > 0]
+
+
+def _window(n: int, margin: int) -> np.ndarray:
+    w = np.ones(n, np.float32)
+    k = min(margin, n // 2)
+    if k > 0:
+        ramp = 0.5 - 0.5 * np.cos(np.linspace(0, np.pi, k + 2)[1:-1])
+        w[:k] = ramp
+        w[n - k :] = ramp[::-1]
+    return w
+
+
+def _stretch(x: np.ndarray, n: int, margin: int) -> np.ndarray:
+    """``x [L, D]`` to ``n`` frames: onset and release at their own speed, the middle slowed to fill."""
+    L = len(x)
+    if n == L:
+        return x
+    core = max(1, L - 2 * margin)
+    on = margin + int(0.3 * core)
+    off = L - margin - int(0.3 * core)
+    if n < L or off <= on:
+        src = np.linspace(0, L - 1, n)
+    else:
+        mid = n - on - (L - off)
+        src = np.concatenate([np.arange(on), np.linspace(on, off - 1, mid), np.arange(off, L)])
+    i0 = np.floor(src).astype(int)
+    i1 = np.minimum(i0 + 1, L - 1)
+    f = (src - i0)[:, None]
+    return x[i0] * (1 - f) + x[i1] * f
+
+
+def _offset(lib: Library, seg: Segment, side: str | None, lip_smooth_s: float = 0.2) -> np.ndarray:
+    """A segment's contribution ``[L, 56]``: offsets from its clip's rest face on its event's channels."""
+    m = lib.motion[seg.clip][seg.a : seg.b]
+    out = np.zeros_like(m)
+    idx, head = _channel_idx(seg.attribute)
+    if idx:
+        if side in ("left", "right"):
+            keep = "_L" if side == "left" else "_R"
+            idx = [i for i in idx if not (EXPR_NAMES[i].endswith(("_L", "_R")) and not EXPR_NAMES[i].endswith(keep))]
+        out[:, idx] = m[:, idx] - lib.rest[seg.clip][idx]
+        if seg.attribute != "talk":  # an open mouth taken from a talking clip: keep its opening, not the speech
+            lip = [i for i in idx if EXPR_NAMES[i] in LIPS]
+            if lip:
+                out[:, lip] = gaussian_filter1d(out[:, lip], lip_smooth_s * lib.fps, axis=0, mode="nearest")
+    if head:  # a nod turns about the x axis (pitch), a shake or turn about y (yaw): the other axes stay still
+        ax = N_EXPR + HEAD_AXIS[seg.attribute]
+        out[:, ax] = m[:, ax] - m[0, ax]
+        if seg.attribute == "turn" and side in ("left", "right"):
+            j = int(np.abs(out[:, ax]).argmax())
+            if np.sign(out[j, ax]) != (1.0 if side == "left" else -1.0):  # +y: the head turns to its left
+                out[:, ax] *= -1.0
+    return out * _window(len(m), seg.margin)[:, None]
+
+
+@dataclass
+class Placed:
+    attribute: str
+    start: int
+    end: int
+    gain: float
+    pieces: list[tuple[Segment, int, int]]  # (segment, output start, output length)
+    side: str | None = None
+
+
+def _choose(lib: Library, attr: str, rng: np.random.Generator, k: int) -> list[Segment]:
+    pool = lib.segments.get(attr) or []
+    if attr == "close eyes":
+        pool = lib.segments.get("blink") or []
+    if not pool:
+        raise InputError(f"the library has no captured '{attr}' segment: build the dataset from more clips")
+    # the strongest half of the labelled segments (clear examples), duration closest to the slot if asked
+    if attr in MAX_HOLD_S:  # an open mouth held too long is a yawn
+        short = [s for s in pool if s.b - s.a <= (MAX_HOLD_S[attr] + 2 * MARGIN_S) * lib.fps]
+        pool = short or pool
+    peaks = np.array([s.peak for s in pool])
+    good = [s for s, p in zip(pool, peaks) if p >= np.median(peaks)] or pool
+    if k > 1 or attr in GAP_S:  # repeated or oscillating events: the shorter examples, so copies fit
+        good.sort(key=lambda s: s.b - s.a)
+        good = good[: max(4, len(good) // 2)]
+    return [good[i] for i in rng.choice(len(good), size=k, replace=k > len(good))]
+
+
+def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0) -> list[Placed]:
+    """Where each event goes in ``n_frames``: clauses in order, events of a clause together, the free time
+    shared between held events and the pauses. Raises :class:`InputError` when the events cannot fit."""
+    fps = lib.fps
+    if not plan.events:  # nothing recognised: the neutral face
+        return []
+    rng = np.random.default_rng(seed)
+    clauses: dict[int, list] = {}
+    for e in plan.events:
+        clauses.setdefault(e.clause, []).append(e)
+    only_talk = all(e.attribute in ("talk", "neutral") for e in plan.events)
+    chosen = []  # per clause: [(event, segments, natural length)]
+    slot_len = []
+    for c in sorted(clauses):
+        row = []
+        for e in clauses[c]:
+            if e.attribute in ("talk", "neutral"):
+                row.append((e, [], int(NATURAL_S[e.attribute] * fps)))
+                continue
+            segs = _choose(lib, "blink" if e.attribute == "close eyes" else e.attribute, rng, e.count)
+            if e.attribute == "close eyes":
+                row.append((e, segs[:1], int(NATURAL_S["close eyes"] * fps)))
+                continue
+            gap = int(GAP_S.get(e.attribute, 0.3) * fps)
+            nat = sum(s.b - s.a for s in segs) - 2 * segs[0].margin * (len(segs) - 1) + gap * (len(segs) - 1)
+            if e.attribute in HOLDABLE and len(segs) == 1:  # a held event can be shown in less time
+                nat = min(nat, int((HOLD_MIN_S + 2 * MARGIN_S) * fps))
+            row.append((e, segs, nat))
+        chosen.append(row)
+        lens = [n for e, _, n in row if e.attribute not in ("talk", "neutral")] or [n for _, _, n in row]
+        slot_len.append(max(lens))
+    lead, between = int(LEAD_S * fps), int(BETWEEN_S * fps)
+    need = 2 * lead + sum(slot_len) + between * (len(slot_len) - 1)
+    if need > n_frames:
+        raise InputError(
+            f"the prompt's events need at least {need} frames ({need / fps:.1f} s) and {n_frames} were asked "
+            f"for: ask for --seconds {np.ceil(10 * need / fps) / 10:g} or fewer events"
+        )
+    slack = n_frames - need
+    holdable = [any(e.attribute in HOLDABLE or e.attribute in ("talk", "neutral") for e, _, _ in r) for r in chosen]
+    grow = int(slack * 0.6) // max(1, sum(holdable)) if any(holdable) else 0
+    cap = [
+        min([int((MAX_HOLD_S[e.attribute] + 2 * MARGIN_S) * fps) for e, _, _ in r if e.attribute in MAX_HOLD_S])
+        if any(e.attribute in MAX_HOLD_S for e, _, _ in r)
+        else 10**9
+        for r in chosen
+    ]
+    slot_len = [max(n, min(n + (grow if h else 0), c)) for n, h, c in zip(slot_len, holdable, cap)]
+    rest = n_frames - (sum(slot_len) + between * (len(slot_len) - 1))
+    lead = rest // 2
+    if only_talk:  # talking (or a still face) fills the clip
+        lead = int(LEAD_S * fps) // 2
+        free = n_frames - 2 * lead - between * (len(slot_len) - 1)
+        slot_len = [free // len(slot_len)] * len(slot_len)
+    placed: list[Placed] = []
+    t = lead
+    for row, L in zip(chosen, slot_len):
+        for e, segs, _ in row:
+            gain = float(e.intensity)
+            if e.attribute == "neutral":
+                continue
+            if e.attribute == "talk":
+                placed.append(Placed("talk", t, t + L, gain, []))
+                continue
+            if e.attribute == "close eyes" or (e.attribute in HOLDABLE and len(segs) == 1):
+                placed.append(Placed(e.attribute, t, t + L, gain, [(segs[0], t, L)], e.side))
+                continue
+            # counted or short events: copies spread over the slot, each at its natural length
+            lens = [s.b - s.a for s in segs]
+            free = L - sum(lens) + segs[0].margin * 2 * (len(segs) - 1)
+            gap = free // max(1, len(segs) - 1) if len(segs) > 1 else 0
+            off = (L - sum(lens)) // 2 if len(segs) == 1 else 0
+            p, pieces = t + max(0, off), []
+            for s, n in zip(segs, lens):
+                pieces.append((s, p, n))
+                p += n - 2 * s.margin + gap
+            placed.append(Placed(e.attribute, t, t + L, gain, pieces, e.side))
+        t += L + between
+    return placed
+
+
+def _talk_track(lib: Library, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` frames of lip offsets tiled from talk segments (crossfaded over their margins)."""
+    pool = lib.segments.get("talk") or []
+    if not pool:
+        raise InputError("the library has no captured 'talk' segment")
+    out = np.zeros((n, FACE_DIM), np.float32)
+    t = 0
+    while t < n:
+        s = pool[int(rng.integers(len(pool)))]
+        o = _offset(lib, s, None)
+        k = min(len(o), n - t)
+        out[t : t + k] += o[:k]
+        t += max(1, len(o) - 2 * s.margin)
+    return out * _window(n, int(MARGIN_S * lib.fps))[:, None]
+
+
+def render(
+    placed: list[Placed], lib: Library, n_frames: int, seed: int = 0, lip_smooth_s: float = LIP_SMOOTH_S
+) -> np.ndarray:
+    """The motion ``[n_frames, 56]`` of a layout: the neutral base plus every event's offsets. Where two
+    events move the same expression weight (talk and an open mouth, surprise and an open mouth) the larger
+    offset wins instead of the two adding up; head rotations add."""
+    rng = np.random.default_rng(seed + 7)
+    up = np.zeros((n_frames, FACE_DIM), np.float32)
+    down = np.zeros((n_frames, FACE_DIM), np.float32)
+    head = np.zeros((n_frames, FACE_DIM - N_EXPR), np.float32)
+
+    def add(o: np.ndarray, a: int, b: int) -> None:
+        up[a:b] = np.maximum(up[a:b], o)
+        down[a:b] = np.minimum(down[a:b], o)
+        head[a:b] += o[:, N_EXPR:]
+
+    for p in placed:
+        if p.attribute == "talk":
+            add(p.gain * _talk_track(lib, p.end - p.start, rng), p.start, p.end)
+            continue
+        for seg, t0, L in p.pieces:
+            o = _offset(lib, seg, p.side, lip_smooth_s)
+            if p.attribute == "close eyes":  # the blink's closed middle, held
+                o = _stretch(o, L, seg.margin)
+                mid = slice(seg.margin, L - seg.margin)
+                o[mid] = np.maximum(o[mid], o[mid].max(0, keepdims=True) * 0.95)
+            elif len(o) != L:
+                o = _stretch(o, L, seg.margin)
+            o = p.gain * o
+            if p.attribute == "shake head":  # made stronger or not, a wider shake reads as a turn
+                o[:, N_EXPR:] *= min(1.0, SHAKE_MAX_RAD / max(float(np.abs(o[:, N_EXPR:]).max()), 1e-9))
+            a, b = max(0, t0), min(n_frames, t0 + L)
+            add(o[a - t0 : b - t0], a, b)
+    out = np.repeat(lib.neutral[None].astype(np.float32), n_frames, 0)
+    out[:, :N_EXPR] += up[:, :N_EXPR] + down[:, :N_EXPR]
+    out[:, N_EXPR:] += head
+    out[:, :N_EXPR] = np.clip(out[:, :N_EXPR], 0.0, 1.0)
+    return out
+
+
+def detect_motion(motion: np.ndarray, fps: float = TEXT_FPS, pad_s: float = 1.0) -> list[tuple[str, float, float]]:
+    """The dataset's detectors on generated face motion ``[F, 56]``, with its first and last frames held for
+    ``pad_s`` on either side: the detectors measure brows and lids against the clip's own rest (a
+    percentile), which a 3-s clip that is mostly one held event does not show. Events are returned on the
+    motion's own time axis, those wholly inside the padding dropped. The same rule for every method."""
+    p = int(round(pad_s * fps))
+    padded = np.concatenate([np.repeat(motion[:1], p, 0), motion, np.repeat(motion[-1:], p, 0)])
+    n = len(motion) / fps
+    out = []
+    for a, s, e in detect(generated_sequence(fps, face=padded)):
+        s, e = s - pad_s, e - pad_s
+        if e > 0 and s < n:
+            out.append((a, max(0.0, s), min(n, e)))
+    return out
+
+
+def _found(events, attr: str, start: int, end: int, fps: float) -> int:
+    return sum(1 for a, s, e in events if a == attr and s * fps < end and e * fps > start)
+
+
+def compose(
+    plan: Plan, lib: Library, n_frames: int, seed: int = 0, rounds: int = 3, draws: int = 3
+) -> tuple[np.ndarray, dict]:
+    """The prompt's motion ``[n_frames, 56]`` and a record of what made it (segments, gains, checks).
+
+    Up to ``draws`` layouts (other segments), each rendered up to ``rounds`` + 1 times: an event the
+    detectors miss is made 1.35x stronger, a mouth that reads as talk when none was asked is smoothed more.
+    The first clean rendering is kept, else the one with the fewest misses."""
+    best = None
+    for draw in range(draws):
+        placed = plan_layout(plan, lib, n_frames, seed + 1009 * draw)
+        detectable = [p for p in placed if p.attribute in ATTRIBUTES and (p.side is None or p.attribute == "turn")]
+        lip_s = LIP_SMOOTH_S
+        talking = any(p.attribute == "talk" for p in placed)
+        for _ in range(rounds + 1):
+            motion = render(placed, lib, n_frames, seed, lip_s)
+            events = detect_motion(motion, lib.fps)
+            missing = [
+                p for p in detectable if _found(events, p.attribute, p.start, p.end, lib.fps) < len(p.pieces or [1])
+            ]
+            false_talk = not talking and any(a == "talk" for a, _, _ in events)
+            bad = len(missing) + int(false_talk)
+            if best is None or bad < best[0]:
+                best = (bad, motion, events, [Placed(**vars(p)) for p in placed], lip_s)
+            if not bad:
+                break
+            for p in missing:
+                p.gain *= 1.35
+            if false_talk:  # an open mouth that reads as speech: smooth its lips more
+                lip_s *= 2
+        if best[0] == 0:
+            break
+    _, motion, events, placed, lip_s = best
+    record = {
+        "lip_smooth_s": lip_s,
+        "events": [
+            {
+                "attribute": p.attribute,
+                "start_s": round(p.start / lib.fps, 3),
+                "end_s": round(p.end / lib.fps, 3),
+                "gain": round(p.gain, 3),
+                "side": p.side,
+                "from": [
+                    {
+                        "clip": lib.sources[s.clip],
+                        "start_s": round(s.a / lib.fps, 3),
+                        "end_s": round(s.b / lib.fps, 3),
+                        "placed_s": round(t0 / lib.fps, 3),
+                    }
+                    for s, t0, _ in p.pieces
+                ],
+            }
+            for p in placed
+        ],
+        "detected": [[a, round(s, 3), round(e, 3)] for a, s, e in events],
+        "all_found": best[0] == 0,
+    }
+    return motion, record

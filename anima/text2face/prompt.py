@@ -1,0 +1,374 @@
+"""A prompt -> a timeline of facial events (issue 19): what the timeline method of ``anima text2face`` makes.
+
+The vocabulary is the dataset's attribute detectors (``anima.dataset.attributes.ATTRIBUTES``) plus eight
+emotions. A prompt is read clause by clause:
+
+* clauses are cut at sequence words ("then", "after that", "next", "afterwards", "later", "finally",
+  "followed by", ";", ". ") and at commas; events in one clause co-occur ("smiles and blinks"), and a clause
+  that starts with "while" / "as" co-occurs with the one before it ("smiles while talking");
+* each clause's events come from a phrase lexicon (paraphrases included: "grins", "beams", "furrows the
+  brow", "drops the jaw", ...); a clause with no lexicon match is compared, when an encoder is given, with
+  one prototype sentence per event (cosine >= ``PARAPHRASE_MIN``) and the match is reported back;
+* counts ("once", "twice", "three times", "2 times", "a few times", "repeatedly"), intensity ("slightly",
+  "a little", "broadly", "very", ...) and side ("left", "right": eyes, brows and smiles) attach to the
+  clause's events;
+* words that are neither vocabulary nor grammar are returned in ``Plan.unknown`` so the caller can say what
+  was not understood.
+
+Pure functions, no I/O: the encoder is passed in.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import asdict, dataclass, field
+
+EMOTIONS = ("happy", "sad", "angry", "disgusted", "fearful", "surprised", "contempt", "neutral")
+
+# event -> regular expressions (word-boundary anchored, matched on the lower-cased clause)
+_OBJ = r"(?:(?:the|her|his|their|its|one|an?)\s+)?"
+LEXICON: dict[str, list[str]] = {
+    "blink": [r"blink\w*", r"bats?\s+" + _OBJ + r"(?:eye)?lash\w*", r"wink\w*", r"flutter\w*\s+" + _OBJ + r"eyes?"],
+    "smile": [r"smil\w*", r"grin\w*", r"beam\w*", r"smirk\w*"],
+    "frown": [
+        r"frown\w*",
+        r"scowl\w*",
+        r"furrow\w*(?:\s+" + _OBJ + r"brows?)?",
+        r"knit\w*\s+" + _OBJ + r"brows?",
+        r"lower\w*\s+" + _OBJ + r"(?:eye)?brows?",
+    ],
+    "squint": [r"squint\w*", r"narrow\w*\s+" + _OBJ + r"eyes?"],
+    "raise eyebrows": [
+        r"rais\w*\s+" + _OBJ + r"(?:left\s+|right\s+)?(?:eye)?brows?",
+        r"lift\w*\s+" + _OBJ + r"(?:left\s+|right\s+)?(?:eye)?brows?",
+        r"(?:eye)?brows?\s+(?:go(?:es)?\s+|shoot\s+|are\s+)?up",
+        r"arch\w*\s+" + _OBJ + r"(?:eye)?brows?",
+    ],
+    "surprise": [
+        r"surpris\w*",
+        r"astonish\w*",
+        r"amazed",
+        r"amazement",
+        r"shock\w*",
+        r"startl\w*",
+        r"gasp\w*",
+        r"stunned",
+    ],
+    "mouth open": [
+        r"opens?\s+" + _OBJ + r"mouth(?:\s+wide)?",
+        r"opening\s+" + _OBJ + r"mouth",
+        r"mouth\s+(?:is\s+|falls\s+|drops\s+|hangs\s+)?(?:wide\s+)?open",
+        r"drops?\s+" + _OBJ + r"jaw",
+        r"jaw\s+drops?",
+        r"gap\w*",
+    ],
+    "yawn": [r"yawn\w*"],
+    "talk": [
+        r"talk\w*",
+        r"speak\w*",
+        r"says?\b.*",
+        r"saying\b.*",
+        r"chat\w*",
+        r"convers\w*",
+        r"lectur\w*",
+        r"tells?\b.*",
+        r"explain\w*",
+        r"reads?\s+aloud",
+    ],
+    "nod": [r"nod\w*", r"agrees?", r"bob\w*\s+" + _OBJ + r"head"],
+    "shake head": [
+        r"shak\w*\s+" + _OBJ + r"head",
+        r"head\s+shak\w*",
+        r"shakes?\s+no",
+        r"disagrees?",
+        r"shak(?:es|ing)\b",
+    ],
+    "turn": [
+        r"turn\w*\s+" + _OBJ + r"head",
+        r"turn\w*\s+(?:to\s+the\s+)?(?:left|right|away|aside|sideways)",
+        r"looks?\s+(?:to\s+the\s+)?(?:left|right|away|aside|sideways)",
+        r"looking\s+(?:to\s+the\s+)?(?:left|right|away|aside|sideways)",
+        r"glanc\w*\s+(?:to\s+the\s+)?(?:left|right|away|aside|sideways)",
+    ],
+    # emotions (each synthesised by its action units, see compose.EMOTION_AUS)
+    "happy": [r"happ(?:y|ily|iness)", r"joy\w*", r"cheerful\w*", r"glad", r"delight\w*", r"pleased"],
+    "sad": [
+        r"sad\w*",
+        r"unhappy",
+        r"sorrow\w*",
+        r"gloom\w*",
+        r"upset",
+        r"depress\w*",
+        r"miserable",
+        r"grie\w*",
+        r"tearful",
+    ],
+    "angry": [
+        r"angr\w*",
+        r"anger",
+        r"mad",
+        r"furious\w*",
+        r"annoy\w*",
+        r"irritat\w*",
+        r"rage\w*",
+        r"enrag\w*",
+        r"cross",
+    ],
+    "disgusted": [r"disgust\w*", r"grossed\s+out", r"revolt\w*", r"repuls\w*", r"sick(?:ened)?"],
+    "fearful": [r"fear\w*", r"afraid", r"scar\w*", r"frighten\w*", r"terrif\w*", r"anxious\w*", r"nervous\w*"],
+    "surprised": [],  # "surprised" reads as the surprise event (the detectors' word)
+    "contempt": [r"contempt\w*", r"scorn\w*", r"disdain\w*", r"sneer\w*"],
+    "close eyes": [
+        r"clos\w*\s+" + _OBJ + r"eyes",
+        r"eyes\s+(?:are\s+|stay\s+|kept\s+)?(?:closed|shut)",
+        r"shut\w*\s+" + _OBJ + r"eyes",
+    ],
+    "neutral": [
+        r"neutral(?:\s+face|\s+expression)?",
+        r"calm\w*",
+        r"expressionless",
+        r"blank\s+(?:face|expression|stare)",
+        r"straight\s+face",
+        r"(?:stays?|keeps?|remains?|sits?)\s+still",
+        r"relax\w*",
+        r"poker\s+face",
+    ],
+}
+EVENTS = tuple(k for k in LEXICON if k not in ("surprised",))
+# One prototype sentence per event, for paraphrases the lexicon does not hold (sentence-encoder match).
+PROTOTYPES = {
+    "blink": "a person blinks their eyes",
+    "smile": "a person smiles",
+    "frown": "a person frowns with lowered eyebrows",
+    "squint": "a person squints their eyes",
+    "raise eyebrows": "a person raises their eyebrows",
+    "surprise": "a person looks surprised",
+    "mouth open": "a person opens their mouth",
+    "yawn": "a person yawns",
+    "talk": "a person talks",
+    "nod": "a person nods their head",
+    "shake head": "a person shakes their head",
+    "turn": "a person turns their head to the side",
+    "happy": "a person looks happy",
+    "sad": "a person looks sad",
+    "angry": "a person looks angry",
+    "disgusted": "a person looks disgusted",
+    "fearful": "a person looks afraid",
+    "contempt": "a person looks at someone with contempt",
+    "close eyes": "a person closes their eyes",
+    "neutral": "a person keeps a neutral face",
+}
+# events that cannot happen at the same moment: the second is moved to follow the first (with a note)
+CONFLICTS = [
+    {"close eyes", "blink"},
+    {"close eyes", "squint"},
+    {"close eyes", "surprise"},
+    {"yawn", "talk"},
+    {"nod", "shake head"},
+    {"smile", "sad"},
+    {"happy", "sad"},
+    {"happy", "angry"},
+    {"smile", "angry"},
+]
+PARAPHRASE_MIN = 0.55
+
+COUNTS = [
+    (r"\bonce\b", 1),
+    (r"\btwice\b", 2),
+    (r"\bthrice\b", 3),
+    (r"\b(?:two|2)\s+times\b", 2),
+    (r"\b(?:three|3)\s+times\b", 3),
+    (r"\b(?:four|4)\s+times\b", 4),
+    (r"\b(?:five|5)\s+times\b", 5),
+    (r"\b(?:a\s+few|several|a\s+couple\s+of)\s+times\b", 3),
+    (r"\brepeatedly\b", 3),
+    (r"\b(?:\d+)\s+times\b", None),  # a number the table does not name: read it
+]
+INTENSITY = [
+    (r"\b(?:slightly|a\s+little|a\s+bit|subtly|faintly|barely|softly|gently|mildly|a\s+touch|small|faint)\b", 0.6),
+    (
+        r"\b(?:broadly|widely|very|really|extremely|strongly|hugely|big|wide|a\s+lot|hard|deeply|fully|"
+        r"intensely|so)\b",
+        1.4,
+    ),
+]
+SEQUENCE = (
+    r"\b(?:and\s+then|then|after\s+that|afterwards|afterward|next|later|finally|at\s+last|in\s+the\s+end|"
+    r"followed\s+by|before\s+that)\b|[;.!?]"
+)
+CONCURRENT = r"^(?:while|as|whilst|during)\b"
+GRAMMAR = set(
+    """a an the this that these those her his their its one someone somebody person people man woman girl boy
+    guy lady child kid he she they it is are am be being been was were has have had with at to of in on for
+    and or but then also still keeps keep kept stays stay remains remain looks look looking seems appears face
+    faces expression expressions eye eyes brow brows eyebrow eyebrows mouth jaw head lips lip while as during
+    slowly quickly suddenly briefly moment short time long bit little very really slightly broadly left right
+    both once twice thrice times time few several couple repeatedly again first begins starts start starting
+    by up down out towards toward into from camera speaker actor actress presenter gently softly quite rather
+    some something somewhat moderately over around just now after before finally next later afterwards lastly
+    end last followed two three four five him them us me give gives giving side""".split()
+)
+SIDE = r"\b(left|right)\b"
+
+
+@dataclass
+class Event:
+    """One requested event: ``attribute`` (a detector attribute or an emotion), how many times, how strong
+    (1 = typical), which side (None = both), and its clause index (events of one clause co-occur)."""
+
+    attribute: str
+    count: int = 1
+    intensity: float = 1.0
+    side: str | None = None
+    clause: int = 0
+    words: str = ""
+
+
+@dataclass
+class Plan:
+    """The parsed prompt: events in clause order, the words not understood, paraphrase matches, and notes."""
+
+    text: str
+    events: list[Event] = field(default_factory=list)
+    unknown: list[str] = field(default_factory=list)
+    paraphrased: list[dict] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def n_clauses(self) -> int:
+        return len({e.clause for e in self.events})
+
+    def to_dict(self) -> dict:
+        return {
+            "text": self.text,
+            "events": [asdict(e) for e in self.events],
+            "unknown": self.unknown,
+            "paraphrased": self.paraphrased,
+            "notes": self.notes,
+        }
+
+
+def _count(clause: str) -> int | None:
+    for pat, n in COUNTS:
+        m = re.search(pat, clause)
+        if m:
+            return n if n is not None else int(re.findall(r"\d+", m.group(0))[0])
+    return None
+
+
+def _intensity(clause: str) -> float:
+    for pat, v in INTENSITY:
+        if re.search(pat, clause):
+            return v
+    return 1.0
+
+
+def _clauses(text: str) -> list[tuple[str, bool]]:
+    """``(clause, co-occurs with the previous one)`` in order."""
+    out = []
+    for part in re.split(SEQUENCE, text):
+        for i, c in enumerate(p.strip() for p in part.split(",")):
+            if not c:
+                continue
+            conc = bool(re.match(CONCURRENT, c)) and bool(out)
+            # "X, while Y" or "X, talking": a bare participle after a comma accompanies the clause before it
+            if i > 0 and re.match(r"^\w+ing\b", c) and out:
+                conc = True
+            out.append((c, conc))
+    return out
+
+
+def _lexicon_matches(clause: str) -> list[tuple[int, str, tuple[int, int]]]:
+    hits = []
+    for ev, pats in LEXICON.items():
+        for p in pats:
+            for m in re.finditer(r"\b" + p + r"\b", clause):
+                hits.append((m.start(), ev, m.span()))
+    hits.sort()
+    # a span inside another event's span is the same words (e.g. "says" covers the rest): keep the first
+    kept: list[tuple[int, str, tuple[int, int]]] = []
+    for h in hits:
+        if any(h[2][0] >= k[2][0] and h[2][1] <= k[2][1] for k in kept) or any(k[1] == h[1] for k in kept):
+            continue
+        kept.append(h)
+    return kept
+
+
+def parse(prompt: str, encoder=None) -> Plan:
+    """The events a prompt asks for (see the module docstring). ``encoder``: an object with ``encode(list
+    of str) -> [N, d]`` unit vectors, used only for clauses the lexicon does not cover."""
+    text = " ".join(prompt.strip().split())
+    plan = Plan(text)
+    low = text.lower().replace("’", "'")
+    proto = None
+    clause_i = -1
+    for clause, conc in _clauses(low):
+        if not conc or clause_i < 0:
+            clause_i += 1
+        hits = _lexicon_matches(clause)
+        # "surprised" the emotion and "surprise" the event are one thing; a neutral face while talking is talk
+        names = [h[1] for h in hits]
+        if "neutral" in names and len(names) > 1:
+            hits = [h for h in hits if h[1] != "neutral"]
+        used = set()
+        for pats in LEXICON.values():  # every vocabulary word is understood, repeated ones included
+            for p in pats:
+                for m in re.finditer(r"\b" + p + r"\b", clause):
+                    used.update(range(*m.span()))
+        for pat, _ in COUNTS + INTENSITY:
+            for m in re.finditer(pat, clause):
+                used.update(range(*m.span()))
+        rest = "".join(ch if i not in used else " " for i, ch in enumerate(clause))
+        words = [w for w in re.findall(r"[a-z']+", rest) if w not in GRAMMAR and not w.isdigit()]
+        if not hits and encoder is not None and words:
+            if proto is None:
+                keys = list(PROTOTYPES)
+                proto = (keys, encoder.encode([PROTOTYPES[k] for k in keys]))
+            v = encoder.encode([clause])[0]
+            sims = proto[1] @ v
+            j = int(sims.argmax())
+            if float(sims[j]) >= PARAPHRASE_MIN:
+                hits = [(0, proto[0][j], (0, len(clause)))]
+                plan.paraphrased.append({"words": clause, "as": proto[0][j], "cosine": round(float(sims[j]), 3)})
+                words = []
+        if words:
+            plan.unknown.extend(words)
+        if not hits:
+            continue
+        count = _count(clause)
+        inten = _intensity(clause)
+        side = re.search(SIDE, clause)
+        for k, (_, ev, (a, b)) in enumerate(hits):
+            # a count attaches to the event it follows (the last one before it in the clause)
+            c = 1
+            if count is not None:
+                cm = max((m.start() for pat, _ in COUNTS for m in re.finditer(pat, clause)), default=-1)
+                nxt = hits[k + 1][0] if k + 1 < len(hits) else len(clause) + 1
+                if a <= cm < nxt or (len(hits) == 1):
+                    c = count
+            sd = side.group(1) if side and ev in ("blink", "raise eyebrows", "smile", "squint", "turn") else None
+            if ev == "blink" and "wink" in clause[a:b] and sd is None:
+                sd = "left"
+            plan.events.append(Event(ev, max(1, c), inten, sd, clause_i, clause[a:b]))
+    by_clause: dict[int, list[Event]] = {}
+    for e in plan.events:
+        by_clause.setdefault(e.clause, []).append(e)
+    for c, evs in by_clause.items():
+        if len(evs) > 1 and any(e.attribute == "neutral" for e in evs):
+            plan.events = [e for e in plan.events if not (e.clause == c and e.attribute == "neutral")]
+            evs[:] = [e for e in evs if e.attribute != "neutral"]
+        for i, e in enumerate(evs):
+            if any({e.attribute, f.attribute} in CONFLICTS for f in evs[:i] if f.clause == c):
+                plan.notes.append(f"'{e.words}' cannot happen together with the events before it: it follows them")
+                e.clause = c + 0.5  # after its clause, before the next
+    if plan.events:
+        plan.events.sort(key=lambda e: e.clause)
+        # renumber clauses densely in order
+        order = {c: i for i, c in enumerate(dict.fromkeys(e.clause for e in plan.events))}
+        for e in plan.events:
+            e.clause = order[e.clause]
+    else:
+        plan.notes.append("no facial event recognised: a neutral face is returned")
+    if plan.unknown:
+        plan.notes.append("not understood: " + ", ".join(dict.fromkeys(plan.unknown)))
+    return plan
