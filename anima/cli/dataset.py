@@ -8,7 +8,7 @@ from anima.dataset.build import BuildConfig, build_dataset, build_summary
 from anima.dataset.filters import FilterConfig
 from anima.dataset.report import write_report
 
-FILTER_OPTIONS = ["min_s", "max_s", "max_yaw_deg", "max_fit_nme"]
+FILTER_OPTIONS = ["min_s", "max_s", "emotion_min_s", "max_yaw_deg", "max_fit_nme"]
 BUILD_OPTIONS = ["n_descriptions", "seed", "max_frames"]
 
 

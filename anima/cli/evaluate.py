@@ -180,7 +180,8 @@ def register(sub) -> None:
         default=None,
         metavar="FILE",
         help="instead of the tables: the prompt suite (default: the 114 prompts shipped in "
-        "anima/eval/prompts/text2face.json) scored for the timeline method, the seed model (the "
+        "anima/eval/prompts/text2face.json; the 40 held-out ones are text2face_heldout.json beside it) "
+        "scored for the timeline method, the seed model (the "
         "shipped checkpoint or --checkpoint) and retrieval with the dataset's detectors: per-event "
         "recall and false alarms, order, count and side accuracy, emotion checks, distinct motions "
         "(about 1 min on 2 cores)",

@@ -25,6 +25,38 @@ from pathlib import Path
 from anima.errors import InputError
 from anima.io.validate import read_json
 
+CREMA_D = {"ANG": "angry", "DIS": "disgusted", "FEA": "fearful", "HAP": "happy", "NEU": "neutral", "SAD": "sad"}
+MEAD = {
+    "angry": "angry",
+    "contempt": "contempt",
+    "disgusted": "disgusted",
+    "fear": "fearful",
+    "happy": "happy",
+    "neutral": "neutral",
+    "sad": "sad",
+    "surprised": "surprised",
+}
+STYLE_WORDS = {"furious": "angry", "sad": "sad", "surprise": "surprised", "happy": "happy"}
+
+
+def emotion_from_path(path: str | Path) -> str | None:
+    """The emotion an emotion clip's file name states, else None: CREMA-D's ``<actor>_<sentence>_<EMO>_<level>``
+    codes, MEAD's emotion-named crops (``emotion-clips/eamm-mead/fear.mp4``), and StyleTalk's style clips
+    named by their emotion (``furious_talk1_clip1``, ``sadgirl_clip1``, ``vscodehappy_clip1``)."""
+    p = Path(path)
+    stem = p.stem
+    parts = stem.split("_")
+    if len(parts) == 4 and parts[0].isdigit() and parts[2] in CREMA_D:
+        return CREMA_D[parts[2]]
+    if "emotion-clips" in p.parts and stem.lower() in MEAD:
+        return MEAD[stem.lower()]
+    if "style_clips" in p.parts:
+        low = stem.lower()
+        for w, emo in STYLE_WORDS.items():
+            if w in low:
+                return emo
+    return None
+
 
 def _events(items, where: str) -> list[tuple[str, float, float]]:
     out = []

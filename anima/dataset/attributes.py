@@ -51,6 +51,10 @@ class DetectorConfig:
     """Mouth-opening direction changes per second needed for 'talk' (speech is oscillatory)."""
     talk_voice_log_energy: float = -9.0
     """Speech log mean energy above which a frame is voiced (features are normalised to -20 dBFS)."""
+    talk_voice_decides: bool = True
+    """Where the clip's own audio is voiced, lip motion alone decides talk, without the reversal count (voice
+    activity plus lip motion: speech with few clear mouth reversals is still talk while the voice is heard).
+    Without audio, lip motion and reversals decide. False: the detector before issue 19 (voice only gated)."""
     nod_deg: float = 4.0
     shake_deg: float = 7.0
     turn_deg: float = 20.0
@@ -175,14 +179,14 @@ def detect(seq, cfg: DetectorConfig | None = None) -> list[tuple[str, float, flo
     idx = [seq.expr_names.index(n) for n in lips]
     speed = np.abs(np.diff(seq.expression[:, idx], axis=0, prepend=seq.expression[:1, idx])).sum(1) * fps
     motion = uniform_filter1d(speed, size=max(3, int(0.5 * fps)), mode="nearest")
-    talk = motion / cfg.talk_motion
+    lip_motion = motion / cfg.talk_motion
     # speech opens and closes the mouth several times a second; a smile or a yawn moves the lips once
     v = np.diff(_mean(seq, ["jawOpen", "mouthLowerDown_L", "mouthLowerDown_R"]), prepend=0.0) * fps
     moving = np.abs(v) > 0.15
     flips = np.zeros(len(v))
     flips[1:] = (np.sign(v[1:]) != np.sign(v[:-1])) & moving[1:] & moving[:-1]
     rate = uniform_filter1d(flips, size=max(3, int(1.0 * fps)), mode="nearest") * fps  # reversals / s
-    talk = np.where(rate >= cfg.talk_reversals_per_s, talk, 0.0)
+    talk = np.where(rate >= cfg.talk_reversals_per_s, lip_motion, 0.0)
     if seq.speech is not None:
         voiced = (
             uniform_filter1d(
@@ -192,7 +196,9 @@ def detect(seq, cfg: DetectorConfig | None = None) -> list[tuple[str, float, flo
             )
             > 0.3
         )
-        talk = np.where(voiced & seq.speech_valid, talk, 0.0)
+        voiced &= seq.speech_valid
+        # where the voice is heard it tells speech from a smile or a yawn: lip motion decides, no reversal count
+        talk = np.where(voiced, lip_motion if cfg.talk_voice_decides else talk, 0.0)
     add("talk", hysteresis_events(talk, 1.0, h, fps, 0.5, None, valid))
     ypr = head_angles_deg(seq)
     add("nod", _oscillation_events(ypr[:, 1], fps, cfg.nod_deg, 2))

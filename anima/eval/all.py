@@ -30,7 +30,7 @@ from anima.eval.landmarks import evaluate_aflw
 from anima.eval.pose import evaluate_pose
 from anima.eval.reenact import evaluate as evaluate_reenact
 from anima.eval.stability import evaluate_stability
-from anima.eval.text2face_prompts import evaluate_prompts
+from anima.eval.text2face_prompts import HELDOUT, evaluate_prompts
 from anima.io.assets import data_root
 from anima.io.atomic import write_json, write_text
 from anima.io.outdir import OutputFolder
@@ -239,8 +239,8 @@ def default_rows(db: str, out: Path, work: Path, quick: bool = False) -> list[Ro
             m.pop("generated", None)
         return r
 
-    def prompts():
-        return evaluate_prompts(db, seeds=1 if quick else 3, progress=False)
+    def prompts(suite=None):
+        return evaluate_prompts(db, suite, seeds=1 if quick else 3, progress=False)
 
     q = " --quick" if quick else ""
     return [
@@ -268,6 +268,12 @@ def default_rows(db: str, out: Path, work: Path, quick: bool = False) -> list[Ro
             "text2face_prompts",
             f"anima eval text2face {db} --prompts --seeds {1 if quick else 3} --json",
             prompts,
+            _prompts_summary,
+        ),
+        Row(
+            "text2face_prompts_heldout",
+            f"anima eval text2face {db} --prompts {HELDOUT} --seeds {1 if quick else 3} --json",
+            lambda: prompts(HELDOUT),
             _prompts_summary,
         ),
     ]

@@ -100,7 +100,8 @@ SHAKE_MAX_RAD = 0.3  # 17 degrees either way (the turn detector fires at 20 degr
 MAX_HOLD_S = {"mouth open": 0.6, "surprise": 0.6, "turn": 0.8, "raise eyebrows": 0.7}
 HOLD_MIN_S = 0.8  # a held event's segment is sped up to this (plus margins) when time is short
 NATURAL_S = {"talk": 1.5, "neutral": 0.8, "close eyes": 1.0}
-GAP_S = {"blink": 0.3, "nod": 0.9, "shake head": 0.9}
+GAP_S = {"blink": 0.3, "nod": 0.9, "shake head": 0.9}  # between repeats (a nod within 0.8 s is the same nod)
+REPEAT_GAP_S = 0.5  # between repeats of the other events: the weight falls back below the detectors' "off"
 LEAD_S, BETWEEN_S = 0.25, 0.3
 LIP_SMOOTH_S = 0.2  # sigma of the low-pass on a non-talk event's lip weights (speech moves them at 3-6 Hz)
 MARGIN_S = 0.2
@@ -155,7 +156,8 @@ class Library:
                     continue  # cut off at the clip's edge: no rest on one side to fade from
                 segs[attr].append(Segment(c, a, b, attr, margin, _peak(m[a:b] - rest[c], attr)))
         for emo in EMOTION_AUS:
-            segs[emo] = _emotion_segments(motions, rest, emo, fps, n_emotion)
+            labelled = {c for c, evs in enumerate(events) if any(a == emo for a, _, _ in evs)}
+            segs[emo] = _emotion_segments(motions, rest, emo, fps, n_emotion, labelled)
         return cls(motions, rest, segs, list(sources), fps)
 
     @classmethod
@@ -197,8 +199,10 @@ def _emotion_score(m: np.ndarray, rest: np.ndarray, emo: str) -> np.ndarray:
     return s
 
 
-def _emotion_segments(motions, rest, emo, fps, n) -> list[Segment]:
-    """Motion matching in ARKit space: the best-scoring 1.2 s stretch of each clip, the top ``n`` clips."""
+def _emotion_segments(motions, rest, emo, fps, n, labelled=frozenset()) -> list[Segment]:
+    """Motion matching in ARKit space: the best-scoring 1.2 s stretch of each clip, the top ``n`` clips. Clips
+    labelled with the emotion (an emotion clip's file name, imported annotations) come first; when there are
+    fewer than ``n``, the best of the other clips fill up."""
     half = int(round(0.6 * fps))
     margin = int(round(MARGIN_S * fps))
     cands = []
@@ -209,8 +213,8 @@ def _emotion_segments(motions, rest, emo, fps, n) -> list[Segment]:
         lo, hi = half + margin, len(m) - half - margin
         t = lo + int(np.argmax(sc[lo:hi]))
         cands.append((float(sc[t]), Segment(c, t - half - margin, t + half + margin, emo, margin, float(sc[t]))))
-    cands.sort(key=lambda x: -x[0])
-    return [s for v, s in cands[:n] if v > 0]
+    cands.sort(key=lambda x: (x[1].clip not in labelled, -x[0]))
+    return [s for v, s in cands[:n] if v > 0 or s.clip in labelled]
 
 
 def _window(n: int, margin: int) -> np.ndarray:
@@ -276,12 +280,13 @@ class Placed:
     side: str | None = None
 
 
-def _choose(lib: Library, attr: str, rng: np.random.Generator, k: int) -> list[Segment]:
+def _choose(lib: Library, attr: str, rng: np.random.Generator, k: int, avoid: frozenset = frozenset()) -> list[Segment]:
     pool = lib.segments.get(attr) or []
     if attr == "close eyes":
         pool = lib.segments.get("blink") or []
     if not pool:
         raise InputError(f"the library has no captured '{attr}' segment: build the dataset from more clips")
+    pool = [s for s in pool if (s.clip, s.a) not in avoid] or pool  # segments that did not read back
     # the strongest half of the labelled segments (clear examples), duration closest to the slot if asked
     if attr in MAX_HOLD_S:  # an open mouth held too long is a yawn
         short = [s for s in pool if s.b - s.a <= (MAX_HOLD_S[attr] + 2 * MARGIN_S) * lib.fps]
@@ -294,7 +299,7 @@ def _choose(lib: Library, attr: str, rng: np.random.Generator, k: int) -> list[S
     return [good[i] for i in rng.choice(len(good), size=k, replace=k > len(good))]
 
 
-def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0) -> list[Placed]:
+def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0, avoid: frozenset = frozenset()) -> list[Placed]:
     """Where each event goes in ``n_frames``: clauses in order, events of a clause together, the free time
     shared between held events and the pauses. Raises :class:`InputError` when the events cannot fit."""
     fps = lib.fps
@@ -313,11 +318,11 @@ def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0) -> list[
             if e.attribute in ("talk", "neutral"):
                 row.append((e, [], int(NATURAL_S[e.attribute] * fps)))
                 continue
-            segs = _choose(lib, "blink" if e.attribute == "close eyes" else e.attribute, rng, e.count)
+            segs = _choose(lib, "blink" if e.attribute == "close eyes" else e.attribute, rng, e.count, avoid)
             if e.attribute == "close eyes":
                 row.append((e, segs[:1], int(NATURAL_S["close eyes"] * fps)))
                 continue
-            gap = int(GAP_S.get(e.attribute, 0.3) * fps)
+            gap = int(GAP_S.get(e.attribute, REPEAT_GAP_S) * fps)
             nat = sum(s.b - s.a for s in segs) - 2 * segs[0].margin * (len(segs) - 1) + gap * (len(segs) - 1)
             if e.attribute in HOLDABLE and len(segs) == 1:  # a held event can be shown in less time
                 nat = min(nat, int((HOLD_MIN_S + 2 * MARGIN_S) * fps))
@@ -452,7 +457,7 @@ def _found(events, attr: str, start: int, end: int, fps: float) -> int:
 
 
 def compose(
-    plan: Plan, lib: Library, n_frames: int, seed: int = 0, rounds: int = 3, draws: int = 3
+    plan: Plan, lib: Library, n_frames: int, seed: int = 0, rounds: int = 3, draws: int = 6
 ) -> tuple[np.ndarray, dict]:
     """The prompt's motion ``[n_frames, 56]`` and a record of what made it (segments, gains, checks).
 
@@ -460,8 +465,9 @@ def compose(
     detectors miss is made 1.35x stronger, a mouth that reads as talk when none was asked is smoothed more.
     The first clean rendering is kept, else the one with the fewest misses."""
     best = None
+    avoid: set = set()
     for draw in range(draws):
-        placed = plan_layout(plan, lib, n_frames, seed + 1009 * draw)
+        placed = plan_layout(plan, lib, n_frames, seed + 1009 * draw, frozenset(avoid))
         detectable = [p for p in placed if p.attribute in ATTRIBUTES and (p.side is None or p.attribute == "turn")]
         lip_s = LIP_SMOOTH_S
         talking = any(p.attribute == "talk" for p in placed)
@@ -483,6 +489,7 @@ def compose(
                 lip_s *= 2
         if best[0] == 0:
             break
+        avoid |= {(sg.clip, sg.a) for p in missing for sg, _, _ in p.pieces}
     _, motion, events, placed, lip_s = best
     record = {
         "lip_smooth_s": lip_s,

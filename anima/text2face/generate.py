@@ -146,7 +146,7 @@ def _timeline_to_folder(prompt, out, cfg: PromptConfig, db, video: bool, progres
     fps = 30.0
     n = int(round(cfg.seconds * fps)) if cfg.seconds else cfg.length
     with OutputFolder(out, kind="text2face", command=command) as od:
-        lib = Library.from_dataset(db)
+        lib = Library.from_dataset(db, splits=("train", "val", "test"))  # the user's own clips, all of them
         t = time.perf_counter()
         plan = parse(prompt)
         if not plan.events and plan.unknown:  # words the lexicon lacks: try the sentence encoder

@@ -143,3 +143,23 @@ def test_dataset_of_another_schema_version_is_refused(tmp_path, cli):
     (out / "manifest.json").write_text(json.dumps({"schema": "anima.dataset", "version": 0}))
     r = cli(*_build_args(out), timeout=120)
     assert r.returncode == 4 and "rebuild it" in r.stderr
+
+
+def test_emotion_clip_in_an_old_codec_becomes_an_emotion_labelled_clip(tmp_path, cli):
+    """CREMA-D's anger clip (Flash video, VP6): built like any video, labelled 'angry' from its file name
+    over the whole clip, described with the emotion, every description within the text encoder's window."""
+    from anima.dataset.describe import fits_encoder
+    from anima.dataset.windows import read_clips
+
+    out = tmp_path / "emo"
+    clip = asset("emotion-clips/crema-d/1001_DFA_ANG_XX.flv")
+    r = cli(
+        "dataset", "build", clip, "--out", out, "--min-len", "1", "--workers", "1", "--quiet", "--json", timeout=600
+    )
+    assert r.returncode == 0, r.stderr[-2000:]
+    m = json.loads((out / "manifest.json").read_text())
+    assert list(m["emotion_clips"].values()) == ["angry"] and m["descriptions_dropped_too_long"] == 0
+    (c,) = read_clips(out)
+    assert ("angry", 0.0) == c.events[0][:2] or any(e[0] == "angry" for e in c.events)
+    assert all("looks angry" in t for t in c.texts) and all(fits_encoder(t) for t in c.texts)
+    assert c.texts[0].endswith(".") and len(c.texts[0].split()) < 30  # the short form comes first

@@ -48,3 +48,51 @@ def test_single_segment_reads_as_one_clause():
     assert "smiles" in t and "then" not in t and t[0].isupper()
     assert describe_many([], n=3) == []
     assert np.all([isinstance(x, str) for x in describe_many([Segment(0, 5, ("talk",))], n=3)])
+
+
+def test_short_form_orders_counts_and_summarises():
+    from anima.dataset.describe import describe_short
+
+    segs = segment_timeline([("smile", 0.2, 1.5), ("blink", 2.0, 2.2), ("blink", 2.6, 2.8)], duration=4.0)
+    assert describe_short(segs, "female") == "A woman smiles, then blinks twice."
+    talk = segment_timeline([("talk", 0.0, 2.0), ("talk", 2.5, 4.0)], duration=4.0)
+    assert describe_short(talk) == "A person talks."  # talking is not counted
+    many = [
+        (a, float(i), i + 0.5)
+        for i, a in enumerate(["smile", "blink", "frown", "nod", "smile", "blink", "talk", "nod"])
+    ]
+    s = describe_short(segment_timeline(many, duration=9.0))
+    assert s.startswith("A person smiles") and "then" not in s and s.endswith(".")  # the summary form
+
+
+def test_descriptions_never_exceed_the_encoders_window():
+    """A long clip's long forms run past MiniLM's 256 tokens: they are left out and counted, the short form
+    always stays; the token count is the encoder's own."""
+    from anima.dataset.describe import fitting_descriptions, n_tokens
+    from anima.text2face.encoders import get_encoder
+
+    rng = np.random.default_rng(0)
+    ev = []
+    t = 0.0
+    for _ in range(40):
+        a = ["smile", "blink", "talk", "frown", "nod"][rng.integers(5)]
+        ev.append((a, t, t + 0.4))
+        t += 0.7
+    texts, dropped = fitting_descriptions(segment_timeline(ev, duration=t), 10, 0, None)
+    enc = get_encoder("minilm")
+    assert dropped > 0 and texts and all(enc.n_tokens(x) <= enc.max_tokens for x in texts)
+    assert n_tokens(texts[0]) == enc.n_tokens(texts[0])
+
+
+def test_emotion_clips_are_named_by_their_emotion():
+    from anima.dataset.annotations import emotion_from_path
+    from anima.io.assets import asset
+
+    assert emotion_from_path(asset("emotion-clips/crema-d/1001_DFA_ANG_XX.flv")) == "angry"
+    assert emotion_from_path(asset("emotion-clips/crema-d/1001_DFA_NEU_XX.flv")) == "neutral"
+    assert emotion_from_path(asset("emotion-clips/eamm-mead/fear.mp4")) == "fearful"
+    assert emotion_from_path(asset("styletalk-samples/samples/style_clips/video/furious_talk1_clip1.mp4")) == "angry"
+    assert emotion_from_path(asset("styletalk-samples/samples/style_clips/video/sadgirl_clip1.mp4")) == "sad"
+    assert emotion_from_path(asset("styletalk-samples/samples/source_video/video/Obama_clip1.mp4")) is None
+    segs = segment_timeline([("sad", 0.0, 3.0), ("blink", 1.0, 1.2)], duration=3.0)
+    assert "looks sad" in describe_many(segs, 1, 0)[0]

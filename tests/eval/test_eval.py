@@ -98,6 +98,8 @@ def test_eval_all_writes_one_results_file_with_provenance(gesture_ds, cli, tmp_p
     assert list(res["rows"]) == ["landmarks", "annotations", "pose"]
     assert res["rows"]["landmarks"]["status"] == "ok" and res["rows"]["landmarks"]["command"].startswith("anima eval")
     assert res["rows"]["annotations"]["result"]["protocol"] == "leave-one-clip-out"
+    talk = res["rows"]["annotations"]["result"]["talk_on_speech"]  # voice + lip motion vs voice-gated lip motion
+    assert len(talk["clips"]) == 4 and talk["recall_shipped"] >= talk["recall_before"] and talk["recall_shipped"] > 0.9
     assert res["rows"]["pose"]["status"].startswith(("ok", "skipped"))
     p = res["provenance"]
     assert len(p["data"]["sha256"]) == 64 and p["data"]["files"] > 100 and p["dataset"]["manifest_sha256"]
