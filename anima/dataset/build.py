@@ -382,7 +382,7 @@ def _manifest(out: Path, videos: list[Path], cfg: BuildConfig, status: str) -> d
             results.append(json.loads(r.read_text()))
         elif e.exists():
             errors.append(json.loads(e.read_text()))
-    removed = {k: sum(r["removed"][k] for r in results) for k in RULES}
+    removed = {k: sum(r["removed"].get(k, 0) for r in results) for k in RULES}  # older videos lack newer rules
     return {
         "schema": SCHEMA,
         "version": VERSION,

@@ -6,6 +6,10 @@
 3. ``head_yaw``: any tracked frame with |yaw| > 35 degrees (from the fitted head pose).
 4. ``fit_error``: the failsafe - any tracked frame whose fit NME exceeds ``max_fit_nme``.
 5. ``low_confidence``: less than ``min_tracked`` of the frames have a face, or too many low-confidence frames.
+6. ``occlusion`` (seed 000 §5.1 removes occluded faces by hand: microphones, masks, sunglasses): more than
+   ``max_occluded`` of the tracked frames have a hand over the lower face, i.e. at least ``occluding_joints``
+   hand joints of the capture's own skeleton (``body_image``) inside the box from the nose tip to the chin
+   and from cheek to cheek of the face landmarks. Objects (microphones) and sunglasses are not detected.
 """
 
 from __future__ import annotations
@@ -14,10 +18,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from anima.core.skeleton import LEFT_HAND, RIGHT_HAND
 from anima.dataset.attributes import head_angles_deg
 from anima.io.sequence import FLAG_LOW_CONFIDENCE
 
-RULES = ["length", "action_keywords", "head_yaw", "fit_error", "low_confidence"]
+RULES = ["length", "action_keywords", "head_yaw", "fit_error", "low_confidence", "occlusion"]
+# MediaPipe face-mesh points bounding the lower face: nose tip, chin, right and left cheek
+NOSE_TIP, CHIN, CHEEK_R, CHEEK_L = 1, 152, 234, 454
+HANDS = np.r_[LEFT_HAND.start : LEFT_HAND.stop, RIGHT_HAND.start : RIGHT_HAND.stop]
 
 
 @dataclass
@@ -36,6 +44,9 @@ class FilterConfig:
     """Per-frame fit-error failsafe (NME)."""
     min_tracked: float = 0.95
     max_low_conf: float = 0.1
+    max_occluded: float = 0.1
+    """Largest share of tracked frames with a hand over the lower face."""
+    occluding_joints: int = 3
     enabled: list[str] = field(default_factory=lambda: list(RULES))
 
 
@@ -49,6 +60,27 @@ def cut_clips(n_frames: int, fps: float, cfg: FilterConfig) -> list[tuple[int, i
     k = max(1, int(np.ceil(dur / cfg.max_s - 1e-9)))
     edges = np.round(np.linspace(0, n_frames, k + 1)).astype(int)
     return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if (b - a) / fps >= cfg.min_s - 1e-6]
+
+
+def hand_over_face(seq, min_joints: int = 3) -> np.ndarray:
+    """Per frame: at least ``min_joints`` hand joints (pixels, ``body_image``) inside the lower-face box of
+    the face landmarks. All False when the capture has no skeleton or no landmarks."""
+    out = np.zeros(seq.n_frames, bool)
+    if seq.body_image is None or seq.landmarks is None:
+        return out
+    lm = seq.landmarks[:, [NOSE_TIP, CHIN, CHEEK_R, CHEEK_L], :2] * np.array([seq.width, seq.height], np.float32)
+    x0 = np.minimum(lm[:, 2, 0], lm[:, 3, 0])
+    x1 = np.maximum(lm[:, 2, 0], lm[:, 3, 0])
+    y0, y1 = lm[:, 0, 1], lm[:, 1, 1]
+    h = seq.body_image[:, HANDS]  # [F, 42, 2]
+    with np.errstate(invalid="ignore"):
+        inside = (
+            (h[..., 0] >= x0[:, None])
+            & (h[..., 0] <= x1[:, None])
+            & (h[..., 1] >= y0[:, None])
+            & (h[..., 1] <= y1[:, None])
+        )
+    return inside.sum(1) >= min_joints
 
 
 def clip_rejection(seq, a: int, b: int, events: list | None, cfg: FilterConfig) -> str | None:
@@ -70,4 +102,7 @@ def clip_rejection(seq, a: int, b: int, events: list | None, cfg: FilterConfig) 
         nme = seq.fit_nme[a:b][tracked]
         if len(nme) and np.nanmax(nme) > cfg.max_fit_nme:
             return "fit_error"
+    if "occlusion" in cfg.enabled and tracked.any():
+        if hand_over_face(seq, cfg.occluding_joints)[a:b][tracked].mean() > cfg.max_occluded:
+            return "occlusion"
     return None

@@ -163,3 +163,27 @@ def test_emotion_clip_in_an_old_codec_becomes_an_emotion_labelled_clip(tmp_path,
     assert ("angry", 0.0) == c.events[0][:2] or any(e[0] == "angry" for e in c.events)
     assert all("looks angry" in t for t in c.texts) and all(fits_encoder(t) for t in c.texts)
     assert c.texts[0].endswith(".") and len(c.texts[0].split()) < 30  # the short form comes first
+
+
+def test_hands_over_the_face_remove_a_clip_and_gestures_do_not(tmp_path):
+    """The occlusion rule on real captures: the shared photo of hands over a face (as a 2-s video) is removed;
+    a talk-show clip with hands gesturing in front of the body is kept."""
+    import imageio_ffmpeg
+
+    from anima.capture.pipeline import CaptureConfig, capture_video
+    from anima.dataset.filters import clip_rejection, hand_over_face
+
+    video = tmp_path / "hands.mp4"
+    img = asset("hand-images/hands_over_face.jpg")
+    subprocess.run(
+        [imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-y", "-loop", "1", "-i", str(img), "-t", "2", "-r", "25"]
+        + ["-vf", "scale=600:-2,format=yuv420p", str(video)],
+        check=True,
+    )
+    seq = capture_video(str(video), CaptureConfig(), progress=False)
+    assert seq.tracked.mean() > 0.9 and hand_over_face(seq).mean() > 0.9
+    assert clip_rejection(seq, 0, seq.n_frames, None, FilterConfig()) == "occlusion"
+    talk = capture_video(
+        str(asset("gesture-video/pats-crops/oliver1_gt.mp4")), CaptureConfig(max_frames=100), progress=False
+    )
+    assert hand_over_face(talk).mean() == 0.0 and clip_rejection(talk, 0, talk.n_frames, None, FilterConfig()) is None

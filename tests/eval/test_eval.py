@@ -100,6 +100,8 @@ def test_eval_all_writes_one_results_file_with_provenance(gesture_ds, cli, tmp_p
     assert res["rows"]["annotations"]["result"]["protocol"] == "leave-one-clip-out"
     talk = res["rows"]["annotations"]["result"]["talk_on_speech"]  # voice + lip motion vs voice-gated lip motion
     assert len(talk["clips"]) == 4 and talk["recall_shipped"] >= talk["recall_before"] and talk["recall_shipped"] > 0.9
+    emo = res["rows"]["annotations"]["result"]["capture_emotions"]  # every check listed, whether it holds or not
+    assert emo["of"] == 9 and {c["emotion"] for c in emo["checks"]} == {"angry", "disgusted", "fearful", "happy", "sad"}
     assert res["rows"]["pose"]["status"].startswith(("ok", "skipped"))
     p = res["provenance"]
     assert len(p["data"]["sha256"]) == 64 and p["data"]["files"] > 100 and p["dataset"]["manifest_sha256"]
