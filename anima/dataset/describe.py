@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.dataset.attributes import ATTRIBUTES
+
 # attribute -> (third person singular, plural/base) verb phrases
 VERBS = {
     "talk": ("talks", "talk"),
@@ -58,19 +60,7 @@ VERBS = {
 }
 COUNT_WORDS = {2: "twice", 3: "three times", 4: "four times"}
 # events one counts; talking, a state or an emotion is not "twice"
-COUNTABLE = {
-    "blink",
-    "smile",
-    "frown",
-    "squint",
-    "raise eyebrows",
-    "surprise",
-    "mouth open",
-    "yawn",
-    "nod",
-    "shake head",
-    "turn",
-}
+COUNTABLE = set(ATTRIBUTES) - {"talk"}
 GENDER_WORDS = {"female": ("woman", "she", False), "male": ("man", "he", False), None: ("person", "they", True)}
 OPENERS = ["To begin with,", "First,", "At first,", "In the beginning,"]
 CONNECTORS = ["then", "after that", "next", "afterwards"]

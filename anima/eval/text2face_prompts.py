@@ -66,6 +66,7 @@ EMOTION_CHECKS = {
     "fearful": ["browInnerUp", "eyeWide"],
     "contempt": ["mouthSmile_L-R"],
 }
+SIDE_WEIGHT = {"blink": "eyeBlink", "raise eyebrows": "browInnerUp", "smile": "mouthSmile"}  # one-sided checks
 SAME_MOTION = 0.05  # no weight differs by more than 0.05, no rotation by more than 2.9 degrees
 
 
@@ -75,13 +76,36 @@ def load_suite(path: str | Path | None = None) -> list[dict]:
     rows = doc.get("prompts") if isinstance(doc, dict) else None
     if not isinstance(rows, list) or not rows:
         raise InputError(f"{p}: no 'prompts' list")
+    kinds = {"single", "paraphrase", "sequence", "together", "count", "intensity", "emotion", "neutral", "side"}
     for i, r in enumerate(rows):
+        where = f"{p}: prompt {i}"
         if not isinstance(r, dict) or not isinstance(r.get("prompt"), str) or not r["prompt"].strip():
-            raise InputError(f"{p}: prompt {i} has no text")
-        for c in r.get("clauses", []):
+            raise InputError(f"{where} has no text")
+        sec = r.get("seconds")
+        if isinstance(sec, bool) or not isinstance(sec, (int, float)) or not 0.5 <= sec <= 60:
+            raise InputError(f"{where}: 'seconds' must be a number from 0.5 to 60")
+        if r.get("kind") not in kinds:
+            raise InputError(f"{where}: 'kind' must be one of {', '.join(sorted(kinds))}")
+        if r.get("emotion") is not None and r["emotion"] not in EMOTION_CHECKS:
+            raise InputError(f"{where}: unknown emotion {r['emotion']!r}")
+        clauses = r.get("clauses", [])
+        if not isinstance(clauses, list) or not all(isinstance(c, list) for c in clauses):
+            raise InputError(f"{where}: 'clauses' must be a list of lists of events")
+        for c in clauses:
             for e in c:
-                if e.get("attribute") not in ATTRIBUTES:
-                    raise InputError(f"{p}: prompt {i}: unknown attribute {e.get('attribute')!r}")
+                if not isinstance(e, dict) or e.get("attribute") not in ATTRIBUTES:
+                    raise InputError(f"{where}: unknown attribute {e.get('attribute') if isinstance(e, dict) else e!r}")
+                n = e.get("count", 1)
+                if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 20:
+                    raise InputError(f"{where}: 'count' must be a whole number from 1 to 20")
+                if e.get("side") not in (None, "left", "right"):
+                    raise InputError(f"{where}: 'side' must be left or right")
+        if r["kind"] == "side" and not (
+            clauses and clauses[0] and clauses[0][0].get("side") and clauses[0][0]["attribute"] in SIDE_WEIGHT
+        ):
+            raise InputError(
+                f"{where}: a one-sided prompt needs a 'side' on its first event (blink, smile, raise eyebrows)"
+            )
     return rows
 
 
@@ -131,7 +155,7 @@ def score_runs(rows: list[dict], runs: dict[int, list[np.ndarray]], captured_max
         for ev, m in zip(events[i], runs[i]):
             if r["kind"] == "side":
                 e = cl[0][0]
-                stem = {"blink": "eyeBlink", "raise eyebrows": "browInnerUp", "smile": "mouthSmile"}[e["attribute"]]
+                stem = SIDE_WEIGHT[e["attribute"]]
                 me, other = ("_L", "_R") if e["side"] == "left" else ("_R", "_L")
                 a, b = m[:, EXPR_NAMES.index(stem + me)].max(), m[:, EXPR_NAMES.index(stem + other)].max()
                 side.append(bool(a > 0.3 and a >= 2 * b))

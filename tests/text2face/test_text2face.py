@@ -415,3 +415,21 @@ def test_prompt_suite_scores_follow_their_definitions():
     assert r["per_attribute"]["blink"]["recall"] == 1.0 and r["per_attribute"]["smile"]["recall"] == 0.0
     assert r["per_attribute"]["blink"]["false_alarm"] == 0.0
     assert r["distinct"]["pairs"] == 3 and r["distinct"]["same_motion_pairs"] == 1
+
+
+def test_a_bad_prompt_suite_is_refused_in_one_line(tmp_path, ds, cli):
+    row = {"prompt": "a person smiles", "seconds": 3, "kind": "single", "clauses": [[{"attribute": "smile"}]]}
+    cases = [
+        ("missing.json", None, "not found"),
+        ("garbage.json", "garbage{", "not valid JSON"),
+        ("clauses.json", {"prompts": [row | {"clauses": 5}]}, "clauses"),
+        ("count.json", {"prompts": [row | {"clauses": [[{"attribute": "smile", "count": "x"}]]}]}, "count"),
+        ("attr.json", {"prompts": [row | {"clauses": [[{"attribute": "dance"}]]}]}, "unknown attribute"),
+        ("seconds.json", {"prompts": [{k: v for k, v in row.items() if k != "seconds"}]}, "seconds"),
+    ]
+    for name, content, msg in cases:
+        f = tmp_path / name
+        if content is not None:
+            f.write_text(content if isinstance(content, str) else json.dumps(content))
+        r = cli("eval", "text2face", ds, "--prompts", f)
+        assert r.returncode == 2 and msg in r.stderr and "Traceback" not in r.stderr, (name, r.stderr)
