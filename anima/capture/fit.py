@@ -118,7 +118,7 @@ def _weight_matrices(R: np.ndarray, z_weight: float) -> np.ndarray:
     return np.eye(3)[None] - (1 - z_weight**2) * r3[:, :, None] * r3[:, None, :]
 
 
-@nb.njit(cache=True, parallel=True, fastmath=False)
+@nb.njit(cache=True, parallel=True, fastmath=False, nogil=True)
 def _box_qp_gauss_seidel(N, g, x, sweeps, tol):
     """Projected Gauss-Seidel (coordinate descent) for min 1/2 x'Nx - g'x, 0 <= x <= 1, per frame.
     Exact minimisation along each coordinate; converges for SPD N. Warm-started from x (in place)."""

@@ -62,18 +62,10 @@ class ReenactDB:
     colors: np.ndarray  # (N, V, 3) uint8
     vertex_ids: np.ndarray
     meta: dict = field(default_factory=dict)
-    _vnc: np.ndarray | None = None
 
     @property
     def n(self) -> int:
         return len(self.expression)
-
-    @property
-    def colors_vnc(self) -> np.ndarray:
-        """Vertex-major copy ``(V, N, 3)`` for the fast weighted median (made once)."""
-        if self._vnc is None:
-            self._vnc = np.ascontiguousarray(self.colors.transpose(1, 0, 2))
-        return self._vnc
 
 
 def region_ids(model) -> np.ndarray:

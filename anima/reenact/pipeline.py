@@ -22,7 +22,7 @@ from anima.reenact.synth import (
     expression_mapping,
     mesh_smoother,
     nearest,
-    normalized_vnc,
+    normalized_colors,
     skin_stats,
     weighted_median,
     weights,
@@ -66,19 +66,19 @@ class Reenactor:
         self.db, self.cfg = db, cfg or ReenactConfig()
         model = model or load_face_model()
         self.sub = model.subset(db.vertex_ids.astype(np.int64))
-        self.tris = self.sub.triangles()
+        self.tris = np.ascontiguousarray(self.sub.triangles(), np.int64)  # as the rasterizer takes them
         self.deltas = np.ascontiguousarray(self.sub.expr_deltas.reshape(len(self.sub.expr_deltas), -1))
         self._shapes = {}
         self.times = StageTimes()
         self.skin = skin_ring(model, db.vertex_ids)
         self.interior = np.isin(db.vertex_ids, np.concatenate([model.region(r) for r in INTERIOR]))
         self._smoother = None
-        if self.cfg.color_transfer:  # the normalised vertex-major copy replaces the raw one (made only if used)
+        if self.cfg.color_transfer:  # the median runs on a normalised copy (made only if used)
             mu, sd = skin_stats(db.colors, self.skin)
             self.ref = (mu.mean(0), sd.mean(0))  # the common reference: the database's average skin
-            self.colors_vnc = normalized_vnc(db.colors, mu, sd, *self.ref)
+            self.colors = normalized_colors(db.colors, mu, sd, *self.ref)
         else:
-            self.colors_vnc = db.colors_vnc
+            self.colors = db.colors
 
     def frame_skin(self, frame: np.ndarray, uvz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Skin statistics of a target frame under its own fitted geometry ``uvz`` (where the output goes)."""
@@ -98,11 +98,11 @@ class Reenactor:
         idx, d2 = nearest(self.db.expression, x, n or self.cfg.n)
         sigma = adaptive_sigma(d2, idx, self.cfg.a)
         w = weights(d2[idx], sigma)
-        out = weighted_median(self.colors_vnc, idx, w)
+        out = weighted_median(self.colors, idx, w)
         if self.cfg.detail > 0:
             if self._smoother is None:
                 self._smoother = mesh_smoother(self.tris, len(self.db.vertex_ids))
-            best = self.colors_vnc[:, idx[int(np.argmax(w))], :]
+            best = self.colors[idx[int(np.argmax(w))]]
             out = add_detail(out, best, self._smoother, self.interior, self.cfg.detail)
         if self.cfg.color_transfer and skin is not None:
             out = np.clip(color_transfer(out, *self.ref, *skin), 0, 255)

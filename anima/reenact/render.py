@@ -79,18 +79,24 @@ def feather(mask: np.ndarray, erode_px: int, blur_px: int) -> np.ndarray:
 def laplacian_blend(a: np.ndarray, b: np.ndarray, mask: np.ndarray, levels: int) -> np.ndarray:
     """Laplacian pyramid blend (Burt & Adelson; seed §3.4): ``mask`` = 1 takes ``a``, 0 takes ``b``. Images
     float32 (H, W, 3); H and W divisible by 2**levels for exact reconstruction."""
-    ga, gb, gm = [a], [b], [mask[..., None] if mask.ndim == 2 else mask]
+    return b + laplacian_blend_delta(a - b, mask, levels)
+
+
+def laplacian_blend_delta(d: np.ndarray, mask: np.ndarray, levels: int) -> np.ndarray:
+    """The change a Laplacian blend makes to ``b`` given ``d = a - b``: collapse(L(d) * G(mask)).
+
+    The pyramid is linear, so L(a) G(m) + L(b) (1 - G(m)) = L(b) + L(d) G(m), and collapsing L(b) gives
+    ``b`` back exactly: one pyramid instead of two (the blend's cost halves; same result up to float
+    rounding)."""
+    gd, gm = [d], [mask[..., None] if mask.ndim == 2 else mask]
     for _ in range(levels):
-        ga.append(cv2.pyrDown(ga[-1]))
-        gb.append(cv2.pyrDown(gb[-1]))
+        gd.append(cv2.pyrDown(gd[-1]))
         m = cv2.pyrDown(gm[-1])
         gm.append(m[..., None] if m.ndim == 2 else m)
-    out = ga[-1] * gm[-1] + gb[-1] * (1 - gm[-1])
+    out = gd[-1] * gm[-1]
     for i in range(levels - 1, -1, -1):
-        size = (ga[i].shape[1], ga[i].shape[0])
-        la = ga[i] - cv2.pyrUp(ga[i + 1], dstsize=size)
-        lb = gb[i] - cv2.pyrUp(gb[i + 1], dstsize=size)
-        out = cv2.pyrUp(out, dstsize=size) + la * gm[i] + lb * (1 - gm[i])
+        size = (gd[i].shape[1], gd[i].shape[0])
+        out = cv2.pyrUp(out, dstsize=size) + (gd[i] - cv2.pyrUp(gd[i + 1], dstsize=size)) * gm[i]
     return out
 
 
@@ -124,9 +130,11 @@ def composite(
     t1 = time.perf_counter()
     m = feather(mask, erode_px, blur_px) * float(alpha)
     crop = target[y0 : y0 + h, x0 : x0 + w].astype(np.float32)
-    img = np.where(mask[..., None], img, crop)  # no black outside the coverage to bleed through the pyramid
+    # the rendered region minus the target, 0 outside the coverage (no black to bleed through the pyramid)
+    d = np.zeros_like(crop)
+    cv2.subtract(img, crop, dst=d, mask=mask.view(np.uint8))
     lv = levels if (w % align == 0 and h % align == 0) else 0
-    out = laplacian_blend(img, crop, m, lv) if lv else img * m[..., None] + crop * (1 - m[..., None])
+    out = crop + (laplacian_blend_delta(d, m, lv) if lv else d * m[..., None])
     res = target.copy()
     res[y0 : y0 + h, x0 : x0 + w] = np.clip(out, 0, 255).astype(np.uint8)
     if times is not None:

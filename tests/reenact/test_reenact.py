@@ -35,19 +35,18 @@ def test_weighted_median_fast_matches_listing1():
     N, V = 300, 500
     base = rng.integers(30, 220, (1, V, 3))
     db = np.clip(base + rng.normal(0, 15, (N, V, 3)), 0, 255).astype(np.uint8)
-    vnc = np.ascontiguousarray(db.transpose(1, 0, 2))
     idx = rng.choice(N, 100, replace=False)
     w = rng.random(100) + 0.05
-    fast = weighted_median(vnc, idx, w)
+    fast = weighted_median(db, idx, w)
     ref = weighted_median_listing1(db[idx].astype(np.float32), w)
     # the same definition; equal colours are merged into one rank here, ordered arbitrarily in the listing
     assert np.abs(fast - ref).max() <= 1.5 and np.abs(fast - ref).mean() < 0.5
     # one overwhelming weight: that frame's colours; equal weights: the ordinary median (odd n)
     w1 = np.full(100, 1e-6)
     w1[7] = 1.0
-    np.testing.assert_allclose(weighted_median(vnc, idx, w1), db[idx[7]], atol=0.01)
+    np.testing.assert_allclose(weighted_median(db, idx, w1), db[idx[7]], atol=0.01)
     idx3 = idx[:99]
-    eq = weighted_median(vnc, idx3, np.ones(99))
+    eq = weighted_median(db, idx3, np.ones(99))
     lo, hi = np.percentile(db[idx3], 40, 0), np.percentile(db[idx3], 60, 0)
     assert ((eq >= lo - 1e-3) & (eq <= hi + 1e-3)).all()
 
@@ -65,6 +64,40 @@ def test_laplacian_blend_limits_and_smoother():
     assert [o[2] for o in out] == list(range(6))
     np.testing.assert_allclose([o[0][0] for o in out], [1.0, 1.5, 2.0, 3.0, 3.5, 4.0])
     np.testing.assert_array_equal(pingpong(np.arange(8), 4), [0, 1, 2, 3, 2, 1, 0, 1])
+
+
+def test_one_pyramid_blend_equals_the_two_pyramid_blend_on_real_frames():
+    """Burt & Adelson's blend, L(a) G(m) + L(b) (1 - G(m)) collapsed, written out here, against the one-pyramid
+    form anima runs (b + collapse(L(a - b) G(m))) on two real frames of a clip and a feathered mask."""
+    import cv2
+
+    from anima.io.video import read_video
+
+    frames, _ = read_video(asset(OBAMA1), max_frames=31)
+    a, b = frames[0].astype(np.float32), frames[30].astype(np.float32)
+    h, w = (a.shape[0] // 16) * 16, (a.shape[1] // 16) * 16
+    a, b = a[:h, :w], b[:h, :w]
+    m = np.zeros((h, w), np.float32)
+    m[h // 3 : 2 * h // 3, w // 4 : 3 * w // 4] = 1
+    m = cv2.GaussianBlur(m, (21, 21), 6)
+
+    def two_pyramids(a, b, m, levels):
+        ga, gb, gm = [a], [b], [m[..., None]]
+        for _ in range(levels):
+            ga.append(cv2.pyrDown(ga[-1]))
+            gb.append(cv2.pyrDown(gb[-1]))
+            gm.append(cv2.pyrDown(gm[-1])[..., None])
+        out = ga[-1] * gm[-1] + gb[-1] * (1 - gm[-1])
+        for i in range(levels - 1, -1, -1):
+            size = (ga[i].shape[1], ga[i].shape[0])
+            la = ga[i] - cv2.pyrUp(ga[i + 1], dstsize=size)
+            lb = gb[i] - cv2.pyrUp(gb[i + 1], dstsize=size)
+            out = cv2.pyrUp(out, dstsize=size) + la * gm[i] + lb * (1 - gm[i])
+        return out
+
+    ref = two_pyramids(a, b, m, 4)
+    assert np.abs(a - b).max() > 50  # the frames differ
+    np.testing.assert_allclose(laplacian_blend(a, b, m, 4), ref, atol=1e-2)
 
 
 def test_lost_actor_face_holds_then_fades():
@@ -126,7 +159,7 @@ def test_database_on_a_real_clip(obama_db, tmp_path):
 
 
 def test_colour_transfer_maths():
-    from anima.reenact.synth import color_transfer, normalized_vnc, skin_stats
+    from anima.reenact.synth import color_transfer, normalized_colors, skin_stats
 
     rng = np.random.default_rng(3)
     c = rng.normal(120, 20, (4, 300, 3)).astype(np.float32)
@@ -142,8 +175,8 @@ def test_colour_transfer_maths():
     # the gain is bounded: a flat frame cannot blow the contrast up
     flat = np.full((300, 3), 100, np.float32)
     assert np.abs(color_transfer(flat + rng.normal(0, 50, (300, 3)), 100, 1, 100, 50) - 100).max() < 400
-    vnc = normalized_vnc(np.clip(lit, 0, 255).astype(np.uint8), mu2, sd2, mu.mean(0), sd.mean(0), chunk=3)
-    assert vnc.shape == (300, 4, 3) and vnc.dtype == np.uint8
+    norm = normalized_colors(np.clip(lit, 0, 255).astype(np.uint8), mu2, sd2, mu.mean(0), sd.mean(0), chunk=3)
+    assert norm.shape == (4, 300, 3) and norm.dtype == np.uint8
 
 
 def test_visible_vertices_zbuffer():
@@ -171,7 +204,7 @@ def test_lighting_change_between_target_videos(obama_db):
     half = db.n // 2
     lit = db.colors.astype(np.float32)
     lit[half:] = lit[half:] * np.float32([1.25, 1.15, 0.75]) + np.float32([25, 15, 0])  # brighter, cooler
-    db2 = dataclasses.replace(db, colors=np.clip(lit, 0, 255).astype(np.uint8), _vnc=None)
+    db2 = dataclasses.replace(db, colors=np.clip(lit, 0, 255).astype(np.uint8))
     frames, _ = read_video(asset(OBAMA1), max_frames=60)
     errs = {}
     for on in (False, True):
@@ -259,6 +292,32 @@ def test_live_loop_on_a_paced_file(obama_db):
     assert r["frames_processed"] > 20
     assert r["frames_received"] >= r["frames_processed"]
     assert r["latency_ms"]["median"] < 1000
+
+
+def test_ahead_keeps_order_raises_worker_errors_and_stops_when_closed():
+    import threading
+
+    from anima.reenact.run import ahead
+
+    assert [(i, r) for i, r in ahead(range(50), lambda i: i * i)] == [(i, i * i) for i in range(50)]
+
+    def bad(i):
+        if i == 3:
+            raise ValueError("frame 3")
+        return i
+
+    got = []
+    with pytest.raises(ValueError, match="frame 3"):
+        for i, _ in ahead(range(10), bad):
+            got.append(i)
+    assert got == [0, 1, 2]
+    calls = []
+    gen = ahead(iter(range(10_000)), lambda i: calls.append(i) or i, depth=2)
+    assert next(gen) == (0, 0)
+    gen.close()  # the worker stops instead of tracking the rest of the source
+    before = threading.active_count()
+    n = len(calls)
+    assert n < 10 and threading.active_count() <= before
 
 
 def test_mouth_detail_adds_only_the_best_frames_high_frequencies_inside_the_mask():
