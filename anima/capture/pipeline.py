@@ -88,9 +88,11 @@ def track_landmarks(
     progress: bool = True,
     warnings_out: list[str] | None = None,
     on_frame=None,
+    on_progress=None,
 ) -> np.ndarray:
     """Run MediaPipe face mesh over the video; ``[F, 478, 3]`` normalised landmarks, NaN where no face.
-    ``on_frame(landmarks)`` is called after each frame (used to fit while tracking)."""
+    ``on_frame(landmarks)`` is called after each frame (used to fit while tracking), ``on_progress(1)`` too
+    (a build's frame counter)."""
     total = info.n_frames if max_frames is None else min(info.n_frames, max_frames)
     out = []
     errs: list[str] = []
@@ -105,6 +107,8 @@ def track_landmarks(
             out.append(np.full((478, 3), np.nan, np.float32) if lm is None else lm)
             if on_frame is not None:
                 on_frame(out[-1])
+            if on_progress is not None:
+                on_progress(1)
             bar.update(1)
     if warnings_out is not None:
         warnings_out.extend(errs)
@@ -304,9 +308,10 @@ def track_holistic(
     progress: bool = True,
     warnings_out: list[str] | None = None,
     on_face=None,
+    on_progress=None,
 ):
     """Run MediaPipe Holistic over the video. Returns (face landmarks ``[F, 478, 3]`` NaN where no face,
-    list of :class:`HolisticFrame`)."""
+    list of :class:`HolisticFrame`). ``on_progress(1)`` is called after each frame."""
     total = info.n_frames if max_frames is None else min(info.n_frames, max_frames)
     lms, frames = [], []
     errs: list[str] = []
@@ -322,6 +327,8 @@ def track_holistic(
             lms.append(np.full((478, 3), np.nan, np.float32) if fr.face is None else fr.face)
             if on_face is not None:
                 on_face(lms[-1])
+            if on_progress is not None:
+                on_progress(1)
             bar.update(1)
     if warnings_out is not None:
         warnings_out.extend(errs)
@@ -397,13 +404,15 @@ def capture_video(
     audio: str | None = None,
     progress: bool = True,
     timings: Timings | None = None,
+    on_progress=None,
 ) -> TrackedSequence:
     """One pass over ``video``: face (ICT fit), body and hands (55 joints, cleaned), speech features.
     ``cfg.face_only`` keeps the fast face-mesh path. ``audio``: a separate audio file (default: the
-    video's own track). Raises InputError when neither a face nor a body is found."""
+    video's own track). ``on_progress(1)`` after each tracked frame. Raises InputError when neither a face
+    nor a body is found."""
     cfg = cfg or CaptureConfig()
     if cfg.face_only:
-        seq = capture_face(video, cfg, progress, timings)
+        seq = capture_face(video, cfg, progress, timings, on_progress)
     else:
         info = probe_video(video)
         if min(info.width, info.height) < MIN_SIZE:
@@ -411,7 +420,7 @@ def capture_video(
         warns = list(info.warnings)
         t0 = time.perf_counter()
         stream = StreamingPrefit(info.width, info.height, cfg) if cfg.stream else None
-        lm, frames = track_holistic(info, cfg.max_frames, progress, warns, on_face=stream)
+        lm, frames = track_holistic(info, cfg.max_frames, progress, warns, on_face=stream, on_progress=on_progress)
         found = np.isfinite(lm).all(axis=(1, 2))
         prefit = stream.result(len(lm)) if stream is not None and found.any() else None
         if stream is not None and not found.any():
@@ -459,7 +468,11 @@ def capture_video(
 
 
 def capture_face(
-    video: str, cfg: CaptureConfig | None = None, progress: bool = True, timings: Timings | None = None
+    video: str,
+    cfg: CaptureConfig | None = None,
+    progress: bool = True,
+    timings: Timings | None = None,
+    on_progress=None,
 ) -> TrackedSequence:
     """Track and fit a face in ``video``. Raises InputError for unreadable video or no face at all."""
     cfg = cfg or CaptureConfig()
@@ -469,7 +482,7 @@ def capture_face(
     warns = list(info.warnings)
     t0 = time.perf_counter()
     stream = StreamingPrefit(info.width, info.height, cfg) if cfg.stream else None
-    lm = track_landmarks(info, cfg.max_frames, progress, warns, on_frame=stream)
+    lm = track_landmarks(info, cfg.max_frames, progress, warns, on_frame=stream, on_progress=on_progress)
     found = np.isfinite(lm).all(axis=(1, 2))
     prefit = stream.result(len(lm)) if stream is not None else None
     t1 = time.perf_counter()

@@ -103,14 +103,18 @@ def paired_audio(path: str | Path) -> Path:
         return p
 
 
-def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | None = None) -> dict:
-    """Everything for one video; writes shards and ``videos/<id>.json``. Returns that result."""
+def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | None = None, on_progress=None) -> dict:
+    """Everything for one video; writes shards and ``videos/<id>.json``. Returns that result.
+    ``on_progress(1)`` after each tracked frame."""
 
     out = Path(out_dir)
     vid = video_id(path)
     t0 = time.perf_counter()
+    started_at = time.time()
     audio = paired_audio(path)
-    seq = capture_video(path, CaptureConfig(max_frames=cfg.max_frames), audio=str(audio), progress=False)
+    seq = capture_video(
+        path, CaptureConfig(max_frames=cfg.max_frames), audio=str(audio), progress=False, on_progress=on_progress
+    )
     auto = detect(seq, cfg.detector)
     events = annotation["events"] if annotation else auto
     emotion = None if annotation else emotion_from_path(path)
@@ -210,6 +214,8 @@ def process_video(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | 
         "emotion": emotion,
         "descriptions_dropped_too_long": n_dropped,
         "seconds": round(time.perf_counter() - t0, 2),
+        "started_at": started_at,  # wall clock, for the build's task span (start-up excluded)
+        "ended_at": time.time(),
         "worker_pid": os.getpid(),
     }
     _write_json(out / "videos" / f"{vid}.json", result)
@@ -223,12 +229,62 @@ def _write_json(path: Path, obj) -> None:
     write_json(path, obj, indent=1)
 
 
-def _task(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | None) -> dict:
+class FrameCounter:
+    """Tracked frames per video, counted by the workers (a Ray actor in a build) and read by the driver's
+    progress bar, so the bar moves and has an ETA from the first frames instead of per finished video."""
+
+    def __init__(self):
+        self.frames: dict[str, int] = {}
+
+    def add(self, vid: str, n: int) -> None:
+        self.frames[vid] = self.frames.get(vid, 0) + n
+
+    def get(self) -> dict[str, int]:
+        return self.frames
+
+
+class _Batched:
+    """``on_progress`` for a worker: sends the count to the counter every ``every`` frames (fire and forget)."""
+
+    def __init__(self, counter, vid: str, every: int = 10):
+        self.counter, self.vid, self.every, self.n = counter, vid, every, 0
+
+    def __call__(self, k: int) -> None:
+        self.n += k
+        if self.n >= self.every:
+            self.counter.add.remote(self.vid, self.n)
+            self.n = 0
+
+
+def _task(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | None, counter=None) -> dict:
     """Ray task body: never raises; failures are recorded."""
     try:
-        return process_video(path, out_dir, cfg, annotation)
+        cb = _Batched(counter, video_id(path)) if counter is not None else None
+        return process_video(path, out_dir, cfg, annotation, on_progress=cb)
     except Exception as e:
         return _record_error(path, Path(out_dir), e, traceback.format_exc(limit=4))
+
+
+def _follow(ray, futs: dict, counter, progress: bool) -> None:
+    """Wait for the video tasks ``{future: (frames, path)}`` with one bar over all their frames: tracked
+    frames as the workers count them, a finished video counting whole (also one that failed). The ETA is the
+    average rate since the start (no smoothing: it does not swing with each video's speed)."""
+    total = {video_id(p): n for n, p in futs.values()}
+    bar = tqdm(total=sum(total.values()), desc="frames", unit="fr", smoothing=0, disable=not progress)
+    finished: set[str] = set()
+    remaining = list(futs)
+    while remaining:
+        done, remaining = ray.wait(remaining, num_returns=1, timeout=1.0)
+        for d in done:
+            r = ray.get(d)
+            finished.add(video_id(futs[d][1]))
+            bar.set_postfix_str(f"{len(finished)}/{len(futs)} videos; {r['video_id'][:24]} {r['status']}")
+        if bar.disable:
+            continue
+        counted = ray.get(counter.get.remote())
+        now = sum(n if v in finished else min(counted.get(v, 0), n) for v, n in total.items())
+        bar.update(now - bar.n)
+    bar.close()
 
 
 def _record_error(path, out: Path, e: Exception, tb: str = "") -> dict:
@@ -333,24 +389,21 @@ def _build(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_workers,
     pending = []
     for p in todo:  # unreadable videos are recorded here, before any worker starts
         try:
-            probe_video(p)
-            pending.append(p)
+            info = probe_video(p)
+            n = info.n_frames if cfg.max_frames is None else min(info.n_frames, cfg.max_frames)
+            pending.append((n, p))
         except InputError as e:
             _record_error(p, out, e)
+    # longest first (LPT scheduling): a long video started last would leave the other workers idle at the end
+    pending.sort(key=lambda x: -x[0])
     if pending:
         ray, started = _start_ray(address, num_workers)
         try:
             task = ray.remote(num_cpus=1, max_retries=0)(_task)
+            counter = ray.remote(num_cpus=0)(FrameCounter).remote()
             cfg_ref = ray.put(cfg)
-            futs = {task.remote(str(p), str(out), cfg_ref, ann.get(p.stem)): p for p in pending}
-            bar = tqdm(total=len(futs), desc="videos", unit="video", disable=not progress)
-            remaining = list(futs)
-            while remaining:
-                done, remaining = ray.wait(remaining, num_returns=1)
-                r = ray.get(done[0])
-                bar.set_postfix_str(f"{r['video_id'][:24]} {r['status']}")
-                bar.update(1)
-            bar.close()
+            futs = {task.remote(str(p), str(out), cfg_ref, ann.get(p.stem), counter): (n, p) for n, p in pending}
+            _follow(ray, futs, counter, progress)
         finally:
             if started:  # our own local instance: shut it down on success, error or interrupt
                 ray.shutdown()

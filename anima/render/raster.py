@@ -10,7 +10,8 @@ import numpy as np
 
 
 @nb.njit(cache=True, nogil=True)
-def _raster(uvz, tris, colors, img, zbuf, mask):
+def _raster(uvz, tris, colors, img, zbuf, mask, band_lo, band_hi):
+    """All triangles into the rows ``band_lo <= y < band_hi`` (triangles in their given order)."""
     H, W = zbuf.shape
     C = colors.shape[1]
     for t in range(tris.shape[0]):
@@ -23,8 +24,8 @@ def _raster(uvz, tris, colors, img, zbuf, mask):
             continue
         xmin = max(int(np.floor(min(x0, min(x1, x2)))), 0)
         xmax = min(int(np.ceil(max(x0, max(x1, x2)))), W - 1)
-        ymin = max(int(np.floor(min(y0, min(y1, y2)))), 0)
-        ymax = min(int(np.ceil(max(y0, max(y1, y2)))), H - 1)
+        ymin = max(int(np.floor(min(y0, min(y1, y2)))), band_lo)
+        ymax = min(int(np.ceil(max(y0, max(y1, y2)))), band_hi - 1)
         if xmin > xmax or ymin > ymax:
             continue
         inv = 1.0 / area
@@ -64,14 +65,29 @@ def _raster(uvz, tris, colors, img, zbuf, mask):
                         img[y, x, c] = w0 * colors[i0, c] + w1 * colors[i1, c] + w2 * colors[i2, c]
 
 
+@nb.njit(cache=True, nogil=True, parallel=True)
+def _raster_bands(uvz, tris, colors, img, zbuf, mask, n_bands):
+    """The image in ``n_bands`` horizontal bands, one per thread: every band draws the triangles that reach
+    it in the same order, so the result equals one pass over the whole image (no pixel is shared)."""
+    H = zbuf.shape[0]
+    step = (H + n_bands - 1) // n_bands
+    for b in nb.prange(n_bands):
+        _raster(uvz, tris, colors, img, zbuf, mask, b * step, min(H, (b + 1) * step))
+
+
+BAND_MIN_PIXELS = 40_000
+"""Boxes smaller than this are drawn in one band (the threads cost more than they save)."""
+
+
 def rasterize(uvz: np.ndarray, tris: np.ndarray, colors: np.ndarray, size: tuple[int, int]):
     """Render triangles. uvz ``[V, 3]``, tris ``[T, 3]``, colors ``[V, C]`` float, size ``(W, H)``.
-    Returns (image ``[H, W, C]`` float32, coverage mask ``[H, W]`` bool, depth ``[H, W]``)."""
+    Returns (image ``[H, W, C]`` float32, coverage mask ``[H, W]`` bool, depth ``[H, W]``). Large images are
+    drawn in horizontal bands on numba's threads (the same result)."""
     W, H = size
     img = np.zeros((H, W, colors.shape[1]), np.float32)
     zbuf = np.full((H, W), -np.inf, np.float64)
     mask = np.zeros((H, W), np.bool_)
-    _raster(
+    args = (
         np.ascontiguousarray(uvz, np.float64),
         np.ascontiguousarray(tris, np.int64),
         np.ascontiguousarray(colors, np.float32),
@@ -79,6 +95,10 @@ def rasterize(uvz: np.ndarray, tris: np.ndarray, colors: np.ndarray, size: tuple
         zbuf,
         mask,
     )
+    if W * H < BAND_MIN_PIXELS or nb.get_num_threads() < 2:
+        _raster(*args, 0, H)
+    else:
+        _raster_bands(*args, 2 * nb.get_num_threads())
     return img, mask, zbuf
 
 

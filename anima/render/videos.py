@@ -19,7 +19,7 @@ class SequenceMesh:
 
     def __init__(self, seq: TrackedSequence):
         self.model = load_face_model().skin()
-        self.tris = self.model.triangles()
+        self.tris = np.ascontiguousarray(self.model.triangles(), np.int64)  # as the rasterizer takes them
         self.seq = seq
         self.base = self.model.vertices(seq.identity)
         self.R = seq.rotation_matrices()

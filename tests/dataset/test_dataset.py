@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -153,11 +154,11 @@ def test_emotion_clip_in_an_old_codec_becomes_an_emotion_labelled_clip(tmp_path,
 
     out = tmp_path / "emo"
     clip = asset("emotion-clips/crema-d/1001_DFA_ANG_XX.flv")
-    r = cli(
-        "dataset", "build", clip, "--out", out, "--min-len", "1", "--workers", "1", "--quiet", "--json", timeout=600
-    )
+    r = cli("dataset", "build", clip, "--out", out, "--min-len", "1", "--workers", "1", "--json", timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
     m = json.loads((out / "manifest.json").read_text())
+    # the progress bar counts the frames the worker tracks, to the clip's total
+    assert re.search(rf"frames: 100%.*\b{m['frames']}/{m['frames']}\b", r.stderr), r.stderr[-500:]
     assert list(m["emotion_clips"].values()) == ["angry"] and m["descriptions_dropped_too_long"] == 0
     (c,) = read_clips(out)
     assert ("angry", 0.0) == c.events[0][:2] or any(e[0] == "angry" for e in c.events)
