@@ -231,23 +231,42 @@ def _weight(seq, stem: str) -> float:
     return float(seq.expression[seq.tracked][:, idx].mean())
 
 
+# MediaPipe face-mesh points: the inner brow (upper and lower edge, both sides) and the eye corners
+INNER_BROW = (107, 336, 55, 285)
+EYE_CORNERS = (33, 133, 362, 263)
+
+
+def inner_brow_height(seq) -> float:
+    """The tracker's own evidence for a brow raise, before any fit: the inner-brow landmarks' height above
+    the line of the eye corners, in inter-ocular distances, the mean over tracked frames."""
+    lm = seq.landmarks[seq.tracked].astype(np.float64)[..., :2] * np.array([seq.width, seq.height])
+    iod = np.linalg.norm(lm[:, 33] - lm[:, 263], axis=1)
+    eye_y = lm[:, list(EYE_CORNERS), 1].mean(1)
+    return float(((eye_y[:, None] - lm[:, list(INNER_BROW), 1]) / iod[:, None]).mean())  # image y points down
+
+
 def capture_emotion_checks() -> dict:
     """Capture on the emotion clips: each emotion's expected weights (clip mean over tracked frames) against
-    the same speaker's neutral clip, every check listed; and the neutral clip's smile."""
+    the same speaker's neutral clip, every check listed; the neutral clip's smile; and, for the brow checks,
+    the tracker's inner-brow height (:func:`inner_brow_height`), which shows whether a failed brow check is
+    the fit's or already in MediaPipe's landmarks."""
     cap = CaptureConfig(face_only=True)
     neutral = capture_video(str(asset(CREMA_D_CLIPS.format("NEU"))), cap, progress=False)
-    rows = []
+    rows, brows = [], []
     for code, (emo, stems) in EMOTION_WEIGHTS.items():
         seq = capture_video(str(asset(CREMA_D_CLIPS.format(code))), cap, progress=False)
         for s in stems:
             a, b = _weight(seq, s), _weight(neutral, s)
             rows.append({"emotion": emo, "weight": s, "clip": round(a, 3), "neutral": round(b, 3), "holds": a > b})
+        h, h0 = inner_brow_height(seq), inner_brow_height(neutral)
+        brows.append({"emotion": emo, "clip": round(h, 4), "neutral": round(h0, 4), "raised": h > h0})
     return {
         "clips": "CREMA-D actor 1001, sentence DFA, six 2-s clips",
         "checks": rows,
         "holds": sum(r["holds"] for r in rows),
         "of": len(rows),
         "neutral_mouth_smile": round(_weight(neutral, "mouthSmile"), 3),
+        "landmark_inner_brow_height_iod": brows,
     }
 
 

@@ -102,6 +102,8 @@ def test_eval_all_writes_one_results_file_with_provenance(gesture_ds, cli, tmp_p
     assert len(talk["clips"]) == 4 and talk["recall_shipped"] >= talk["recall_before"] and talk["recall_shipped"] > 0.9
     emo = res["rows"]["annotations"]["result"]["capture_emotions"]  # every check listed, whether it holds or not
     assert emo["of"] == 9 and {c["emotion"] for c in emo["checks"]} == {"angry", "disgusted", "fearful", "happy", "sad"}
+    brows = {b["emotion"]: b for b in emo["landmark_inner_brow_height_iod"]}  # the tracker's own brow evidence
+    assert brows["fearful"]["raised"] and brows["fearful"]["clip"] > brows["fearful"]["neutral"] + 0.01
     assert res["rows"]["pose"]["status"].startswith(("ok", "skipped"))
     p = res["provenance"]
     assert len(p["data"]["sha256"]) == 64 and p["data"]["files"] > 100 and p["dataset"]["manifest_sha256"]
