@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from anima.cli.common import command_line, emit, group, notes
+from anima.cli.common import add_json_quiet, command_line, emit, group, notes
 from anima.cli.options import add_options, config_from_args, number
 from anima.dataset.build import BuildConfig, build_dataset, build_summary
 from anima.dataset.filters import FilterConfig
@@ -31,8 +31,7 @@ def register(sub) -> None:
     db.add_argument("--workers", type=number(int, 1, 256), default=None, help="local Ray workers (default: all cores)")
     add_options(db, FilterConfig, FILTER_OPTIONS)
     add_options(db, BuildConfig, BUILD_OPTIONS)
-    db.add_argument("--json", action="store_true")
-    db.add_argument("--quiet", action="store_true")
+    add_json_quiet(db)  # --quiet: no progress bars (the summary is still printed)
     db.set_defaults(func=cmd_build)
     dr = dsub.add_parser(
         "report",

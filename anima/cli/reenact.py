@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from anima.cli.common import emit, notes
+from anima.cli.common import add_json_quiet, emit, notes
 from anima.cli.options import add_options, config_from_args, number
 from anima.reenact.pipeline import ReenactConfig
 from anima.reenact.run import run_reenact
@@ -39,8 +39,7 @@ def register(sub) -> None:
     re_.add_argument(
         "--max-seconds", type=number(float, 0.1, 86_400.0), default=None, help="--live: stop after this long"
     )
-    re_.add_argument("--json", action="store_true")
-    re_.add_argument("--quiet", action="store_true")
+    add_json_quiet(re_)  # --quiet: no progress bars (the summary is still printed)
     re_.set_defaults(func=cmd_reenact)
 
 
