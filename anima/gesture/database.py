@@ -4,14 +4,15 @@ own frame rate)."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 
-from anima.dataset.windows import read_windows
 from anima.errors import InputError
 from anima.gesture.features import POSE_OFFSETS, T_MATCH, audio_features, pose_features
 from anima.gesture.knn import MatchDB
+from anima.io.mapped import cache_key, file_stamp, mapped_arrays
 
 LOOKAHEAD = max(POSE_OFFSETS)
 
@@ -37,6 +38,34 @@ def _with_future(J: np.ndarray, sources: list, starts: list, fps: float) -> list
 
 
 def from_dataset(folder: str | Path, split: str | None = "train") -> MatchDB:
+    """The matching database of a dataset's windows of ``split``, through a memory-mapped cache
+    (:mod:`anima.io.mapped`) keyed on the dataset's manifest (rewritten by every build), the split and the
+    code that makes the features: a command maps the arrays in milliseconds instead of reading the shards
+    with Arrow and recomputing the features."""
+    manifest = Path(folder) / "manifest.json"
+    if not manifest.is_file():
+        return _from_windows(folder, split)
+    code = "".join(file_stamp(Path(__file__).parent / f) for f in ("database.py", "features.py"))
+    a = mapped_arrays("gesture_db", cache_key(file_stamp(manifest), split, code), lambda: _arrays(folder, split))
+    src = json.loads(str(a["source"]))
+    return MatchDB(a["F"], a["P"], a["G"], [tuple(x) for x in src], a["S"], fps=float(a["fps"]))
+
+
+def _arrays(folder, split) -> dict:
+    db = _from_windows(folder, split)
+    return {
+        "F": db.F,
+        "P": db.P,
+        "G": db.G,
+        "S": db.S,
+        "fps": np.float64(db.fps),
+        "source": np.str_(json.dumps(db.source)),
+    }
+
+
+def _from_windows(folder: str | Path, split: str | None) -> MatchDB:
+    from anima.dataset.windows import read_windows  # lazy: Arrow, only when the cache is made
+
     w = read_windows(folder, split)
     keep = np.flatnonzero(w.has_body) if w.n and w.length == T_MATCH else np.zeros(0, int)
     if not len(keep):

@@ -75,3 +75,26 @@ def test_missing_asset_names_upstream(monkeypatch, tmp_path):
     monkeypatch.setenv("ANIMA_DATA", str(tmp_path))
     with pytest.raises(AssetNotFound, match="ICT-VGL/ICT-FaceKit"):
         asset("ict-facekit/ict_facekit_light.npz")
+
+
+def test_face_model_cache_is_made_once_and_maps_the_same_arrays(tmp_path, monkeypatch):
+    """The first load inflates the npz and writes the memory-mapped cache; the next maps it and holds the same
+    model; a cache that cannot be written falls back to the npz."""
+    from anima.facemodel.ict import _from_arrays, _mapped_arrays, _npz_arrays
+
+    p = asset("ict-facekit/ict_facekit_light.npz")
+    monkeypatch.setenv("ANIMA_HOME", str(tmp_path / "home"))
+    first = _mapped_arrays(p)
+    (folder,) = (tmp_path / "home" / "cache" / "face_model").iterdir()
+    assert (folder / "complete").is_file() and not list(folder.parent.glob(".tmp-*"))
+    second = _mapped_arrays(p)
+    assert isinstance(second["id_deltas"], np.memmap)
+    ref = _npz_arrays(p)
+    assert set(second) == set(ref) == set(first)
+    for k in ref:
+        np.testing.assert_array_equal(np.asarray(second[k]), ref[k])
+    m = _from_arrays(second)
+    assert m.expr_names == _from_arrays(ref).expr_names and m.vertex_indices == _from_arrays(ref).vertex_indices
+    (tmp_path / "ro").write_text("a file where the cache folder would go")
+    monkeypatch.setenv("ANIMA_HOME", str(tmp_path / "ro"))
+    np.testing.assert_array_equal(_mapped_arrays(p)["neutral"], ref["neutral"])

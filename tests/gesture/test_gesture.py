@@ -371,3 +371,31 @@ def test_refiner_defaults_are_the_seeds():
     assert ks.count(1) == 1000 and set(ks) - {1} == set(range(2, 16))
     v1 = RefinerTrainConfig.anima_v1()
     assert (v1.l1, v1.gp, v1.k_sampling, v1.ks) == (10.0, 10.0, "ks", (0, 1, 2, 3, 4))
+
+
+def test_database_cache_maps_the_same_windows_and_follows_a_rebuild(ds, tmp_path, monkeypatch):
+    """``from_dataset`` makes its memory-mapped cache once, maps the same arrays the next time, and a dataset
+    whose manifest changed (a rebuild) gets a new cache instead of the old arrays."""
+    import os
+    from pathlib import Path
+
+    from anima.gesture.database import _from_windows, from_dataset
+
+    monkeypatch.setenv("ANIMA_HOME", str(tmp_path / "home"))
+    ref = _from_windows(ds, None)
+    made, mapped = from_dataset(ds, None), from_dataset(ds, None)
+    assert isinstance(mapped.F, np.memmap) and not mapped.F.flags.writeable
+    for db in (made, mapped):
+        for k in ("F", "P", "G", "S"):
+            np.testing.assert_array_equal(np.asarray(getattr(db, k)), getattr(ref, k))
+        assert db.source == ref.source and db.fps == ref.fps
+    caches = tmp_path / "home" / "cache" / "gesture_db"
+    assert len(list(caches.iterdir())) == 1
+    manifest = Path(ds) / "manifest.json"
+    st = manifest.stat()
+    try:
+        os.utime(manifest, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+        from_dataset(ds, None)
+        assert len([p for p in caches.iterdir() if not p.name.startswith(".")]) == 2
+    finally:
+        os.utime(manifest, ns=(st.st_atime_ns, st.st_mtime_ns))
