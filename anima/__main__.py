@@ -1,5 +1,3 @@
-import sys
+from anima.cli.main import run
 
-from anima.cli.main import main
-
-sys.exit(main())
+run()

@@ -33,7 +33,16 @@ LAYERS: dict[str, int] = {
     "cli": 9,
     "__main__": 10,  # the command line, and `python -m anima`
 }
-HEAVY_THIRD_PARTY = ("torch", "mediapipe", "ray", "matplotlib", "sentence_transformers", "transformers", "open_clip")
+HEAVY_THIRD_PARTY = (
+    "torch",
+    "mediapipe",
+    "ray",
+    "matplotlib",
+    "sentence_transformers",
+    "transformers",
+    "open_clip",
+    "pyarrow",  # 0.1 s: the gesture command reads its database from a memory-mapped cache, not Arrow
+)
 
 
 def package_of(module: str) -> str:

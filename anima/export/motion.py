@@ -21,7 +21,8 @@ file                   what                                                     
 =====================  ==========================================================  =======================
 
 Videos carry the source's audio track, else ``audio`` (the speech motion was made from). The sequence is
-written first, so a failing render loses nothing already computed; every file is atomic.
+written first, then the exports and the videos side by side; a failing render loses nothing already computed
+(every job runs to its end before the failure is raised), and every file is atomic.
 """
 
 from __future__ import annotations
@@ -54,14 +55,18 @@ def write_motion_outputs(
     progress: bool = True,
     sw: Stopwatch | None = None,
 ) -> dict[str, Path]:
-    """Write the output set of ``seq`` (see the module table); returns ``{role: path}``. ``sw``: a stopwatch
-    given the stages ``write`` (files) and ``render`` (videos)."""
+    """Write the output set of ``seq`` (see the module table); returns ``{role: path}``. The exports (CSV,
+    glTF, BVH, speech) are written on a thread beside the videos. ``sw``: a stopwatch given the stages
+    ``write`` (the sequence, ``info.json``, and the exports when nothing is rendered) and ``render`` (the
+    videos, with the exports beside them)."""
     sw = sw or Stopwatch()
     with sw("write"):
-        files, speech, info = _write_files(seq, out, name, source_video, audio, info)
+        files = {"sequence": write_sequence(seq, out.file(name))}  # first: everything else is made from it
+    speech = _speech_source(seq, source_video, audio)
     face = bool(seq.tracked.any())
     body = seq.body_joints is not None and bool(np.isfinite(seq.body_joints).all(-1).any())
-    jobs = []  # (roles and paths, render call): independent videos, rendered side by side
+    exported: dict = {}
+    jobs = [({}, lambda: exported.update(_write_exports(seq, out, speech, info is not None)))]
     if render and face:
         if source_video is not None:
             ov, me = out.file("overlay.mp4"), out.file("mesh.mp4")
@@ -87,18 +92,21 @@ def write_motion_outputs(
             )
         av = out.file("avatar.mp4")
         jobs.append(({"avatar_video": av}, lambda: render_avatar_preview(seq, av, audio=speech, progress=progress)))
-    with sw("render"):
-        files.update(run_renders(jobs))
+    with sw("render" if len(jobs) > 1 else "write"):  # the exports are written beside the videos
+        videos = run_renders(jobs)
+    files.update(exported.get("files", {}))
+    files.update(videos)
     if info is not None:
         with sw("write"):
+            info = {**info, **({"avatar": exported["avatar"]} if exported.get("avatar") else {})}
             files["info"] = write_json(out.file("info.json"), {**info, "files": {k: p.name for k, p in files.items()}})
     return files
 
 
-def _write_files(seq, out, name, source_video, audio, info) -> tuple[dict, str | None, dict | None]:
-    """The sequence and the files made from it (no videos): ``({role: path}, the speech source, info with
-    the avatar's description)``."""
-    files = {"sequence": write_sequence(seq, out.file(name))}
+def _write_exports(seq, out, speech: str | None, describe: bool) -> dict:
+    """The files made from the sequence, no videos: ``{"files": {role: path}, "avatar": what avatar.glb
+    holds (when ``describe``)}``."""
+    files = {}
     face = bool(seq.tracked.any())
     body = seq.body_joints is not None and bool(np.isfinite(seq.body_joints).all(-1).any())
     if face:
@@ -106,15 +114,13 @@ def _write_files(seq, out, name, source_video, audio, info) -> tuple[dict, str |
         files["glb"] = export_glb(seq, out.file("face.glb"))
     if body:
         files["bvh"] = export_bvh(seq, out.file("body.bvh"))
-    speech = _speech_source(seq, source_video, audio)
     if speech is not None:
         files["speech"] = write_speech(speech, out.file("speech.wav"))
+    avatar = None
     if face or body:
         avatar = write_avatar(seq, out.file("avatar.glb"), speech="speech.wav" if speech else None)
         files["avatar"] = out.path / "avatar.glb"
-        if info is not None:
-            info = {**info, "avatar": avatar}
-    return files, speech, info
+    return {"files": files, "avatar": avatar if describe else None}
 
 
 def run_renders(jobs: list) -> dict[str, Path]:

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.dataset.windows import read_windows
 from anima.errors import InputError
 from anima.gesture.features import POSE_OFFSETS, T_MATCH, audio_features, pose_features
 from anima.gesture.knn import MatchDB
@@ -65,6 +64,8 @@ def _arrays(folder, split) -> dict:
 
 
 def _from_windows(folder: str | Path, split: str | None) -> MatchDB:
+    from anima.dataset.windows import read_windows  # lazy: pyarrow, only when the cache is made
+
     w = read_windows(folder, split)
     keep = np.flatnonzero(w.has_body) if w.n and w.length == T_MATCH else np.zeros(0, int)
     if not len(keep):

@@ -17,10 +17,11 @@ def shade(verts_cam: np.ndarray, tris: np.ndarray, base=SKIN) -> np.ndarray:
     return (0.25 + 0.75 * lam)[:, None] * base[None]
 
 
-def raster_mesh(verts_cam: np.ndarray, tris: np.ndarray, size: tuple[int, int]):
+def raster_mesh(verts_cam: np.ndarray, tris: np.ndarray, size: tuple[int, int], back_faces: bool = True):
     """Rasterize camera-space vertices (pixels, +y up) as a shaded mesh, within the mesh's own box only:
     ``(box, rgb, mask)`` with ``box = (x0, y0, w, h)`` inside ``size`` (W, H), ``rgb`` uint8 and ``mask``
-    bool of the box's size; None when the mesh is off the image."""
+    bool of the box's size; None when the mesh is off the image. ``back_faces=False``: see
+    :func:`anima.render.raster.rasterize`."""
     W, H = size
     uvz = np.stack([verts_cam[:, 0], -verts_cam[:, 1], verts_cam[:, 2]], -1)
     ok = np.isfinite(uvz).all(1)
@@ -32,7 +33,9 @@ def raster_mesh(verts_cam: np.ndarray, tris: np.ndarray, size: tuple[int, int]):
     x1, y1 = min(int(hi[0]), W), min(int(hi[1]), H)
     if x1 <= x0 or y1 <= y0:
         return None
-    col, mask, _ = rasterize(uvz - np.array([x0, y0, 0.0]), tris, shade(verts_cam, tris), (x1 - x0, y1 - y0))
+    col, mask, _ = rasterize(
+        uvz - np.array([x0, y0, 0.0]), tris, shade(verts_cam, tris), (x1 - x0, y1 - y0), back_faces
+    )
     return (x0, y0, x1 - x0, y1 - y0), (col * 255).astype(np.uint8), mask
 
 
@@ -76,8 +79,14 @@ def draw_points(img: np.ndarray, uv: np.ndarray, color=(0, 255, 0), radius: int 
     return out
 
 
-def put_label(img: np.ndarray, text: str) -> np.ndarray:
-    out = np.ascontiguousarray(img).copy()
-    cv2.putText(out, text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 3, cv2.LINE_AA)
-    cv2.putText(out, text, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1, cv2.LINE_AA)
+def put_label(img: np.ndarray, text: str, inplace: bool = False, x: int = 8) -> np.ndarray:
+    """``text`` on the top row from column ``x``, white on a black outline; on a copy unless ``inplace``."""
+    out = img if inplace else np.ascontiguousarray(img).copy()
+    cv2.putText(out, text, (x, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 3, cv2.LINE_AA)
+    cv2.putText(out, text, (x, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1, cv2.LINE_AA)
     return out
+
+
+def label_width(text: str) -> int:
+    """The width in pixels :func:`put_label` gives ``text``."""
+    return cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.55, 3)[0][0]

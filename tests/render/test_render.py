@@ -1,7 +1,10 @@
-"""Renders: the rasterizer's banded (multi-threaded) pass against the single pass, the preview head's level of
-detail on the ICT head, and the video writer's colours (RGB converted to YUV 4:2:0 before the pipe)."""
+"""Renders: the rasterizer's banded (multi-threaded) pass against the single pass and both against the plain
+rule, the fused shaded-mesh kernel against raster + compose, the preview head's level of detail on the ICT
+head, the avatar preview's framing on a real capture, and the video writer's colours (RGB converted to YUV
+4:2:0 before the pipe)."""
 
 import numpy as np
+import pytest
 
 from anima.facemodel.ict import load_face_model
 from anima.render import raster
@@ -61,13 +64,109 @@ def test_preview_head_keeps_its_shape_and_its_blendshapes():
 
 def test_video_writer_keeps_colours(tmp_path):
     from anima.io.assets import asset
-    from anima.io.video import VideoWriter, read_video
+    from anima.io.video import VideoWriter, read_video, to_i420
 
     frames, info = read_video(asset("liveportrait-examples/assets/examples/driving/d0.mp4"), max_frames=8)
     with VideoWriter(tmp_path / "v.mp4", info.fps, (frames.shape[2], frames.shape[1])) as w:
         for f in frames:
             w.write(f)
+        with pytest.raises(ValueError, match="I420"):  # a frame of another size is refused, not mis-encoded
+            w.write_i420(to_i420(frames[0][:-2], (frames.shape[2], frames.shape[1] - 2)))
     back, _ = read_video(tmp_path / "v.mp4")
     assert back.shape == frames.shape
     diff = back.astype(np.float64) - frames
     assert np.abs(diff).mean() < 3.0 and np.abs(diff.mean((0, 1, 2))).max() < 2.0  # no colour or level shift
+
+
+def _reference_raster(uvz, tris, colors, size):
+    """The rasterizer's rule written plainly in numpy, one triangle at a time in the given order: every pixel
+    centre of the triangle's box with all three barycentric weights >= 0, nearest depth wins."""
+    W, H = size
+    img = np.zeros((H, W, colors.shape[1]), np.float32)
+    zbuf = np.full((H, W), -np.inf)
+    for i0, i1, i2 in tris:
+        (x0, y0, z0), (x1, y1, z1), (x2, y2, z2) = uvz[i0], uvz[i1], uvz[i2]
+        area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+        if abs(area) < 1e-12:
+            continue
+        xa, xb = max(int(np.floor(min(x0, x1, x2))), 0), min(int(np.ceil(max(x0, x1, x2))), W - 1)
+        ya, yb = max(int(np.floor(min(y0, y1, y2))), 0), min(int(np.ceil(max(y0, y1, y2))), H - 1)
+        if xa > xb or ya > yb:
+            continue
+        px, py = np.meshgrid(np.arange(xa, xb + 1) + 0.5, np.arange(ya, yb + 1) + 0.5)
+        w0 = ((y1 - y2) * px + (x2 - x1) * py + (x1 * y2 - x2 * y1)) / area
+        w1 = ((y2 - y0) * px + (x0 - x2) * py + (x2 * y0 - x0 * y2)) / area
+        w2 = 1.0 - w0 - w1
+        z = w0 * z0 + w1 * z1 + w2 * z2
+        ys, xs = np.nonzero((w0 >= 0) & (w1 >= 0) & (w2 >= 0))
+        for y, x in zip(ys, xs):  # in order: a later triangle at the same depth does not win
+            if z[y, x] > zbuf[ya + y, xa + x]:
+                zbuf[ya + y, xa + x] = z[y, x]
+                img[ya + y, xa + x] = w0[y, x] * colors[i0] + w1[y, x] * colors[i1] + w2[y, x] * colors[i2]
+    return img, np.isfinite(zbuf)
+
+
+def test_raster_matches_the_plain_rule_on_the_preview_head():
+    """Small triangles (the preview head: boxes of a few pixels, tested whole) and large ones (the same head
+    30x bigger: spans per row) give the pixels of the plain rule."""
+    skin, V, tris = _head()
+    hv, ht, _ = decimate_morph_mesh(V, tris, np.zeros((1, *V.shape)), 1500)
+    for scale, size in ((4.0, (90, 120)), (30.0, (400, 300))):
+        X = (hv - hv.mean(0)) * scale
+        uvz = np.stack([X[:, 0] + size[0] / 2, size[1] / 2 - X[:, 1], X[:, 2]], -1)
+        col = shade(X, ht).astype(np.float32)
+        img, mask, _ = raster.rasterize(uvz, ht, col, size)
+        ref, ref_mask = _reference_raster(uvz, ht, col, size)
+        assert mask.sum() > 3000
+        np.testing.assert_array_equal(mask, ref_mask)
+        np.testing.assert_allclose(img, ref, atol=1e-5)
+
+
+def test_draw_shaded_equals_raster_then_compose():
+    """The fused kernel of the avatar preview draws the pixels of ``compose(raster_mesh(...))``, into a view of
+    a larger canvas; without back faces it differs only where the head's open eye sockets showed their
+    inside, and is cheaper."""
+    from anima.render.face import SKIN, compose
+
+    skin, V, tris = _head()
+    hv, ht, _ = decimate_morph_mesh(V, tris, np.zeros((1, *V.shape)), 4000)
+    for yaw in (0.0, -1.0):
+        c, s = np.cos(yaw), np.sin(yaw)
+        X = (hv - hv.mean(0)) @ np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]).T * 4.0 + [150.0, -70.0, 0.0]
+        for back in (True, False):
+            canvas = np.full((140, 500, 3), 28, np.uint8)
+            want = compose(raster_mesh(X, ht, (250, 140), back_faces=back), (250, 140), canvas[:, 250:].copy())
+            raster.draw_shaded(canvas[:, 250:], X, ht, SKIN, back_faces=back)
+            np.testing.assert_array_equal(canvas[:, 250:], want)
+            assert (canvas[:, :250] == 28).all()  # nothing outside the view
+        both = compose(raster_mesh(X, ht, (250, 140)), (250, 140))
+        front = compose(raster_mesh(X, ht, (250, 140), back_faces=False), (250, 140))
+        assert 0 < (both != front).any(-1).sum() < 0.02 * (both != 24).any(-1).sum()
+
+
+def test_avatar_preview_frames_the_figure_on_real_motion(tmp_path):
+    """The preview of a real capture (a TED-style gesture clip): each view is cropped to where the figure
+    moves, every joint of every frame stays inside its view, and the video has that size and the speech."""
+    from anima.capture.pipeline import CaptureConfig
+    from anima.capture.run import capture_to_folder
+    from anima.core import rig
+    from anima.export.avatar import rig_motion
+    from anima.io.assets import asset
+    from anima.io.sequence import read_sequence
+    from anima.io.video import probe_video
+    from anima.render.avatar import _view, framing
+
+    clip = asset("gesture-video/tango-interviews/speaker8_jjRWaMCWs44_00-00-30.16_00-00-33.32.mp4")
+    capture_to_folder(clip, tmp_path / "c", CaptureConfig(max_frames=24), progress=False)
+    seq = read_sequence(tmp_path / "c" / "capture.npz")
+    P = rig_motion(seq)["positions"]
+    centre = np.nanmedian(P[:, rig.HEAD], axis=0) - np.array([0.0, 0.35, 0.0])
+    yaws = (0.0, np.deg2rad(-60))
+    height, crops = framing(P, rig.HEAD, 0.25, yaws, 512, centre, 512 / 1.4)
+    assert height < 512 and sum(w for _, w, _ in crops) < 1024  # smaller than two full squares
+    for yaw, (x0, w, y0) in zip(yaws, crops):
+        uv = _view(P.reshape(-1, 3), 512, yaw, centre, 512 / 1.4, (x0, y0))
+        assert (uv[:, 0] >= 0).all() and (uv[:, 0] < w).all()
+        assert (-uv[:, 1] >= 0).all() and (-uv[:, 1] < height).all()
+    info = probe_video(tmp_path / "c" / "avatar.mp4")
+    assert info.has_audio and info.n_frames == 24 and info.height <= 512 and info.width < 1024
