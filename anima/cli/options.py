@@ -129,3 +129,14 @@ def config_from_args(cls, args: argparse.Namespace, names: list[str], base=None,
 
 def positive_int(text: str) -> int:
     return number(int, 1)(text)
+
+
+def step_grid(text: str) -> tuple[int, ...]:
+    """``250,500,1000``: distinct positive step counts."""
+    try:
+        values = tuple(sorted({positive_int(x.strip()) for x in text.split(",") if x.strip()}))
+    except argparse.ArgumentTypeError:
+        values = ()
+    if not values:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of positive step counts")
+    return values

@@ -14,7 +14,7 @@ from anima.text2face.config import TrainConfig as FaceTrainConfig
 
 POSE_OPTIONS = ["steps", "batch", "seed", "wild", "projection", "latent_2d", "bone"]
 FACE_OPTIONS = ["kind", "preset", "scheme", "steps", "batch", "lr", "seed", "encoder", "tf_drop"]
-GESTURE_MODELS = ("refiner", "generator", "regression", "lstm", "velocity_adversarial")
+GESTURE_MODELS = ("refiner", "generator", "regression", "lstm", "velocity_adversarial", "moglow")
 
 
 def register(sub) -> None:
@@ -71,7 +71,8 @@ def register(sub) -> None:
         "--model generator: the §4.4 speech-to-gesture U-Net (face, body and hand decoders) with "
         "its audio+pose discriminator; regression: the same without the adversarial term; lstm: "
         "the LSTM baseline; velocity_adversarial: the Ginosar et al. (2019) baseline (a motion-"
-        "difference discriminator without speech). Use those with `anima gesture --generator`.",
+        "difference discriminator without speech); moglow: a MoGlow-style normalising flow (Henter et al. "
+        "2020), trained by likelihood on the windows with a body. Use those with `anima gesture --generator`.",
     )
     tg.add_argument("--db", required=True, help="dataset folder from `anima dataset build`")
     tg.add_argument("--out", required=True, help="checkpoint path (.pt)")

@@ -199,6 +199,17 @@ def _gesture_summary(r: dict) -> list[str]:
             f"k-NN + cGAN: L1 {m['l1_cm']:.2f} cm, jerk {m['jerk']:.1f}, "
             f"moved {m['l1_to_knn_cm']:.2f} cm from the k-NN."
         )
+    if "generator" in r:
+        out += [
+            "",
+            "| generator row | L1 cm | FGD | wrist motion cm | jerk | lip error mm |",
+            "|---|---|---|---|---|---|",
+        ]
+        for name, g in r["generator"]["rows"].items():
+            out.append(
+                f"| {name} | {g['l1_cm']:.2f} | {g['fgd']:.2f} | {g['wrist_motion_cm']:.2f} | {g['jerk']:.1f} | "
+                f"{g['lip_error_mm']:.2f} |"
+            )
     out += ["", "| control | satisfied [95 % over videos] |", "|---|---|"]
     for c, v in r["control_adherence"].items():
         if "satisfied_fraction" in v:
@@ -233,7 +244,7 @@ def default_rows(db: str, out: Path, work: Path, quick: bool = False) -> list[Ro
         from anima.eval.text2face import evaluate  # lazy: torch
 
         r = evaluate(
-            db, work, reps=2 if quick else 20, ablations=not quick, steps=20 if quick else 1000, progress=False
+            db, work, reps=2 if quick else 20, ablations=not quick, steps=20 if quick else None, progress=False
         )
         for m in r["methods"].values():  # the raw samples are for scoring only
             m.pop("generated", None)

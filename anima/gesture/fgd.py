@@ -71,6 +71,18 @@ class FGD:
     def distance(self, real: np.ndarray, generated: np.ndarray) -> float:
         return frechet_distance(self.features(real), self.features(generated))
 
+    @torch.inference_mode()
+    def frame_features(self, G: np.ndarray) -> np.ndarray:
+        """The code at each of its time steps (T / 8 per window), not averaged: ``[N * T / 8, latent]``."""
+        x = torch.from_numpy(((G.reshape(len(G), G.shape[1], -1) - self.mean) / self.std).astype(np.float32))
+        z = self.ae.encoder(x.transpose(1, 2)).transpose(1, 2)
+        return z.reshape(-1, z.shape[-1]).numpy().astype(np.float64)
+
+    def frame_distance(self, real: np.ndarray, generated: np.ndarray) -> float:
+        """Fréchet distance of the codes' time steps: for a handful of windows (a validation split), where
+        one averaged code per window is too few samples for a covariance."""
+        return frechet_distance(self.frame_features(real), self.frame_features(generated))
+
 
 def train_fgd(G: np.ndarray, steps: int = 1500, batch: int = 16, latent: int = 8, seed: int = 0) -> FGD:
     """Train the autoencoder on captured windows ``G [N, T, 165]`` (T a multiple of 8). The code is 8 wide

@@ -13,6 +13,8 @@ Per frame at 15 fps the generator maps the 28 speech features to
   (the face is excluded from the adversarial term, eq. 4.2).
 * :class:`LSTMBaseline`: Shlizerman et al. (2018) as the seed retrained it: three separate LSTMs (face, body,
   hands) on the speech features, with a time delay so that each output frame hears a little ahead.
+* ``moglow``: a MoGlow-style normalising flow (:mod:`anima.gesture.moglow`), trained by likelihood on the
+  windows with a body.
 * ``velocity_adversarial``: the speech-to-gesture baseline of Ginosar et al. (2019), which the seed compares
   against: the same U-Net trained with the regression terms plus an adversarial term whose discriminator
   sees only the motion's frame-to-frame differences (no speech), weight 1 as in their paper. Their network
@@ -42,6 +44,7 @@ from torch import nn
 from anima.core.contract import GESTURE_FPS, HEAD_ROT_DIM, N_BODY_JOINTS, N_EXPR, N_HAND_JOINTS, N_JOINTS, SPEECH_DIM
 from anima.core.skeleton import BODY
 from anima.errors import InputError
+from anima.gesture.moglow import MoGlow, fit_pca
 from anima.gesture.post import one_skeleton, skeleton_lengths, smooth
 from anima.gesture.refine import unet_decode, unet_decoder, unet_encode, unet_encoder
 from anima.gesture.sync import SyncClassifier
@@ -50,7 +53,7 @@ from anima.io.checkpoint import load_checkpoint, load_state, rebuilding, save_ch
 KIND = "gesture_generator"
 VERSION = 2  # 1: its own envelope; 2: anima.io.checkpoint
 PARTS = {"face": N_EXPR, "body": 3 * N_BODY_JOINTS + HEAD_ROT_DIM, "hands": 3 * 2 * N_HAND_JOINTS}
-KINDS = ("adversarial", "regression", "lstm", "velocity_adversarial")
+KINDS = ("adversarial", "regression", "lstm", "velocity_adversarial", "moglow")
 SMOOTH_SIGMA = 1.5  # frames: the Gaussian filter seed 004 applies to its generated body, hands and head (§4.5)
 
 
@@ -100,6 +103,15 @@ class GeneratorConfig:
     lstm_hidden: int = 128
     lstm_delay: int = 4  # frames of look-ahead for the LSTM baseline (0.27 s at 15 fps)
     fps: float = GESTURE_FPS  # the frame rate of its training windows (the speech features are taken at it)
+    # the MoGlow-style baseline (anima.gesture.moglow), sized for minutes of data; not tuned here
+    flow_dim: int = 32  # principal components of the 221-value pose
+    flow_steps: int = 8
+    flow_hidden: int = 128
+    history: int = 5  # previous poses in the condition (MoGlow's tau)
+    speech_past: int = 5  # speech frames before and after each frame in the condition (0.33 s, 1 s at 15 fps)
+    speech_future: int = 15
+    history_dropout: float = 0.75
+    temperature: float = 1.0
 
     def to_dict(self) -> dict:
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}
@@ -138,6 +150,8 @@ class LSTMBaseline(nn.Module):
 def build_model(cfg: GeneratorConfig) -> nn.Module:
     if cfg.kind not in KINDS:
         raise InputError(f"unknown generator kind {cfg.kind!r}: one of {', '.join(KINDS)}")
+    if cfg.kind == "moglow":
+        return MoGlow(cfg, PARTS, SPEECH_DIM)
     return LSTMBaseline(cfg) if cfg.kind == "lstm" else SpeechToGesture(cfg)
 
 
@@ -158,14 +172,16 @@ class GestureGenerator:
         return float(self.cfg.fps)
 
     @torch.inference_mode()
-    def generate(self, speech: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def generate(self, speech: np.ndarray, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """``seed``: the sampling seed of the stochastic MoGlow-style baseline (the others are deterministic)."""
         T = len(speech)
         if T == 0:
             raise InputError("no speech frames to generate from")
         pad = (-T) % 8
         s = np.pad(speech, ((0, pad), (0, 0)), mode="edge")
         s = ((s - self.stats["speech_mean"]) / self.stats["speech_std"]).astype(np.float32)
-        out = self.net(torch.from_numpy(s)[None])
+        x = torch.from_numpy(s)[None]
+        out = self.net(x, seed=seed) if self.cfg.kind == "moglow" else self.net(x)
         parts = {p: out[p][0].numpy()[:T] * self.stats[f"{p}_std"] + self.stats[f"{p}_mean"] for p in PARTS}
         parts["face"] = np.clip(parts["face"], 0, 1)
         J, face = join_parts(parts)
@@ -227,6 +243,8 @@ def train_generator(
     std = {p: torch.from_numpy(stats[f"{p}_std"]) for p in PARTS}
     mean = {p: torch.from_numpy(stats[f"{p}_mean"]) for p in PARTS}
     y_t = {p: (tgt_raw[p] - mean[p]) / std[p] for p in PARTS}
+    if model.kind == "moglow":
+        return _train_moglow(s_t, y_t, has_body, model, cfg, stats, progress)
     net = build_model(model)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     adversarial = model.kind in ("adversarial", "velocity_adversarial")
@@ -284,6 +302,45 @@ def train_generator(
         "body_windows": int(has_body.sum()),
         "wall_s": round(time.time() - t0, 1),
         "loss_weights": {"w1_face": weights["face"], "w2_body": weights["body"], "w3_hands": weights["hands"]},
+        "train_config": asdict(cfg),
+        "log": log,
+    }
+    return GestureGenerator(net, model, stats), info
+
+
+def _train_moglow(s_t, y_t, has_body, model: GeneratorConfig, cfg: GeneratorTrainConfig, stats, progress):
+    """The MoGlow-style baseline by exact likelihood on the windows with a body (the flow models face, body
+    and hands together, so face-only windows cannot train it)."""
+    hb = np.flatnonzero(has_body)
+    Y = torch.cat([y_t[p] for p in PARTS], -1)[hb]
+    S = s_t[hb]
+    pca_mean, basis = fit_pca(Y.reshape(-1, Y.shape[-1]).numpy().astype(np.float64), model.flow_dim)
+    net = MoGlow(model, PARTS, SPEECH_DIM, pca_mean, basis)
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
+    rng = np.random.default_rng(cfg.seed)
+    g = torch.Generator().manual_seed(cfg.seed)
+    log = {"nll": []}
+    t0 = time.time()
+    net.train()
+    for step in range(cfg.steps):
+        i = torch.from_numpy(rng.integers(0, len(Y), cfg.batch))
+        loss = net.nll(Y[i], S[i], g)
+        opt.zero_grad()
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(net.parameters(), 5.0)
+        opt.step()
+        log["nll"].append(round(float(loss.detach()), 4))
+        if progress is not None:
+            progress(step)
+    net.eval()
+    var = Y.reshape(-1, Y.shape[-1]).var(0).sum()
+    kept = ((torch.as_tensor(basis).T @ (Y.reshape(-1, Y.shape[-1]) - torch.as_tensor(pca_mean)).T) ** 2).sum()
+    info = {
+        "windows": int(len(s_t)),
+        "body_windows": int(len(hb)),
+        "wall_s": round(time.time() - t0, 1),
+        "loss_weights": {},
+        "pca_variance_kept": round(float(kept / (var * (len(Y) * Y.shape[1] - 1))), 4),
         "train_config": asdict(cfg),
         "log": log,
     }

@@ -6,7 +6,8 @@ checkpoint (:mod:`anima.io.checkpoint`).
   poses; joins blended and the no-repeat rule on, as the command's search), then the WGAN-GP refiner trains
   on (speech, k-NN, captured) triples with the seed's loss weights;
 * ``generator`` (the §4.4 adversarial U-Net), ``regression`` (without the adversarial term), ``lstm`` (the
-  LSTM baseline): trained on every window, face-only windows training the face decoder.
+  LSTM baseline), ``velocity_adversarial`` (Ginosar et al.): trained on every window, face-only windows
+  training the face decoder; ``moglow`` (the MoGlow-style flow): trained on the windows with a body.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from anima.gesture.refine import RefinerTrainConfig, knn_pairs, save_refiner, tr
 from anima.gesture.run import GestureConfig
 from anima.io.outdir import check_out_file
 
-MODELS = ("refiner", "generator", "regression", "lstm", "velocity_adversarial")
+MODELS = ("refiner", "generator", "regression", "lstm", "velocity_adversarial", "moglow")
 
 
 def train_from_dataset(

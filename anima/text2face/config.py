@@ -8,8 +8,9 @@ from dataclasses import dataclass, field
 
 @dataclass
 class TrainConfig:
-    kind: str = field(default="text2face", metadata={"choices": ("text2face", "mdm")})
-    """text2face: cVQVAE + FaceFormer decoder (seed 000); mdm: the diffusion baseline."""
+    kind: str = field(default="text2face", metadata={"choices": ("text2face", "mdm", "smf")})
+    """text2face: cVQVAE + FaceFormer decoder (seed 000); mdm, smf: the MDM- and StableMoFusion-style
+    diffusion baselines."""
     preset: str = field(default="seed", metadata={"choices": ("seed", "small")})
     """seed: the hyper-parameters of seed 000 §7.1; small: d_m 256, d_t 32 (the shipped model)."""
     model: dict = field(default_factory=dict)  # overrides of the model config

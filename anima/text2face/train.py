@@ -1,12 +1,13 @@
 """Training of the text -> face models (seed 000 §6.3, §7.1) and their checkpoints.
 
 ``train(dataset, out, TrainConfig(...))`` trains the seed's model (``kind="text2face"``, teacher forcing by
-default, ``scheme="autoregressive"`` for the FaceFormer ablation) or the MDM-style diffusion baseline
-(``kind="mdm"``) on the same crops, with the same loss: the z-normalised vertex-offset MSE of the face
-region (through the 53x53 Gram matrix of :class:`anima.text2face.data.FaceGeometry`) plus the MSE of the
-z-normalised head rotation, masked over padding (eq. 6.2), plus the VQ loss (eq. 6.3) for the cVQVAE.
+default, ``scheme="autoregressive"`` for the FaceFormer ablation), the MDM-style diffusion baseline
+(``kind="mdm"``) or the StableMoFusion-style one (``kind="smf"``) on the same crops, with the same loss: the
+z-normalised vertex-offset MSE of the face region (through the 53x53 Gram matrix of
+:class:`anima.text2face.data.FaceGeometry`) plus the MSE of the z-normalised head rotation, masked over
+padding (eq. 6.2), plus the VQ loss (eq. 6.3) for the cVQVAE.
 
-Checkpoints are :mod:`anima.io.checkpoint` files of kind ``text2face`` or ``mdm``, version 2: config (model
+Checkpoints are :mod:`anima.io.checkpoint` files of kind ``text2face``, ``mdm`` or ``smf``, version 2: config (model
 and training config, normalisation mean and std, the loss Gram matrix, step), weights, optimizer state
 (absent in a compact export, whose weights are float16) and info (data fingerprint, command, losses, wall
 time). Training resumes from ``out/checkpoint.pt``.
@@ -31,11 +32,11 @@ from anima.io.checkpoint import load_state, rebuilding
 from anima.io.checkpoint import save_checkpoint as save_checkpoint_file
 from anima.text2face.config import TrainConfig
 from anima.text2face.data import FaceGeometry, crop_pool, load_clips, motion_stats, split_clips
-from anima.text2face.diffusion import MDM, MDMConfig
+from anima.text2face.diffusion import MDM, SMF, MDMConfig, SMFConfig
 from anima.text2face.encoders import encode_cached, get_encoder
 from anima.text2face.model import Text2Face, Text2FaceConfig, preset
 
-KINDS = ("text2face", "mdm")
+KINDS = ("text2face", "mdm", "smf")
 VERSION = 2  # 1: text2face's own envelope; 2: anima.io.checkpoint
 
 
@@ -52,6 +53,8 @@ def build_model(kind: str, model_cfg: dict):
         return Text2Face(Text2FaceConfig(**model_cfg))
     if kind == "mdm":
         return MDM(MDMConfig(**model_cfg))
+    if kind == "smf":
+        return SMF(SMFConfig(**model_cfg))
     raise SchemaError(f"unknown model kind {kind!r}")
 
 
@@ -59,7 +62,7 @@ def model_config(cfg: TrainConfig, d_c: int) -> dict:
     base = dict(d_c=d_c, max_len=cfg.max_len, min_len=cfg.min_len, encoder=cfg.encoder)
     if cfg.kind == "text2face":
         return preset(cfg.preset, **base, **cfg.model).to_dict()
-    return MDMConfig(**{**base, **cfg.model}).to_dict()
+    return (MDMConfig if cfg.kind == "mdm" else SMFConfig)(**{**base, **cfg.model}).to_dict()
 
 
 def rec_loss(pred, target, mask, std, G, w_rot: float):

@@ -512,6 +512,8 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
     add("eval stability text clip", "eval", "stability", files["text"], "--json")
     add("eval pose --ablation-steps 0", "eval", "pose", "--ablation", out / "abl", "--ablation-steps", "0")
     add("eval text2face --reps 0", "eval", "text2face", ds["corrupt_shard"], "--reps", "0")
+    for grid in ("0,250", "250,abc", ","):
+        add(f"eval text2face --step-grid {grid}", "eval", "text2face", ds["corrupt_shard"], "--step-grid", grid)
     add("eval gesture --refiner-folds -1", "eval", "gesture", "--db", ds["corrupt_shard"], "--refiner-folds", "-1")
     add("eval reenact --out is a file", "eval", "reenact", "--out", files["text"])
     add("eval all --out is a file", "eval", "all", "--db", ds["empty_dir"], "--out", files["text"])

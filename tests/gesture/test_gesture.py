@@ -170,12 +170,17 @@ def test_eval_gesture_leave_one_video_out(ds):
     assert cg["metrics"]["l1_cm"] > 0 and np.isfinite(cg["metrics"]["jerk"])
     assert set(cg["control_adherence"]) == set(ca)
     gen = r["generator"]  # the §4.4 generator and its baselines on the same windows, with FGD and lip error
-    assert set(gen["rows"]) == {"adversarial", "regression", "lstm", "velocity_adversarial"}
+    assert set(gen["rows"]) == {"adversarial", "regression", "lstm", "velocity_adversarial", "moglow"}
     assert gen["windows_judged"] == r["windows"]
     assert gen["lip_windows"] > r["windows"]  # the talking head's face-only windows are judged too
     assert gen["face_only_windows_per_speaker"] == {"feifeili": gen["lip_windows"] - r["windows"]}
     for row in gen["rows"].values():
         assert row["l1_cm"] > 0 and row["lip_error_mm"] > 0 and np.isfinite(row["fgd"])
+    for f in gen["rows"]["adversarial"]["folds"]:  # the weight chosen on the fold's own training videos
+        choice = f["adv_weight"]
+        assert set(choice["validation"]) == {"0.01", "0.1", "1.0"} and choice["validation_windows"] > 0
+        assert choice["value"] == min(choice["grid"], key=lambda a: choice["validation"][str(a)]["fgd_frames"])
+    assert "chosen per fold" in gen["protocol"]
     assert set(gen["fgd"]) >= {"knn", "knn_cgan", "adversarial", "captured_half_vs_half"}
     fg = gen["facegood_lip_sync"]
     assert fg["recordings"] == 7 and set(fg["rows"]) == set(gen["rows"])

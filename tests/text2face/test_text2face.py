@@ -207,6 +207,32 @@ def test_checkpoint_of_another_version_is_refused(tmp_path, shipped):
         load_checkpoint(tmp_path / "junk.pt")
 
 
+def test_smf_baseline_treats_a_padded_sequence_as_it_would_one_alone_and_samples_by_seed():
+    from anima.text2face.diffusion import SMF, SMFConfig
+
+    torch.manual_seed(0)
+    m = SMF(SMFConfig(channels=(32, 64, 64), d_in=16, solver_steps=4, max_len=60)).eval()
+    for p in m.parameters():  # the residual blocks' last convolutions start at zero: move every path
+        p.data += 0.02 * torch.randn_like(p)
+    x, t, e = torch.randn(2, 45, 56), torch.tensor([10, 500]), torch.randn(2, 384)
+    pad = torch.zeros(2, 45, dtype=torch.bool)
+    pad[1, 37:] = True
+    y = m(x, t, e, torch.ones(2), pad)
+    alone = m(x[1:, :37], t[1:], e[1:], torch.ones(1))  # 37 frames: not a multiple of the U-Net's 4
+    torch.testing.assert_close(alone[0], y[1, :37], atol=1e-5, rtol=1e-4)
+    x2 = x.clone()
+    x2[1, 37:] = 100.0  # what lies in the padding does not matter
+    torch.testing.assert_close(m(x2, t, e, torch.ones(2), pad)[1, :37], y[1, :37])
+    assert not torch.allclose(m(x, t, e, torch.zeros(2), pad), y)  # the text reaches the output
+    g = lambda s: torch.Generator().manual_seed(s)
+    a, b, c = m.sample(e, 40, g(1)), m.sample(e, 40, g(1)), m.sample(e, 40, g(2))
+    assert a.shape == (2, 40, 56) and torch.isfinite(a).all()
+    torch.testing.assert_close(a, b)
+    assert not torch.allclose(a, c)
+    with pytest.raises(ValueError, match="trained range"):
+        m.sample(e, 61)
+
+
 # ---- training on real clips, and the command ------------------------------------------------------------
 
 
@@ -259,6 +285,48 @@ def test_training_learns_resumes_exactly_and_carries_its_config(ds, tmp_path):
     assert ck["model_config"]["d_m"] == 64 and ck["train_config"]["steps"] == 60 and ck["step"] == 60
     with pytest.raises(InputError, match="another configuration"):
         train(ds, tmp_path / "a", dataclasses.replace(cfg, lr=1e-2), progress=False)
+
+
+def test_steps_are_chosen_on_validation_windows_from_snapshots_of_one_run(ds, tmp_path):
+    """The StableMoFusion-style baseline trained on real clips: one run keeps a snapshot at each step count
+    of the grid, each snapshot is the model a run of that length gives, and the choice is the snapshot with
+    the lowest validation MAE, recorded with every candidate's score."""
+    import dataclasses
+
+    from anima.eval.text2face import choose_steps, model_method, validation_mae
+    from anima.text2face.data import FaceGeometry, eval_items
+    from anima.text2face.encoders import encode_cached
+    from anima.text2face.train import TrainConfig, load_checkpoint, prepare, train
+
+    cfg = TrainConfig(
+        kind="smf",
+        model={"channels": [32, 64], "d_in": 16, "solver_steps": 3},
+        per_clip=8,
+        min_len=30,
+        max_len=180,
+        lr=1e-3,
+        batch=4,
+    )
+    prepared = prepare(ds, cfg)
+    enc = prepared[5]
+    # windows of the real clips, marked as one validation video's and one test video's
+    items = [
+        dataclasses.replace(it, split=("val", "test")[k % 2], video=f"v{k % 2}")
+        for k, it in enumerate(eval_items(prepared[0])[:6])
+    ]
+    E = encode_cached(enc, [t for it in items for t in it.texts]).reshape(len(items), 3, -1)
+    geom = FaceGeometry()
+    path, rec = choose_steps(ds, tmp_path, "smf", cfg, (12, 6), items, E, geom, 2, prepared, False, "test")
+    assert rec["grid"] == [6, 12] and set(rec["validation_mae_mm"]) == {"6", "12"}
+    assert rec["value"] == min((6, 12), key=lambda n: rec["validation_mae_mm"][str(n)])
+    assert path.name == f"step_{rec['value']}.pt" and "3 windows of 1 videos" in rec["chosen_on"]
+    again = validation_mae(model_method("smf", path), items, E, geom, 2)
+    assert again == pytest.approx(rec["validation_mae_mm"][str(rec["value"])], abs=1e-4)
+    plain = train(ds, tmp_path / "plain", dataclasses.replace(cfg, steps=6), progress=False, prepared=prepared)
+    snap = load_checkpoint(tmp_path / "steps" / "smf" / "step_6.pt")
+    assert snap["kind"] == "smf" and snap["step"] == 6
+    for k, v in plain["model"].state_dict().items():
+        torch.testing.assert_close(snap["state"][k], v, msg=k)
 
 
 def test_text2face_command_writes_its_files_and_refuses_bad_input(tmp_path, cli):
