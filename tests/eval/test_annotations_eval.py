@@ -44,3 +44,17 @@ def test_eval_annotations_is_out_of_sample():
     chosen = choose_thresholds(pairs[1:], DetectorConfig())  # d0's smile is not among these labels
     assert chosen["smile_on"] == DetectorConfig().smile_on
     assert r["folds"][r["clips"].index("d0")]["thresholds"]["blink_on"] > 0
+
+
+def test_blink_is_measured_against_the_lids_own_rest():
+    """CREMA-D's neutral sentence: one blink (frames 8-10, watched) whose fitted eyeBlink peaks just under
+    0.5 over open lids at about 0.2. The relative rule finds it and nothing else; the old absolute rule
+    (0.5) does not."""
+    from anima.dataset.attributes import DetectorConfig
+
+    lab = next(l for l in load_labels() if l["name"] == "crema_neutral")
+    seq = capture_labelled(lab)
+    now = score([(seq, lab)])["blink"]
+    assert now["recall"] == 1.0 and now["precision"] == 1.0 and now["detections"] == 1
+    before = score([(seq, lab)], DetectorConfig(blink_on=0.5, blink_baseline_s=None))["blink"]
+    assert before["recall"] == 0.0
