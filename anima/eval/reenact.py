@@ -290,8 +290,12 @@ def colour_consistency(
     transfer. Per output frame, the colour difference Delta E (CIE76, L*a*b*) between the mean colour of the
     output and of the target frame at the same pixels: the output geometry's skin ring (the skin around the
     mouth the transfer is fitted on, so partly by construction) and, not used by the fit, the lips and the
-    skin within 1 cm of them (the mouth interior excluded). Method 1 (no smoothing); output on the first
-    target clip, as ``anima reenact`` does."""
+    skin within 1 cm of them (the mouth interior excluded). At the same pixels the lips measure the mouth's
+    shape too: where the actor opens the mouth and the target's is closed, the output's lips lie on the
+    target's skin. ``lips_own_geometry`` takes the shape out: the output's lips at the output's geometry
+    against the target frame's lips at the target's own fitted geometry (the same vertices, each frame's own
+    pixels). Method 1 (no smoothing); output on the first target clip, as ``anima reenact`` does. ``worst``:
+    the frame with the largest pixel-aligned lip difference (with transfer), pictured target | output."""
     paths = [str(asset(t)) for t in targets]
     db, seqs = build_database(paths, progress=progress)
     tseq = seqs[0]
@@ -307,14 +311,14 @@ def colour_consistency(
         "database_frames_per_video": np.bincount(db.video).tolist(),
         "limit": COLOUR_LIMIT,
     }
-    shown = {}
+    shown, worst = {}, None
     interior = np.concatenate([load_face_model().region(r) for r in INTERIOR])
     for name, on in (("without_transfer", False), ("with_transfer", True)):
         cfg = ReenactConfig(smooth=0, color_transfer=on)
         rx = Reenactor(db, cfg)
         skin = rx.skin
         lips = ~skin & ~np.isin(db.vertex_ids, interior)
-        d_ring, d_lips = [], []
+        d_ring, d_lips, d_own = [], [], []
         picks = set(np.linspace(0, aseq.n_frames - 1, 4).astype(int).tolist())
         for i in range(aseq.n_frames):
             j = int(pingpong(np.array([i]), n_t)[0])
@@ -323,16 +327,26 @@ def colour_consistency(
             uvz = rx.geometry(x[i], identity, tseq.scale[j], tseq.rotation[j], tseq.translation[j])
             out = rx.blend(gt[j], uvz, col)
             uv = uvz[:, :2]
+            own = rx.geometry(tseq.expression[j], identity, tseq.scale[j], tseq.rotation[j], tseq.translation[j])
             lab_o, lab_t = _mean_lab(out, uv[skin]), _mean_lab(gt[j], uv[skin])
             d_ring.append(float(np.linalg.norm(lab_o - lab_t)))
-            d_lips.append(float(np.linalg.norm(_mean_lab(out, uv[lips]) - _mean_lab(gt[j], uv[lips]))))
+            lips_o = _mean_lab(out, uv[lips])
+            d_lips.append(float(np.linalg.norm(lips_o - _mean_lab(gt[j], uv[lips]))))
+            d_own.append(float(np.linalg.norm(lips_o - _mean_lab(gt[j], own[lips, :2]))))
             if i in picks:
                 shown.setdefault(i, [gt[j]]).append(out)
-        res[name] = {k: _distribution(np.asarray(v)) for k, v in (("skin_ring", d_ring), ("lips_and_near", d_lips))}
+            if on and (worst is None or d_lips[-1] > worst[0]):
+                worst = (d_lips[-1], i, gt[j], out)
+        res[name] = {
+            k: _distribution(np.asarray(v))
+            for k, v in (("skin_ring", d_ring), ("lips_and_near", d_lips), ("lips_own_geometry", d_own))
+        }
+    res["worst"] = {"actor_frame": worst[1], "lips_and_near": worst[0]}
     if save_dir is not None:
         save_dir.mkdir(parents=True, exist_ok=True)
         rows = [np.hstack(v) for _, v in sorted(shown.items())]
         write_image(save_dir / "colour_target_without_with_transfer.png", np.vstack(rows))
+        write_image(save_dir / "colour_worst_lip_frame.png", np.hstack(worst[2:]))  # target | output
     return res
 
 
