@@ -71,6 +71,10 @@ def test_each_step_equals_librosa_on_real_speech(speech):
     np.testing.assert_array_equal(F.frame_signal(x, 320, 160), librosa.util.frame(x, frame_length=320, hop_length=160))
     base = np.random.default_rng(0).normal(size=(50, 14))
     np.testing.assert_allclose(F.delta3(base), librosa.feature.delta(base, width=3, order=1, axis=0), atol=1e-12)
+    import scipy.fft
+
+    S = np.random.default_rng(1).normal(size=(40, 30))
+    np.testing.assert_allclose(F.dct_ortho(40, 13) @ S, scipy.fft.dct(S, type=2, norm="ortho", axis=0)[:13], atol=1e-12)
     # the whole pipeline as it was written with librosa
     fps, n = 30.0, 120
     y, _, _ = F.normalize_loudness(x)

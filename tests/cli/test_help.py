@@ -104,3 +104,33 @@ def test_a_command_loads_only_its_own_group():
     assert "anima.cli.generate" in out
     for other in ("anima.cli.capture", "anima.cli.dataset", "anima.cli.evaluate", "anima.cli.train"):
         assert other not in out
+
+
+@pytest.mark.parametrize("preset", [None, "2"])
+def test_gesture_runs_with_one_blas_thread_unless_the_user_set_one(preset):
+    """``anima gesture`` sets one BLAS thread before numpy loads (its products are small; a pool only spins
+    against the preview's threads); a value the user set is kept. A fresh interpreter: numpy must not be
+    loaded yet."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import contextlib, io, json, os\n"
+        "from anima.cli.main import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    try:\n        main(['gesture', '--help'])\n    except SystemExit:\n        pass\n"
+        "from threadpoolctl import threadpool_info\n"
+        "print(json.dumps([os.environ.get('OPENBLAS_NUM_THREADS'), "
+        "[p['num_threads'] for p in threadpool_info() if p['user_api'] == 'blas']]))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    if preset:
+        env["OPENBLAS_NUM_THREADS"] = preset
+    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    var, threads = json.loads(r.stdout.strip().splitlines()[-1])
+    assert var == (preset or "1")
+    if not preset:
+        assert threads and set(threads) == {1}
