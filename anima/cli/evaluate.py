@@ -30,7 +30,8 @@ def register(sub) -> None:
         "own commands do, and writes OUT/results.json (per row: command, status, minutes, result; the "
         "commit, the shared data's and the dataset's fingerprints, the machine) and OUT/summary.md. "
         "A row that cannot run (e.g. pose without a trained lifter) is recorded as skipped; exit 3 when "
-        "one failed. About 1.5 hours on 2 cores (text2face 43 min, gesture 30 min).",
+        "one failed. About 1.9 hours on 2 cores (measured row by row: gesture 52 min, text2face 52 min, the "
+        "rest 8 min; pose only with a trained lifter).",
     )
     eall.add_argument("--db", required=True, help="dataset folder from `anima dataset build` (gesture, text2face)")
     eall.add_argument("--out", required=True, help="result folder")
