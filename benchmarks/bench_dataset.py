@@ -29,41 +29,49 @@ from anima.io.assets import asset
 from anima.io.atomic import write_json
 
 CLIPS = "gesture-video/pats-crops"
+_KEEP: list = []  # temporary folders of kept builds (removed when the interpreter exits)
 
 
-def build(videos: list[str], workers: int, one_core: bool = False) -> tuple[float, float, dict]:
+def build(videos: list[str], workers: int, one_core: bool = False, extra: tuple = (), keep: bool = False):
     """``anima dataset build`` of ``videos`` with ``workers`` Ray workers; ``one_core``: the command and all it
-    starts confined to the first CPU this process may use. Returns (wall s, task span s, manifest)."""
+    starts confined to the first CPU this process may use; ``extra``: more options. Returns (wall s, task span
+    s, manifest), and with ``keep`` the dataset folder too (a temporary folder removed at exit)."""
     pin = None
     if one_core:
         first = min(os.sched_getaffinity(0))
         pin = lambda: os.sched_setaffinity(0, {first})  # runs in the child, before exec
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "ds"
-        t0 = time.perf_counter()
-        subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "anima",
-                "dataset",
-                "build",
-                *videos,
-                "--out",
-                str(out),
-                "--workers",
-                str(workers),
-                "--quiet",
-                "--json",
-            ],
-            check=True,
-            capture_output=True,
-            preexec_fn=pin,
-        )
-        wall = time.perf_counter() - t0
-        tasks = [json.loads(f.read_text()) for f in (out / "videos").glob("*.json")]
-        span = max(t["ended_at"] for t in tasks) - min(t["started_at"] for t in tasks)
-        return wall, span, json.loads((out / "manifest.json").read_text())
+    tmp = tempfile.TemporaryDirectory()
+    _KEEP.append(tmp)
+    out = Path(tmp.name) / "ds"
+    t0 = time.perf_counter()
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "anima",
+            "dataset",
+            "build",
+            *videos,
+            "--out",
+            str(out),
+            "--workers",
+            str(workers),
+            "--quiet",
+            "--json",
+            *extra,
+        ],
+        check=True,
+        capture_output=True,
+        preexec_fn=pin,
+    )
+    wall = time.perf_counter() - t0
+    tasks = [json.loads(f.read_text()) for f in (out / "videos").glob("*.json")]
+    span = max(t["ended_at"] for t in tasks) - min(t["started_at"] for t in tasks)
+    man = json.loads((out / "manifest.json").read_text())
+    if keep:
+        return wall, span, man, out
+    tmp.cleanup()
+    return wall, span, man
 
 
 def main() -> None:

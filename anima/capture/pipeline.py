@@ -32,7 +32,7 @@ from anima.errors import InputError
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
 from anima.io.sequence import FLAG_LOW_CONFIDENCE, FLAG_NO_FACE, TrackedSequence
-from anima.io.video import VideoInfo, iter_frames, probe_video
+from anima.io.video import VideoInfo, iter_frame_range, iter_frames, probe_video
 from anima.pose3d.config import default_checkpoint
 from anima.pose3d.infer import lift_frames, replace_body
 
@@ -337,6 +337,58 @@ def track_holistic(
     return np.stack(lms), frames
 
 
+@dataclass
+class Tracked:
+    """What tracking a video gave: face landmarks ``[F, 478, 3]`` (NaN where no face), Holistic's frames,
+    decoding warnings, and (for a video tracked in chunks) how it was cut."""
+
+    landmarks: np.ndarray
+    frames: list
+    warnings: list[str]
+    chunks: dict | None = None
+
+
+def track_holistic_range(
+    info: VideoInfo, start: int, stop: int, warmup: int = 0, times: np.ndarray | None = None, on_progress=None
+) -> Tracked:
+    """MediaPipe Holistic over frames ``start`` to ``stop - 1`` only (one chunk of a long video, see
+    :func:`anima.io.video.iter_frame_range`). Tracking starts ``warmup`` frames earlier and those frames are
+    dropped: in video mode MediaPipe carries each frame's regions of interest and its pose smoothing to the next
+    frame, so a chunk that started cold would differ from the whole-video run for its first frames.
+    ``on_progress(1)`` after each kept frame."""
+    lms, frames = [], []
+    errs: list[str] = []
+    first = max(0, start - warmup)
+    with HolisticTracker() as tracker:
+        for k, image in iter_frame_range(info, first, stop, times=times, errors=errs):
+            fr = tracker(image)
+            if k < start:
+                continue
+            frames.append(fr)
+            lms.append(np.full((478, 3), np.nan, np.float32) if fr.face is None else fr.face)
+            if on_progress is not None:
+                on_progress(1)
+    lm = np.stack(lms) if lms else np.zeros((0, 478, 3), np.float32)
+    return Tracked(lm, frames, errs)
+
+
+def join_chunks(parts: list[Tracked], plan: list[tuple[int, int]], warmup: int) -> Tracked:
+    """The chunks of one video, tracked apart (``plan``: their frame ranges, in order), as one video's tracking.
+    A chunk whose decoding stopped early ends the video there, as a decoding error ends a whole-video pass."""
+    lm, frames, warns = [], [], []
+    for (a, b), part in zip(plan, parts):
+        lm.append(part.landmarks)
+        frames += part.frames
+        warns += part.warnings
+        if part.warnings and (a, b) != plan[-1]:  # decoding stopped inside this chunk
+            warns.append(f"decoding stopped between frames {a} and {b - 1}: the video ends there")
+            break
+    out = np.concatenate(lm) if lm else np.zeros((0, 478, 3), np.float32)
+    return Tracked(
+        out, frames, warns, {"chunks": len(plan), "frames": [list(ab) for ab in plan], "warmup_frames": warmup}
+    )
+
+
 def empty_face_sequence(n: int, width: int, height: int, fps: float, meta: dict) -> TrackedSequence:
     """A sequence with no face in any frame (body and speech may still be present)."""
     model = load_face_model()
@@ -405,13 +457,17 @@ def capture_video(
     progress: bool = True,
     timings: Timings | None = None,
     on_progress=None,
+    tracked: Tracked | None = None,
 ) -> TrackedSequence:
     """One pass over ``video``: face (ICT fit), body and hands (55 joints, cleaned), speech features.
     ``cfg.face_only`` keeps the fast face-mesh path. ``audio``: a separate audio file (default: the
-    video's own track). ``on_progress(1)`` after each tracked frame. Raises InputError when neither a face
-    nor a body is found."""
+    video's own track). ``on_progress(1)`` after each tracked frame. ``tracked``: Holistic's results made
+    elsewhere (the chunks of a long video in a dataset build, :func:`join_chunks`); everything after tracking
+    is the same. Raises InputError when neither a face nor a body is found."""
     cfg = cfg or CaptureConfig()
     if cfg.face_only:
+        if tracked is not None:
+            raise ValueError("tracked chunks come from Holistic: not with face_only")
         seq = capture_face(video, cfg, progress, timings, on_progress)
     else:
         info = probe_video(video)
@@ -419,12 +475,24 @@ def capture_video(
             raise InputError(f"video is {info.width}x{info.height}: too small to find a person (min {MIN_SIZE} px)")
         warns = list(info.warnings)
         t0 = time.perf_counter()
-        stream = StreamingPrefit(info.width, info.height, cfg) if cfg.stream else None
-        lm, frames = track_holistic(info, cfg.max_frames, progress, warns, on_face=stream, on_progress=on_progress)
-        found = np.isfinite(lm).all(axis=(1, 2))
-        prefit = stream.result(len(lm)) if stream is not None and found.any() else None
-        if stream is not None and not found.any():
-            stream.pool.shutdown()
+        if tracked is None:
+            stream = StreamingPrefit(info.width, info.height, cfg) if cfg.stream else None
+            lm, frames = track_holistic(info, cfg.max_frames, progress, warns, on_face=stream, on_progress=on_progress)
+            found = np.isfinite(lm).all(axis=(1, 2))
+            prefit = stream.result(len(lm)) if stream is not None and found.any() else None
+            if stream is not None and not found.any():
+                stream.pool.shutdown()
+        else:  # tracked in chunks: fitted here, in the same blocks as while tracking (the same numbers)
+            lm, frames, prefit = tracked.landmarks, tracked.frames, None
+            warns += tracked.warnings
+            if not len(frames):
+                raise InputError(f"no frame could be decoded from {video}")
+            found = np.isfinite(lm).all(axis=(1, 2))
+            if cfg.stream and found.any():
+                stream = StreamingPrefit(info.width, info.height, cfg)
+                for f in lm:
+                    stream(f)
+                prefit = stream.result(len(lm))
         t1 = time.perf_counter()
         body = assemble(frames, info.width, info.height, info.fps)
         tracker = "mediapipe.holistic (model_complexity=1)"
@@ -437,6 +505,8 @@ def capture_video(
         if info.n_frames and len(lm) < min(info.n_frames, cfg.max_frames or info.n_frames) - 1:
             warns.append(f"only {len(lm)} of {info.n_frames} frames decoded (truncated file?)")
         meta = {"source": {**info.as_dict(), "warnings": warns}}
+        if tracked is not None and tracked.chunks:
+            meta["source"]["tracked_in_chunks"] = tracked.chunks
         if found.any():
             seq = fit_landmark_sequence(lm, info.width, info.height, info.fps, cfg, meta=meta, prefit=prefit)
         else:

@@ -9,7 +9,7 @@ from anima.dataset.filters import FilterConfig
 from anima.dataset.report import write_report
 
 FILTER_OPTIONS = ["min_s", "max_s", "emotion_min_s", "max_yaw_deg", "max_fit_nme"]
-BUILD_OPTIONS = ["n_descriptions", "seed", "max_frames"]
+BUILD_OPTIONS = ["n_descriptions", "seed", "max_frames", "chunk_s", "chunk_warmup_s"]
 
 
 def register(sub) -> None:
@@ -19,7 +19,8 @@ def register(sub) -> None:
     db = dsub.add_parser(
         "build",
         help="capture, filter, annotate and store videos as training pairs (Ray)",
-        description="One Ray task per video (local Ray by default, --address for a cluster): "
+        description="One Ray task per video (local Ray by default, --address for a cluster; a video longer "
+        "than 1.5 x --chunk-len is tracked by one task per chunk, then joined): "
         "capture, filter (length, action keywords, head yaw, fit error, confidence), annotate "
         "(imported or automatic), describe, and write Parquet shards. Resumable: rerun the same "
         "command after an interruption and finished videos are skipped.",

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import queue
+import re
 import subprocess
 import tempfile
 import threading
@@ -58,14 +59,16 @@ class VideoInfo:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
-def _packet_pts(path: str) -> tuple[np.ndarray, float]:
-    """Presentation timestamps (s) of the video packets, read without decoding (ffmpeg framemd5)."""
+def _packet_pts(path: str, raw: bool = False) -> tuple[np.ndarray, float]:
+    """Presentation timestamps (s) of the video packets, sorted, read without decoding (ffmpeg framemd5).
+    ``raw``: on the file's own clock (``-copyts``: what a decoder reports), not shifted to start near 0."""
     cmd = [
         FFMPEG,
         "-hide_banner",
         "-nostdin",
         "-v",
         "error",
+        *(["-copyts"] if raw else []),
         "-i",
         path,
         "-map",
@@ -196,6 +199,119 @@ def iter_frames(info: VideoInfo, prefetch: int = 8, errors: list[str] | None = N
             except queue.Empty:
                 pass
         t.join(timeout=1)
+
+
+def frame_times(path: str | os.PathLike) -> np.ndarray:
+    """Presentation time (s, on the file's own clock) of each frame, in display order, read without decoding:
+    the frame numbering that :func:`iter_frame_range` takes."""
+    return _packet_pts(str(path), raw=True)[0]
+
+
+_SHOWINFO = re.compile(r"pts_time:\s*(-?[0-9.]+(?:e[-+]?[0-9]+)?)")
+
+
+def iter_frame_range(
+    info: VideoInfo,
+    start: int,
+    stop: int | None = None,
+    times: np.ndarray | None = None,
+    prefetch: int = 8,
+    errors: list[str] | None = None,
+) -> Iterator[tuple[int, np.ndarray]]:
+    """Frames ``start`` to ``stop - 1`` of a constant-frame-rate video, as ``(index, RGB uint8 frame)``: the
+    same pixels :func:`iter_frames` yields at those indices, without decoding what lies before.
+
+    ffmpeg seeks to the keyframe before the first frame (a second of margin) and keeps the original
+    timestamps (``-copyts``); each decoded frame's timestamp (``showinfo``) is matched to :func:`frame_times`
+    (``times``, read here when not given), so the range is exact whatever the container's seek precision
+    (timestamp seeks alone land a frame early on FLV and on the last frames of some MP4s). Should the seek land
+    after ``start``, decoding restarts from the beginning. Frames whose packets do not decode are absent
+    (their index is skipped), as they are from :func:`iter_frames`."""
+    if info.variable_frame_rate:
+        raise ValueError("iter_frame_range needs a constant-frame-rate video (iter_frames resamples the others)")
+    t = frame_times(info.path) if times is None else times
+    stop = len(t) if stop is None else min(stop, len(t))
+    if start >= stop:
+        return
+    gap = float(np.median(np.diff(t))) if len(t) > 1 else 1.0 / info.fps
+    tol = 0.25 * gap
+    t_first, t_end = t[start] - tol, (t[stop] - tol if stop < len(t) else np.inf)
+    seek = t[start] - 1.0 if start > 0 and t[start] - 1.0 > t[0] else None
+    for attempt in (seek, None) if seek is not None else (None,):
+        q: queue.Queue = queue.Queue(maxsize=prefetch)
+        stop_ev = threading.Event()
+        proc = subprocess.Popen(
+            [FFMPEG, "-hide_banner", "-nostdin", "-loglevel", "info"]
+            + (["-ss", f"{attempt:.6f}", "-noaccurate_seek"] if attempt is not None else [])
+            + ["-copyts", "-i", info.path, "-map", "0:v:0", "-vf", "showinfo", "-vsync", "0"]
+            + ["-f", "rawvideo", "-pix_fmt", "rgb24", "-"],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
+        stamps: queue.Queue = queue.Queue()
+        tail: list[str] = []
+
+        def read_log(proc=proc, stamps=stamps, tail=tail):
+            for raw_line in proc.stderr:
+                line = raw_line.decode(errors="replace")
+                m = _SHOWINFO.search(line)
+                if m:
+                    stamps.put(float(m.group(1)))
+                elif line.strip():
+                    tail[:] = (tail + [line.strip()])[-3:]
+            stamps.put(None)
+
+        def read_frames(proc=proc, q=q, stop_ev=stop_ev, stamps=stamps):
+            size = info.width * info.height * 3
+            try:
+                while not stop_ev.is_set():
+                    buf = proc.stdout.read(size)
+                    if len(buf) < size:
+                        break
+                    ts = stamps.get()
+                    if ts is None:
+                        break
+                    q.put((ts, np.frombuffer(buf, np.uint8).reshape(info.height, info.width, 3)))
+            finally:
+                q.put(None)
+
+        threads = [threading.Thread(target=f, daemon=True) for f in (read_log, read_frames)]
+        for th in threads:
+            th.start()
+        overshot = False
+        try:
+            first = True
+            while True:
+                item = q.get()
+                if item is None:
+                    break
+                ts, frame = item
+                if first and attempt is not None and ts > t_first + 2 * tol:
+                    overshot = True  # the seek landed after the range's first frame: decode from the start
+                    break
+                first = False
+                if ts < t_first:
+                    continue
+                if ts >= t_end:
+                    break
+                k = int(np.clip(np.searchsorted(t, ts + tol) - 1, 0, len(t) - 1))
+                yield k, frame
+        finally:
+            stop_ev.set()
+            proc.kill()
+            while any(th.is_alive() for th in threads):
+                try:
+                    q.get(timeout=0.05)
+                except queue.Empty:
+                    pass
+            for th in threads:
+                th.join(timeout=1)
+            proc.wait()
+        if not overshot:
+            if proc.returncode not in (0, -9) and errors is not None and tail:
+                errors.append(f"decoding stopped early ({tail[-1]}); keeping the frames decoded so far")
+            return
 
 
 def read_video(path: str | os.PathLike, max_frames: int | None = None) -> tuple[np.ndarray, VideoInfo]:

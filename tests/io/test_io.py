@@ -111,3 +111,56 @@ def test_glb_passes_khronos_validator(d0_capture, tmp_path):
     rep = json.loads(r.stdout)
     assert r.returncode == 0 and rep["issues"]["numErrors"] == 0, rep["issues"]
     assert rep["info"]["hasMorphTargets"] and rep["info"]["animationCount"] == 1
+
+
+def _md5s(frames) -> list[str]:
+    import hashlib
+
+    return [hashlib.md5(np.ascontiguousarray(f).tobytes()).hexdigest() for f in frames]
+
+
+@pytest.mark.parametrize(
+    "clip",
+    [
+        "emotion-clips/crema-d/1001_DFA_ANG_XX.flv",  # a timestamp seek lands one frame early on FLV
+        "talking-heads-misc/LatentSync/assets/demo2_video.mp4",  # ... and on this HEVC's last frames
+        "liveportrait-examples/assets/examples/driving/d6.mp4",  # long enough to seek into (1,008 frames)
+        "shifted",  # d6 with its clock starting at 10 s
+    ],
+)
+def test_a_frame_range_decodes_exactly_the_frames_of_a_whole_pass(clip, tmp_path):
+    """The chunks of a long video in a dataset build decode only their frames: the pixels must be those a
+    whole-video decode gives at the same indices, at the start, the middle and the end."""
+    from anima.io.assets import asset
+    from anima.io.video import FFMPEG, frame_times, iter_frame_range, iter_frames
+
+    if clip == "shifted":
+        path = tmp_path / "shifted.mp4"
+        src = asset("liveportrait-examples/assets/examples/driving/d6.mp4")
+        subprocess.run(
+            [FFMPEG, "-v", "error", "-i", str(src), "-c", "copy", "-output_ts_offset", "10", str(path)], check=True
+        )
+    else:
+        path = asset(clip)
+    info = probe_video(path)
+    n = info.n_frames
+    ranges = [(0, 4), (1, 3), (n // 3, n // 3 + 30), (n // 2 + 7, n // 2 + 9), (n - 5, n + 10)]
+    wanted = {k for a, b in ranges for k in range(a, min(b, n))}
+    whole, count = {}, 0
+    for k, f in enumerate(iter_frames(info)):
+        count += 1
+        if k in wanted:  # (hashing every 1080x1920 frame would take longer than decoding them)
+            whole[k] = _md5s([f])[0]
+    t = frame_times(path)
+    assert len(t) == count == n
+    for a, b in ranges:
+        got = list(iter_frame_range(info, a, b, times=t))
+        assert [k for k, _ in got] == list(range(a, min(b, n))), (a, b)
+        assert _md5s(f for _, f in got) == [whole[k] for k in range(a, min(b, n))], (a, b)
+
+
+def test_a_frame_range_refuses_a_variable_frame_rate_video(videos):
+    from anima.io.video import iter_frame_range
+
+    with pytest.raises(ValueError, match="constant-frame-rate"):
+        list(iter_frame_range(probe_video(videos["vfr"]), 0, 5))
