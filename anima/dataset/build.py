@@ -487,10 +487,11 @@ def _build(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_workers,
             cfg_ref = ray.put(cfg)
             futs = {}
             for n, p, plan, warm in pending:
-                if plan is None:
+                times = frame_times(p) if plan is not None else None
+                if plan is None or len(times) < n:  # (no timestamps to seek by: one task)
                     futs[task.remote(str(p), str(out), cfg_ref, ann.get(p.stem), counter)] = (n, p)
                     continue
-                times = ray.put(frame_times(p))
+                times = ray.put(times)
                 parts = [chunk_task.remote(str(p), a, b, warm, times, counter) for a, b in plan]
                 futs[assemble_task.remote(str(p), str(out), cfg_ref, ann.get(p.stem), plan, warm, *parts)] = (n, p)
             _follow(ray, futs, counter, progress)
