@@ -44,7 +44,7 @@ from anima.dataset.storage import SCHEMA, VERSION, check_dataset, read_table, wr
 from anima.errors import InputError
 from anima.io.atomic import write_json
 from anima.io.outdir import check_out_dir, lock_folder, unlock_folder
-from anima.io.video import frame_times, probe_video
+from anima.io.video import VideoInfo, frame_times, probe_video
 
 VIDEO_EXT = (".mp4", ".mov", ".mkv", ".webm", ".avi", ".m4v", ".flv")
 
@@ -306,13 +306,14 @@ def _task(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | None, co
         return _record_error(path, Path(out_dir), e, traceback.format_exc(limit=4))
 
 
-def _chunk_task(path: str, a: int, b: int, warmup: int, times, counter=None) -> dict:
-    """Ray task body: track frames ``a`` to ``b - 1`` of one video; never raises (the video's assembling task
-    records a failure)."""
+def _chunk_task(info: VideoInfo, a: int, b: int, warmup: int, times, counter=None) -> dict:
+    """Ray task body: track frames ``a`` to ``b - 1`` of one video (``info`` and ``times``: the driver's probe
+    and frame timestamps, not read again per chunk); never raises (the video's assembling task records a
+    failure)."""
     try:
         started_at = time.time()
-        cb = _Batched(counter, video_id(path)) if counter is not None else None
-        part = track_holistic_range(probe_video(path), a, b, warmup, times=times, on_progress=cb)
+        cb = _Batched(counter, video_id(info.path)) if counter is not None else None
+        part = track_holistic_range(info, a, b, warmup, times=times, on_progress=cb)
         return {"part": part, "started_at": started_at, "seconds": time.time() - started_at}
     except Exception as e:
         msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
@@ -471,7 +472,7 @@ def _build(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_workers,
             n = info.n_frames if cfg.max_frames is None else min(info.n_frames, cfg.max_frames)
             # a variable-frame-rate video is resampled as it decodes: it has no frame numbers to cut at
             plan = None if info.variable_frame_rate else chunk_plan(n, info.fps, cfg)
-            pending.append((n, p, plan, round(cfg.chunk_warmup_s * info.fps)))
+            pending.append((n, p, plan, round(cfg.chunk_warmup_s * info.fps), info))
         except InputError as e:
             _record_error(p, out, e)
     # longest first (LPT scheduling): a long video started last would leave the other workers idle at the end;
@@ -486,13 +487,14 @@ def _build(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_workers,
             counter = ray.remote(num_cpus=0)(FrameCounter).remote()
             cfg_ref = ray.put(cfg)
             futs = {}
-            for n, p, plan, warm in pending:
+            for n, p, plan, warm, info in pending:
                 times = frame_times(p) if plan is not None else None
                 if plan is None or len(times) < n:  # (no timestamps to seek by: one task)
                     futs[task.remote(str(p), str(out), cfg_ref, ann.get(p.stem), counter)] = (n, p)
                     continue
                 times = ray.put(times)
-                parts = [chunk_task.remote(str(p), a, b, warm, times, counter) for a, b in plan]
+                info_ref = ray.put(info)
+                parts = [chunk_task.remote(info_ref, a, b, warm, times, counter) for a, b in plan]
                 futs[assemble_task.remote(str(p), str(out), cfg_ref, ann.get(p.stem), plan, warm, *parts)] = (n, p)
             _follow(ray, futs, counter, progress)
         finally:
