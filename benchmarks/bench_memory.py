@@ -65,6 +65,47 @@ def _bomb(path: Path, base: Path) -> Path:
     return path
 
 
+def _crafted_checkpoints(d: Path) -> dict[str, Path]:
+    """The shipped text2face checkpoint with the shipped weights and: a stride-0 view of 1.6 GB in place of a
+    tensor; a config describing d_m = 1e7; NaN weights."""
+    import torch
+
+    from anima.text2face.generate import SHIPPED
+
+    out = {}
+    for name in ("stride0", "big_config", "nan_weights"):
+        o = torch.load(SHIPPED, weights_only=True)
+        first = next(iter(o["tensors"]["state"]))
+        if name == "stride0":
+            o["tensors"]["state"][first] = torch.zeros(1).expand(400_000_000)
+        elif name == "big_config":
+            meta = json.loads(o["meta"])
+            meta["config"]["model"]["d_m"] = 10**7
+            o["meta"] = json.dumps(meta)
+        else:
+            o["tensors"]["state"][first].fill_(float("nan"))
+        torch.save(o, d / f"{name}.pt")
+        out[name] = d / f"{name}.pt"
+    return out
+
+
+def _db_bomb(path: Path) -> Path:
+    """A re-enactment database of a few MB whose arrays inflate to gigabytes."""
+    import io
+
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        for name in ("expression", "rotation", "scale", "translation", "video", "frame", "identity", "colors"):
+            head = io.BytesIO()
+            np.lib.format.write_array_header_1_0(
+                head, {"descr": "<f4", "fortran_order": False, "shape": (500_000, 1000)}
+            )
+            with z.open(f"{name}.npy", "w", force_zip64=True) as fh:
+                fh.write(head.getvalue())
+                for _ in range(200):
+                    fh.write(bytes(1 << 20))
+    return path
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "memory.json"))
@@ -111,6 +152,32 @@ def main() -> None:
         "export bvh --fps",
         ["export", "bvh", seq_big, "--out", d / "x.bvh", "--fps", "1000000"],
         "160 frames, --fps 1e6 (refused)",
+    )
+    # the red team's cases (issue 32): each must stay near the small input's row, refused before allocating
+    slow = d / "slow.npz"
+    with np.load(seq_small) as z:
+        arrays = {k: z[k] for k in z.files}
+    meta = json.loads(str(arrays["meta"]))
+    meta["fps"] = 0.001
+    arrays["meta"] = np.asarray(json.dumps(meta))
+    np.savez_compressed(slow, **arrays)
+    row(
+        "export bvh --fps",
+        ["export", "bvh", slow, "--out", d / "y.bvh", "--fps", "240"],
+        "20 frames at 0.001 fps, --fps 240 (refused)",
+    )
+    from anima.text2face.generate import SHIPPED
+
+    for name, path in {"the shipped model": SHIPPED, **_crafted_checkpoints(d)}.items():
+        row(
+            "text2face --checkpoint",
+            ["text2face", "a woman smiles", "--checkpoint", path, "--out", d / f"t_{name}", "--no-video"],
+            f"{path.stat().st_size / 1e6:.1f} MB checkpoint: {name}{'' if path == SHIPPED else ' (refused)'}",
+        )
+    row(
+        "reenact --db",
+        ["reenact", "--actor", d0, "--target", d0, "--out", d / "r.mp4", "--db", _db_bomb(d / "db.npz")],
+        "zip bomb database declaring 16 GB (refused)",
     )
     big = d / "ann.json"
     with open(big, "wb") as fh:

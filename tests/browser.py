@@ -77,7 +77,7 @@ def served(folder, *args):
     )
     try:
         line = p.stdout.readline()
-        m = re.search(r"(http://127\.0\.0\.1:\d+/index\.html)", line)
+        m = re.search(r"(http://127\.0\.0\.1:\d+/[A-Za-z0-9_-]+/index\.html)", line)
         if not m:
             p.kill()
             raise AssertionError(f"anima view printed {line!r}; stderr: {p.stderr.read()[-2000:]}")

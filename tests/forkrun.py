@@ -18,7 +18,17 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from anima.cli.main import main
+# the heavy libraries most command lines load, imported once here so that each forked child does not pay for
+# them again (about 1 s a case): importing starts no thread, so forking after it is safe
+import cv2  # noqa: F401
+import torch  # noqa: F401
+
+import anima.capture.pipeline  # MediaPipe
+import anima.dataset.build
+import anima.text2face.generate  # noqa: F401
+from anima.cli.main import build_parser, main
+
+build_parser()  # and every command group's module
 
 
 def run_case(case: dict) -> dict:

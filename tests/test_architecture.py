@@ -68,6 +68,65 @@ def test_no_import_cycle_between_modules():
             visit(m, [])
 
 
+def _contract_names() -> set[str]:
+    tree = ast.parse((PKG / "core" / "contract.py").read_text())
+    names = set()
+    for node in tree.body:
+        targets = (
+            node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign) else []
+        )
+        for t in targets:
+            for n in ast.walk(t):
+                if isinstance(n, ast.Name) and n.id.isupper():
+                    names.add(n.id)
+    return names
+
+
+MAGIC = {30.0, 15.0, 53, 56}  # the text and gesture rates, the expression count, the face frame size
+NOT_THE_CONTRACT = "# contract: not"  # a line that writes one of them for another reason says so
+
+
+def test_the_data_contract_is_assigned_once():
+    """Issue 33: every name of the data contract (rates, window layout, sizes, the 53 expression names, the
+    tracked skeleton's joints) is assigned in anima/core/contract.py only, and no module writes its numbers
+    (30.0, 15.0, 53, 56) as literals: they import them."""
+    names = _contract_names()
+    assert {"TEXT_FPS", "GESTURE_FPS", "WINDOW", "HOP", "FACE_DIM", "EXPR_NAMES", "JOINT_NAMES"} <= names
+    found = []
+    for path in sorted(PKG.rglob("*.py")):
+        if path == PKG / "core" / "contract.py":
+            continue
+        lines = path.read_text().splitlines()
+        for node in ast.walk(ast.parse("\n".join(lines))):
+            targets = []
+            if isinstance(node, ast.Assign):
+                targets = node.targets
+            elif isinstance(node, (ast.AnnAssign, ast.AugAssign)):
+                targets = [node.target]
+            for t in targets:  # a name bound (alone or in a tuple), not a subscript that uses one
+                for n in [t] + (list(t.elts) if isinstance(t, ast.Tuple) else []):
+                    if isinstance(n, ast.Name) and n.id in names:
+                        found.append(f"{path.relative_to(ROOT)}:{node.lineno} assigns {n.id}")
+            if (
+                isinstance(node, ast.Constant)
+                and type(node.value) in (int, float)
+                and node.value in MAGIC
+                and (type(node.value) is float) == (node.value in (30.0, 15.0))
+                and NOT_THE_CONTRACT not in lines[node.lineno - 1]
+            ):
+                found.append(f"{path.relative_to(ROOT)}:{node.lineno} writes {node.value!r}")
+    assert found == []
+
+
+def test_the_contract_rule_catches_a_copy(tmp_path):
+    """The checker itself, on a module that re-declares a rate and slices with a literal."""
+    bad = "TEXT_FPS = 30.0\nx = y[..., :53]\n"
+    tree = ast.parse(bad)
+    assigned = [n.id for node in ast.walk(tree) if isinstance(node, ast.Assign) for n in node.targets]
+    literals = [n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and n.value in MAGIC]
+    assert "TEXT_FPS" in _contract_names() and assigned == ["TEXT_FPS", "x"] and literals == [30.0, 53]
+
+
 def test_cli_is_thin():
     main = PKG / "cli" / "main.py"
     assert len(main.read_text().splitlines()) <= 200

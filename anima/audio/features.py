@@ -22,13 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.core.contract import N_MFCC
 from anima.errors import InputError
-from anima.io.atomic import atomic_path
+from anima.io.atomic import write_npz
 from anima.io.outdir import check_out_file
 from anima.io.video import FFMPEG
 
 SR = 16000
-N_MFCC = 13
 N_FFT = 512
 WIN = 400  # 25 ms
 N_MELS = 40
@@ -89,6 +89,8 @@ def read_audio(path: str | Path, sr: int = SR) -> np.ndarray:
     x = np.frombuffer(res.stdout, np.float32)
     if x.size == 0:
         raise NoAudio(f"the audio track of {p} is empty")
+    if not np.isfinite(x).all():
+        raise InputError(f"{p}: the audio holds NaN or infinite samples (a damaged float WAV)")
     return x.copy()
 
 
@@ -213,7 +215,7 @@ def write_speech_features(
     """``anima audio features``: the features of ``path`` written to ``out`` (default ``<path>.speech.npz``:
     ``features [F, 28]``, ``valid [F]``, ``fps``, ``names``). Returns a summary."""
     dest = Path(out) if out else Path(path).with_suffix(".speech.npz")
-    check_out_file(dest)
+    check_out_file(dest, inputs=[path])
     x = read_audio(path)
     longest = 2 * int(np.ceil(len(x) / SR * fps)) + 1
     if n_frames is not None and not 1 <= n_frames <= longest:
@@ -222,10 +224,7 @@ def write_speech_features(
             f"{fps:g} fps (2 x its length)"
         )
     f = speech_features(x, fps, n_frames)
-    with atomic_path(dest) as tmp:
-        np.savez_compressed(
-            tmp, features=f.features, valid=f.valid, fps=np.float32(f.fps), names=np.asarray(FEATURE_NAMES)
-        )
+    write_npz(dest, features=f.features, valid=f.valid, fps=np.float32(f.fps), names=np.asarray(FEATURE_NAMES))
     return {
         "file": str(path),
         "out": str(dest),

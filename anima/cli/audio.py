@@ -5,6 +5,7 @@ from __future__ import annotations
 from anima.audio.features import write_speech_features
 from anima.cli.common import emit, group, notes
 from anima.cli.options import number, positive_int
+from anima.core.contract import TEXT_FPS
 
 
 def register(sub) -> None:
@@ -16,7 +17,12 @@ def register(sub) -> None:
         "compute 28 speech features per motion frame, centred on the frame times i/fps.",
     )
     af.add_argument("file")
-    af.add_argument("--fps", type=number(float, 1.0, 240.0), default=30.0, help="motion frame rate, 1-240 (default 30)")
+    af.add_argument(
+        "--fps",
+        type=number(float, 1.0, 240.0),
+        default=TEXT_FPS,
+        help=f"motion frame rate, 1-240 (default {TEXT_FPS:g})",
+    )
     af.add_argument(
         "--frames",
         type=positive_int,

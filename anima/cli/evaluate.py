@@ -18,7 +18,7 @@ from anima.eval.pose import evaluate_pose
 from anima.eval.reenact import evaluate as evaluate_reenact
 from anima.eval.stability import evaluate_stability
 from anima.eval.text2face_prompts import evaluate_prompts, load_suite
-from anima.io.outdir import check_out_dir
+from anima.io.outdir import check_out_dir, claim_folder
 
 
 def register(sub) -> None:
@@ -208,8 +208,8 @@ def register(sub) -> None:
 
 
 def cmd_all(a) -> int:
-    check_dataset(a.db)
     out = check_out_dir(a.out)
+    check_dataset(a.db)
     # the dataset read in full before an hour of work: a broken one is refused now, not when its row comes
     if not read_windows(a.db).n or not read_clips(a.db):
         raise InputError(f"{a.db}: the dataset needs (audio, motion) windows and (text, motion) clips")
@@ -272,7 +272,7 @@ def cmd_pose(a) -> int:
 
 
 def cmd_reenact(a) -> int:
-    out = check_out_dir(a.out) if a.out else None
+    out = claim_folder(a.out, "eval_reenact") if a.out else None
     return emit(evaluate_reenact(out, progress=not a.json), True)
 
 

@@ -91,6 +91,19 @@ def _one_line(e: BaseException) -> str:
     return text if len(text) <= 400 else text[:397] + "..."
 
 
+PIPE_CLOSED = 141  # 128 + SIGPIPE: what a shell reports for a command whose output pipe was closed
+
+
+def _stdout_to_devnull() -> None:
+    """Point stdout at /dev/null so that the interpreter's final flush does not fail on the closed pipe."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):
+        pass
+
+
 def _terminate(signum, frame):
     """SIGTERM ends a command like Ctrl-C: cleanup code runs (temporary files removed, Ray shut down)."""
     raise KeyboardInterrupt
@@ -122,6 +135,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("anima: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader of stdout went away (`anima ... | head`): the work itself is done
+        _stdout_to_devnull()
+        return PIPE_CLOSED
+    except MemoryError:
+        print("anima: error: out of memory (the input is too large for this machine)", file=sys.stderr)
+        return 2
     except Exception as e:
         if a.debug:
             raise

@@ -51,6 +51,9 @@ def field_docs(cls) -> dict[str, str]:
     return docs
 
 
+SEED_RANGE = (0, 2**32 - 1)  # what numpy's and torch's generators take
+
+
 def number(kind, low=None, high=None):
     """An argparse type: a finite ``kind`` (int or float) within ``[low, high]``."""
 
@@ -105,7 +108,7 @@ def add_options(parser: argparse.ArgumentParser, cls, names: list[str], help_ext
             parser.add_argument(flag, **kw)
             continue
         if base in ("int", "float"):
-            lo, hi = md.get("range", (None, None))
+            lo, hi = md.get("range", SEED_RANGE if name == "seed" else (None, None))
             kw["type"] = number(int if base == "int" else float, lo, hi)
         elif base == "str":
             kw["type"] = str

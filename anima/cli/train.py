@@ -6,8 +6,9 @@ import json
 from pathlib import Path
 
 from anima.cli.common import add_json_quiet, command_line, emit, group
-from anima.cli.options import add_options, config_from_args, number
+from anima.cli.options import SEED_RANGE, add_options, config_from_args, number
 from anima.dataset.storage import check_dataset
+from anima.io.outdir import check_out_dir, check_out_file
 from anima.pose3d.config import TrainConfig as PoseTrainConfig
 from anima.pose3d.config import default_cache, default_checkpoint
 from anima.text2face.config import TrainConfig as FaceTrainConfig
@@ -83,7 +84,7 @@ def register(sub) -> None:
         default=None,
         help="generator steps (default 600 refiner, 1000 others)",
     )
-    tg.add_argument("--seed", type=int, default=0)
+    tg.add_argument("--seed", type=number(int, *SEED_RANGE), default=0)
     tg.add_argument("--all-splits", action="store_true", help="train on all splits (default: train only)")
     add_json_quiet(tg)
     tg.set_defaults(func=cmd_gesture)
@@ -103,6 +104,7 @@ def cmd_pose(a) -> int:
 
 
 def cmd_text2face(a) -> int:
+    check_out_dir(a.out)  # a user's folder is refused first
     check_dataset(a.dataset)  # before torch loads
     from anima.eval.text2face import quick_metrics  # lazy: torch
     from anima.text2face.ship import ship  # lazy: torch
@@ -126,6 +128,7 @@ def cmd_text2face(a) -> int:
 
 
 def cmd_gesture(a) -> int:
+    check_out_file(a.out)  # a folder or a special file is refused first
     check_dataset(a.db)  # before torch loads
     from anima.gesture.train import train_from_dataset  # lazy: torch
 

@@ -18,6 +18,9 @@ Speech frame (``anima.audio.features``): 13 MFCC + log mean energy (14), then th
 (audio, motion) window: ``WINDOW`` frames at ``GESTURE_FPS``, hop ``HOP``; arrays ``speech [T, 28]``,
 ``body [T, 165]`` (all NaN for a face-only window), ``face [T, 56]``.
 (text, motion) clip: ``[T, 56]`` at ``TEXT_FPS``.
+
+Every name here is assigned here only (``tests/test_architecture.py`` checks it, and that no data path writes
+the magic numbers ``30.0``, ``15.0``, ``53`` or ``56``): import them.
 """
 
 from __future__ import annotations
@@ -41,4 +44,44 @@ GESTURE_FPS = 15.0  # the (audio, motion) windows (seed 004), the gesture models
 WINDOW = 64  # frames per (audio, motion) window
 HOP = 32  # frames between window starts
 
+# the 53 ICT-FaceKit expressions, in the face model's order (ARKit names with _L/_R): the first N_EXPR values
+# of every face frame
+EXPR_NAMES = (
+    "browDown_L", "browDown_R", "browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOuterUp_R", "cheekPuff_L",
+    "cheekPuff_R", "cheekSquint_L", "cheekSquint_R", "eyeBlink_L", "eyeBlink_R", "eyeLookDown_L", "eyeLookDown_R",
+    "eyeLookIn_L", "eyeLookIn_R", "eyeLookOut_L", "eyeLookOut_R", "eyeLookUp_L", "eyeLookUp_R", "eyeSquint_L",
+    "eyeSquint_R", "eyeWide_L", "eyeWide_R", "jawForward", "jawLeft", "jawOpen", "jawRight", "mouthClose",
+    "mouthDimple_L", "mouthDimple_R", "mouthFrown_L", "mouthFrown_R", "mouthFunnel", "mouthLeft",
+    "mouthLowerDown_L", "mouthLowerDown_R", "mouthPress_L", "mouthPress_R", "mouthPucker", "mouthRight",
+    "mouthRollLower", "mouthRollUpper", "mouthShrugLower", "mouthShrugUpper", "mouthSmile_L", "mouthSmile_R",
+    "mouthStretch_L", "mouthStretch_R", "mouthUpperUp_L", "mouthUpperUp_R", "noseSneer_L", "noseSneer_R",
+)  # fmt: skip
+
+# the tracked skeleton (seed 004 §4.3): 13 body joints, then 21 per hand (MediaPipe hand order); "left" is the
+# subject's left. Parents index into the same list (-1: the root).
+BODY_JOINTS = (
+    "pelvis", "left_hip", "right_hip", "spine", "neck", "head", "nose",
+    "left_shoulder", "left_elbow", "left_wrist", "right_shoulder", "right_elbow", "right_wrist",
+)  # fmt: skip
+BODY_PARENTS = (-1, 0, 0, 0, 3, 4, 5, 4, 7, 8, 4, 10, 11)
+HAND_JOINTS = (
+    "wrist", "thumb_cmc", "thumb_mcp", "thumb_ip", "thumb_tip", "index_mcp", "index_pip", "index_dip", "index_tip",
+    "middle_mcp", "middle_pip", "middle_dip", "middle_tip", "ring_mcp", "ring_pip", "ring_dip", "ring_tip",
+    "pinky_mcp", "pinky_pip", "pinky_dip", "pinky_tip",
+)  # fmt: skip
+HAND_PARENTS = (-1, 0, 1, 2, 3, 0, 5, 6, 7, 0, 9, 10, 11, 0, 13, 14, 15, 0, 17, 18, 19)
+
+
+def _joint_list() -> tuple[tuple[str, ...], tuple[int, ...]]:
+    names, parents = list(BODY_JOINTS), list(BODY_PARENTS)
+    for side in ("left", "right"):
+        off, wrist = len(names), BODY_JOINTS.index(f"{side}_wrist")
+        names += [f"{side}_hand_{n}" for n in HAND_JOINTS]
+        parents += [wrist if p < 0 else off + p for p in HAND_PARENTS]
+    return tuple(names), tuple(parents)
+
+
+JOINT_NAMES, JOINT_PARENTS = _joint_list()
+
 assert FACE_DIM == 56 and BODY_DIM == 165 and SPEECH_DIM == 28
+assert len(EXPR_NAMES) == N_EXPR and len(JOINT_NAMES) == N_JOINTS

@@ -6,69 +6,17 @@ right, +y up, +z towards the camera). Joint names and parents are defined here o
 Body (13): pelvis, left_hip, right_hip, spine, neck, head, nose, left/right shoulder, elbow, wrist.
 Hands (2 x 21, MediaPipe hand order): wrist, thumb_cmc/mcp/ip/tip, index_mcp/pip/dip/tip,
 middle_..., ring_..., pinky_.... A hand's wrist joint is attached to the body's wrist (same position).
-"Left" is the subject's left.
+"Left" is the subject's left. The names and parents are the data contract's (``anima.core.contract``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-BODY_JOINTS = [
-    "pelvis",
-    "left_hip",
-    "right_hip",
-    "spine",
-    "neck",
-    "head",
-    "nose",
-    "left_shoulder",
-    "left_elbow",
-    "left_wrist",
-    "right_shoulder",
-    "right_elbow",
-    "right_wrist",
-]
-BODY_PARENTS = [-1, 0, 0, 0, 3, 4, 5, 4, 7, 8, 4, 10, 11]
+from anima.core.contract import BODY_JOINTS, HAND_JOINTS, JOINT_NAMES, JOINT_PARENTS, N_JOINTS
 
-HAND_JOINTS = [
-    "wrist",
-    "thumb_cmc",
-    "thumb_mcp",
-    "thumb_ip",
-    "thumb_tip",
-    "index_mcp",
-    "index_pip",
-    "index_dip",
-    "index_tip",
-    "middle_mcp",
-    "middle_pip",
-    "middle_dip",
-    "middle_tip",
-    "ring_mcp",
-    "ring_pip",
-    "ring_dip",
-    "ring_tip",
-    "pinky_mcp",
-    "pinky_pip",
-    "pinky_dip",
-    "pinky_tip",
-]
-HAND_PARENTS = [-1, 0, 1, 2, 3, 0, 5, 6, 7, 0, 9, 10, 11, 0, 13, 14, 15, 0, 17, 18, 19]
-
-
-def _build():
-    names = list(BODY_JOINTS)
-    parents = list(BODY_PARENTS)
-    for side, wrist in (("left", BODY_JOINTS.index("left_wrist")), ("right", BODY_JOINTS.index("right_wrist"))):
-        off = len(names)
-        names += [f"{side}_hand_{n}" for n in HAND_JOINTS]
-        parents += [wrist if p < 0 else off + p for p in HAND_PARENTS]
-    return names, np.array(parents, np.int64)
-
-
-JOINT_NAMES, PARENTS = _build()
-N_JOINTS = len(JOINT_NAMES)
-assert N_JOINTS == 55 and N_JOINTS * 3 == 165
+PARENTS = np.array(JOINT_PARENTS, np.int64)
+__all__ = ["BODY_JOINTS", "HAND_JOINTS", "JOINT_NAMES", "N_JOINTS", "PARENTS"]
 LEFT_HAND = slice(13, 34)
 RIGHT_HAND = slice(34, 55)
 BODY = slice(0, 13)

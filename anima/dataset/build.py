@@ -22,6 +22,7 @@ import glob
 import hashlib
 import json
 import os
+import secrets
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -33,20 +34,23 @@ from tqdm import tqdm
 from anima import __version__
 from anima.audio.features import NoAudio, read_audio, speech_features
 from anima.capture.pipeline import CaptureConfig, Tracked, capture_video, join_chunks, track_holistic_range
-from anima.core.contract import HOP, WINDOW
+from anima.core.contract import BODY_DIM, FACE_DIM, GESTURE_FPS, HOP, SPEECH_DIM, TEXT_FPS, WINDOW
 from anima.dataset import ray_guard
 from anima.dataset.annotations import emotion_from_path, load_annotations
 from anima.dataset.attributes import DetectorConfig, detect
 from anima.dataset.describe import fitting_descriptions, segment_timeline
 from anima.dataset.filters import RULES, FilterConfig, clip_rejection, cut_clips
-from anima.dataset.pairs import GESTURE_FPS, audio_motion_windows, text_motion_clip
+from anima.dataset.pairs import audio_motion_windows, text_motion_clip
 from anima.dataset.storage import SCHEMA, VERSION, check_dataset, read_table, write_shard
 from anima.errors import InputError
 from anima.io.atomic import write_json
-from anima.io.outdir import check_out_dir, lock_folder, unlock_folder
+from anima.io.outdir import check_out_dir, claim_folder, lock_folder, unlock_folder
 from anima.io.video import VideoInfo, frame_times, probe_video
 
 VIDEO_EXT = (".mp4", ".mov", ".mkv", ".webm", ".avi", ".m4v", ".flv")
+
+
+CHUNK_S = 15.0  # contract: not a rate (seconds of video per tracking task)
 
 
 @dataclass
@@ -61,7 +65,7 @@ class BuildConfig:
     hop: int = HOP
     max_frames: int | None = field(default=None, metadata={"range": (1, None)})
     """Capture at most N frames per video."""
-    chunk_s: float = field(default=15.0, metadata={"flag": "--chunk-len", "range": (0.0, 3600.0)})
+    chunk_s: float = field(default=CHUNK_S, metadata={"flag": "--chunk-len", "range": (0.0, 3600.0)})
     """Videos longer than 1.5x this (seconds) are tracked in chunks of about this length, one Ray task each,
     then fitted, filtered and cut as one video (so clips and windows do not depend on the chunks); 0: one task
     per video."""
@@ -203,7 +207,7 @@ def process_video(
                 "source": str(path),
                 "start_s": t0c,
                 "end_s": t1c,
-                "fps": 30.0,
+                "fps": TEXT_FPS,
                 "n_frames": len(motion),
                 "motion": motion,
                 "texts": texts,
@@ -389,12 +393,21 @@ def _start_ray(address: str | None, num_workers: int | None):
         "TF_CPP_MIN_LOG_LEVEL": "3",
     }
     if not address:
-        # a private local instance, as documented. Settings inherited from a parent process that runs Ray
-        # itself (RAY_ADDRESS, RAY_AUTH_MODE=token set by its ray.init) would point this instance's workers
-        # at another cluster or make them fail authentication: reset them, for the driver and the workers.
+        # a private local instance (docs/dataset.md, "security"): every Ray server (GCS, raylet, object
+        # manager, workers, the driver) listens on 127.0.0.1 only, and every call must carry a token made
+        # for this run alone. Settings inherited from a parent process that runs Ray itself (RAY_ADDRESS, its
+        # token) would point this instance's workers at another cluster: replaced, for the driver and workers.
         os.environ.pop("RAY_ADDRESS", None)
-        os.environ["RAY_AUTH_MODE"] = "disabled"
-        worker_env["RAY_AUTH_MODE"] = "disabled"
+        os.environ.pop("RAY_AUTH_TOKEN_PATH", None)
+        private = {
+            "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0",  # Ray's switch for a loopback-only node
+            "RAY_AUTH_MODE": "token",
+            "RAY_AUTH_TOKEN": secrets.token_hex(32),
+        }
+        os.environ.update(private)
+        worker_env.update(private)
+    else:
+        check_ray_address(address)
     import ray
 
     started = False
@@ -409,6 +422,33 @@ def _start_ray(address: str | None, num_workers: int | None):
             ray.init(num_cpus=num_workers or os.cpu_count(), **kw)
             started = True
     return ray, started
+
+
+def check_ray_address(address: str, timeout_s: float = 4.0) -> None:
+    """Refuse, within seconds, an ``--address`` where no Ray cluster answers: Ray's own client waits minutes on
+    a port that is closed or speaks something else. The head's GCS is a gRPC (HTTP/2) server: it answers the
+    HTTP/2 connection preface with a SETTINGS frame; a closed port, an HTTP/1 server, SSH and the like do not."""
+    import socket
+
+    if address in ("auto", "local"):
+        return
+    host, sep, port = address.removeprefix("ray://").rpartition(":")
+    if not sep or not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise InputError(f"--address {address!r}: expected HOST:PORT of a Ray cluster's head (e.g. 10.0.0.5:6379)")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s) as s:
+            s.settimeout(timeout_s)
+            s.sendall(b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0]))
+            head = b""
+            while len(head) < 9:
+                chunk = s.recv(9 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+    except OSError as e:
+        raise InputError(f"--address {address}: no Ray cluster answers there ({e.strerror or e})") from None
+    if len(head) < 9 or head[3] != 4:  # frame type 4: SETTINGS
+        raise InputError(f"--address {address}: something answers there, but not a Ray cluster's head (GCS)")
 
 
 def build_summary(m: dict) -> dict:
@@ -454,6 +494,7 @@ def build_dataset(
     if (out / "manifest.json").exists():
         check_dataset(out)  # refuses a dataset folder of another schema version
     ann = load_annotations(annotations, [p.stem for p in videos]) if annotations else {}
+    claim_folder(out, "dataset")
     lock = lock_folder(out)
     try:
         return _build(videos, out, cfg, ann, address, num_workers, progress, command)
@@ -558,7 +599,7 @@ def compute_stats(out: Path) -> dict:
         return stats
     tm = read_table(out, "text_motion", "train")
     if tm.num_rows:
-        m = np.concatenate([np.asarray(x, np.float32).reshape(-1, 56) for x in tm["motion"].to_pylist()])
+        m = np.concatenate([np.asarray(x, np.float32).reshape(-1, FACE_DIM) for x in tm["motion"].to_pylist()])
         stats["text_motion"] = {
             "mean": m.mean(0).tolist(),
             "std": np.maximum(m.std(0), 1e-6).tolist(),
@@ -567,7 +608,7 @@ def compute_stats(out: Path) -> dict:
     am = read_table(out, "audio_motion", "train")
     if am.num_rows:
         stats["audio_motion"] = {}
-        for k, d in (("body", 165), ("face", 56), ("speech", 28)):
+        for k, d in (("body", BODY_DIM), ("face", FACE_DIM), ("speech", SPEECH_DIM)):
             x = np.concatenate([np.asarray(v, np.float32).reshape(-1, d) for v in am[k].to_pylist()])
             x = x[np.isfinite(x).all(1)]  # face-only windows have no body
             if not len(x):

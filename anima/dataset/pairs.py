@@ -15,16 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from anima.core.contract import BODY_DIM, GESTURE_FPS, HOP, TEXT_FPS, WINDOW
 from anima.core.rotations import matrix_to_rotvec, rotvec_to_matrix
 from anima.io.sequence import FLAG_NO_FACE
 
-TEXT_FPS = 30.0
-GESTURE_FPS = 15.0
-WINDOW = 64
-HOP = 32
-FACE_DIM = 56
-BODY_DIM = 165
-SPEECH_DIM = 28
 MAX_GAP_S = 0.5
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
+from anima.core.contract import FACE_DIM
 from anima.dataset.storage import load_stats, read_table
 
 
@@ -19,15 +20,21 @@ class TextMotionDataset(Dataset):
     def __init__(self, folder: str | Path, split: str = "train", normalise: bool = True, seed: int = 0):
         self.table = read_table(folder, "text_motion", split).to_pydict()
         stats = load_stats(folder).get("text_motion", {})
-        self.mean = np.asarray(stats.get("mean", np.zeros(56)), np.float32) if normalise else np.zeros(56, np.float32)
-        self.std = np.asarray(stats.get("std", np.ones(56)), np.float32) if normalise else np.ones(56, np.float32)
+        self.mean = (
+            np.asarray(stats.get("mean", np.zeros(FACE_DIM)), np.float32)
+            if normalise
+            else np.zeros(FACE_DIM, np.float32)
+        )
+        self.std = (
+            np.asarray(stats.get("std", np.ones(FACE_DIM)), np.float32) if normalise else np.ones(FACE_DIM, np.float32)
+        )
         self.seed, self.epoch = seed, 0
 
     def __len__(self) -> int:
         return len(self.table["clip_id"])
 
     def __getitem__(self, i: int) -> dict:
-        m = np.asarray(self.table["motion"][i], np.float32).reshape(-1, 56)
+        m = np.asarray(self.table["motion"][i], np.float32).reshape(-1, FACE_DIM)
         rng = np.random.default_rng((self.seed, self.epoch, i))
         texts = self.table["texts"][i]
         return {

@@ -11,6 +11,7 @@ import json
 from pathlib import Path
 
 from anima.errors import InputError
+from anima.io.outdir import claim_folder
 from anima.pose3d.config import TrainConfig, default_cache, default_checkpoint
 from anima.pose3d.data import humaneva_validation, s9_image_evidence
 from anima.pose3d.joints import HUMANEVA_EVAL
@@ -138,6 +139,8 @@ def evaluate_pose(
             f"no pose lifter checkpoint at {model_p}: train one with `anima train pose`"
             + ("" if ablation_dir else ", or pass --ablation DIR to train the ablation rows")
         )
+    if ablation_dir:
+        claim_folder(ablation_dir, "pose_ablation", "--ablation")  # a user's folder is refused before any work
     r = evaluate(model_p if model_p.exists() else None, cache_p, progress=progress)
     if ablation_dir:
         r["ablation"] = ablation(

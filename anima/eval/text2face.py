@@ -28,11 +28,12 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from anima.core.contract import TEXT_FPS
+from anima.core.contract import N_EXPR, TEXT_FPS
 from anima.dataset.attributes import ATTRIBUTES, detect
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
 from anima.io.atomic import copy_file, write_json
+from anima.io.outdir import claim_folder
 from anima.text2face.data import EVAL_LEN, FaceGeometry, eval_items, split_clips
 from anima.text2face.encoders import encode_cached
 from anima.text2face.evaluator import load_evaluator, r_precision, save_evaluator, train_evaluator
@@ -47,13 +48,13 @@ def ci(values) -> dict:
 
 
 def errors(gen: np.ndarray, real: np.ndarray, geom: FaceGeometry) -> tuple[float, float]:
-    d = np.linalg.norm(geom.metric_offsets(gen[..., :53]) - geom.metric_offsets(real[..., :53]), axis=-1)
+    d = np.linalg.norm(geom.metric_offsets(gen[..., :N_EXPR]) - geom.metric_offsets(real[..., :N_EXPR]), axis=-1)
     return float(d.mean()), float(np.sqrt((d**2).mean()))
 
 
 def item_errors(gen: np.ndarray, real: np.ndarray, geom: FaceGeometry) -> np.ndarray:
     """Per item: mean vertex distance (mm) over its frames and vertices ``[N]``."""
-    d = np.linalg.norm(geom.metric_offsets(gen[..., :53]) - geom.metric_offsets(real[..., :53]), axis=-1)
+    d = np.linalg.norm(geom.metric_offsets(gen[..., :N_EXPR]) - geom.metric_offsets(real[..., :N_EXPR]), axis=-1)
     return d.reshape(len(d), -1).mean(1)
 
 
@@ -87,7 +88,7 @@ def diversity(motions: np.ndarray, geom: FaceGeometry, rng: np.random.Generator)
     n = len(motions)
     perm = rng.permutation(n)
     j = np.where(perm == np.arange(n), (perm + 1) % n, perm)
-    off = geom.metric_offsets(motions[..., :53])
+    off = geom.metric_offsets(motions[..., :N_EXPR])
     return float(np.linalg.norm(off - off[j], axis=-1).mean())
 
 
@@ -269,7 +270,7 @@ def evaluate(
     """``steps``: every model's training steps; ``None`` (default): each of table 7.1's learned models gets the
     count of ``step_grid`` with the lowest validation MAE (:func:`choose_steps`) and the ablation rows get
     ours'. The tables report validation and test separately: only the test column is free of the choice."""
-    work = Path(work)
+    work = claim_folder(work, "text2face_work", "--work")  # a user's folder is refused before any work
     if checkpoint:
         load_checkpoint(checkpoint)  # a bad checkpoint fails before any training
     base = TrainConfig(preset="small", steps=steps or max(step_grid))

@@ -16,6 +16,7 @@ from anima.io.bvh import write_bvh
 from anima.io.gltf import write_glb
 from anima.io.outdir import check_out_file
 from anima.io.sequence import TrackedSequence, read_sequence
+from anima.io.validate import MAX_FRAMES
 
 FORMATS = ("arkit", "glb", "bvh")
 
@@ -43,6 +44,9 @@ def export_glb(seq: TrackedSequence, path: str | Path, animate_head: bool = True
     )
 
 
+MAX_RESAMPLE = 16  # the BVH export's frames at most 16 x the sequence's (15 -> 240 fps): memory stays bounded
+
+
 def has_body(seq: TrackedSequence) -> bool:
     """True when some frame has every joint."""
     return seq.body_joints is not None and bool(np.isfinite(seq.body_joints).all(-1).all(-1).any())
@@ -57,6 +61,12 @@ def export_bvh(seq: TrackedSequence, path: str | Path, fps: float | None = None)
         raise InputError("no body joint was tracked in any frame of this sequence: no BVH can be made from it")
     J, rate = seq.body_joints, seq.fps
     if fps and abs(fps - rate) > 1e-6:
+        n_out = int(np.ceil(len(J) * fps / rate))
+        if n_out > min(MAX_RESAMPLE * len(J) + 1000, MAX_FRAMES):
+            raise InputError(
+                f"--fps {fps:g}: {n_out:,} frames from {len(J):,} at {rate:g} fps; anima resamples to at most "
+                f"{MAX_RESAMPLE}x the frames (and {MAX_FRAMES:,} in all)"
+            )
         conf = seq.body_conf if seq.body_conf is not None else np.ones(J.shape[:2])
         J, _, _ = resample_joints(J, conf, np.zeros(J.shape[:2], bool), rate, fps)
         rate = fps
@@ -69,7 +79,7 @@ def export_bvh(seq: TrackedSequence, path: str | Path, fps: float | None = None)
 
 def export_file(fmt: str, sequence_path: str | Path, out: str | Path, fps: float | None = None) -> Path:
     """``anima export FORMAT FILE --out OUT``: read a tracked sequence and write one export."""
-    check_out_file(out)
+    check_out_file(out, inputs=[sequence_path])
     seq = read_sequence(sequence_path, landmarks=False)
     if fmt == "bvh":
         return export_bvh(seq, out, fps)

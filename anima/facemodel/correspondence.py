@@ -30,7 +30,7 @@ from anima.core.geometry import closest_points_on_mesh
 from anima.errors import AssetNotFound, InputError
 from anima.facemodel.ict import FaceModel
 from anima.io.assets import package_data
-from anima.io.atomic import atomic_path
+from anima.io.atomic import write_npz
 
 FILENAME = "mediapipe_ict_correspondence.npz"
 ANCHORS_MP = np.array([33, 133, 362, 263, 1, 61, 291, 152])
@@ -183,18 +183,17 @@ def build_correspondence(template: np.ndarray, model: FaceModel, n_iter: int = 1
 
 
 def save_correspondence(c: Correspondence, path: str | Path) -> None:
-    with atomic_path(path) as tmp:
-        np.savez_compressed(
-            tmp,
-            vertex_ids=c.vertex_ids,
-            bary=c.bary,
-            dist_cm=c.dist_cm,
-            valid=c.valid,
-            ibug_mp_ids=c.ibug_mp_ids,
-            ibug_mp_bary=c.ibug_mp_bary,
-            template=c.template,
-            meta=np.asarray(json.dumps(c.meta)),
-        )
+    write_npz(
+        path,
+        vertex_ids=c.vertex_ids,
+        bary=c.bary,
+        dist_cm=c.dist_cm,
+        valid=c.valid,
+        ibug_mp_ids=c.ibug_mp_ids,
+        ibug_mp_bary=c.ibug_mp_bary,
+        template=c.template,
+        meta=np.asarray(json.dumps(c.meta)),
+    )
 
 
 @lru_cache(maxsize=1)

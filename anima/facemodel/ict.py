@@ -18,14 +18,16 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.core.contract import N_EXPR, N_IDENTITY
 from anima.errors import InputError
 from anima.io.assets import asset
-from anima.io.atomic import atomic_path
+from anima.io.atomic import write_npz
 from anima.io.mapped import cache_key, file_stamp, mapped_arrays
 from anima.io.obj import read_obj
+from anima.io.outdir import check_out_file
+from anima.io.validate import parse_json
 
-N_ID = 100
-N_EXPR = 53
+N_ID = N_IDENTITY
 
 # Geometry ranges from the upstream README's topology table (inclusive vertex / polygon index ranges).
 GEOMETRY_RANGES = {
@@ -217,9 +219,18 @@ def import_ict_obj(folder: str | Path, vertex_indices_json: str | Path | None = 
         vi_path = folder.parent / "vertex_indices.json"
     if not vi_path.is_file():
         vi_path = asset("ict-facekit/vertex_indices.json")
-    vi_text = vi_path.read_text()
-    vi = json.loads(vi_text)
-    base = read_obj(neutral_path, dtype=np.float64)  # deltas are taken in double precision, then stored f32
+    vi_text = vi_path.read_text(encoding="utf-8", errors="replace")
+    vi = parse_json(vi_text, str(vi_path))
+    if not isinstance(vi, dict) or not isinstance(vi.get("expressions"), list) or "idx_to_landmark_verts" not in vi:
+        raise InputError(f"{vi_path}: not ICT-FaceKit's vertex_indices.json (no expressions / landmark vertices)")
+
+    def vertices(p):
+        v = read_obj(p, dtype=np.float64)
+        if not np.isfinite(v["v"]).all() or np.abs(v["v"]).max(initial=0) > 1e5:
+            raise InputError(f"{p}: vertex coordinates that are not finite or beyond 1 km: not a face model")
+        return v
+
+    base = vertices(neutral_path)  # deltas are taken in double precision, then stored f32
     neutral = base["v"]
     skip = {"generic_neutral_mesh"}
     id_files = sorted(p for p in folder.glob("identity*.obj") if re.fullmatch(r"identity\d+", p.stem))
@@ -231,7 +242,7 @@ def import_ict_obj(folder: str | Path, vertex_indices_json: str | Path | None = 
     def deltas(paths):
         out = np.zeros((len(paths), *neutral.shape), np.float32)
         for i, p in enumerate(paths):
-            v = read_obj(p, dtype=np.float64)["v"]
+            v = vertices(p)["v"]
             if v.shape != neutral.shape:
                 raise InputError(f"{p}: {v.shape[0]} vertices, expected {neutral.shape[0]}")
             out[i] = (v - neutral).astype(np.float32)
@@ -254,7 +265,7 @@ def import_ict_obj(folder: str | Path, vertex_indices_json: str | Path | None = 
 def write_face_model(folder: str | Path, out: str | Path) -> dict:
     """``anima facemodel import``: the upstream OBJ folder -> an npz with the keys of ``ict_facekit_light.npz``
     (written atomically); returns a summary."""
+    check_out_file(out, inputs=[folder])
     d = import_ict_obj(folder)
-    with atomic_path(out) as tmp:
-        np.savez_compressed(tmp, **d)
+    write_npz(out, **d)
     return {"out": str(out), "identity_shapes": len(d["id_names"]), "expression_shapes": len(d["expr_names"])}

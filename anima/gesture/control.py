@@ -66,9 +66,16 @@ def parse_control(text: str) -> Control:
     name, op, p, v, a, b = m.groups()
     if name not in NAMES:
         raise InputError(f"unknown control {name!r}; known: {', '.join(NAMES)}")
-    if p and not 0 <= float(v) <= 100:
+    try:
+        value = float(v)
+        start, end = (float(a) if a else 0.0), (float(b) if b else float("inf"))
+    except ValueError:
+        raise InputError(f"cannot read the numbers of control {text!r}") from None
+    if p and not 0 <= value <= 100:
         raise InputError(f"percentile out of range in {text!r}")
-    return Control(name, op, float(v), bool(p), float(a) if a else 0.0, float(b) if b else float("inf"), text)
+    if not start < end:
+        raise InputError(f"control {text!r}: its time range ends before it starts ({start:g}-{end:g} s)")
+    return Control(name, op, value, bool(p), start, end, text)
 
 
 def speed_steps(controls: list[Control], n_steps: int, step_s: float) -> set[int]:

@@ -48,7 +48,7 @@ from anima.gesture.moglow import MoGlow, fit_pca
 from anima.gesture.post import one_skeleton, skeleton_lengths, smooth
 from anima.gesture.refine import unet_decode, unet_decoder, unet_encode, unet_encoder
 from anima.gesture.sync import SyncClassifier
-from anima.io.checkpoint import load_checkpoint, load_state, rebuilding, save_checkpoint
+from anima.io.checkpoint import load_checkpoint, load_state, rebuild, rebuilding, save_checkpoint
 
 KIND = "gesture_generator"
 VERSION = 2  # 1: its own envelope; 2: anima.io.checkpoint
@@ -356,7 +356,8 @@ def load_generator(path) -> GestureGenerator:
     ck = load_checkpoint(path, KIND, (1, VERSION), train_hint="train one with `anima train gesture --model generator`")
     with rebuilding(ck):
         cfg = GeneratorConfig.from_dict(ck.config["model"])
-        net = build_model(cfg)
+    net = rebuild(ck, lambda: build_model(cfg))
+    with rebuilding(ck):
         stats = dict(ck.config["stats"])
     load_state(net, ck)
     return GestureGenerator(net, cfg, stats)

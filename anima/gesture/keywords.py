@@ -32,7 +32,10 @@ def parse_keyword(text: str) -> Keyword:
     m = _RE.match(text)
     if not m:
         raise InputError(f"cannot read keyword {text!r}: expected WORD@START-ENDs, e.g. 'yes@1.2-1.8s'")
-    w, a, b = m.group(1).lower(), float(m.group(2)), float(m.group(3))
+    try:
+        w, a, b = m.group(1).lower(), float(m.group(2)), float(m.group(3))
+    except ValueError:
+        raise InputError(f"cannot read the times of keyword {text!r}") from None
     if b <= a:
         raise InputError(f"keyword {text!r}: the end must be after the start")
     return Keyword(w, a, b)

@@ -34,7 +34,7 @@ from anima.errors import InputError
 from anima.gesture.features import N_STEP
 from anima.gesture.knn import search
 from anima.gesture.post import finish_knn, smooth
-from anima.io.checkpoint import load_checkpoint, load_state, rebuilding, save_checkpoint
+from anima.io.checkpoint import load_checkpoint, load_state, rebuild, rebuilding, save_checkpoint
 
 KIND = "gesture_refiner"
 VERSION = 2  # 1: its own envelope; 2: anima.io.checkpoint
@@ -346,8 +346,8 @@ def save_refiner(path: str | Path, ref: Refiner, info: dict) -> Path:
 
 def load_refiner(path: str | Path) -> Refiner:
     ck = load_checkpoint(path, KIND, (1, VERSION), train_hint="train one with `anima train gesture`")
+    G = rebuild(ck, lambda: RefinerG(RefinerConfig(**{k: tuple(v) for k, v in ck.config["model"].items()})))
     with rebuilding(ck):
-        G = RefinerG(RefinerConfig(**{k: tuple(v) for k, v in ck.config["model"].items()}))
         stats = {k: np.asarray(v, np.float32) for k, v in ck.config["stats"].items()}
     load_state(G, ck)
     return Refiner(G, stats)

@@ -23,7 +23,7 @@ from anima.gesture.features import N_STEP, audio_features
 from anima.gesture.keywords import keyword_masks, parse_keyword, union
 from anima.gesture.knn import search
 from anima.gesture.post import finish_knn, joins_of, one_skeleton
-from anima.io.outdir import OutputFolder
+from anima.io.outdir import OutputFolder, check_out_dir
 
 
 @dataclass
@@ -165,6 +165,7 @@ def gesture_to_folder(
     result folder. Returns the run's info (notes, controls, files written, and ``time_s``: seconds per stage,
     start-up included)."""
     sw = Stopwatch()
+    check_out_dir(out)  # a user's folder is refused before anything is read
     if not Path(speech).is_file():
         raise InputError(f"speech file not found: {speech}")
     controls = [parse_control(c) for c in cfg.control]

@@ -118,8 +118,9 @@ def timecode(i: int, fps: float) -> str:
 def write_live_link_csv(
     path: str | Path, expression: np.ndarray, expr_names: list[str], fps: float, head_ypr: np.ndarray | None = None
 ) -> Path:
-    """Write the CSV. head_ypr ``[F, 3]`` radians (yaw, pitch, roll), or None for zeros."""
-    ark = ict_to_arkit(np.asarray(expression), expr_names)
+    """Write the CSV. head_ypr ``[F, 3]`` radians (yaw, pitch, roll), or None for zeros. Blendshape weights are
+    written clamped to ARKit's [0, 1] (what Live Link and Unreal read)."""
+    ark = np.clip(ict_to_arkit(np.asarray(expression), expr_names), 0.0, 1.0)
     F = ark.shape[0]
     head = np.zeros((F, len(HEAD_COLUMNS)))
     if head_ypr is not None:

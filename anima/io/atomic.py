@@ -84,13 +84,26 @@ def write_text(path: str | os.PathLike, text: str) -> Path:
     return write_bytes(path, text.encode("utf-8"))
 
 
-def copy_file(src: str | os.PathLike, dst: str | os.PathLike) -> Path:
-    """Copy ``src`` to ``dst`` atomically."""
+def copy_file(src: str | os.PathLike, dst: str | os.PathLike, keep_mode: bool = False) -> Path:
+    """Copy ``src`` to ``dst`` atomically; ``keep_mode``: with ``src``'s permission bits (a user's file copied
+    into a result keeps its privacy; files anima made get the usual 0644 under the umask)."""
     import shutil
 
     with atomic_path(dst) as tmp:
         shutil.copyfile(src, tmp)
+        if keep_mode:
+            shutil.copymode(src, tmp)
     return Path(dst)
+
+
+def write_npz(path: str | os.PathLike, compressed: bool = True, **arrays) -> Path:
+    """Arrays as an ``.npz`` at ``path`` (any name: numpy writes into an open file, so it adds no ``.npz`` to
+    the name), atomically."""
+    import numpy as np
+
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        (np.savez_compressed if compressed else np.savez)(fh, **arrays)
+    return Path(path)
 
 
 def write_json(path: str | os.PathLike, obj, indent: int | None = 2) -> Path:

@@ -13,6 +13,12 @@ with :class:`CheckpointError`). Layout::
 
 The config travels inside the file, so a checkpoint rebuilds its own model. Every error (missing file
 aside, which is bad input) is a :class:`CheckpointError`: one line, exit code 4.
+
+What a file may cost is bounded by the file before anything is built from it: the zip members may not declare
+more than :data:`EXPANSION` x the file's size; every tensor must own the bytes it shows (no stride-0 or
+overlapping views that a copy would blow up to gigabytes); the model's weights must be finite and within
+:data:`MAX_WEIGHT`; and :func:`rebuild` builds the model of a config on PyTorch's ``meta`` device first, refusing
+a config whose model would be far larger than the weights the file carries (``d_m = 1e7`` in a 4 MB file).
 """
 
 from __future__ import annotations
@@ -28,6 +34,8 @@ from anima.io.atomic import atomic_path
 
 FORMAT = "anima.checkpoint"
 ENVELOPE = 1
+EXPANSION = 4  # torch.save stores tensors uncompressed: a real file's members add up to about its size
+MAX_WEIGHT = 1e6  # no trained weight of an anima model comes near this (a NaN or 1e38 is damage or an attack)
 
 
 @dataclass
@@ -95,6 +103,7 @@ def load_checkpoint(
     hint = f"; {train_hint}" if train_hint else ""
     if not p.is_file():
         raise InputError(f"checkpoint not found: {p}{hint}")
+    _check_zip(p)
     try:
         obj = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as e:
@@ -121,12 +130,15 @@ def load_checkpoint(
             f"{', '.join(map(str, versions))}{hint}"
         )
     try:
-        meta = json.loads(obj["meta"])
+        meta = json.loads(obj["meta"], parse_constant=_no_constant)
         tensors = obj["tensors"]
         if not isinstance(tensors, dict) or not isinstance(tensors.get("state"), dict):
             raise ValueError("no model state")
-    except (KeyError, TypeError, ValueError) as e:
-        raise CheckpointError(f"{p}: malformed anima checkpoint ({e})") from None
+        if not isinstance(meta, dict) or not isinstance(meta.get("config") or {}, dict):
+            raise ValueError("its meta is not a JSON object")
+    except (KeyError, TypeError, ValueError, RecursionError) as e:
+        raise CheckpointError(f"{p}: malformed anima checkpoint ({str(e)[:120]})") from None
+    _check_tensors(p, tensors)
     return Checkpoint(obj["kind"], int(obj["version"]), meta.get("config") or {}, tensors, meta.get("info") or {}, p)
 
 
@@ -174,6 +186,80 @@ def _from_legacy(obj: dict, p: Path) -> dict:
         "meta": json.dumps({"config": _plain(config), "info": _plain(info)}),
         "tensors": tensors,
     }
+
+
+def _no_constant(name: str):
+    raise ValueError(f"{name} in the config")
+
+
+def _check_zip(p: Path) -> None:
+    """A torch file is a zip: refuse one whose members declare far more bytes than the file holds."""
+    import zipfile
+
+    size = p.stat().st_size
+    try:
+        with zipfile.ZipFile(p) as z:
+            declared = sum(i.file_size for i in z.infolist())
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError):
+        return  # not a zip (an old-style torch file, or garbage): torch.load decides, with weights_only
+    if declared > EXPANSION * size + 1_000_000:
+        raise CheckpointError(
+            f"{p}: its members declare {declared / 2**20:.0f} MB in a {size / 2**20:.1f} MB file (damaged or crafted)"
+        )
+
+
+def _tensors(x, prefix=""):
+    import torch
+
+    if isinstance(x, torch.Tensor):
+        yield prefix, x
+    elif isinstance(x, dict):
+        for k, v in x.items():
+            yield from _tensors(v, f"{prefix}.{k}" if prefix else str(k))
+    elif isinstance(x, (list, tuple)):
+        for i, v in enumerate(x):
+            yield from _tensors(v, f"{prefix}[{i}]")
+
+
+def _check_tensors(p: Path, tensors: dict) -> None:
+    """Every tensor owns the bytes it shows (no stride-0 or overlapping view: a copy of one would take
+    gigabytes the file never held), and the model's weights are finite and of a trained model's size."""
+    import torch
+
+    for name, t in _tensors(tensors):
+        if t.layout != torch.strided or t.is_quantized:
+            raise CheckpointError(f"{p}: tensor {name} has a layout anima does not write ({t.layout})")
+        if t.numel() and (
+            any(s < 1 and n > 1 for s, n in zip(t.stride(), t.shape))
+            or t.untyped_storage().nbytes() < t.numel() * t.element_size()
+        ):
+            raise CheckpointError(f"{p}: tensor {name} is a view larger than the data it holds (crafted)")
+    for name, t in _tensors(tensors["state"]):
+        if t.is_floating_point() and t.numel():
+            if not bool(torch.isfinite(t).all()):
+                raise CheckpointError(f"{p}: weight {name} holds NaN or infinite values (a damaged model)")
+            if float(t.abs().max()) > MAX_WEIGHT:
+                raise CheckpointError(f"{p}: weight {name} reaches {float(t.abs().max()):.3g} (not a trained model)")
+
+
+def rebuild(ck: Checkpoint, make):
+    """``make()`` the model of ``ck.config`` (inside :func:`rebuilding`), after building it once on PyTorch's
+    ``meta`` device (no memory) to check that its size fits the weights the file carries."""
+    import torch
+
+    with rebuilding(ck):
+        try:
+            with torch.device("meta"):
+                probe = make()
+            need = sum(t.numel() for t in probe.state_dict().values())
+        except (RuntimeError, NotImplementedError):  # a model that computes on its tensors while it is built
+            need = 0
+        have = sum(t.numel() for _, t in _tensors(ck.state))
+        if need > 2 * have + 1_000_000:
+            raise CheckpointError(
+                f"{ck.path}: its config describes a model of {need:,} values but the file holds {have:,} (crafted)"
+            )
+        return make()
 
 
 @contextmanager

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.core.contract import TEXT_FPS
 from anima.io.atomic import write_bytes
 
 CM_TO_M = 0.01
@@ -48,7 +49,7 @@ def write_glb(
     expr_deltas_cm: np.ndarray,
     expr_names: list[str],
     weights: np.ndarray | None = None,
-    fps: float = 30.0,
+    fps: float = TEXT_FPS,
     rotations_xyzw: np.ndarray | None = None,
 ) -> Path:
     """neutral ``[V, 3]`` cm, tris ``[T, 3]``, expr_deltas ``[53, V, 3]`` cm, weights ``[F, 53]`` (optional

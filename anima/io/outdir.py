@@ -1,36 +1,53 @@
-"""Result folders written as one unit (``--out DIR`` of capture, text2face, gesture, ...).
+"""Result folders written as one unit (``--out DIR`` of capture, text2face, gesture, ...), and the rule that
+anima deletes and overwrites only what it made.
 
-:class:`OutputFolder` is entered *before* any work starts, so a bad ``--out`` (an existing file, a
-read-only folder) is refused at once, and:
+**Ownership.** A folder is anima's when it holds anima's marker (``.anima-folder``, written by anima when it
+creates or first claims the folder; it lists every file anima wrote there with its sha256). ``--out`` may name a
+new folder, an empty one, or one of anima's; a folder that already holds files anima did not write is refused
+before any work (:func:`check_out_dir`). A result folder of an older anima (a valid result or dataset manifest,
+no marker) is adopted, but nothing in it is deleted.
+
+:class:`OutputFolder` is entered *before* any work starts, so a bad ``--out`` (an existing file, a read-only
+folder, a user's folder) is refused at once, and:
 
 * takes a lock (``DIR/.anima.lock``, ``flock``): a second run into the same folder is refused with a clear
   message instead of mixing two results;
 * removes the previous run's ``manifest.json`` first, so while the folder is being rewritten no reader takes
   it for a complete result;
 * every file is written atomically by its writer (``anima.io.atomic``);
-* on success, files the previous run listed and this run did not write are removed (a reused folder keeps no
-  stale output), then ``manifest.json`` is written **last**: the command, the anima version, and every file
-  with its size and sha256. A folder with a manifest whose files match it is complete; anything else is
-  partial (:func:`check_complete`).
+* on success, files the previous run wrote and this run did not are removed (a reused folder keeps no stale
+  output), but only names from anima's own marker, confined to the folder (no ``..``, no absolute path, no
+  symlink), and only while their content is still what anima wrote (same sha256); then ``manifest.json`` is
+  written **last**: the command, the anima version, and every file with its size and sha256. A folder with a
+  manifest whose files match it is complete; anything else is partial (:func:`check_complete`).
+
+Single output files (``--out FILE``) are checked by :func:`check_out_file`: never a folder, a special file
+(device, pipe, socket) or one of the command's own inputs.
 """
 
 from __future__ import annotations
 
 import fcntl
 import hashlib
+import json
 import os
+import stat
 import tempfile
 import time
 from pathlib import Path
 
 from anima import __version__
 from anima.errors import InputError, SchemaError
-from anima.io.atomic import remove_stale_temps, write_json
+from anima.io.atomic import TMP_MARK, remove_stale_temps, write_json
 
 MANIFEST = "manifest.json"
 LOCK = ".anima.lock"
+MARKER = ".anima-folder"
+MARKER_SCHEMA = "anima.folder"
 SCHEMA = "anima.result"
 VERSION = 1
+LEGACY_SCHEMAS = ("anima.result", "anima.dataset")  # manifests of result folders written before the marker
+_MAX_MARKER_BYTES = 16 * 2**20
 
 
 def _can_create_in(folder: Path) -> bool:
@@ -43,16 +60,135 @@ def _can_create_in(folder: Path) -> bool:
         return False
 
 
+def _is_transient(name: str) -> bool:
+    """anima's own lock, marker and temporary files (not a user's content)."""
+    return name in (LOCK, MARKER) or (name.startswith(".") and TMP_MARK in name) or name.startswith(".anima-probe-")
+
+
+def read_marker(folder: Path) -> dict | None:
+    """anima's marker of ``folder`` (``{"kind": ..., "files": {name: sha256}}``), or None when there is none or
+    it is not one anima wrote (unreadable, another schema, a symlink)."""
+    m = folder / MARKER
+    try:
+        st = os.lstat(m)
+    except OSError:
+        return None
+    if not stat.S_ISREG(st.st_mode) or st.st_size > _MAX_MARKER_BYTES:
+        return None
+    try:
+        d = json.loads(m.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return None
+    if not isinstance(d, dict) or d.get("schema") != MARKER_SCHEMA or not isinstance(d.get("files"), dict):
+        return None
+    d["files"] = {k: v for k, v in d["files"].items() if isinstance(k, str) and isinstance(v, str)}
+    return d
+
+
+def _legacy_result(folder: Path) -> bool:
+    """A result or dataset folder of an anima from before the marker: a readable manifest of anima's."""
+    m = folder / MANIFEST
+    try:
+        if not stat.S_ISREG(os.lstat(m).st_mode) or m.stat().st_size > _MAX_MARKER_BYTES:
+            return False
+        d = json.loads(m.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return False
+    return isinstance(d, dict) and d.get("schema") in LEGACY_SCHEMAS
+
+
+def foreign_entries(folder: Path) -> list[str]:
+    """The entries of an existing ``folder`` that make it a user's rather than anima's: everything but anima's
+    own lock/marker/temporary files, unless the folder carries anima's marker (or is an older anima result)."""
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError:
+        return []
+    user = [n for n in names if not _is_transient(n)]
+    if not user or read_marker(folder) is not None or _legacy_result(folder):
+        return []
+    return user
+
+
 def check_out_dir(path: str | os.PathLike, flag: str = "--out") -> Path:
-    """Refuse, before any work, an output folder that cannot be one: an existing file, or a place where it
-    cannot be created or written."""
+    """Refuse, before any work, an output folder that cannot be one: an existing file or special file, a place
+    where it cannot be created or written, or a folder that already holds files anima did not write."""
     p = Path(path)
     if p.exists() and not p.is_dir():
-        raise InputError(f"{flag} {p} is an existing file, not a folder")
+        kind = "file" if p.is_file() else "special file (device, pipe or socket)"
+        raise InputError(f"{flag} {p} is an existing {kind}, not a folder")
     base = next((q for q in [p, *p.parents] if q.exists()), Path("."))
     if not base.is_dir() or not _can_create_in(base):
         raise InputError(f"{flag} {p}: cannot write in {base}")
+    if p.is_dir():
+        foreign = foreign_entries(p)
+        if foreign:
+            shown = ", ".join(foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
+            raise InputError(
+                f"{flag} {p} already holds files anima did not write ({shown}); anima writes only into a new "
+                "or empty folder or one it made: give another folder"
+            )
     return p
+
+
+def claim_folder(path: str | os.PathLike, kind: str, flag: str = "--out") -> Path:
+    """Check ``path`` (:func:`check_out_dir`), create it and put anima's marker in it (kept when already
+    there): from now on the folder is anima's."""
+    p = check_out_dir(path, flag)
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(f"{flag} {p}: cannot write there ({e.strerror or e})") from None
+    if read_marker(p) is None:
+        write_marker(p, kind, {})
+    return p
+
+
+def write_marker(folder: Path, kind: str, files: dict[str, str]) -> None:
+    write_json(folder / MARKER, {"schema": MARKER_SCHEMA, "version": 1, "kind": kind, "files": files}, indent=None)
+
+
+def confined(folder: Path, name: str) -> Path | None:
+    """``folder / name`` when ``name`` is a plain relative path that stays inside ``folder`` (no ``..``, no
+    absolute path, no NUL, no symlink on the way) and names a regular file; else None."""
+    if not name or "\x00" in name or os.path.isabs(name) or "\\" in name:
+        return None
+    parts = Path(name).parts
+    if any(x in ("..", ".", "") for x in parts):
+        return None
+    p = folder
+    for i, part in enumerate(parts):
+        p = p / part
+        try:
+            st = os.lstat(p)
+        except OSError:
+            return None
+        last = i == len(parts) - 1
+        if stat.S_ISLNK(st.st_mode) or (not last and not stat.S_ISDIR(st.st_mode)):
+            return None
+        if last and not stat.S_ISREG(st.st_mode):
+            return None
+    return p
+
+
+def remove_owned(folder: Path, files: dict[str, str], keep=()) -> list[str]:
+    """Remove the files anima recorded (``{name: sha256}``) that are not in ``keep``: only names confined to
+    ``folder`` whose content is still what anima wrote. Returns the names removed."""
+    removed = []
+    for name, digest in files.items():
+        if name in keep or name in (MANIFEST, MARKER, LOCK):
+            continue
+        p = confined(folder, name)
+        if p is None:
+            continue
+        try:
+            if sha256(p) != digest:
+                continue  # changed since anima wrote it: the user's now
+            p.unlink()
+            removed.append(name)
+        except OSError:
+            pass
+    return removed
 
 
 def lock_folder(path: Path) -> int:
@@ -60,7 +196,7 @@ def lock_folder(path: Path) -> int:
     process dies, so a killed run never leaves the folder locked). A second holder is refused."""
     try:
         path.mkdir(parents=True, exist_ok=True)
-        fd = os.open(path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        fd = os.open(path / LOCK, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
     except OSError as e:
         raise InputError(f"--out {path}: cannot write there ({e.strerror or e})") from None
     try:
@@ -78,12 +214,33 @@ def unlock_folder(fd: int) -> None:
     os.close(fd)
 
 
-def check_out_file(path: str | os.PathLike, flag: str = "--out") -> Path:
-    """Refuse, before any work, an output file path that cannot be written: a folder, or a place where the
-    file cannot be created."""
+def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
+    """Whether two paths name the same file (the same inode when both exist, else the same resolved path)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        try:
+            return Path(a).resolve() == Path(b).resolve()
+        except (OSError, RuntimeError):
+            return False
+
+
+def check_out_file(
+    path: str | os.PathLike, flag: str = "--out", inputs=(), suffixes: tuple[str, ...] | None = None
+) -> Path:
+    """Refuse, before any work, an output file path that cannot be written or must not be: a folder, a special
+    file (device, pipe, socket: a rename would replace the node), one of the command's ``inputs``, a name
+    without one of ``suffixes`` (when given), or a place where the file cannot be created."""
     p = Path(path)
     if p.is_dir():
         raise InputError(f"{flag} {p} is a folder: give a file path")
+    if p.exists() and not p.is_file():
+        raise InputError(f"{flag} {p} is a special file (device, pipe or socket), not a file anima may replace")
+    if suffixes is not None and p.suffix.lower() not in suffixes:
+        raise InputError(f"{flag} {p}: expected a {' or '.join(suffixes)} file")
+    for x in inputs:
+        if x is not None and same_file(p, x):
+            raise InputError(f"{flag} {p} is an input of this command; write the result to another file")
     base = next((q for q in p.parents if q.exists()), Path("."))
     if not base.is_dir() or not _can_create_in(base):
         raise InputError(f"{flag} {p}: cannot write in {base}")
@@ -107,19 +264,24 @@ class OutputFolder:
         self.info = dict(info or {})
         self.files: list[str] = []
         self._lock_fd: int | None = None
-        self._previous: list[str] = []
+        self._previous: dict[str, str] = {}
 
     def __enter__(self) -> OutputFolder:
         self._created = not self.path.exists()
+        check_out_dir(self.path)  # again: the folder may have changed since the command started
         self._lock_fd = lock_folder(self.path)
-        remove_stale_temps(self.path)
-        old = self.path / MANIFEST
-        if old.is_file():
-            try:
-                self._previous = list(read_manifest(self.path).get("files", {}))
-            except (InputError, SchemaError):
-                self._previous = []
-            old.unlink()
+        try:
+            remove_stale_temps(self.path)
+            marker = read_marker(self.path)
+            self._previous = dict(marker["files"]) if marker else {}
+            if marker is None:
+                write_marker(self.path, self.kind, {})
+            old = self.path / MANIFEST
+            if old.is_file() and not old.is_symlink():
+                old.unlink()
+        except BaseException:
+            self._release(failed=True)
+            raise
         return self
 
     def file(self, name: str) -> Path:
@@ -137,23 +299,27 @@ class OutputFolder:
             if exc_type is None:
                 self._finish()
         finally:
-            if self._lock_fd is not None:
-                unlock_folder(self._lock_fd)
-                self._lock_fd = None
-            if exc_type is not None and self._created:  # a failed first run leaves no empty folder behind
-                remove_stale_temps(self.path)
-                if [p.name for p in self.path.iterdir()] == [LOCK]:
-                    (self.path / LOCK).unlink()
-                    self.path.rmdir()
+            self._release(failed=exc_type is not None)
+
+    def _release(self, failed: bool) -> None:
+        if self._lock_fd is not None:
+            unlock_folder(self._lock_fd)
+            self._lock_fd = None
+        if failed and self._created:  # a failed first run leaves no empty folder behind
+            remove_stale_temps(self.path)
+            if {p.name for p in self.path.iterdir()} <= {LOCK, MARKER}:
+                for n in (LOCK, MARKER):
+                    (self.path / n).unlink(missing_ok=True)
+                self.path.rmdir()
 
     def _finish(self) -> None:
-        written = [n for n in self.files if (self.path / n).is_file()]
-        for name in self._previous:
-            if name not in written and name != MANIFEST:
-                try:
-                    (self.path / name).unlink()
-                except (FileNotFoundError, IsADirectoryError):
-                    pass
+        written = {}
+        for n in self.files:
+            p = confined(self.path, n)
+            if p is not None:
+                written[n] = sha256(p)
+        remove_owned(self.path, self._previous, keep=written)
+        write_marker(self.path, self.kind, written)
         manifest = {
             "schema": SCHEMA,
             "version": VERSION,
@@ -162,25 +328,31 @@ class OutputFolder:
             "anima_version": __version__,
             "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             "info": self.info,
-            "files": {n: {"bytes": (self.path / n).stat().st_size, "sha256": sha256(self.path / n)} for n in written},
+            "files": {n: {"bytes": (self.path / n).stat().st_size, "sha256": h} for n, h in written.items()},
         }
         write_json(self.path / MANIFEST, manifest)
 
 
 def read_manifest(folder: str | os.PathLike) -> dict:
-    import json
-
     p = Path(folder) / MANIFEST
     if not p.is_file():
         raise InputError(f"{folder}: no {MANIFEST} (not an anima result, or a run that did not finish)")
+    if p.stat().st_size > _MAX_MARKER_BYTES:
+        raise SchemaError(f"{p}: {p.stat().st_size / 2**20:.0f} MB, too large for a result manifest")
     try:
         m = json.loads(p.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, ValueError) as e:
-        raise SchemaError(f"{p}: not valid JSON ({e})") from None
+    except (UnicodeDecodeError, ValueError, RecursionError) as e:
+        raise SchemaError(f"{p}: not valid JSON ({str(e)[:120]})") from None
     if not isinstance(m, dict) or m.get("schema") != SCHEMA:
         raise SchemaError(f"{p}: not an anima result manifest")
-    if int(m.get("version", -1)) > VERSION:
+    try:
+        version = int(m.get("version", -1))
+    except (TypeError, ValueError):
+        raise SchemaError(f"{p}: result manifest version {m.get('version')!r} is not a number") from None
+    if version > VERSION:
         raise SchemaError(f"{p}: result manifest version {m.get('version')} is newer than this anima; upgrade anima")
+    if not isinstance(m.get("files", {}), dict):
+        raise SchemaError(f"{p}: its files are not a table")
     return m
 
 
@@ -188,9 +360,11 @@ def check_complete(folder: str | os.PathLike, verify_hashes: bool = True) -> dic
     """The manifest of a complete result folder; :class:`InputError` naming what is missing or changed."""
     m = read_manifest(folder)
     for name, rec in m.get("files", {}).items():
-        p = Path(folder) / name
-        if not p.is_file():
+        p = confined(Path(folder), name)
+        if p is None:
             raise InputError(f"{folder}: incomplete result: {name} is missing")
+        if not isinstance(rec, dict):
+            raise SchemaError(f"{folder}: the manifest's record of {name} is not a table")
         if p.stat().st_size != rec.get("bytes") or (verify_hashes and sha256(p) != rec.get("sha256")):
             raise InputError(f"{folder}: incomplete result: {name} differs from the manifest")
     return m

@@ -47,7 +47,7 @@ from anima.core.contract import N_JOINTS
 from anima.core.rotations import matrix_to_euler, rotvec_to_matrix
 from anima.core.skeleton import LEFT_HAND, RIGHT_HAND
 from anima.errors import InputError, SchemaError
-from anima.io.atomic import atomic_path
+from anima.io.atomic import write_npz
 from anima.io.validate import (
     MAX_FRAMES,
     MAX_JSON_BYTES,
@@ -121,7 +121,7 @@ class TrackedSequence:
             "mean_fit_error_px": round(float(self.fit_error_px[ok].mean()), 3) if ok.any() else None,
             "mean_fit_nme": round(float(self.fit_nme[ok].mean()), 5) if ok.any() else None,
             "schema": f"{SCHEMA}/{self.meta.get('version', VERSION)}",
-            "source": self.meta.get("source", {}).get("path"),
+            "source": (self.meta.get("source") or {}).get("path"),
         }
         if self.body_joints is not None:
             out.update(self.body_summary())
@@ -185,8 +185,7 @@ def write_sequence(seq: TrackedSequence, path: str | Path) -> Path:
         elif arrays[k].dtype.kind == "b":
             arrays[k] = arrays[k].astype(np.uint8)
     arrays["flags"] = arrays["flags"].astype(np.uint8)
-    with atomic_path(path) as tmp:
-        np.savez_compressed(tmp, meta=np.asarray(json.dumps(meta)), **arrays)
+    write_npz(path, meta=np.asarray(json.dumps(meta)), **arrays)
     return Path(path)
 
 
@@ -279,6 +278,15 @@ def _check_meta(path: Path, meta: dict) -> None:
     names = meta.get("expr_names")
     if not isinstance(names, list) or not all(isinstance(x, str) for x in names):
         raise InputError(f"{path}: expr_names is not a list of names")
+    for k in ("source", "audio", "skeleton", "tracker", "face_model", "config"):  # the nested records readers use
+        if k in meta and meta[k] is not None and not isinstance(meta[k], dict):
+            raise SchemaError(f"{path}: meta {k!r} is not a JSON object")
+    src = meta.get("source") or {}
+    if not isinstance(src.get("path", ""), str):
+        raise SchemaError(f"{path}: meta source path is not text")
+    cleaning = (meta.get("skeleton") or {}).get("cleaning", {})
+    if not isinstance(cleaning, dict) or not isinstance(cleaning.get("min_conf", 0.5), (int, float)):
+        raise SchemaError(f"{path}: meta skeleton cleaning is not a table of numbers")
 
 
 def _check_shapes(path: Path, meta: dict, headers: dict) -> None:
@@ -307,9 +315,19 @@ def _check_shapes(path: Path, meta: dict, headers: dict) -> None:
             raise InputError(f"{path}: {k} has {shapes[k][1]} joints, expected {N_JOINTS}")
 
 
+# the largest magnitude a value of a real sequence can have (metres for joints and translation, radians,
+# weights, pixels): a 1e30 is damage or an attack, and would reach every export as garbage
+_MAX_VALUE = {"body_joints": 1e3, "body_joints_raw": 1e3, "expression": 1e2, "rotation": 1e2}
+_MAX_ANY = 1e7
+
+
 def _check_values(path: Path, arrays: dict) -> None:
     for k, a in arrays.items():
         if k in _FRAME_ARRAYS and _FRAME_ARRAYS[k][1] and a.dtype.kind == "f" and not np.isfinite(a).all():
             raise InputError(f"{path}: {k} holds NaN or infinite values")
+        if a.dtype.kind == "f" and a.size:
+            top = np.nanmax(np.abs(np.where(np.isfinite(a), a, 0)))
+            if top > _MAX_VALUE.get(k, _MAX_ANY):
+                raise InputError(f"{path}: {k} reaches {top:.3g}, beyond any real sequence (damaged)")
     if not np.isfinite(arrays["identity"]).all():
         raise InputError(f"{path}: identity holds NaN or infinite values")

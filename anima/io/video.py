@@ -40,6 +40,7 @@ except ImportError:  # not on Windows
     fcntl = None
 
 FFMPEG = imageio_ffmpeg.get_ffmpeg_exe()
+MIN_FPS, MAX_FPS = 1.0, 1000.0  # frame rates anima reads (a 1000-fps high-speed clip included)
 
 
 @dataclass
@@ -116,11 +117,21 @@ def probe_video(path: str | os.PathLike) -> VideoInfo:
         raise InputError(
             f"not a readable video (corrupt, truncated before its index, or not a video): {p} ({first})"
         ) from None
-    if "size" not in meta or not meta.get("fps"):
+    if "size" not in meta:
         raise InputError(f"no video stream in {p}")
     w, h = meta["size"]
     pts, _ = _packet_pts(str(p))
-    fps = float(meta["fps"])
+    fps = float(meta.get("fps") or 0)
+    if fps <= 0 and len(pts) >= 2:  # ffmpeg prints "1k fps" for 1000 fps, which imageio does not read
+        d = np.diff(pts)
+        fps = round(1.0 / float(np.median(d[d > 0])), 3) if (d > 0).any() else 0.0
+    if fps <= 0:
+        raise InputError(f"no video stream in {p} (no frame rate)")
+    if not MIN_FPS <= fps <= MAX_FPS:
+        raise InputError(
+            f"{p}: {fps:g} frames per second; anima reads videos of {MIN_FPS:g} to {MAX_FPS:g} fps (below 1 fps a "
+            "video holds no motion to track)"
+        )
     warn = []
     vfr = False
     if len(pts) >= 3:

@@ -25,7 +25,7 @@ import numpy as np
 from tqdm import tqdm
 
 from anima.io.assets import asset
-from anima.io.atomic import atomic_path
+from anima.io.atomic import write_npz
 from anima.io.safe_npz import load_object_member
 from anima.io.video import iter_frames, probe_video
 from anima.pose3d.joints import BONES, K, humaneva_to_h36m, mediapipe_to_h36m
@@ -184,8 +184,7 @@ def s9_image_evidence(cache: Path, progress: bool = False) -> dict[str, np.ndarr
             rows[k].append(v)
     det.close()
     out = {k: np.stack(v) if k != "camera" else np.array(v) for k, v in rows.items()}
-    with atomic_path(f) as tmp:
-        np.savez_compressed(tmp, **out)
+    write_npz(f, **out)
     return out
 
 
@@ -258,6 +257,5 @@ def wild_evidence(
         "video": np.asarray(vid),
         "videos": np.array([str(v.relative_to(asset("."))) for v in videos]),
     }
-    with atomic_path(f) as tmp:
-        np.savez_compressed(tmp, **out)
+    write_npz(f, **out)
     return out

@@ -27,8 +27,9 @@ import torch
 
 from anima.errors import CheckpointError
 from anima.io.checkpoint import load_checkpoint as load_checkpoint_file
-from anima.io.checkpoint import load_state, rebuilding
+from anima.io.checkpoint import load_state, rebuild
 from anima.io.checkpoint import save_checkpoint as save_checkpoint_file
+from anima.io.outdir import check_out_file
 from anima.pose3d.config import LifterConfig, TrainConfig
 from anima.pose3d.data import (
     TEST_SUBJECTS,
@@ -154,8 +155,7 @@ def save_checkpoint(path: Path, model: Lifter, cfg: TrainConfig, step: int, opt=
 def load_checkpoint(path: Path) -> tuple[Lifter, dict]:
     """(model, checkpoint dict with ``config``, ``step``, ``state_dict``, ``optimizer``, ``extra``)."""
     ck = load_checkpoint_file(path, KIND, (1, VERSION), train_hint=f"train one with `anima train pose --out {path}`")
-    with rebuilding(ck):
-        model = Lifter(LifterConfig(**ck.config["model"]))
+    model = rebuild(ck, lambda: Lifter(LifterConfig(**ck.config["model"])))
     load_state(model, ck)
     model.eval()
     return model, {
@@ -186,7 +186,7 @@ def train(
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     gamma = cfg.lr_decay ** (1.0 / max(cfg.steps, 1))
     start = 0
-    out = Path(out)
+    out = check_out_file(out)
     if resume and out.exists():
         _, ck = load_checkpoint(out)
         mine = json.loads(json.dumps(asdict(cfg)))

@@ -31,6 +31,7 @@ anima_version.
 from __future__ import annotations
 
 import json
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -40,7 +41,8 @@ from anima import __version__
 from anima.capture.pipeline import CaptureConfig, capture_face
 from anima.errors import InputError, SchemaError
 from anima.facemodel.ict import load_face_model
-from anima.io.atomic import atomic_path
+from anima.io.atomic import write_npz
+from anima.io.validate import check_expansion, input_file, npz_headers, parse_json
 from anima.io.video import iter_frames, probe_video
 from anima.reenact.render import visible_vertices
 
@@ -214,50 +216,51 @@ def build_database(
 
 def write_database(db: ReenactDB, path: str | Path) -> Path:
     meta = dict(db.meta, schema=SCHEMA, version=VERSION)
-    with atomic_path(path, ".tmp.npz") as tmp:
-        np.savez(
-            tmp,
-            expression=db.expression,
-            rotation=db.rotation,
-            scale=db.scale,
-            translation=db.translation,
-            video=db.video,
-            frame=db.frame,
-            identity=db.identity,
-            colors=db.colors,
-            vertex_ids=db.vertex_ids,
-            meta=np.array(json.dumps(meta)),
-        )
+    write_npz(
+        path,
+        compressed=False,
+        expression=db.expression,
+        rotation=db.rotation,
+        scale=db.scale,
+        translation=db.translation,
+        video=db.video,
+        frame=db.frame,
+        identity=db.identity,
+        colors=db.colors,
+        vertex_ids=db.vertex_ids,
+        meta=np.array(json.dumps(meta)),
+    )
     return Path(path)
 
 
+DB_ARRAYS = ("expression", "rotation", "scale", "translation", "video", "frame", "identity", "colors", "vertex_ids")
+PER_FRAME = ("expression", "rotation", "scale", "translation", "video", "frame", "colors")
+
+
 def read_database(path: str | Path) -> ReenactDB:
-    path = Path(path)
-    if not path.exists():
-        raise InputError(f"no re-enactment database at {path}")
+    """Read a database written by :func:`write_database`, checked from the npz headers before anything is
+    inflated (declared sizes bounded by the file's, :func:`anima.io.validate.check_expansion`), then for
+    consistent frame counts and finite values."""
+    path = input_file(path, "re-enactment database")
+    headers = npz_headers(path)
+    missing = [k for k in (*DB_ARRAYS, "meta") if k not in headers]
+    if missing:
+        raise SchemaError(f"{path} is not an {SCHEMA} file (no {', '.join(missing)})")
+    check_expansion(path, headers, [*DB_ARRAYS, "meta"])
+    n = headers["expression"][0][0] if headers["expression"][0] else -1
+    if any(not headers[k][0] or headers[k][0][0] != n for k in PER_FRAME) or headers["meta"][1].kind != "U":
+        raise SchemaError(f"{path}: its arrays do not describe one frame per row")
     try:
-        d = np.load(path, allow_pickle=False)
-        meta = json.loads(str(d["meta"]))
-    except Exception as e:
-        raise InputError(f"{path} is not a readable re-enactment database ({type(e).__name__})") from e
-    if meta.get("schema") != SCHEMA:
+        with np.load(path, allow_pickle=False) as d:
+            meta = parse_json(str(d["meta"][()]), f"{path} (meta)")
+            arrays = {k: d[k] for k in DB_ARRAYS}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
+        raise InputError(f"{path} is not a readable re-enactment database ({str(e)[:100]})") from None
+    if not isinstance(meta, dict) or meta.get("schema") != SCHEMA:
         raise SchemaError(f"{path} is not an {SCHEMA} file")
     if meta.get("version") != VERSION:
         raise SchemaError(f"{path} is {SCHEMA} version {meta.get('version')}; this anima reads version {VERSION}")
-    return ReenactDB(
-        *(
-            d[k]
-            for k in (
-                "expression",
-                "rotation",
-                "scale",
-                "translation",
-                "video",
-                "frame",
-                "identity",
-                "colors",
-                "vertex_ids",
-            )
-        ),
-        meta=meta,
-    )
+    for k, a in arrays.items():
+        if a.dtype.kind == "f" and not np.isfinite(a).all():
+            raise InputError(f"{path}: {k} holds NaN or infinite values")
+    return ReenactDB(*(arrays[k] for k in DB_ARRAYS), meta=meta)

@@ -21,13 +21,26 @@ from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
 from anima.io.atomic import write_json
 from anima.io.outdir import check_out_file
-from anima.io.validate import input_file
+from anima.io.validate import input_file, read_json
 from anima.io.video import VideoWriter, iter_frames, probe_video
 from anima.reenact.database import build_database, read_database, write_database
 from anima.reenact.pipeline import ReenactConfig, Reenactor, Smoother, actor_expressions
 from anima.reenact.synth import expression_mapping
 
 MAX_TARGET_BYTES = 1 << 30
+
+
+VIDEO_SUFFIXES = (".mp4", ".mov", ".mkv", ".m4v")
+RECORD_SCHEMA = "anima.reenact_run"
+
+
+def _is_record(path: Path) -> bool:
+    """Whether ``path`` is a re-enactment record anima wrote (the only file ``--out``'s record may replace)."""
+    try:
+        d = read_json(path, "record", max_bytes=10_000_000)
+    except InputError:
+        return False
+    return isinstance(d, dict) and d.get("schema") == RECORD_SCHEMA
 
 
 def pingpong(j: np.ndarray, n: int) -> np.ndarray:
@@ -186,7 +199,7 @@ class PacedReader:
         self.cap = cv2.VideoCapture(int(source) if str(source).isdigit() else str(source))
         if not self.cap.isOpened():
             raise InputError(f"cannot open live source {source!r}")
-        self.fps = self.cap.get(cv2.CAP_PROP_FPS) or 30.0
+        self.fps = self.cap.get(cv2.CAP_PROP_FPS) or 30.0  # contract: not ours (a camera that names no rate)
         self.is_file = not str(source).isdigit() and Path(str(source)).exists()
         self.lock = threading.Lock()
         self.latest = None  # (index, capture time, rgb)
@@ -395,7 +408,9 @@ def run_reenact(
     progress: bool = True,
     allow_network: bool = False,
 ) -> dict:
-    """``anima reenact``: check every input, then re-enact an actor video (or a live source) on the targets."""
+    """``anima reenact``: check every input, then re-enact an actor video (or a live source) on the targets.
+    ``out`` must be a video name that is none of the inputs; its record (``OUT.json``) may only replace an
+    earlier record."""
     if not actor and live is None:
         raise InputError("give --actor VIDEO or --live SOURCE")
     if actor and live is not None:
@@ -408,17 +423,25 @@ def run_reenact(
         probe_video(input_file(actor, "actor video"))
     if live is not None:
         live = check_live_source(live, allow_network)
+    inputs = [*targets, actor, db_path] if actor else [*targets, db_path]
     if out:
-        check_out_file(out)
+        check_out_file(out, inputs=inputs, suffixes=VIDEO_SUFFIXES)
+    if out and actor:
+        record = Path(out).with_suffix(".json")
+        check_out_file(record, "--out (its record)", inputs=inputs)
+        if record.exists() and not _is_record(record):
+            raise InputError(
+                f"--out {out}: its record {record.name} would replace a file anima did not write; choose another --out"
+            )
     if db_path:
-        check_out_file(db_path, "--db")
+        check_out_file(db_path, "--db", inputs=[*targets, actor, out] if actor else targets)
     if live is not None:
         return reenact_live(live, targets, out, cfg, db_path, max_seconds, progress=progress)
     r = reenact_video(actor, targets, out, cfg, sbs, db_path, progress=progress)
     write_json(
         Path(out).with_suffix(".json"),
         {
-            "schema": "anima.reenact_run",
+            "schema": RECORD_SCHEMA,
             "version": 1,
             "actor": str(actor),
             "targets": [str(t) for t in targets],

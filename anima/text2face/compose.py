@@ -28,23 +28,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from anima.core.contract import FACE_DIM, N_EXPR, TEXT_FPS
+from anima.core.contract import EXPR_NAMES, FACE_DIM, N_EXPR, TEXT_FPS
 from anima.dataset.attributes import ATTRIBUTES, detect
 from anima.dataset.windows import read_clips
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
 from anima.text2face.prompt import Plan
 
-EXPR_NAMES = [
-    "browDown_L", "browDown_R", "browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOuterUp_R", "cheekPuff_L",
-    "cheekPuff_R", "cheekSquint_L", "cheekSquint_R", "eyeBlink_L", "eyeBlink_R", "eyeLookDown_L", "eyeLookDown_R",
-    "eyeLookIn_L", "eyeLookIn_R", "eyeLookOut_L", "eyeLookOut_R", "eyeLookUp_L", "eyeLookUp_R", "eyeSquint_L",
-    "eyeSquint_R", "eyeWide_L", "eyeWide_R", "jawForward", "jawLeft", "jawOpen", "jawRight", "mouthClose",
-    "mouthDimple_L", "mouthDimple_R", "mouthFrown_L", "mouthFrown_R", "mouthFunnel", "mouthLeft",
-    "mouthLowerDown_L", "mouthLowerDown_R", "mouthPress_L", "mouthPress_R", "mouthPucker", "mouthRight",
-    "mouthRollLower", "mouthRollUpper", "mouthShrugLower", "mouthShrugUpper", "mouthSmile_L", "mouthSmile_R",
-    "mouthStretch_L", "mouthStretch_R", "mouthUpperUp_L", "mouthUpperUp_R", "noseSneer_L", "noseSneer_R",
-]  # fmt: skip
 _IX = {n: i for i, n in enumerate(EXPR_NAMES)}
 HEAD = "head"
 LIPS = [

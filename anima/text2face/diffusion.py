@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 
-from anima.text2face.model import MOTION_DIM
+from anima.core.contract import FACE_DIM
 
 
 @dataclass
@@ -35,7 +35,7 @@ class MDMConfig:
     guidance: float = 2.5
     max_len: int = 300
     min_len: int = 30
-    motion_dim: int = MOTION_DIM
+    motion_dim: int = FACE_DIM
     encoder: str = "minilm"
 
     def to_dict(self) -> dict:
@@ -135,7 +135,7 @@ class SMFConfig:
     guidance: float = 2.5  # MDM's: the same guidance for both diffusion baselines, not tuned
     max_len: int = 300
     min_len: int = 30
-    motion_dim: int = MOTION_DIM
+    motion_dim: int = FACE_DIM
     encoder: str = "minilm"
 
     def to_dict(self) -> dict:

@@ -24,7 +24,7 @@ import numpy as np
 
 from anima.errors import AssetNotFound, InputError
 from anima.io.assets import user_dir
-from anima.io.atomic import atomic_path
+from anima.io.atomic import write_npz
 
 MAX_CHARS = 20_000  # longer text is cut before tokenising (a prompt, not a book)
 
@@ -171,6 +171,5 @@ def encode_cached(encoder: TextEncoder, texts: list[str]) -> np.ndarray:
     if missing:
         E = encoder.encode([t for _, t in missing])
         cache.update(zip([k for k, _ in missing], E))
-        with atomic_path(path) as tmp:
-            np.savez(tmp, keys=np.asarray(list(cache)), emb=np.stack(list(cache.values())).astype(np.float32))
+        write_npz(path, False, keys=np.asarray(list(cache)), emb=np.stack(list(cache.values())).astype(np.float32))
     return np.stack([cache[k] for k in keys]).astype(np.float32)

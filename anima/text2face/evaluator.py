@@ -10,11 +10,12 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from anima.io.checkpoint import load_checkpoint, load_state, rebuilding, save_checkpoint
+from anima.core.contract import FACE_DIM
+from anima.io.checkpoint import load_checkpoint, load_state, rebuild, save_checkpoint
 
 
 class MotionTextEvaluator(nn.Module):
-    def __init__(self, d_c: int = 384, motion_dim: int = 56, width: int = 128, dim: int = 128):
+    def __init__(self, d_c: int = 384, motion_dim: int = FACE_DIM, width: int = 128, dim: int = 128):
         super().__init__()
         self.text = nn.Sequential(nn.Linear(d_c, 256), nn.GELU(), nn.Linear(256, dim))
         self.conv = nn.Sequential(
@@ -106,8 +107,7 @@ def save_evaluator(path, ev: MotionTextEvaluator) -> None:
 
 def load_evaluator(path) -> MotionTextEvaluator:
     ck = load_checkpoint(path, EVALUATOR_KIND, EVALUATOR_VERSION)
-    with rebuilding(ck):
-        ev = MotionTextEvaluator(int(ck.config["d_c"]))
+    ev = rebuild(ck, lambda: MotionTextEvaluator(int(ck.config["d_c"])))
     load_state(ev, ck)
     ev.eval()
     return ev

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from anima.core.contract import N_EXPR
+from anima.core.contract import N_EXPR, TEXT_FPS
 from anima.dataset.storage import check_dataset
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
@@ -104,6 +104,7 @@ def text_to_folder(
     cfg = cfg or PromptConfig()
     seed = cfg.seed
     require_prompt(prompt)
+    parse(prompt)  # a prompt the planner refuses (an event 10^12 times) is refused by both methods
     method = cfg.method
     if method == "auto":
         method = "timeline" if db else "model"
@@ -143,7 +144,7 @@ def _timeline_to_folder(prompt, out, cfg: PromptConfig, db, video: bool, progres
     segments. ``info.json`` records how the prompt was read, what was not understood, and where every event's
     motion comes from."""
     check_dataset(db)
-    fps = 30.0
+    fps = TEXT_FPS
     n = int(round(cfg.seconds * fps)) if cfg.seconds else cfg.length
     with OutputFolder(out, kind="text2face", command=command) as od:
         lib = Library.from_dataset(db, splits=("train", "val", "test"))  # the user's own clips, all of them

@@ -20,7 +20,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-MOTION_DIM = 56
+from anima.core.contract import FACE_DIM
 
 
 @dataclass
@@ -42,7 +42,7 @@ class Text2FaceConfig:
     beta: float = 0.25  # VQ loss: (1 - beta) codebook term + beta commitment term
     length_cond: bool = True
     style: bool = False  # ablation: a per-sample random style vector added to every decoder input
-    motion_dim: int = MOTION_DIM
+    motion_dim: int = FACE_DIM
     encoder: str = "minilm"
 
     def to_dict(self) -> dict:

@@ -23,6 +23,8 @@ from __future__ import annotations
 import re
 from dataclasses import asdict, dataclass, field
 
+from anima.errors import InputError
+
 EMOTIONS = ("happy", "sad", "angry", "disgusted", "fearful", "surprised", "contempt", "neutral")
 
 # event -> regular expressions (word-boundary anchored, matched on the lower-cased clause)
@@ -248,11 +250,19 @@ class Plan:
         }
 
 
+MAX_COUNT = 50  # "blinks 10^12 times" is refused, not planned
+
+
 def _count(clause: str) -> int | None:
     for pat, n in COUNTS:
         m = re.search(pat, clause)
         if m:
-            return n if n is not None else int(re.findall(r"\d+", m.group(0))[0])
+            if n is None:
+                digits = re.findall(r"\d+", m.group(0))[0]
+                n = int(digits) if len(digits) <= 6 else MAX_COUNT + 1
+            if not 1 <= n <= MAX_COUNT:
+                raise InputError(f"{m.group(0).strip()!r}: anima plans an event 1 to {MAX_COUNT} times")
+            return n
     return None
 
 

@@ -13,12 +13,13 @@ import numpy as np
 
 from anima import __version__
 from anima.io.atomic import write_json
+from anima.io.outdir import check_out_file
 from anima.text2face.train import TrainConfig, load_checkpoint, save_checkpoint
 
 
 def ship(checkpoint: str | Path, dest: str | Path, evaluate: Callable[[Path], dict]) -> list[Path]:
+    dest = check_out_file(dest, "--ship", inputs=[checkpoint])
     ck = load_checkpoint(checkpoint)
-    dest = Path(dest)
     cfg = TrainConfig(**ck["train_config"])
     save_checkpoint(
         dest,

@@ -28,8 +28,9 @@ from tqdm import tqdm
 from anima.core.contract import N_EXPR, TEXT_FPS
 from anima.errors import InputError, SchemaError
 from anima.io.checkpoint import load_checkpoint as load_checkpoint_file
-from anima.io.checkpoint import load_state, rebuilding
+from anima.io.checkpoint import load_state, rebuild, rebuilding
 from anima.io.checkpoint import save_checkpoint as save_checkpoint_file
+from anima.io.outdir import claim_folder
 from anima.text2face.config import TrainConfig
 from anima.text2face.data import FaceGeometry, crop_pool, load_clips, motion_stats, split_clips
 from anima.text2face.diffusion import MDM, SMF, MDMConfig, SMFConfig
@@ -68,9 +69,9 @@ def model_config(cfg: TrainConfig, d_c: int) -> dict:
 def rec_loss(pred, target, mask, std, G, w_rot: float):
     """Masked mean over frames of the z-normalised vertex-offset MSE + ``w_rot`` x head-rotation MSE."""
     d = pred - target
-    de = d[..., :53] * std[:53]
+    de = d[..., :N_EXPR] * std[:N_EXPR]
     vert = torch.einsum("bti,ij,btj->bt", de, G, de)
-    rot = d[..., 53:].pow(2).mean(-1)
+    rot = d[..., N_EXPR:].pow(2).mean(-1)
     per = vert + w_rot * rot
     return (per * mask).sum() / mask.sum().clamp(min=1)
 
@@ -113,8 +114,8 @@ def load_checkpoint(path: str | Path) -> dict:
     with the rebuilt model under ``model``."""
     ck = load_checkpoint_file(path, KINDS, (1, VERSION), train_hint="train one with `anima train text2face`")
     c = ck.config
+    model = rebuild(ck, lambda: build_model(ck.kind, c["model"]))
     with rebuilding(ck):
-        model = build_model(ck.kind, c["model"])
         for k in ("train", "mean", "std", "gram", "step"):
             c[k]
     load_state(model, ck)
@@ -156,7 +157,7 @@ def prepare(dataset: str | Path, cfg: TrainConfig):
 def train(
     dataset: str | Path, out: str | Path, cfg: TrainConfig, progress: bool = True, command: str = "", prepared=None
 ) -> dict:
-    out = Path(out)
+    out = claim_folder(out, "text2face_run")  # a user's folder is refused before any work
     ck_path = out / "checkpoint.pt"
     torch.manual_seed(cfg.seed)
     if cfg.threads:

@@ -9,18 +9,24 @@ everything it shows comes from here.
   alone), or the neutral head with its morph targets for a dataset. Script files, not fetched data, so the
   page also works opened from disk (``file://``), where browsers refuse to fetch.
 * the videos and ``speech.wav`` beside it, copied (a missing one is a note on the page, the 3D plays alone).
+
+Only regular files inside the result folder are read (a symlink, or a name that leaves the folder, is a note,
+never followed); a re-enactment record's video must lie beside the record; the capture's source video must be
+a real, browser-playable video. A copy of a user's file keeps its permission bits.
 """
 
 from __future__ import annotations
 
 import base64
 import json
+import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from anima import __version__
-from anima.core.contract import TEXT_FPS
+from anima.core.contract import FACE_DIM, N_EXPR, TEXT_FPS
 from anima.core.skeleton import JOINT_NAMES, LEFT_HAND, RIGHT_HAND
 from anima.dataset.storage import check_dataset
 from anima.dataset.windows import read_clips
@@ -28,9 +34,10 @@ from anima.errors import AssetNotFound, InputError, SchemaError
 from anima.export.formats import export_glb
 from anima.export.framing import generated_sequence
 from anima.io.atomic import copy_file, write_text
-from anima.io.outdir import MANIFEST, read_manifest
+from anima.io.outdir import MANIFEST, confined, read_manifest
 from anima.io.sequence import FLAG_LOW_CONFIDENCE, FLAG_NO_FACE, read_sequence
 from anima.io.validate import read_json
+from anima.io.video import probe_video
 
 SCHEMA = "anima.view"
 VERSION = 1
@@ -123,11 +130,45 @@ def _speeds(J: np.ndarray, fps: float) -> dict:
     return out
 
 
-def _sequence_view(folder: Path, kind: str, out: Path, notes: list) -> dict:
-    seq = read_sequence(folder / SEQUENCES[kind], landmarks=False)
+def _inside(folder: Path, name: str, notes: list) -> Path | None:
+    """``folder/name`` when it is a regular file inside the folder (not a symlink); a note when something else
+    sits there."""
+    p = confined(folder, name)
+    if p is None and os.path.lexists(folder / name):
+        notes.append(f"{name} in {folder} is not a regular file of the folder (a link?): not shown")
+    return p
+
+
+def _source_video(src: str, meta: dict, notes: list) -> Path | None:
+    """The capture's source video when the page can show it: a readable, browser-playable video file."""
+    s = Path(src)
+    if not s.is_file():
+        notes.append(f"the source video {src} is not there")
+        return None
+    if s.suffix.lower() not in PLAYABLE or meta.get("codec") not in ("h264", "vp8", "vp9", "av1"):
+        notes.append(f"the source video {s.name} ({meta.get('codec')}) does not play in a browser")
+        return None
+    try:
+        info = probe_video(s)
+    except InputError:
+        notes.append(f"the source video {src} is not a readable video: not shown")
+        return None
+    if info.codec not in ("h264", "vp8", "vp9", "av1"):
+        notes.append(f"the source video {s.name} ({info.codec}) does not play in a browser")
+        return None
+    return s
+
+
+def _sequence_view(folder: Path, kind: str, out: Path, notes: list, wrote: list) -> dict:
+    seq_path = confined(folder, SEQUENCES[kind])
+    if seq_path is None:
+        raise InputError(f"{folder}: {SEQUENCES[kind]} is not a regular file of the folder")
+    seq = read_sequence(seq_path, landmarks=False)
     info = {}
-    if (folder / "info.json").is_file():
+    if _inside(folder, "info.json", notes):
         info = read_json(folder / "info.json", "info.json")
+        if not isinstance(info, dict):
+            raise SchemaError(f"{folder / 'info.json'}: not a JSON object")
     F = seq.n_frames
     curves = {
         n: [round(float(x), 4) for x in seq.expression[:, seq.expr_names.index(n)]]
@@ -162,32 +203,36 @@ def _sequence_view(folder: Path, kind: str, out: Path, notes: list) -> dict:
         curves.update(_speeds(seq.body_joints, seq.fps))
         joints = {"names": ["Head", "LeftHand", "RightHand", "Spine"]}  # shown from avatar.glb's bones
     videos = []
-    src = seq.meta.get("source", {}).get("path")
+    source = seq.meta.get("source")
+    src = source.get("path") if isinstance(source, dict) else None
+    src = src if isinstance(src, str) and src else None
     if kind == "capture" and src:
-        s = Path(src)
-        if not s.is_file():
-            notes.append(f"the source video {src} is not there")
-        elif s.suffix.lower() not in PLAYABLE or seq.meta["source"].get("codec") not in ("h264", "vp8", "vp9", "av1"):
-            notes.append(f"the source video {s.name} ({seq.meta['source'].get('codec')}) does not play in a browser")
-        else:
-            copy_file(s, out / f"source{s.suffix.lower()}")
-            videos.append({"file": f"source{s.suffix.lower()}", "role": "source video"})
+        s = _source_video(src, source, notes)
+        if s is not None:
+            name = f"source{s.suffix.lower()}"
+            wrote.append(copy_file(s, out / name, keep_mode=True))
+            videos.append({"file": name, "role": "source video"})
     for name, role in VIDEO_ROLES.items():
-        if (folder / name).is_file():
-            copy_file(folder / name, out / name)
+        p = _inside(folder, name, notes)
+        if p is not None:
+            wrote.append(copy_file(p, out / name))
             videos.append({"file": name, "role": role})
     if kind == "capture" and not (folder / "overlay.mp4").is_file():
         notes.append("no overlay video beside the capture (captured with --no-render?): the 3D plays alone")
     audio = None
-    if (folder / "speech.wav").is_file():
-        copy_file(folder / "speech.wav", out / "speech.wav")
+    p = _inside(folder, "speech.wav", notes)
+    if p is not None:
+        wrote.append(copy_file(p, out / "speech.wav"))
         audio = "speech.wav"
-    glb = folder / "avatar.glb"
-    if not glb.is_file():
-        glb = out / "_head.glb"
-        export_glb(seq, glb)
+    glb = _inside(folder, "avatar.glb", notes)
+    if glb is None:
+        with tempfile.TemporaryDirectory(prefix="anima-view-") as tmp:
+            head = export_glb(seq, Path(tmp) / "head.glb")
+            glb_bytes = Path(head).read_bytes()
         notes.append("no avatar.glb in the folder (an older result): the head alone, made from the sequence")
-    write_text(out / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(glb.read_bytes()).decode()))
+    else:
+        glb_bytes = glb.read_bytes()
+    wrote.append(write_text(out / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(glb_bytes).decode())))
     title = {
         "capture": f"capture of {Path(src).name if src else folder.name}",
         "text2face": f"text to face: “{info.get('prompt', seq.meta.get('prompt', ''))}”",
@@ -209,13 +254,13 @@ def _sequence_view(folder: Path, kind: str, out: Path, notes: list) -> dict:
     }
 
 
-def _dataset_view(folder: Path, out: Path, notes: list, max_clips: int = 200) -> dict:
+def _dataset_view(folder: Path, out: Path, notes: list, wrote: list, max_clips: int = 200) -> dict:
     clips = read_clips(folder)
     if not clips:
         raise InputError(f"{folder}: the dataset has no (text, motion) clips to show")
     if len(clips) > max_clips:
         notes.append(f"{len(clips)} clips: the first {max_clips} are shown")
-    names = list(generated_sequence(TEXT_FPS, face=np.zeros((1, 56), np.float32)).expr_names)
+    names = list(generated_sequence(TEXT_FPS, face=np.zeros((1, FACE_DIM), np.float32)).expr_names)
     rows = []
     for c in clips[:max_clips]:
         rows.append(
@@ -228,14 +273,18 @@ def _dataset_view(folder: Path, out: Path, notes: list, max_clips: int = 200) ->
                 "frames": len(c.motion),
                 "texts": c.texts[:3],
                 "events": [[n, round(s, 2), round(e, 2)] for n, s, e in c.events],
-                "weights": base64.b64encode(np.ascontiguousarray(c.motion[:, :53], np.float32).tobytes()).decode(),
-                "rotation": base64.b64encode(np.ascontiguousarray(c.motion[:, 53:], np.float32).tobytes()).decode(),
+                "weights": base64.b64encode(np.ascontiguousarray(c.motion[:, :N_EXPR], np.float32).tobytes()).decode(),
+                "rotation": base64.b64encode(np.ascontiguousarray(c.motion[:, N_EXPR:], np.float32).tobytes()).decode(),
             }
         )
-    head = out / "_head.glb"
-    export_glb(generated_sequence(TEXT_FPS, face=np.zeros((1, 56), np.float32)), head, animate_head=False)
-    write_text(out / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(head.read_bytes()).decode()))
-    head.unlink()
+    with tempfile.TemporaryDirectory(prefix="anima-view-") as tmp:
+        head = export_glb(
+            generated_sequence(TEXT_FPS, face=np.zeros((1, FACE_DIM), np.float32)),
+            Path(tmp) / "head.glb",
+            animate_head=False,
+        )
+        glb_bytes = Path(head).read_bytes()
+    wrote.append(write_text(out / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(glb_bytes).decode())))
     return {
         "kind": "dataset",
         "title": f"dataset {folder.name}: {len(clips)} clips",
@@ -252,27 +301,55 @@ def _dataset_view(folder: Path, out: Path, notes: list, max_clips: int = 200) ->
     }
 
 
-def _reenact_view(path: Path, out: Path, notes: list) -> dict:
+def _record_fields(rec, where: Path) -> tuple[dict, str, str]:
+    """The fields of a re-enactment record the page needs, checked: (result, actor name, target name)."""
+    result = rec.get("result") if isinstance(rec, dict) else None
+    targets = rec.get("targets") if isinstance(rec, dict) else None
+    ok = (
+        isinstance(result, dict)
+        and isinstance(result.get("fps"), (int, float))
+        and not isinstance(result.get("fps"), bool)
+        and 0 < result["fps"] <= 10_000
+        and isinstance(result.get("frames"), int)
+        and 0 <= result["frames"] <= 10_000_000
+        and isinstance(rec.get("actor"), str)
+        and isinstance(targets, list)
+        and targets
+        and isinstance(targets[0], str)
+    )
+    if not ok:
+        raise SchemaError(f"{where}: a re-enactment record without its result (fps, frames, actor, targets)")
+    return result, Path(rec["actor"]).name, Path(targets[0]).name
+
+
+def _reenact_view(path: Path, out: Path, notes: list, wrote: list) -> dict:
     records = _reenact_records(path)
     if len(records) > 1:
         notes.append(f"{len(records)} re-enactments in {path}: showing the newest, {records[0].stem}")
     rec = read_json(records[0])
-    video = Path(rec["result"]["output"])
-    if not video.is_file() and (records[0].with_suffix(".mp4")).is_file():  # moved with its record
-        video = records[0].with_suffix(".mp4")
+    result, actor, target = _record_fields(rec, records[0])
+    # the video lies beside its record: a path elsewhere (moved, or crafted to point outside) is not followed
+    here = records[0].parent
+    named = result.get("output")
+    video = None
+    if isinstance(named, str) and named and "\x00" not in named:
+        video = confined(here, Path(named).name) if Path(named).resolve().parent == here.resolve() else None
+    if video is None:
+        video = confined(here, records[0].with_suffix(".mp4").name)
     videos = []
-    if video.is_file():
-        copy_file(video, out / video.name)
+    if video is not None:
+        name = f"reenact{video.suffix.lower()}" if video.suffix.lower() in PLAYABLE else "reenact.mp4"
+        wrote.append(copy_file(video, out / name, keep_mode=True))
         role = "re-enactment" + (" (actor | output)" if rec.get("side_by_side") else "")
-        videos.append({"file": video.name, "role": role})
+        videos.append({"file": name, "role": role})
     else:
-        notes.append(f"the re-enactment video {video} is not there")
-    title = f"re-enactment: {Path(rec['actor']).name} on {Path(rec['targets'][0]).name}"
+        notes.append(f"the re-enactment video {named} is not beside its record {records[0].name}")
+    title = f"re-enactment: {actor} on {target}"
     return {
         "kind": "reenact",
         "title": title,
-        "fps": rec["result"]["fps"],
-        "frames": rec["result"]["frames"],
+        "fps": result["fps"],
+        "frames": result["frames"],
         "videos": videos,
         "audio": None,
         "curves": {},
@@ -280,28 +357,29 @@ def _reenact_view(path: Path, out: Path, notes: list) -> dict:
         "ranges": [],
         "joints": {},
         "no3d": True,
-        "summary": {k: v for k, v in rec["result"].items() if isinstance(v, (int, float, str))},
+        "summary": {k: v for k, v in result.items() if isinstance(v, (int, float, str))},
     }
 
 
 def build_view(folder: str | Path, out: str | Path) -> dict:
-    """Write the page for the result in ``folder`` into ``out`` (created); returns the page's data."""
+    """Write the page for the result in ``folder`` into ``out`` (created); returns the page's data, with
+    ``written``: the names of the files written into ``out`` (nothing else there is touched)."""
     folder, out = Path(folder), Path(out)
     kind = detect(folder)
     files = viewer_files()
     out.mkdir(parents=True, exist_ok=True)
     notes: list[str] = []
+    wrote: list[Path] = []
     if kind == "dataset":
-        data = _dataset_view(folder, out, notes)
+        data = _dataset_view(folder, out, notes, wrote)
     elif kind == "reenact":
-        data = _reenact_view(folder, out, notes)
-        write_text(out / "avatar-glb.js", _js("ANIMA_GLB", None))
+        data = _reenact_view(folder, out, notes, wrote)
+        wrote.append(write_text(out / "avatar-glb.js", _js("ANIMA_GLB", None)))
     else:
-        data = _sequence_view(folder, kind, out, notes)
+        data = _sequence_view(folder, kind, out, notes, wrote)
     data.update(schema=SCHEMA, version=VERSION, anima_version=__version__, notes=notes, source=str(folder))
-    write_text(out / "view-data.js", _js("ANIMA_VIEW", data))
+    wrote.append(write_text(out / "view-data.js", _js("ANIMA_VIEW", data)))
     for f in files:
-        copy_file(f, out / f.name)
-    if (out / "_head.glb").exists():
-        (out / "_head.glb").unlink()
+        wrote.append(copy_file(f, out / f.name))
+    data["written"] = sorted({Path(p).name for p in wrote})
     return data

@@ -1,107 +1,197 @@
 """``anima view``: the page of a result, served on 127.0.0.1 (a free port) or written as files (``--static``).
 
 The server is the standard library's, with byte ranges (browsers seek in a video by asking for a range; a
-server without them leaves videos unseekable), serving only the page's own folder."""
+server without them leaves videos unseekable). What it will and will not do:
+
+* it serves only the page's own folder (a temporary copy made by :func:`anima.view.export.build_view`): plain
+  file names, regular files, nothing through a symlink, no sub-folders;
+* every URL carries a random per-run token (``http://127.0.0.1:PORT/TOKEN/index.html``): another site cannot
+  guess the address of ``view-data.js`` to include it as a script, and ``Cross-Origin-Resource-Policy:
+  same-origin`` tells the browser not to hand it to another origin anyway;
+* it answers only ``Host: 127.0.0.1:PORT`` or ``localhost:PORT`` (a DNS-rebinding page names its own host);
+* a malformed request (a NUL, a bad escape, a Range of thousands of digits) is answered 400, never a
+  traceback; an idle connection is closed after :data:`IDLE_TIMEOUT_S`.
+"""
 
 from __future__ import annotations
 
 import errno
+import mimetypes
 import os
 import re
+import secrets
 import shutil
+import stat
 import sys
 import tempfile
 import threading
 import webbrowser
-from functools import partial
 from http import HTTPStatus
-from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
+from urllib.parse import unquote, urlsplit
 
 from anima.errors import InputError
 from anima.io.outdir import OutputFolder, check_out_dir
 from anima.view.export import build_view, detect
 
 HOST = "127.0.0.1"
-_RANGE = re.compile(r"bytes=(\d*)-(\d*)$")
+IDLE_TIMEOUT_S = 20
+_RANGE = re.compile(r"bytes=(\d{0,18})-(\d{0,18})$")
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,200}$")
+_TYPES = {".js": "text/javascript; charset=utf-8", ".html": "text/html; charset=utf-8", ".wav": "audio/wav"}
 
 
-class _Handler(SimpleHTTPRequestHandler):
-    """Static files of one folder, with ``Range`` requests (HTTP 206) and no caching."""
+class _Handler(BaseHTTPRequestHandler):
+    """GET/HEAD of the files of one flat folder under ``/TOKEN/``, with ``Range`` (HTTP 206), no caching."""
+
+    root: Path
+    token: str
+    hosts: frozenset
+    timeout = IDLE_TIMEOUT_S
+    server_version = "anima-view"
+    sys_version = ""
 
     def log_message(self, format, *args):
         pass
 
-    def end_headers(self):
+    def _refuse(self, status: HTTPStatus, head_only: bool = False) -> None:
+        body = f"{status.value} {status.phrase}\n".encode()
+        self.send_response(status)
+        self.send_header("Content-Type", "text/plain; charset=utf-8")
+        self.send_header("Content-Length", str(len(body)))
         self.send_header("Cache-Control", "no-store")
-        self.send_header("Accept-Ranges", "bytes")
-        super().end_headers()
-
-    def send_head(self):
-        m = _RANGE.match(self.headers.get("Range", "").strip())
-        path = Path(self.translate_path(self.path))
-        if not m or not path.is_file():
-            return super().send_head()
-        size = path.stat().st_size
-        a, b = m.groups()
-        if a == "":  # the last b bytes
-            start, end = max(0, size - int(b or 0)), size - 1
-        else:
-            start, end = int(a), min(size - 1, int(b) if b else size - 1)
-        if start >= size or start > end:
-            self.send_response(HTTPStatus.REQUESTED_RANGE_NOT_SATISFIABLE)
-            self.send_header("Content-Range", f"bytes */{size}")
-            self.end_headers()
-            return None
-        fh = open(path, "rb")
-        fh.seek(start)
-        self.send_response(HTTPStatus.PARTIAL_CONTENT)
-        self.send_header("Content-Type", self.guess_type(str(path)))
-        self.send_header("Content-Range", f"bytes {start}-{end}/{size}")
-        self.send_header("Content-Length", str(end - start + 1))
         self.end_headers()
-        self._left = end - start + 1
-        return fh
+        if not head_only:
+            self.wfile.write(body)
 
-    def copyfile(self, source, outputfile):
-        left = getattr(self, "_left", None)
-        if left is None:
-            return super().copyfile(source, outputfile)
+    def _file(self) -> tuple[Path | None, HTTPStatus]:
+        """The file a request names, or why not."""
+        if self.headers.get("Host", "") not in self.hosts:
+            return None, HTTPStatus.MISDIRECTED_REQUEST
         try:
-            while left > 0:
-                block = source.read(min(left, 1 << 16))
-                if not block:
-                    break
-                outputfile.write(block)
-                left -= len(block)
-        except (BrokenPipeError, ConnectionResetError):  # the browser moved on (a seek): not an error
-            pass
+            raw = urlsplit(self.path).path
+            path = unquote(raw, errors="strict")
+        except (ValueError, UnicodeDecodeError):
+            return None, HTTPStatus.BAD_REQUEST
+        if "\x00" in path or "\\" in path:
+            return None, HTTPStatus.BAD_REQUEST
+        prefix = f"/{self.token}/"
+        if not path.startswith(prefix):
+            return None, HTTPStatus.NOT_FOUND
+        name = path[len(prefix) :] or "index.html"
+        if not _NAME.match(name) or ".." in name:
+            return None, HTTPStatus.NOT_FOUND
+        p = self.root / name
+        try:
+            st = os.lstat(p)
+        except OSError:
+            return None, HTTPStatus.NOT_FOUND
+        if not stat.S_ISREG(st.st_mode):
+            return None, HTTPStatus.NOT_FOUND
+        return p, HTTPStatus.OK
+
+    def do_HEAD(self):
+        self._serve(head_only=True)
+
+    def do_GET(self):
+        self._serve(head_only=False)
+
+    def _serve(self, head_only: bool) -> None:
+        p, status = self._file()
+        if p is None:
+            return self._refuse(status, head_only)
+        try:
+            fh = open(p, "rb")
+        except OSError:
+            return self._refuse(HTTPStatus.NOT_FOUND, head_only)
+        with fh:
+            size = os.fstat(fh.fileno()).st_size
+            start, end = 0, size - 1
+            rng = self.headers.get("Range", "").strip()
+            m = _RANGE.match(rng) if rng else None
+            if rng and (m is None or m.groups() == ("", "")):
+                return self._refuse(HTTPStatus.BAD_REQUEST, head_only)
+            if m:
+                a, b = m.groups()
+                if a == "":  # the last b bytes
+                    start, end = max(0, size - int(b)), size - 1
+                else:
+                    start, end = int(a), min(size - 1, int(b) if b else size - 1)
+                if start >= size or start > end:
+                    self.send_response(HTTPStatus.REQUESTED_RANGE_NOT_SATISFIABLE)
+                    self.send_header("Content-Range", f"bytes */{size}")
+                    self.send_header("Content-Length", "0")
+                    self.end_headers()
+                    return None
+                self.send_response(HTTPStatus.PARTIAL_CONTENT)
+                self.send_header("Content-Range", f"bytes {start}-{end}/{size}")
+            else:
+                self.send_response(HTTPStatus.OK)
+            ctype = _TYPES.get(p.suffix.lower()) or mimetypes.guess_type(p.name)[0] or "application/octet-stream"
+            self.send_header("Content-Type", ctype)
+            self.send_header("Content-Length", str(max(0, end - start + 1)))
+            self.send_header("Accept-Ranges", "bytes")
+            self.send_header("Cache-Control", "no-store")
+            self.send_header("X-Content-Type-Options", "nosniff")
+            self.send_header("Cross-Origin-Resource-Policy", "same-origin")
+            self.send_header("Referrer-Policy", "no-referrer")
+            self.end_headers()
+            if head_only:
+                return None
+            fh.seek(start)
+            left = end - start + 1
+            try:
+                while left > 0:
+                    block = fh.read(min(left, 1 << 16))
+                    if not block:
+                        break
+                    self.wfile.write(block)
+                    left -= len(block)
+            except (BrokenPipeError, ConnectionResetError):  # the browser moved on (a seek): not an error
+                pass
+        return None
 
 
-def open_server(root: Path, port: int | None) -> tuple[ThreadingHTTPServer, str | None]:
-    """A server of ``root`` on 127.0.0.1: ``port``, or a free one (and a note) when that one is taken."""
-    handler = partial(_Handler, directory=str(root))
+class _Server(ThreadingHTTPServer):
+    daemon_threads = True
+
+    def handle_error(self, request, client_address):
+        """A request that failed in a way the handler did not answer (a dropped connection): no traceback."""
+
+
+def open_server(root: Path, port: int | None, token: str | None = None) -> tuple[ThreadingHTTPServer, str | None]:
+    """A server of ``root`` on 127.0.0.1: ``port``, or a free one (and a note) when that one is taken. Its
+    files are under ``/TOKEN/`` (``server.token``)."""
+    token = token or secrets.token_urlsafe(18)
+    handler = type("Handler", (_Handler,), {"root": Path(root), "token": token, "hosts": frozenset()})
     note = None
     try:
-        server = ThreadingHTTPServer((HOST, port or 0), handler)
+        server = _Server((HOST, port or 0), handler)
     except OSError as e:
         if port is None or e.errno not in (errno.EADDRINUSE, errno.EACCES):
             raise InputError(f"cannot serve on {HOST}: {e.strerror or e}") from None
-        server = ThreadingHTTPServer((HOST, 0), handler)
+        server = _Server((HOST, 0), handler)
         note = f"port {port} is in use; serving on port {server.server_address[1]} instead"
-    server.daemon_threads = True
+    bound = server.server_address[1]
+    handler.hosts = frozenset({f"{HOST}:{bound}", f"localhost:{bound}"})
+    server.token = token
     return server, note
 
 
+def page_url(server) -> str:
+    return f"http://{HOST}:{server.server_address[1]}/{server.token}/index.html"
+
+
 def write_static(folder: str | Path, out: str | Path, command: str | None = None) -> dict:
-    """``anima view DIR --static OUT``: the page as files (open ``OUT/index.html`` from disk)."""
+    """``anima view DIR --static OUT``: the page as files (open ``OUT/index.html`` from disk). ``OUT`` follows
+    the result-folder rule (new, empty, or anima's own); only the page's own files are written and listed."""
     kind = detect(Path(folder))  # refuse a folder that holds no result before touching OUT
     check_out_dir(out, "--static")
     with OutputFolder(out, kind="view", command=command) as od:
         data = build_view(folder, od.path)
-        for p in sorted(od.path.iterdir()):
-            if p.is_file() and not p.name.startswith("."):
-                od.add(p.name)
+        for name in data["written"]:
+            od.file(name)
         od.info = {"kind": kind, "source": str(folder)}
     return {"kind": kind, "page": str(Path(out) / "index.html"), "notes": data["notes"]}
 
@@ -116,7 +206,7 @@ def serve(folder: str | Path, port: int | None = None, browser: bool = True, ann
     try:
         data = build_view(folder, root)
         server, note = open_server(root, port)
-        url = f"http://{HOST}:{server.server_address[1]}/index.html"
+        url = page_url(server)
         for n in ([note] if note else []) + data["notes"]:
             print(f"anima: note: {n}", file=sys.stderr)
         announce(f"anima view: {kind} {folder} at {url}  (Ctrl-C to stop)")

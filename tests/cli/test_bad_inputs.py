@@ -264,6 +264,238 @@ def _checkpoints(d: Path, files: dict) -> dict:
         },
         c.setdefault("bad_meta", d / "bad_meta.pt"),
     )
+    # the red team's checkpoints: a 4 MB file whose tensor is a stride-0 view of gigabytes, NaN and 1e30
+    # weights, and a config whose model would be far larger than the weights it carries
+    first = next(iter(old["tensors"]["state"]))
+    for name, edit in {
+        "stride0": lambda o: o["tensors"]["state"].__setitem__(first, torch.zeros(1).expand(400_000_000)),
+        "nan_weights": lambda o: o["tensors"]["state"][first].fill_(float("nan")),
+        "huge_weights": lambda o: o["tensors"]["state"].__setitem__(
+            first, torch.full(o["tensors"]["state"][first].shape, 1e30)
+        ),
+        "big_config": lambda o: o.__setitem__(
+            "meta", json.dumps({**json.loads(o["meta"]), "config": _with_model(json.loads(o["meta"]), d_m=10**7)})
+        ),
+    }.items():
+        o = torch.load(SHIPPED, weights_only=True)
+        o["version"] = torch.load(SHIPPED, weights_only=True)["version"]
+        edit(o)
+        torch.save(o, c.setdefault(name, d / f"{name}.pt"))
+    return c
+
+
+def _with_model(meta: dict, **model) -> dict:
+    cfg = dict(meta["config"])
+    cfg["model"] = {**cfg["model"], **model}
+    return cfg
+
+
+def _float_wav(path: Path, x: np.ndarray, sr: int = 16000) -> Path:
+    """A 32-bit float WAV (format 3), which may hold NaN: the red team's damaged audio."""
+    import struct
+
+    data = np.asarray(x, "<f4").tobytes()
+    fmt = struct.pack("<IHHIIHH", 16, 3, 1, sr, sr * 4, 4, 32)
+    path.write_bytes(
+        b"RIFF" + struct.pack("<I", 36 + len(data)) + b"WAVEfmt " + fmt + b"data" + struct.pack("<I", len(data)) + data
+    )
+    return path
+
+
+# what the red team's ownership cases must refuse, by the reason they give (a refusal for another reason
+# would hide a command that skipped the check)
+OWNERSHIP = ("did not write", "special file", "is an input of this command", "existing file", "expected a .mp4")
+
+
+def _red_team(d: Path, files: dict, npz: dict, base: Path, ck: dict, ds: dict) -> list[tuple[str, list]]:
+    """The outside red team's cases (issue 32): outputs at a user's folder, at an input, beside an input, at a
+    special file; memory bombs; NaN; and what used to end in an internal error."""
+    from anima.io.video import FFMPEG
+
+    user = d / "user"  # a folder of the user's: nothing in it may change
+    user.mkdir()
+    (user / "notes.txt").write_text("my notes\n")
+    (user / "photo.jpg").write_bytes(b"\xff\xd8\xff" + bytes(100))
+    (user / "index.html").write_text("<p>my page</p>\n")
+    inputs = d / "inputs"  # a user's folder holding the inputs
+    inputs.mkdir()
+    clip = _copy(asset(D0), inputs / "clip.mp4")
+    seq = _copy(base, inputs / "take.npz")
+    wav = _copy(files["wav"], inputs / "voice.wav")
+    (inputs / "notes.json").write_text('{"mine": true}\n')  # beside `--out notes.mp4`
+    fifo = d / "fifo"
+    os.mkfifo(fifo)
+    specials = [fifo] + ([Path("/dev/full")] if Path("/dev/full").exists() else [])
+    res = d / "res"  # a result folder to view
+    res.mkdir()
+    _copy(base, res / "capture.npz")
+    target = str(asset("styletalk-samples/samples/source_video/video/Obama_clip1.mp4"))
+    facemodel_in = d / "fm_nan"  # an ICT OBJ folder whose neutral mesh holds NaN
+    facemodel_in.mkdir()
+    (facemodel_in / "generic_neutral_mesh.obj").write_text("v nan 0 0\nv 0 1 0\nv 1 0 0\nf 1 2 3\n")
+    c = []
+
+    def add(name, *argv):
+        c.append((name, [str(a) for a in argv]))
+
+    # outputs: a user's folder, the folder holding the inputs, an input, a special file
+    for where, folder in (("user folder", user), ("beside an input", inputs)):
+        add(f"own capture --out {where}", "capture", clip, "--out", folder, "--quiet")
+        add(f"own text2face --out {where}", "text2face", "a woman smiles", "--out", folder, "--no-video")
+        add(f"own gesture --out {where}", "gesture", wav, "--generator", ck["crafted"], "--out", folder)
+        add(f"own view --static {where}", "view", res, "--static", folder)
+        add(f"own dataset build --out {where}", "dataset", "build", clip, "--out", folder, "--quiet")
+        add(f"own train text2face --out {where}", "train", "text2face", ds["corrupt_shard"], "--out", folder)
+        add(f"own eval reenact --out {where}", "eval", "reenact", "--out", folder)
+        add(f"own eval all --out {where}", "eval", "all", "--db", ds["corrupt_shard"], "--out", folder)
+    for fmt in ("arkit", "glb", "bvh"):
+        add(f"own export {fmt} --out its input", "export", fmt, seq, "--out", seq)
+    add("own audio features --out its input", "audio", "features", wav, "--out", wav)
+    add("own reenact --out the actor", "reenact", "--actor", clip, "--target", target, "--out", clip)
+    add("own reenact --out the record's name", "reenact", "--actor", clip, "--target", target, "--out", d / "r.json")
+    add(
+        "own reenact --out beside a user's json",
+        "reenact",
+        "--actor",
+        clip,
+        "--target",
+        target,
+        "--out",
+        inputs / "notes.mp4",
+    )
+    add("own capture --out an input", "capture", clip, "--out", clip, "--quiet")
+    for sp in specials:
+        add(f"own capture --out {sp}", "capture", clip, "--out", sp, "--quiet")
+        add(f"own export arkit --out {sp}", "export", "arkit", seq, "--out", sp)
+        add(f"own audio features --out {sp}", "audio", "features", wav, "--out", sp)
+        add(f"own reenact --out {sp}", "reenact", "--actor", clip, "--target", target, "--out", sp)
+        add(f"own train gesture --out {sp}", "train", "gesture", "--db", ds["corrupt_shard"], "--out", sp)
+        add(f"own facemodel import --out {sp}", "facemodel", "import", facemodel_in, "--out", sp)
+        add(f"own view --static {sp}", "view", res, "--static", sp)
+    # memory: bounded by the input before anything is allocated
+    slow = _edit(_copy(base, d / "slow_fps.npz"), meta={"fps": 0.001})
+    add(
+        "mem export bvh of a 0.001-fps sequence at 240 fps",
+        "export",
+        "bvh",
+        slow,
+        "--out",
+        d / "slow.bvh",
+        "--fps",
+        "240",
+    )
+    for k in ("stride0", "nan_weights", "huge_weights", "big_config"):
+        add(
+            f"mem text2face --checkpoint {k}",
+            "text2face",
+            "a woman smiles",
+            "--checkpoint",
+            ck[k],
+            "--out",
+            d / f"t_{k}",
+        )
+    bomb = d / "db_bomb.npz"  # a reenact database whose arrays inflate to gigabytes
+    with zipfile.ZipFile(bomb, "w", zipfile.ZIP_DEFLATED) as z:
+        import io
+
+        for name in (
+            "expression",
+            "rotation",
+            "scale",
+            "translation",
+            "video",
+            "frame",
+            "identity",
+            "colors",
+            "vertex_ids",
+            "meta",
+        ):
+            head = io.BytesIO()
+            np.lib.format.write_array_header_1_0(
+                head, {"descr": "<f4", "fortran_order": False, "shape": (200_000, 2000)}
+            )
+            with z.open(f"{name}.npy", "w", force_zip64=True) as fh:
+                fh.write(head.getvalue())
+                for _ in range(40):
+                    fh.write(bytes(1 << 20))
+    add(
+        "mem reenact --db zip bomb", "reenact", "--actor", clip, "--target", target, "--out", d / "rb.mp4", "--db", bomb
+    )
+    # NaN and absurd values: refused at load
+    nan_wav = _float_wav(d / "nan.wav", np.where(np.arange(16000) % 100 == 0, np.nan, 0.1))
+    add("nan audio features", "audio", "features", nan_wav, "--out", d / "nan.npz")
+    add("nan capture --audio", "capture", clip, "--out", d / "c_nan", "--audio", nan_wav, "--quiet")
+    add("nan gesture speech", "gesture", nan_wav, "--generator", ck["missing"], "--out", d / "g_nan")
+    huge = _edit(_copy(base, d / "expr_huge.npz"), arrays={"expression": np.full((20, 53), 1e30, np.float32)})
+    add("nan export arkit of 1e30 weights", "export", "arkit", huge, "--out", d / "huge.csv")
+    far = _edit(_copy(base, d / "body_far.npz"), arrays={"body_joints": np.full((20, 55, 3), 1e32, np.float32)})
+    add("nan export bvh of 1e32 joints", "export", "bvh", far, "--out", d / "far.bvh")
+    slow_video = d / "slow.mp4"
+    subprocess.run(
+        [
+            FFMPEG,
+            "-v",
+            "error",
+            "-y",
+            "-f",
+            "lavfi",
+            "-i",
+            "testsrc=size=64x64:rate=1",
+            "-frames:v",
+            "3",
+            "-vf",
+            "setpts=1000*PTS",
+            "-r",
+            "0.001",
+            "-pix_fmt",
+            "yuv420p",
+            str(slow_video),
+        ],
+        check=True,
+    )
+    add("mem capture of a 0.001-fps video", "capture", slow_video, "--out", d / "c_slow", "--quiet")
+    add("nan facemodel import of NaN vertices", "facemodel", "import", facemodel_in, "--out", d / "fm.npz")
+    # what used to be an internal error
+    add(
+        "exit1 info of a meta whose source is text",
+        "info",
+        _edit(_copy(base, d / "src_text.npz"), meta={"source": "x"}),
+        "--json",
+    )
+    rec_dir = d / "rec"
+    rec_dir.mkdir()
+    (rec_dir / "r.json").write_text('{"schema": "anima.reenact_run", "version": 1, "actor": "a"}')
+    add("exit1 view of a reenact record without result", "view", rec_dir / "r.json", "--static", d / "v_rec")
+    add("exit1 text2face --seed 2**64", "text2face", "a woman smiles", "--seed", str(2**64), "--out", d / "t_seed")
+    add(
+        "exit1 text2face 10^12 blinks",
+        "text2face",
+        "she blinks 1000000000000 times",
+        "--out",
+        d / "t_many",
+        "--no-video",
+    )
+    add(
+        "exit1 dataset build --address of a closed port",
+        "dataset",
+        "build",
+        clip,
+        "--out",
+        d / "ds_addr",
+        "--address",
+        "127.0.0.1:9",
+    )
+    add(
+        "exit1 train gesture --seed 2**64",
+        "train",
+        "gesture",
+        "--db",
+        ds["corrupt_shard"],
+        "--seed",
+        str(2**64),
+        "--out",
+        d / "s.pt",
+    )
     return c
 
 
@@ -548,6 +780,8 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
     for v in ("0", "-1", "65536", "abc"):
         add(f"view --port {v}", "view", files["dir"], "--port", v, "--no-browser")
 
+    for name, argv in _red_team(d, files, npz, base, ck, ds):
+        add(name, *argv)
     add("unknown command", "fly")
     add("unknown option", "info", "--frobnicate")
     add("eval unknown", "eval", "everything")
@@ -559,6 +793,7 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
 def results(tmp_path_factory):
     d = tmp_path_factory.mktemp("bad inputs ✓")
     cs = cases(d)
+    before = _snapshot(d)
     lines = "".join(
         json.dumps({"id": i, "argv": argv, "env": env, "timeout": 120}) + "\n" for i, (_, argv, env) in enumerate(cs)
     )
@@ -573,14 +808,60 @@ def results(tmp_path_factory):
         )
         for _ in half
     ]
-    outs = [p.communicate("".join(h), timeout=3000)[0] for p, h in zip(procs, half)]
+    # both runners at once (communicating with one, then the other, would feed the second nothing until the first
+    # was done: the two halves ran one after the other)
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(len(procs)) as pool:
+        outs = list(pool.map(lambda ph: ph[0].communicate("".join(ph[1]), timeout=3000)[0], zip(procs, half)))
     res = {r["id"]: r for o in outs for r in map(json.loads, o.splitlines())}
     assert not (d / "pwned").exists(), "a crafted checkpoint ran code"
+    _touched.update(before=before, after=_snapshot(d))
     if os.environ.get("ANIMA_BAD_INPUT_LOG"):
         Path(os.environ["ANIMA_BAD_INPUT_LOG"]).write_text(
             json.dumps([{"name": n, **res[i]} for i, (n, _, _) in enumerate(cs)], indent=1)
         )
     return [(name, argv, res[i]) for i, (name, argv, _) in enumerate(cs)]
+
+
+_touched: dict = {}
+
+
+def _snapshot(d: Path) -> dict:
+    """What the user owns in the matrix's folder: every file of the user's folders (content hash, mode) and
+    what the special files are."""
+    import hashlib
+    import stat
+
+    snap = {}
+    for folder in (d / "user", d / "inputs"):
+        for p in sorted(folder.rglob("*")):
+            st = p.lstat()
+            snap[str(p)] = (stat.S_IFMT(st.st_mode), hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "")
+    for p in (d / "fifo", Path("/dev/full")):
+        if os.path.lexists(p):
+            snap[str(p)] = (stat.S_IFMT(p.lstat().st_mode), "")
+    return snap
+
+
+def test_red_team_outputs_touch_no_user_file(results):
+    """--out at a user's folder, at the folder holding the inputs, at an input, at a special file: refused for
+    that reason, and every user file and special file is as it was (issue 32)."""
+    own = [(n, r) for n, _, r in results if n.startswith("own ")]
+    assert len(own) >= 30
+    wrong = [f"{n}: {r['stderr'][-200:]!r}" for n, r in own if not any(w in r["stderr"] for w in OWNERSHIP)]
+    assert not wrong, wrong
+    assert _touched["after"] == _touched["before"]
+
+
+def test_red_team_memory_and_nan_cases_are_refused_quickly(results):
+    """The memory bombs (a stride-0 checkpoint tensor, a zip bomb, a 0.001-fps export, a config of a huge model)
+    and NaN inputs are refused before allocating: each case is seconds, not the minutes of a swapping machine,
+    and a non-Ray --address is refused within 10 s."""
+    slow = [(n, r["seconds"]) for n, _, r in results if n.split()[0] in ("mem", "nan", "exit1") and r["seconds"] > 20]
+    assert not slow, slow
+    addr = next(r for n, _, r in results if "--address" in n)
+    assert addr["rc"] == 2 and addr["seconds"] < 10, addr
 
 
 def test_at_least_300_cases_over_every_command(results):

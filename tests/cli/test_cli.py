@@ -2,6 +2,7 @@
 
 import json
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -48,6 +49,15 @@ def test_capture_end_to_end_on_real_clip(d0_path, tmp_path, cli):
     assert info["frames"] == 40 and info["mean_fit_error_px"] < 5 and "mean_fit_nme" in info
     r = cli("export", "glb", out / "capture.npz", "--out", tmp_path / "again.glb")
     assert r.returncode == 0 and (tmp_path / "again.glb").exists()
+    # `anima export ... | true`: the reader of stdout is gone; the file is written, no traceback, no error
+    p = subprocess.Popen(
+        [sys.executable, "-m", "anima", "export", "arkit", out / "capture.npz", "--out", tmp_path / "x.csv"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    p.stdout.close()
+    err = p.stderr.read().decode()
+    assert p.wait() in (0, 141) and err == "" and (tmp_path / "x.csv").stat().st_size > 1000
 
 
 @pytest.mark.parametrize(
@@ -73,7 +83,7 @@ def test_missing_file(tmp_path, cli):
     assert r.returncode == 2 and "not found" in r.stderr
 
 
-@pytest.mark.parametrize("kind", ["gray", "two_faces", "vfr", "truncated", "partial"])
+@pytest.mark.parametrize("kind", ["gray", "two_faces", "vfr", "truncated", "partial", "fps1000"])
 def test_unusual_input_still_captured(videos, tmp_path, kind, cli):
     out = tmp_path / kind
     r = cli("capture", videos[kind], "--out", out, "--quiet", "--no-render", "--json")
@@ -89,6 +99,8 @@ def test_unusual_input_still_captured(videos, tmp_path, kind, cli):
         assert s["tracked_fraction"] > 0.9
     if kind in ("vfr", "truncated"):
         assert s["warnings"], "the user is told about resampling / truncation"
+    if kind == "fps1000":
+        assert seq.fps == pytest.approx(1000, rel=1e-3) and seq.n_frames == 30
 
 
 def test_audio_features_command(tmp_path, cli):
@@ -111,6 +123,12 @@ def test_audio_features_command(tmp_path, cli):
         assert z["features"].shape == (s["frames"], 28) and np.isfinite(z["features"]).all()
     r = cli("audio", "features", asset("liveportrait-examples/assets/examples/driving/d0.mp4"), "--out", out)
     assert r.returncode == 2 and "no audio track" in r.stderr
+    # any name for the output (numpy would add ".npz" and leave the temporary file behind: issue 32)
+    r = cli("audio", "features", asset("videoretalking-examples/examples/audio/1.wav"), "--out", tmp_path / "x.dat")
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f.npz", "x.dat"]
+    with np.load(tmp_path / "x.dat") as z:
+        assert z["features"].shape[1] == 28
 
 
 def test_capture_body_outputs_and_bvh_export(tmp_path, cli):

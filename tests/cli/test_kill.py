@@ -53,6 +53,9 @@ def check_file(p: Path, frames: int | None) -> str | None:
 
     try:
         if p.name.startswith("."):
+            if p.name == ".anima-folder":  # anima's marker: written atomically, always readable
+                json.loads(p.read_text())
+                return None
             return None if ".anima-tmp-" in p.name or p.name == ".anima.lock" else f"unknown hidden file {p.name}"
         if p.suffix == ".npz":
             read_sequence(p, landmarks=False)

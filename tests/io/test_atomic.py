@@ -105,3 +105,100 @@ def test_out_paths_are_checked_before_work(tmp_path):
         check_out_file("/proc/anima/x.npz")
     assert check_out_file(tmp_path / "deeper" / "x.npz") == tmp_path / "deeper" / "x.npz"
     assert not (tmp_path / "deeper").exists()  # checking creates nothing
+
+
+def _tree(folder):
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_anima_writes_only_into_its_own_folders(tmp_path):
+    """Issue 32: a folder holding files anima did not write is refused (before any work); an empty or new one is
+    claimed with anima's marker; an older anima result (a manifest, no marker) is adopted but nothing in it is
+    deleted."""
+    from anima.io.outdir import MARKER, check_out_dir, read_marker
+
+    user = tmp_path / "mine"
+    user.mkdir()
+    (user / "notes.txt").write_text("my notes")
+    (user / "photo.jpg").write_bytes(b"\xff\xd8")
+    with pytest.raises(InputError, match="did not write .*notes.txt, photo.jpg"):
+        OutputFolder(user, kind="demo")
+    with pytest.raises(InputError, match="did not write"):
+        check_out_dir(user, "--static")
+    assert _tree(user) == {"notes.txt": b"my notes", "photo.jpg": b"\xff\xd8"}
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with OutputFolder(empty, kind="demo") as od:
+        write_json(od.file("a.json"), {})
+    assert read_marker(empty)["files"].keys() == {"a.json"}
+    (empty / "mine.txt").write_text("added by the user later")  # a user's file inside an anima folder
+    with OutputFolder(empty, kind="demo") as od:  # the rerun keeps it (anima never wrote it)
+        write_json(od.file("b.json"), {})
+    assert (empty / "mine.txt").read_text() == "added by the user later" and not (empty / "a.json").exists()
+    legacy = tmp_path / "legacy"  # an older anima's result: manifest, no marker; its stale list is not trusted
+    legacy.mkdir()
+    (legacy / "keep.txt").write_text("listed by an old manifest")
+    (legacy / "manifest.json").write_text(
+        json.dumps({"schema": "anima.result", "version": 1, "files": {"keep.txt": {}}})
+    )
+    with OutputFolder(legacy, kind="demo") as od:
+        write_json(od.file("a.json"), {})
+    assert (legacy / "keep.txt").exists() and (legacy / MARKER).is_file()
+
+
+def test_stale_removal_stays_inside_the_folder_and_on_anima_content(tmp_path):
+    """A marker or manifest naming ``../victim.txt``, an absolute path, a path through a symlink or a file whose
+    content changed since anima wrote it: nothing of those is deleted."""
+    import hashlib
+
+    from anima.io.outdir import MARKER, sha256
+
+    out = tmp_path / "r"
+    with OutputFolder(out, kind="demo") as od:
+        write_json(od.file("old.json"), {"x": 1})
+        write_json(od.file("edited.json"), {"x": 2})
+    victim = tmp_path / "victim.txt"
+    victim.write_text("outside")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "x.txt").write_text("behind a link")
+    (out / "link").symlink_to(elsewhere)
+    (out / "edited.json").write_text('{"mine": true}')
+    digest = hashlib.sha256(b"outside").hexdigest()
+    marker = json.loads((out / MARKER).read_text())
+    marker["files"].update(
+        {
+            "../victim.txt": digest,
+            str(victim): digest,
+            "link/x.txt": hashlib.sha256(b"behind a link").hexdigest(),
+            "old.json": sha256(out / "old.json"),
+        }
+    )
+    (out / MARKER).write_text(json.dumps(marker))
+    (out / "manifest.json").write_text(
+        json.dumps({"schema": "anima.result", "version": 1, "files": {"../victim.txt": {}, str(victim): {}}})
+    )
+    with OutputFolder(out, kind="demo") as od:
+        write_json(od.file("new.json"), {})
+    assert victim.read_text() == "outside" and (elsewhere / "x.txt").read_text() == "behind a link"
+    assert (out / "edited.json").read_text() == '{"mine": true}'  # changed by the user: theirs now
+    assert not (out / "old.json").exists()  # anima's own stale output: removed
+
+
+def test_single_file_outputs_never_replace_an_input_or_a_special_file(tmp_path):
+    import os
+
+    from anima.io.outdir import check_out_file
+
+    f = tmp_path / "take.npz"
+    f.write_bytes(b"x")
+    with pytest.raises(InputError, match="is an input"):
+        check_out_file(f, inputs=[f])
+    with pytest.raises(InputError, match="is an input"):
+        check_out_file(tmp_path / "." / "take.npz", inputs=[str(f)])
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    with pytest.raises(InputError, match="special file"):
+        check_out_file(fifo)
+    with pytest.raises(InputError, match="expected a .mp4"):
+        check_out_file(tmp_path / "r.json", suffixes=(".mp4",))

@@ -249,9 +249,11 @@ def test_reenact_command_end_to_end(obama_db, tmp_path, cli):
     assert rec["side_by_side"] and rec["config"]["n"] == 100
     r = cli("view", out, "--static", tmp_path / "page")
     assert r.returncode == 0, r.stderr
-    assert "reenact page written" in r.stdout and (tmp_path / "page" / "re.mp4").is_file()
+    assert "reenact page written" in r.stdout and (tmp_path / "page" / "reenact.mp4").is_file()
     data = json.loads((tmp_path / "page" / "view-data.js").read_text().split("=", 1)[1].rstrip().rstrip(";"))
-    assert data["kind"] == "reenact" and data["videos"] == [{"file": "re.mp4", "role": "re-enactment (actor | output)"}]
+    assert data["kind"] == "reenact" and data["videos"] == [
+        {"file": "reenact.mp4", "role": "re-enactment (actor | output)"}
+    ]
 
 
 def test_reenact_bad_inputs(tmp_path, cli):

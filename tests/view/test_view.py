@@ -9,6 +9,8 @@ import shutil
 import socket
 import subprocess
 import sys
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -160,6 +162,47 @@ def test_dataset_page_plays_each_clip(gesture_ds, browser, tmp_path, cli):
         for i, n in enumerate(names):
             assert s["morphs"][n] == pytest.approx(float(c.motion[f, i]), abs=1e-5), (f, n)
     assert_head_drawn(browser, "dataset")
+    # issue 32: texts from data (a video named `<img onerror=...>.mp4`, its descriptions) are shown as text
+    page = tmp_path / "page"
+    data = json.loads((page / "view-data.js").read_text().split("=", 1)[1].rstrip().rstrip(";"))
+    evil = '<img src=x onerror="window.pwned=1"><script>window.pwned=2</script>'
+    data["clips"][0].update(source=evil + ".mp4", split=evil, texts=[evil])
+    data["title"] = evil
+    (page / "view-data.js").write_text(f"window.ANIMA_VIEW = {json.dumps(data)};\n")
+    browser.get((page / "index.html").as_uri())
+    wait_ready(browser)
+    browser.find_elements("css selector", "#clips li")[0].click()
+    time.sleep(0.5)  # an image's onerror would have fired by now
+    assert browser.execute_script("return window.pwned === undefined")
+    assert evil in browser.find_element("css selector", "#clips li").text
+    assert browser.find_element("id", "prompt").text == evil
+
+
+def test_another_site_reads_nothing_of_a_served_page(results, browser, tmp_path):
+    """Issue 32: a page of another origin that includes the viewer's data as a script (even knowing the URL and
+    its token) gets nothing: the server marks its files same-origin only."""
+    import http.server
+
+    with served(results / "t2f") as (url, _):
+        base = url.rsplit("/", 1)[0]
+        site = tmp_path / "site"
+        site.mkdir()
+        (site / "attack.html").write_text(
+            f'<script src="{base}/view-data.js"></script><script src="{base}/avatar-glb.js"></script>'
+            "<script>document.title = (window.ANIMA_VIEW || window.ANIMA_GLB) ? 'LEAK' : 'safe';</script>"
+        )
+        handler = lambda *a: http.server.SimpleHTTPRequestHandler(*a, directory=str(site))
+        srv = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+        threading.Thread(target=srv.serve_forever, daemon=True).start()
+        try:
+            browser.get(f"http://localhost:{srv.server_address[1]}/attack.html")
+            time.sleep(0.5)
+            assert browser.title == "safe"
+            browser.get(url)  # the page itself still loads its data
+            wait_ready(browser)
+        finally:
+            srv.shutdown()
+            srv.server_close()
 
 
 def test_gesture_page_shows_joins_and_controls(gesture_ds, browser, tmp_path, cli):

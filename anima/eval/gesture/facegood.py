@@ -12,7 +12,7 @@ from anima.audio.features import read_audio, speech_features
 from anima.eval.gesture.metrics import mouth_opening_mm
 from anima.io.assets import asset
 
-FACEGOOD_FPS = 30.0  # the rate of FaceGood's bs_value arrays
+FACEGOOD_FPS = 30.0  # contract: not ours (the rate of FaceGood's bs_value arrays)
 
 
 def load_py2_npy(path) -> np.ndarray:

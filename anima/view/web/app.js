@@ -41,7 +41,7 @@ const videos = [];
 for (const v of V.videos || []) {
   const box = document.createElement("figure");
   const el = document.createElement("video");
-  el.src = v.file;
+  el.src = `./${encodeURIComponent(v.file)}`;
   el.muted = true;
   el.preload = "auto";
   el.playsInline = true;
@@ -229,7 +229,13 @@ function listClips() {
   V.clips.forEach((c, i) => {
     const li = document.createElement("li");
     li.dataset.i = i;
-    li.innerHTML = `<b>${c.source}</b> ${c.start_s.toFixed(1)} s <span class="split">${c.split}</span><br>${c.texts[0]}`;
+    // every text from the data as text nodes, never markup (a file may be named `<img onerror=...>.mp4`)
+    const b = document.createElement("b");
+    b.textContent = String(c.source);
+    const split = document.createElement("span");
+    split.className = "split";
+    split.textContent = String(c.split);
+    li.append(b, ` ${Number(c.start_s).toFixed(1)} s `, split, document.createElement("br"), String(c.texts[0] ?? ""));
     li.onclick = () => selectClip(i);
     $("clips").appendChild(li);
   });
@@ -240,7 +246,7 @@ const slider = $("slider");
 function setupTimeline() {
   slider.max = frames - 1;
   const marks = $("marks");
-  marks.innerHTML = "";
+  marks.replaceChildren();
   for (const r of V.ranges || []) {
     const d = document.createElement("div");
     d.className = "range";
@@ -327,13 +333,16 @@ function drawCurves() {
   g.moveTo(x, 0);
   g.lineTo(x, h);
   g.stroke();
-  $("legend").innerHTML = curveNames
-    .map((n, k) => {
+  $("legend").replaceChildren(
+    ...curveNames.map((n, k) => {
       const ys = V.curves[n];
       const v = ys[Math.min(api.frame, ys.length - 1)];
-      return `<span style="color:${colors[k % colors.length]}">${n} ${v === null ? "–" : v.toFixed(3)}</span>`;
-    })
-    .join(" ");
+      const span = document.createElement("span");
+      span.style.color = colors[k % colors.length];
+      span.textContent = `${n} ${v === null ? "–" : Number(v).toFixed(3)}`;
+      return span;
+    }),
+  );
 }
 
 // ---- playback -----------------------------------------------------------------------------------------------
