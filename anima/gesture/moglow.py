@@ -61,8 +61,8 @@ class _InvLinear(nn.Module):
     def forward(self, x):
         return x @ self.W.T, torch.linalg.slogdet(self.W)[1].expand(len(x))
 
-    def inverse(self, y):
-        return y @ torch.linalg.inv(self.W).T
+    def inverse(self, y, w_inv=None):
+        return y @ (torch.linalg.inv(self.W) if w_inv is None else w_inv).T
 
 
 class _Coupling(nn.Module):
@@ -134,9 +134,12 @@ class MoGlow(nn.Module):
             logdet = logdet + a + b + e
         return x, logdet
 
-    def _inverse(self, z, c):
-        for norm, lin, coup in reversed(self.steps):
-            z = norm.inverse(lin.inverse(coup.inverse(z, c)))
+    def _inverse(self, z, c, w_inv=None):
+        """The flow backwards; ``w_inv``: the inverses of the steps' 1x1 weights, computed once by a caller that
+        inverts many frames with fixed weights (sampling inverts every frame: 16 inverses a frame otherwise)."""
+        w_inv = w_inv or [None] * len(self.steps)
+        for (norm, lin, coup), wi in zip(reversed(self.steps), reversed(w_inv)):
+            z = norm.inverse(lin.inverse(coup.inverse(z, c), wi))
         return z
 
     def encode(self, pose):
@@ -161,11 +164,12 @@ class MoGlow(nn.Module):
         g = torch.Generator().manual_seed(seed)
         ctx = self._speech_windows(speech)
         hist = torch.zeros(B, self.cfg.history, self.d)
+        w_inv = [torch.linalg.inv(lin.W) for _, lin, _ in self.steps]
         state, out = None, []
         for t in range(T):
             c, state = self.lstm(torch.cat([hist.reshape(B, 1, -1), ctx[:, t : t + 1]], -1), state)
             z = self.cfg.temperature * torch.randn(B, self.d, generator=g)
-            x = self._inverse(z, c[:, 0])
+            x = self._inverse(z, c[:, 0], w_inv)
             out.append(x)
             hist = torch.cat([hist[:, 1:], x[:, None]], 1)
         pose = torch.stack(out, 1) @ self.pca_basis.T + self.pca_mean

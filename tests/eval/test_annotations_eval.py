@@ -1,3 +1,5 @@
+from pathlib import Path
+
 from anima.eval.annotations import capture_labelled, load_labels, score
 
 
@@ -44,6 +46,20 @@ def test_eval_annotations_is_out_of_sample():
     chosen = choose_thresholds(pairs[1:], DetectorConfig())  # d0's smile is not among these labels
     assert chosen["smile_on"] == DetectorConfig().smile_on
     assert r["folds"][r["clips"].index("d0")]["thresholds"]["blink_on"] > 0
+    talk = r["talk_on_speech"]  # voice + lip motion vs voice-gated lip motion
+    assert len(talk["clips"]) == 4 and talk["recall_shipped"] >= talk["recall_before"] and talk["recall_shipped"] > 0.9
+    emo = r["capture_emotions"]  # every check listed, whether it holds or not
+    assert emo["of"] == 9 and {c["emotion"] for c in emo["checks"]} == {"angry", "disgusted", "fearful", "happy", "sad"}
+    brows = {b["emotion"]: b for b in emo["landmark_inner_brow_height_iod"]}  # the tracker's own brow evidence
+    assert brows["fearful"]["raised"] and brows["fearful"]["clip"] > brows["fearful"]["neutral"] + 0.01
+
+    assert "leave-one-clip-out" in "\n".join(_annotations_row().summary(r))
+
+
+def _annotations_row():
+    from anima.eval.all import default_rows
+
+    return next(r for r in default_rows("ds", Path("out"), Path("work")) if r.name == "annotations")
 
 
 def test_blink_is_measured_against_the_lids_own_rest():

@@ -86,28 +86,22 @@ def test_tof_is_the_l2_norm_of_the_flow_difference():
 
 
 def test_eval_all_writes_one_results_file_with_provenance(gesture_ds, cli, tmp_path):
-    """`anima eval all` on real data (two quick rows and the pose row, which has no lifter here): one results
-    file with each row's command, status and result, the commit and the data fingerprints, a markdown
-    summary, and a manifest written last."""
+    """`anima eval all` on real data (a quick row and the pose row, which has no lifter here): one results file
+    with each row's command, status and result, the commit and the data fingerprints, a markdown summary, and
+    a manifest written last. (The annotations row's result is evaluate_annotations', checked in
+    test_annotations_eval.py: running it twice cost 40 s of the suite.)"""
     import json
 
     out = tmp_path / "all"
-    r = cli("eval", "all", "--db", gesture_ds, "--out", out, "--only", "landmarks", "annotations", "pose", "--json")
+    r = cli("eval", "all", "--db", gesture_ds, "--out", out, "--only", "landmarks", "pose", "--json")
     assert r.returncode == 0, r.stderr[-1000:]
     res = json.loads((out / "results.json").read_text())
-    assert list(res["rows"]) == ["landmarks", "annotations", "pose"]
+    assert list(res["rows"]) == ["landmarks", "pose"]
     assert res["rows"]["landmarks"]["status"] == "ok" and res["rows"]["landmarks"]["command"].startswith("anima eval")
-    assert res["rows"]["annotations"]["result"]["protocol"] == "leave-one-clip-out"
-    talk = res["rows"]["annotations"]["result"]["talk_on_speech"]  # voice + lip motion vs voice-gated lip motion
-    assert len(talk["clips"]) == 4 and talk["recall_shipped"] >= talk["recall_before"] and talk["recall_shipped"] > 0.9
-    emo = res["rows"]["annotations"]["result"]["capture_emotions"]  # every check listed, whether it holds or not
-    assert emo["of"] == 9 and {c["emotion"] for c in emo["checks"]} == {"angry", "disgusted", "fearful", "happy", "sad"}
-    brows = {b["emotion"]: b for b in emo["landmark_inner_brow_height_iod"]}  # the tracker's own brow evidence
-    assert brows["fearful"]["raised"] and brows["fearful"]["clip"] > brows["fearful"]["neutral"] + 0.01
     assert res["rows"]["pose"]["status"].startswith(("ok", "skipped"))
     p = res["provenance"]
     assert len(p["data"]["sha256"]) == 64 and p["data"]["files"] > 100 and p["dataset"]["manifest_sha256"]
     assert p["commit"] is None or len(p["commit"].split("-")[0]) == 40
     summary = (out / "summary.md").read_text()
-    assert "ict_original" in summary and "leave-one-clip-out" in summary
+    assert "ict_original" in summary and "| pose |" in summary
     assert set(json.loads((out / "manifest.json").read_text())["files"]) == {"results.json", "summary.md"}

@@ -159,7 +159,15 @@ def test_silent_speech_and_speech_longer_than_the_database(db, tmp_path):
 def test_eval_gesture_leave_one_video_out(ds):
     from anima.eval.gesture.run import evaluate
 
-    r = evaluate(str(ds), refiner_folds=3, refiner_steps=15, sync_steps=10, generator_steps=10)
+    r = evaluate(
+        str(ds),
+        refiner_folds=3,
+        refiner_steps=15,
+        sync_steps=10,
+        generator_steps=10,
+        fgd_steps=30,
+        facegood_seconds=6.0,
+    )
     assert r["videos"] == 3 and r["minutes_of_audio_motion"] > 0.2
     assert set(r["minutes_per_speaker"]) == {"oliver", "seth"}
     ca = r["control_adherence"]

@@ -22,7 +22,7 @@ def load_py2_npy(path) -> np.ndarray:
         return np.load(path, allow_pickle=False, encoding="latin1")
 
 
-def facegood_sync(generators: dict, fps: float, max_lag: int = 8) -> dict | None:
+def facegood_sync(generators: dict, fps: float, max_lag: int = 8, seconds: float | None = None) -> dict | None:
     """Pearson correlation between the predicted mouth opening and FaceGood's ``mouth_stretch_c`` curve (its
     jaw-open channel, the largest mouth motion of its rig) at ``fps``, at lag 0 and at the best lag within
     +-``max_lag`` frames; the "other speech" row correlates each recording with the prediction for another
@@ -43,6 +43,7 @@ def facegood_sync(generators: dict, fps: float, max_lag: int = 8) -> dict | None
         bs = load_py2_npy(root / "bs_value" / f"bs_value_{stem}.npy")[:, ch]
         x = read_audio(w)
         T = min(int(len(bs) / FACEGOOD_FPS * fps), int(len(x) / 16000 * fps))
+        T = T if seconds is None else min(T, int(seconds * fps))  # (tests: the first seconds of each)
         ref = np.interp(np.arange(T) / fps, np.arange(len(bs)) / FACEGOOD_FPS, bs)
         recs.append((stem, speech_features(x, fps, T).features, ref))
 

@@ -153,7 +153,9 @@ def sync_rows(db, folds: int, lengths=(16, 32, 64), steps: int = 300) -> dict:
 ADV_WEIGHTS = (0.01, 0.1, 1.0)  # the adversarial weights tried on each fold's inner validation videos
 
 
-def choose_adv_weight(w: Windows, tr: np.ndarray, n_to_i: dict, knn_db, cfg, grid, progress, fold: int) -> dict:
+def choose_adv_weight(
+    w: Windows, tr: np.ndarray, n_to_i: dict, knn_db, cfg, grid, progress, fold: int, fgd_steps: int = 1500
+) -> dict:
     """Nested choice of the §4.4 generator's adversarial weight, on one outer fold's training videos only:
     every third of those with body windows is the inner validation, the rest trains one generator per weight
     of ``grid``; the weight whose validation motion is closest to the captured (FGD of the code's time steps,
@@ -167,7 +169,7 @@ def choose_adv_weight(w: Windows, tr: np.ndarray, n_to_i: dict, knn_db, cfg, gri
     fit_n = [n for n in np.flatnonzero(itr & w.has_body) if n in n_to_i]
     if not val_n or not fit_n:
         return {"value": cfg.adv_weight, "grid": list(grid), "chosen_on": "no inner validation split: the default"}
-    fgd = train_fgd(np.stack([knn_db.G[n_to_i[n]] for n in fit_n]).reshape(len(fit_n), T, -1))
+    fgd = train_fgd(np.stack([knn_db.G[n_to_i[n]] for n in fit_n]).reshape(len(fit_n), T, -1), steps=fgd_steps)
     real = np.stack([knn_db.G[n_to_i[n]].reshape(T, -1) for n in val_n])
     scores = {}
     for a in grid:
@@ -210,6 +212,8 @@ def generator_rows(
     refined_outs: dict | None,
     kinds: tuple = KINDS,
     adv_weights: tuple | None = ADV_WEIGHTS,
+    fgd_steps: int = 1500,
+    facegood_seconds: float | None = None,
 ) -> dict:
     """The §4.4 generator (adversarial), direct regression (no adversarial term), the LSTM baseline, the
     velocity-adversarial baseline (Ginosar et al.) and the MoGlow-style flow,
@@ -242,7 +246,7 @@ def generator_rows(
             continue
         choice = None
         if adv_weights and "adversarial" in kinds:
-            choice = choose_adv_weight(w, tr, n_to_i, knn_db, cfg, adv_weights, progress, f)
+            choice = choose_adv_weight(w, tr, n_to_i, knn_db, cfg, adv_weights, progress, f, fgd_steps)
         for kind in kinds:
             bar = tqdm(total=cfg.steps, desc=f"{kind} fold {f + 1}/{folds}", disable=not progress, leave=False)
             kcfg = dataclasses.replace(cfg, adv_weight=choice["value"]) if kind == "adversarial" and choice else cfg
@@ -293,7 +297,7 @@ def generator_rows(
             res[kind]["wrist_motion_cm"].append(wrist_motion(g))
             res[kind]["beat_consistency"].append(beat_consistency(g, kept["onsets"][i], fps))
     train_rows = [i for i, (s, st) in enumerate(knn_db.source) if w.split[key[(s, round(st, 3))]] == "train"]
-    fgd = train_fgd(knn_db.G[train_rows].reshape(len(train_rows), T, -1))
+    fgd = train_fgd(knn_db.G[train_rows].reshape(len(train_rows), T, -1), steps=fgd_steps)
     real = np.stack([knn_db.G[i].reshape(T, -1) for i, _ in judged])
     fgd_rows = {
         kind: fgd.distance(real, np.stack([gen_windows[kind][n].reshape(T, -1) for _, n in judged])) for kind in kinds
@@ -342,5 +346,5 @@ def generator_rows(
         "face_only_minutes_per_speaker": {k: minutes_covered(v.items(), T / fps) for k, v in sorted(face_only.items())},
         "fgd": fgd_rows,
         "fgd_autoencoder": fgd.info,
-        "facegood_lip_sync": facegood_sync(gens, fps),
+        "facegood_lip_sync": facegood_sync(gens, fps, seconds=facegood_seconds),
     }

@@ -132,6 +132,8 @@ def evaluate(
     speaker: str | None = None,
     blend: bool = True,
     refiner_ablation: bool = False,
+    fgd_steps: int = 1500,
+    facegood_seconds: float | None = None,
 ) -> dict:
     """``refiner_ablation``: also the refiner with anima's earlier loss weights and k (``knn_cgan_anima_v1``).
     ``speaker``: evaluate on that speaker's windows only (databases, training and tests), the seed's
@@ -178,7 +180,17 @@ def evaluate(
         w = read_windows(folder)
         if speaker is not None:
             w = w.select(np.array([speaker_of(s) == speaker for s in w.source]))
-        out["generator"] = generator_rows(w, kept, db, folds, generator_steps, progress, kept.get("refined"))
+        out["generator"] = generator_rows(
+            w,
+            kept,
+            db,
+            folds,
+            generator_steps,
+            progress,
+            kept.get("refined"),
+            fgd_steps=fgd_steps,
+            facegood_seconds=facegood_seconds,
+        )
         out["sync_classifier"] = sync_rows(db, folds, steps=sync_steps)
     per = defaultdict(list)
     for src, st in starts.items():
