@@ -250,7 +250,7 @@ def ds(tmp_path_factory, cli):
         "--max-len",
         "6",
         "--workers",
-        "1",
+        "2",
         "--quiet",
         "--json",
     )
