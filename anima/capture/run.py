@@ -45,6 +45,7 @@ def capture_to_folder(
     progress: bool = True,
     command: str | None = None,
     audio_optional: bool = False,
+    preset: str = "anima",
 ) -> dict:
     """Capture ``video`` into ``out``; returns the sequence summary with the capture speed, the total time,
     the files written and the warnings."""
@@ -71,6 +72,7 @@ def capture_to_folder(
             info=s,
             progress=progress,
             sw=sw,
+            preset=preset,
         )
     return s | {
         "total_s": round(time.perf_counter() - t0, 2),

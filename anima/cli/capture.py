@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from anima.capture.pipeline import CaptureConfig
 from anima.capture.run import capture_to_folder
-from anima.cli.common import add_json_quiet, command_line, emit, time_split
+from anima.cli.common import add_json_quiet, add_rig, command_line, emit, time_split
 from anima.cli.options import add_options, config_from_args, number
 from anima.export.formats import FORMATS, export_file
 from anima.io.sequence import read_sequence
@@ -38,6 +38,7 @@ def register(sub) -> None:
         default=None,
         help="separate WAV/MP3/FLAC for the speech features (default: the video's own audio track)",
     )
+    add_rig(c)
     add_json_quiet(c)
     c.set_defaults(func=cmd_capture)
 
@@ -53,10 +54,10 @@ def register(sub) -> None:
 
     x = sub.add_parser(
         "export",
-        help="export a tracked sequence (ARKit CSV, GLB or BVH)",
+        help="export a tracked sequence (ARKit CSV, face GLB, character GLB or BVH)",
         description="Export FILE (capture.npz, motion.npz or gesture.npz) as a Live Link Face "
-        "CSV, a GLB with morph targets, or a BVH of the upper body and hands (fixed bone lengths; "
-        "rest pose documented in anima/io/bvh.py).",
+        "CSV (arkit), the face with morph targets (glb), the animated character (avatar: body and face, "
+        "one timeline) or a BVH of the character's skeleton (bvh: metres, T-pose rest, docs/rig.md).",
     )
     x.add_argument("format", choices=FORMATS)
     x.add_argument("file")
@@ -67,6 +68,7 @@ def register(sub) -> None:
         default=None,
         help="BVH only: resample to this rate (1-240), e.g. 15 for gesture work",
     )
+    add_rig(x)
     x.set_defaults(func=cmd_export)
 
 
@@ -83,6 +85,7 @@ def cmd_capture(a) -> int:
         progress=not a.quiet,
         command=command_line(a),
         audio_optional=a.audio_optional,
+        preset=a.rig,
     )
     return emit(s, a.json, summary_table)
 
@@ -92,7 +95,7 @@ def cmd_info(a) -> int:
 
 
 def cmd_export(a) -> int:
-    print(f"wrote {export_file(a.format, a.file, a.out, a.fps)}")
+    print(f"wrote {export_file(a.format, a.file, a.out, a.fps, a.rig)}")
     return 0
 
 

@@ -38,6 +38,20 @@ def group(sub, name: str, help_: str, dest: str, metavar: str):
     return p.add_subparsers(dest=dest, metavar=metavar, parser_class=type(p))
 
 
+RIG_PRESETS = ("anima", "mixamo", "vrm", "unreal")  # anima.core.rig.PRESETS (the CLI does not load the rig)
+
+
+def add_rig(p) -> None:
+    """``--rig``: the naming of the skeleton's joints in body.bvh and avatar.glb."""
+    p.add_argument(
+        "--rig",
+        choices=RIG_PRESETS,
+        default="anima",
+        help="joint names of body.bvh and avatar.glb: anima (Mixamo-style, no prefix), mixamo (mixamorig:), "
+        "vrm (VRM 1.0 humanoid) or unreal (UE mannequin); the same skeleton (docs/rig.md)",
+    )
+
+
 def add_json_quiet(p, quiet: bool = True) -> None:
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     if quiet:

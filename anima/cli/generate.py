@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from anima.cli.common import command_line, emit, notes, time_split
+from anima.cli.common import add_rig, command_line, emit, notes, time_split
 from anima.cli.options import add_options, config_from_args
 from anima.gesture.run import GestureConfig, gesture_to_folder
 from anima.text2face.config import PromptConfig
@@ -44,6 +44,7 @@ def register(sub) -> None:
         "--db", default=None, help="dataset folder from `anima dataset build`: the timeline method's captured motion"
     )
     tf.add_argument("--no-video", action="store_true", help="skip the MP4 render")
+    add_rig(tf)
     tf.add_argument("--json", action="store_true")
     tf.set_defaults(func=cmd_text2face)
 
@@ -69,6 +70,7 @@ def register(sub) -> None:
     add_options(ge, GestureConfig, GESTURE_OPTIONS)
     ge.add_argument("--refiner", default=None, help="cGAN refiner checkpoint from `anima train gesture`")
     ge.add_argument("--no-render", action="store_true", help="skip the videos")
+    add_rig(ge)
     ge.add_argument("--json", action="store_true")
     ge.set_defaults(func=cmd_gesture)
 
@@ -85,6 +87,7 @@ def cmd_text2face(a) -> int:
         progress=not a.json,
         command=command_line(a),
         db=a.db,
+        preset=a.rig,
     )
     notes(info["warnings"], "warning")
     return emit(
@@ -102,6 +105,7 @@ def cmd_gesture(a) -> int:
         refiner=a.refiner,
         render=not a.no_render,
         command=command_line(a),
+        preset=a.rig,
     )
     notes(info["notes"])
     return emit(info, a.json, lambda i: "wrote " + ", ".join(i["written"]) + "\n  time: " + time_split(i["time_s"]))

@@ -83,5 +83,45 @@ def _joint_list() -> tuple[tuple[str, ...], tuple[int, ...]]:
 
 JOINT_NAMES, JOINT_PARENTS = _joint_list()
 
+FINGERS = ("Thumb", "Index", "Middle", "Ring", "Pinky")
+
+
+def _rig_list() -> tuple[tuple[str, ...], tuple[int, ...]]:
+    """The character's rig, every skeleton anima exports: Mixamo's hierarchy (a three-bone spine, neck, head,
+    collarbones, arms, hands with three-bone fingers, legs, feet and toes) and the end joints of the head, the
+    fingers and the toes; depth-first, parents first. Other naming conventions: ``anima.core.rig.CONVENTIONS``."""
+    names: list[str] = []
+    parents: list[int] = []
+
+    def add(name: str, parent: str | None) -> None:
+        names.append(name)
+        parents.append(names.index(parent) if parent else -1)
+
+    add("Hips", None)
+    add("Spine", "Hips")
+    add("Spine1", "Spine")
+    add("Spine2", "Spine1")
+    add("Neck", "Spine2")
+    add("Head", "Neck")
+    add("HeadTop_End", "Head")
+    for side in ("Left", "Right"):
+        add(f"{side}Shoulder", "Spine2")
+        add(f"{side}Arm", f"{side}Shoulder")
+        add(f"{side}ForeArm", f"{side}Arm")
+        add(f"{side}Hand", f"{side}ForeArm")
+        for f in FINGERS:
+            for k in range(1, 5):
+                add(f"{side}Hand{f}{k}", f"{side}Hand{f}{k - 1}" if k > 1 else f"{side}Hand")
+    for side in ("Left", "Right"):
+        add(f"{side}UpLeg", "Hips")
+        add(f"{side}Leg", f"{side}UpLeg")
+        add(f"{side}Foot", f"{side}Leg")
+        add(f"{side}ToeBase", f"{side}Foot")
+        add(f"{side}Toe_End", f"{side}ToeBase")
+    return tuple(names), tuple(parents)
+
+
+RIG_JOINTS, RIG_PARENTS = _rig_list()
+
 assert FACE_DIM == 56 and BODY_DIM == 165 and SPEECH_DIM == 28
-assert len(EXPR_NAMES) == N_EXPR and len(JOINT_NAMES) == N_JOINTS
+assert len(EXPR_NAMES) == N_EXPR and len(JOINT_NAMES) == N_JOINTS and len(RIG_JOINTS) == 65

@@ -1,19 +1,22 @@
-"""The canonical rig every exported skeleton uses (BVH, glTF): conventional joint names, a T-pose rest, one
-set of bone lengths per clip, and human-size hands. Pure functions on ``[F, 55, 3]`` anima joints (metres,
-``anima.core.skeleton``); the exports in ``anima.export`` turn its rotations into files.
+"""The rig every skeleton anima exports (BVH, glTF, the viewer, the avatar video): the character's skeleton of
+``anima.core.contract.RIG_JOINTS`` (Mixamo's hierarchy: hips, a three-bone spine, neck, head, collarbones,
+arms, hands with three-bone fingers, legs, feet and toes, plus the end joints of the head, fingers and toes), and
+the retargeting of a tracked or generated body (55 joints, ``anima.core.skeleton``) onto it. Pure functions.
 
-* **Joints** (53): anima's 55 without the two hand-wrist joints, which coincide with the body's wrists (their
-  fingers hang off ``LeftHand`` / ``RightHand``). Names follow the common Mixamo-style convention
-  (``Hips, Spine, Neck, Head, LeftArm, LeftForeArm, LeftHand, LeftHandIndex1...``); :data:`CONVENTIONS` maps
-  them to Mixamo (``mixamorig:`` prefix), VRM 1.0 humanoid and Unreal mannequin names (``docs/rig.md``).
-* **Rest pose**: a T-pose in the character's frame (+x its left, +y up, +z forward, as anima's camera
-  convention for a person facing the camera): spine, neck and head up, arms out along +-x, palms down, fingers
-  along the arm, thumbs forward; hips out to the sides; the nose forward.
-* **Bone lengths**: each bone's median over the clip (left and right averaged, so the rig is symmetric);
-  bones never seen take :data:`DEFAULT_LENGTHS` (an adult), so a clip where the body is never fully visible
-  still has a skeleton (with a warning).
-* **Hands**: MediaPipe's hands come out about 30 % small; both hands are scaled so that wrist to middle
-  fingertip is ``0.73 x`` the forearm (elbow to wrist), an anthropometric ratio of adults, kept within 17-20 cm.
+* **Rest pose**: the character's T-pose (``rest [65, 3]``, metres, from ``anima.facemodel.character`` with the
+  person's shape): +x the character's left, +y up, +z forward, arms out along +-x with the palms down, legs
+  straight down, feet on y = 0. Local rotations are relative to it; a joint's rest offset is its rest position
+  minus its parent's.
+* **Retargeting** (:func:`solve`): every bone of the character turns to point where the tracked body has it,
+  keeping the character's own lengths: the chest from the shoulder line and the hips-to-neck line, the hips
+  from the hip line (or a third of the chest's turn when the hips are not seen), the spine's three bones
+  between the two, the neck halfway to the head, the head from the face fit's rotation (or the ears and nose),
+  the collarbones from the shoulders, the arms, the forearms, the palms (a rigid fit of the four knuckles) and
+  every finger bone from its two joints. A joint whose drivers are not seen holds its last rotation, and when
+  they come back it blends into them over ``blend_s`` (0.3 s): nothing snaps.
+* **Legs**: from tracked knees and ankles where the clip has them; otherwise a standing pose: feet planted
+  under the hips, a slow weight shift of the hips (1.5 cm, 7 s) with the knees solved to keep the feet down.
+* **Root**: the hips translate where the person moves in the picture (its horizontal track, smoothed).
 """
 
 from __future__ import annotations
@@ -21,351 +24,425 @@ from __future__ import annotations
 import numpy as np
 
 from anima.core.bvh_math import _kabsch, _min_rotation, local_rotations
-from anima.core.skeleton import JOINT_NAMES
+from anima.core.contract import FINGERS, JOINT_NAMES, RIG_JOINTS, RIG_PARENTS
+from anima.core.rotations import matrix_to_rotvec, rotvec_to_matrix
 
-_BODY = {
-    "pelvis": "Hips",
-    "left_hip": "LeftUpLeg",
-    "right_hip": "RightUpLeg",
-    "spine": "Spine",
-    "neck": "Neck",
-    "head": "Head",
-    "nose": "Nose",
-    "left_shoulder": "LeftArm",
-    "left_elbow": "LeftForeArm",
-    "left_wrist": "LeftHand",
-    "right_shoulder": "RightArm",
-    "right_elbow": "RightForeArm",
-    "right_wrist": "RightHand",
-}
-_FINGERS = {"thumb": "Thumb", "index": "Index", "middle": "Middle", "ring": "Ring", "pinky": "Pinky"}
-_SEGMENTS = {
-    "thumb": ("cmc", "mcp", "ip", "tip"),
-    "index": ("mcp", "pip", "dip", "tip"),
-    "middle": ("mcp", "pip", "dip", "tip"),
-    "ring": ("mcp", "pip", "dip", "tip"),
-    "pinky": ("mcp", "pip", "dip", "tip"),
-}
-
-
-def _build():
-    """(anima joint of each rig joint, -1 for the rig's zero-length joints; names; parents)."""
-    src, names, parents = [], [], []
-
-    def add(name, parent, source=-1):
-        src.append(source)
-        names.append(name)
-        parents.append(names.index(parent) if parent else -1)
-
-    a = JOINT_NAMES.index
-    add("Hips", None, a("pelvis"))
-    add("Spine", "Hips", a("spine"))
-    add("Neck", "Spine", a("neck"))
-    add("Head", "Neck", a("head"))
-    add("Nose", "Head", a("nose"))
-    for side in ("Left", "Right"):
-        lo = side.lower()
-        add(f"{side}Shoulder", "Neck")  # zero length: the collarbone turns on its own
-        add(f"{side}Arm", f"{side}Shoulder", a(f"{lo}_shoulder"))
-        add(f"{side}ForeArm", f"{side}Arm", a(f"{lo}_elbow"))
-        add(f"{side}Hand", f"{side}ForeArm", a(f"{lo}_wrist"))
-        for finger, segs in _SEGMENTS.items():
-            base = f"{side}Hand{_FINGERS[finger]}"
-            add(f"{base}0", f"{side}Hand")  # zero length: each finger turns on its own at the wrist
-            for k, seg in enumerate(segs, 1):
-                add(f"{base}{k}", f"{base}{k - 1}", a(f"{lo}_hand_{finger}_{seg}"))
-    add("Pelvis", "Hips")  # zero length: the hip line turns on its own, the torso on the spine
-    add("LeftUpLeg", "Pelvis", a("left_hip"))
-    add("RightUpLeg", "Pelvis", a("right_hip"))
-    return np.array(src), names, np.array(parents)  # depth-first order: as a BVH file lists the joints
-
-
-SOURCE, NAMES, PARENTS_RIG = _build()  # rig joint i is anima joint SOURCE[i] (-1: a zero-length joint)
+NAMES = RIG_JOINTS
+PARENTS_RIG = np.array(RIG_PARENTS)
 N_RIG = len(NAMES)
-HEAD = NAMES.index("Head")
-ZERO_LENGTH = np.array([s < 0 for s in SOURCE])
-# the joints whose directions turn each joint: its one bone; the wrist turns with the palm (the four finger
-# roots, a best rigid fit)
-DRIVERS = {j: [c for c in np.flatnonzero(PARENTS_RIG == j) if not ZERO_LENGTH[c]] for j in range(N_RIG)}
-for _j in range(N_RIG):
-    if ZERO_LENGTH[_j] and not DRIVERS[_j]:
-        DRIVERS[_j] = [c for c in np.flatnonzero(PARENTS_RIG == _j)][:1]
-    if NAMES[_j].endswith("Hand"):
-        DRIVERS[_j] = [NAMES.index(f"{NAMES[_j]}{f}1") for f in ("Index", "Middle", "Ring", "Pinky")]
-assert N_RIG == 66
+IX = {n: i for i, n in enumerate(NAMES)}
+HIPS, HEAD = IX["Hips"], IX["Head"]
+LEAVES = np.array([not (PARENTS_RIG == j).any() for j in range(N_RIG)])
+BLEND_S = 0.3
+SWAY_M, SWAY_PERIOD_S = 0.015, 7.0
+_T = {n: i for i, n in enumerate(JOINT_NAMES)}
+_SEG = {"Thumb": ("cmc", "mcp", "ip", "tip"), **{f: ("mcp", "pip", "dip", "tip") for f in FINGERS[1:]}}
 
 
-def _rest_directions() -> np.ndarray:
-    d = np.zeros((N_RIG, 3))
-    spread = {
-        "Thumb": (0.55, 0.0, 0.84),
-        "Index": (0.97, 0.0, 0.25),
-        "Middle": (1.0, 0.0, 0.04),
-        "Ring": (0.99, 0.0, -0.15),
-        "Pinky": (0.94, 0.0, -0.33),
-    }
-    thumb = [(0.55, 0.0, 0.84), (0.71, 0.0, 0.71), (0.87, 0.0, 0.5), (0.94, 0.0, 0.34)]
-    for i, n in enumerate(NAMES):
-        sx = 1.0 if n.startswith("Left") else -1.0
-        if n == "Hips" or ZERO_LENGTH[i]:
-            continue
-        if n in ("Spine", "Neck", "Head"):
-            d[i] = (0, 1, 0)
-        elif n == "Nose":
-            d[i] = (0, 0, 1)
-        elif n.endswith(("UpLeg", "Arm", "ForeArm", "Hand")):
-            d[i] = (sx, 0, 0)
-        else:  # fingers: Left/Right Hand <Finger> <k>
-            finger, k = n[len("LeftHand") if sx > 0 else len("RightHand") : -1], int(n[-1])
-            v = thumb[k - 1] if finger == "Thumb" else (spread[finger] if k == 1 else (1.0, 0.0, 0.0))
-            d[i] = (sx * v[0], v[1], v[2])
-    n = np.linalg.norm(d, axis=1, keepdims=True)
-    return np.where(n > 0, d / np.maximum(n, 1e-12), 0.0)
+def rest_offsets(rest: np.ndarray) -> np.ndarray:
+    """Child minus parent of the rest positions ``[J, 3]`` (the root keeps its own position)."""
+    off = rest - rest[np.maximum(PARENTS_RIG, 0)]
+    off[HIPS] = rest[HIPS]
+    return off
 
 
-REST_DIRECTIONS = _rest_directions()
-
-# an adult's bone lengths (metres) for bones a clip never shows
-# (the bone of a joint runs from its parent to it: LeftForeArm's is the upper arm, LeftHand's the forearm)
-_DEFAULT = {
-    "LeftUpLeg": 0.10,
-    "Spine": 0.25,
-    "Neck": 0.25,
-    "Head": 0.12,
-    "Nose": 0.10,
-    "LeftArm": 0.19,
-    "LeftForeArm": 0.29,
-    "LeftHand": 0.26,
-}
-_DEFAULT_HAND = {
-    "Thumb": (0.045, 0.04, 0.032, 0.028),
-    "Index": (0.095, 0.042, 0.025, 0.022),
-    "Middle": (0.092, 0.047, 0.028, 0.024),
-    "Ring": (0.085, 0.043, 0.027, 0.023),
-    "Pinky": (0.08, 0.033, 0.019, 0.02),
-}
-
-
-def _default_lengths() -> np.ndarray:
-    L = np.zeros(N_RIG)
-    for i, n in enumerate(NAMES):
-        base = n.replace("Right", "Left")
-        if ZERO_LENGTH[i]:
-            continue
-        if base in _DEFAULT:
-            L[i] = _DEFAULT[base]
-        elif "Hand" in base and base != "LeftHand":
-            finger = base[len("LeftHand") : -1]
-            L[i] = _DEFAULT_HAND[finger][int(base[-1]) - 1]
-    return L
-
-
-DEFAULT_LENGTHS = _default_lengths()
-HAND_TO_FOREARM = 0.73  # adult hand length / forearm length (wrist crease to middle fingertip; elbow to wrist)
-HAND_RANGE_M = (0.17, 0.20)
-
-
-def _chain(name: str) -> list[int]:
-    return [NAMES.index(f"{name}{k}") for k in range(1, 5)]
-
-
-def rig_positions(J: np.ndarray) -> np.ndarray:
-    """Anima joints ``[F, 55, 3]`` -> the rig's joints ``[F, 53, 3]`` (a body wrist missing where its hand was
-    seen takes the hand's own wrist)."""
-    J = np.asarray(J, np.float64)
-    P = J[:, np.maximum(SOURCE, 0)].copy()
-    for side in ("left", "right"):
-        body, hand = JOINT_NAMES.index(f"{side}_wrist"), JOINT_NAMES.index(f"{side}_hand_wrist")
-        lost = ~np.isfinite(J[:, body]).all(-1) & np.isfinite(J[:, hand]).all(-1)
-        P[lost, NAMES.index(f"{side.capitalize()}Hand")] = J[lost, hand]
-    for j in np.flatnonzero(ZERO_LENGTH):  # parents come first
-        P[:, j] = P[:, PARENTS_RIG[j]]
-    return P
-
-
-def measure_lengths(J: np.ndarray) -> tuple[np.ndarray, dict]:
-    """Bone lengths ``[53]`` of a clip (see the module docstring) and a report: the bones that took the
-    default, the measured and the rig's hand length."""
-    P = rig_positions(J)
-    par = np.where(PARENTS_RIG < 0, np.arange(N_RIG), PARENTS_RIG)
-    with np.errstate(all="ignore"):
-        L = np.linalg.norm(P - P[:, par], axis=-1)
-        med = np.array([np.nanmedian(L[:, i]) if np.isfinite(L[:, i]).any() else np.nan for i in range(N_RIG)])
-    for i, n in enumerate(NAMES):  # symmetric: average left and right where both are seen
-        if n.startswith("Left"):
-            r = NAMES.index("Right" + n[4:])
-            pair = [x for x in (med[i], med[r]) if np.isfinite(x)]
-            if pair:
-                med[i] = med[r] = float(np.mean(pair))
-    bones = [i for i in range(1, N_RIG) if not ZERO_LENGTH[i]]
-    defaulted = [NAMES[i] for i in bones if not np.isfinite(med[i]) or med[i] <= 0]
-    out = np.where(np.isfinite(med) & (med > 0), med, DEFAULT_LENGTHS)
-    out[0] = 0.0
-    out[ZERO_LENGTH] = 0.0
-    measured = float(sum(out[i] for i in _chain("LeftHandMiddle")))
-    forearm = out[NAMES.index("LeftHand")]  # elbow to wrist
-    target = float(np.clip(HAND_TO_FOREARM * forearm, *HAND_RANGE_M))
-    s = target / measured if measured > 0 else 1.0
-    for i, n in enumerate(NAMES):
-        if "Hand" in n and not n.endswith("Hand"):  # the fingers (zero-length joints stay 0)
-            out[i] *= s
-    report = {
-        "defaulted_bones": defaulted,
-        "hand_length_measured_m": round(measured, 4),
-        "hand_length_m": round(target, 4),
-        "forearm_m": round(float(forearm), 4),
-    }
-    return out, report
-
-
-def rest_offsets(lengths: np.ndarray) -> np.ndarray:
-    """T-pose offsets ``[53, 3]`` (child minus parent, metres)."""
-    return REST_DIRECTIONS * np.asarray(lengths)[:, None]
-
-
-def rest_positions(lengths: np.ndarray) -> np.ndarray:
-    """Global T-pose joint positions ``[53, 3]`` (the hips at the origin)."""
-    off = rest_offsets(lengths)
-    P = np.zeros((N_RIG, 3))
-    for i in range(1, N_RIG):
-        P[i] = P[PARENTS_RIG[i]] + off[i]
-    return P
-
-
-def _fill(P: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-    """Missing joints: held from the nearest frame where seen; never seen: the rest offset from the parent."""
-    P = P.copy()
-    F = len(P)
-    off = rest_offsets(lengths)
+def forward(L: np.ndarray, rest: np.ndarray, root: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Global rotations and positions ``[F, J, 3, 3]``, ``[F, J, 3]`` of local rotations ``L`` with the hips at
+    ``root [F, 3]``."""
+    off = rest_offsets(rest)
+    G = np.empty_like(L)
+    P = np.empty(L.shape[:2] + (3,))
     for j in range(N_RIG):
-        if ZERO_LENGTH[j]:
-            P[:, j] = P[:, PARENTS_RIG[j]]
-            continue
-        ok = np.isfinite(P[:, j]).all(-1)
-        if ok.all():
-            continue
-        if ok.any():
-            idx = np.flatnonzero(ok)
-            near = idx[np.clip(np.searchsorted(idx, np.arange(F)), 0, len(idx) - 1)]
-            prev = idx[np.clip(np.searchsorted(idx, np.arange(F)) - 1, 0, len(idx) - 1)]
-            pick = np.where(np.abs(prev - np.arange(F)) < np.abs(near - np.arange(F)), prev, near)
-            P[~ok, j] = P[pick[~ok], j]
-        else:
-            P[:, j] = (P[:, PARENTS_RIG[j]] if j else 0.0) + off[j]
-    return P
-
-
-def pose_on_rig(J: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-    """The clip's motion on the rig: joint positions ``[F, 53, 3]`` with the rig's bone lengths (each bone
-    keeps its direction; missing joints held or put at rest, see :func:`_fill`)."""
-    P = _fill(rig_positions(J), lengths)
-    out = P.copy()
-    for j in range(1, N_RIG):
         p = PARENTS_RIG[j]
-        if ZERO_LENGTH[j]:
-            out[:, j] = out[:, p]
-            continue
-        d = P[:, j] - P[:, p]
-        n = np.linalg.norm(d, axis=-1, keepdims=True)
-        unit = np.where(n > 1e-9, d / np.maximum(n, 1e-9), REST_DIRECTIONS[j])
-        out[:, j] = out[:, p] + lengths[j] * unit
-    return out
-
-
-def solve_rotations(P: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-    """Global rotations ``[F, 66, 3, 3]`` turning the T-pose into positions ``P`` (made by
-    :func:`pose_on_rig`). A joint with one driver bone: its parent's rotation followed by the smallest rotation
-    aligning that bone (stable twist); the wrists: a best rigid fit of the palm (four finger roots); a leaf: its
-    parent's rotation. Every bone then points exactly where ``P`` has it."""
-    F = len(P)
-    rest = rest_positions(lengths)
-    G = np.tile(np.eye(3), (F, N_RIG, 1, 1))
-    for j in range(N_RIG):
-        base = G[:, PARENTS_RIG[j]] if PARENTS_RIG[j] >= 0 else np.tile(np.eye(3), (F, 1, 1))
-        drv = DRIVERS[j]
-        if not drv:
-            G[:, j] = base
-        elif len(drv) == 1:
-            G[:, j] = _min_rotation(base @ (rest[drv[0]] - rest[j]), P[:, drv[0]] - P[:, j]) @ base
+        if p < 0:
+            G[:, j], P[:, j] = L[:, j], root
         else:
-            A = np.broadcast_to(rest[drv] - rest[j], (F, len(drv), 3))
-            G[:, j] = _kabsch(A, P[:, drv] - P[:, j][:, None])
+            G[:, j] = G[:, p] @ L[:, j]
+            P[:, j] = P[:, p] + np.einsum("fij,j->fi", G[:, p], off[j])
+    return G, P
+
+
+def slerp_rot(A: np.ndarray, B: np.ndarray, t) -> np.ndarray:
+    """Rotations a fraction ``t`` of the way from ``A`` to ``B`` (``[..., 3, 3]``; ``t`` broadcasts)."""
+    d = matrix_to_rotvec(np.swapaxes(A, -1, -2) @ B)
+    return A @ rotvec_to_matrix(d * np.asarray(t, np.float64)[..., None])
+
+
+def _unit(v):
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
+
+
+def _aim(parent_G, rest_vec, target_vec):
+    """The parent's rotation followed by the smallest rotation that points ``rest_vec`` (carried by the parent)
+    along ``target_vec`` (the bone keeps its parent's twist). NaN where the target is unseen."""
+    cur = np.einsum("fij,j->fi", parent_G, rest_vec)
+    G = _min_rotation(cur, target_vec) @ parent_G
+    G[~np.isfinite(target_vec).all(-1)] = np.nan
     return G
 
 
-def rig_rotations(J: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(root positions ``[F, 3]``, local rotations ``[F, 53, 3, 3]`` relative to the T-pose, the posed rig
-    positions ``[F, 53, 3]``). Forward kinematics of the rotations from the T-pose offsets gives the posed
-    positions."""
-    P = pose_on_rig(J, lengths)
-    G = solve_rotations(P, lengths)
-    return P[:, 0], local_rotations(G, PARENTS_RIG), P
+def _fit(rest_vecs, target_vecs):
+    """Best rigid rotation of the rest vectors ``[n, 3]`` onto the targets ``[F, n, 3]`` (unit-weighted); NaN
+    where a target is unseen."""
+    ok = np.isfinite(target_vecs).all((-1, -2))
+    A = np.broadcast_to(_unit(rest_vecs), target_vecs.shape)
+    G = np.full(target_vecs.shape[:1] + (3, 3), np.nan)
+    if ok.any():
+        G[ok] = _kabsch(A[ok], _unit(target_vecs[ok]))
+    return G
 
 
-# Names of the rig's joints in other conventions ("" where the convention has no such joint).
-def _conventions() -> dict[str, dict[str, str]]:
-    vrm = {
-        "Hips": "hips",
-        "LeftUpLeg": "leftUpperLeg",
-        "RightUpLeg": "rightUpperLeg",
-        "Spine": "spine",
-        "Neck": "neck",
-        "Head": "head",
-        "Nose": "",
-        "LeftArm": "leftUpperArm",
-        "LeftForeArm": "leftLowerArm",
-        "LeftHand": "leftHand",
-        "RightArm": "rightUpperArm",
-        "RightForeArm": "rightLowerArm",
-        "RightHand": "rightHand",
-    }
-    ue = {
-        "Hips": "pelvis",
-        "LeftUpLeg": "thigh_l",
-        "RightUpLeg": "thigh_r",
-        "Spine": "spine_01",
-        "Neck": "neck_01",
-        "Head": "head",
-        "Nose": "",
-        "LeftArm": "upperarm_l",
-        "LeftForeArm": "lowerarm_l",
-        "LeftHand": "hand_l",
-        "RightArm": "upperarm_r",
-        "RightForeArm": "lowerarm_r",
-        "RightHand": "hand_r",
-    }
-    vrm_seg = {
-        "Thumb": ("Metacarpal", "Proximal", "Distal", ""),
-        "Index": ("Proximal", "Intermediate", "Distal", ""),
-        "Middle": ("Proximal", "Intermediate", "Distal", ""),
-        "Ring": ("Proximal", "Intermediate", "Distal", ""),
-        "Pinky": ("Proximal", "Intermediate", "Distal", ""),
-    }
-    ue_name = {"Thumb": "thumb", "Index": "index", "Middle": "middle", "Ring": "ring", "Pinky": "pinky"}
-    extra = {
-        "Pelvis": ("", "", ""),
-        "LeftShoulder": ("mixamorig:LeftShoulder", "leftShoulder", "clavicle_l"),
-        "RightShoulder": ("mixamorig:RightShoulder", "rightShoulder", "clavicle_r"),
-    }
-    out = {"mixamo": {}, "vrm": {}, "unreal": {}}
-    for n in NAMES:
-        out["mixamo"][n] = "" if n == "Nose" or n.endswith("0") else f"mixamorig:{n}"
-        if n in extra:
-            out["mixamo"][n], out["vrm"][n], out["unreal"][n] = extra[n]
+def _tracked(body: np.ndarray, name: str) -> np.ndarray:
+    return body[:, _T[name]]
+
+
+def _globals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None) -> np.ndarray:
+    """Global rotations ``[F, J, 3, 3]`` of the upper body from the tracked joints (NaN where unseen; the legs
+    and the end joints are left NaN for the caller)."""
+    F = len(body)
+    t = lambda n: _tracked(body, n)
+    r = lambda n: rest[IX[n]]
+    G = np.full((F, N_RIG, 3, 3), np.nan)
+    ls, rs, lh, rh = t("left_shoulder"), t("right_shoulder"), t("left_hip"), t("right_hip")
+    neck = (ls + rs) / 2
+    pelvis = np.where(np.isfinite(t("pelvis")), t("pelvis"), 0.0)
+    up_t = neck - pelvis
+    mid_r = (r("LeftArm") + r("RightArm")) / 2
+    up_r = mid_r - r("Hips")
+    chest = _fit(np.stack([r("LeftArm") - r("RightArm"), up_r]), np.stack([ls - rs, up_t], 1))
+    hips = _fit(np.stack([r("LeftUpLeg") - r("RightUpLeg"), up_r]), np.stack([lh - rh, up_t], 1))
+    no_hips = ~np.isfinite(hips).all((-1, -2)) & np.isfinite(chest).all((-1, -2))
+    hips[no_hips] = slerp_rot(np.eye(3), chest[no_hips], 1 / 3)  # the hips unseen: a third of the chest's turn
+    G[:, HIPS] = hips
+    G[:, IX["Spine"]] = slerp_rot(hips, chest, 1 / 3)
+    G[:, IX["Spine1"]] = slerp_rot(hips, chest, 2 / 3)
+    G[:, IX["Spine2"]] = chest
+    # the head: the face fit's rotation where there is one, else the ears' and the nose's line; the neck halfway
+    head_t, nose_t = t("head"), t("nose")
+    face = np.full((F, 3, 3), np.nan)
+    if head_rot is not None:
+        face = np.where(np.isfinite(head_rot).all((-1, -2))[:, None, None], head_rot, np.nan)
+    nose_dir = _aim(chest, np.array([0.0, 0.0, 1.0]), nose_t - head_t)
+    head = np.where(np.isfinite(face).all((-1, -2))[:, None, None], face, nose_dir)
+    G[:, HEAD] = head
+    G[:, IX["Neck"]] = slerp_rot(chest, head, 0.4)
+    for S, s in (("Left", "left"), ("Right", "right")):
+        sh = _aim(chest, r(f"{S}Arm") - mid_r, t(f"{s}_shoulder") - neck)
+        G[:, IX[f"{S}Shoulder"]] = sh
+        arm = _aim(sh, r(f"{S}ForeArm") - r(f"{S}Arm"), t(f"{s}_elbow") - t(f"{s}_shoulder"))
+        G[:, IX[f"{S}Arm"]] = arm
+        fore = _aim(arm, r(f"{S}Hand") - r(f"{S}ForeArm"), t(f"{s}_wrist") - t(f"{s}_elbow"))
+        G[:, IX[f"{S}ForeArm"]] = fore
+        knuckles = [f"{s}_hand_{f.lower()}_mcp" for f in FINGERS[1:]]
+        wrist = t(f"{s}_hand_wrist")
+        hand = _fit(
+            np.stack([r(f"{S}Hand{f}1") - r(f"{S}Hand") for f in FINGERS[1:]]),
+            np.stack([t(k) - wrist for k in knuckles], 1),
+        )
+        G[:, IX[f"{S}Hand"]] = hand
+        for f in FINGERS:
+            seg = _SEG[f]
+            parent = hand
+            for k in range(1, 4):
+                a, b = t(f"{s}_hand_{f.lower()}_{seg[k - 1]}"), t(f"{s}_hand_{f.lower()}_{seg[k]}")
+                g = _aim(parent, r(f"{S}Hand{f}{k + 1}") - r(f"{S}Hand{f}{k}"), b - a)
+                G[:, IX[f"{S}Hand{f}{k}"]] = g
+                parent = g
+    return G
+
+
+def hold_and_blend(L: np.ndarray, fps: float, blend_s: float = BLEND_S) -> tuple[np.ndarray, np.ndarray]:
+    """Local rotation tracks ``[F, J, 3, 3]`` with NaN frames filled: held from the last seen frame (the first
+    seen one before it; the rest pose for a joint never seen), and when the joint is seen again, blended from
+    the held rotation into the tracked one over ``blend_s`` seconds. Returns (the filled tracks, the seen
+    mask ``[F, J]``)."""
+    F, J = L.shape[:2]
+    seen = np.isfinite(L).all((-1, -2))
+    out = L.copy()
+    n_blend = max(1, int(round(blend_s * fps)))
+    for j in range(J):
+        s = seen[:, j]
+        if s.all():
             continue
-        if n in vrm:
-            out["vrm"][n], out["unreal"][n] = vrm[n], ue[n]
+        if not s.any():
+            out[:, j] = np.eye(3)
             continue
-        side = "Left" if n.startswith("Left") else "Right"
-        finger, k = n[len(side) + 4 : -1], int(n[-1])
-        if k == 0:  # the finger's zero-length root at the wrist: UE5's metacarpal joints
-            out["vrm"][n] = ""
-            out["unreal"][n] = "" if finger == "Thumb" else f"{ue_name[finger]}_metacarpal_{side[0].lower()}"
-            continue
-        seg = vrm_seg[finger][k - 1]
-        out["vrm"][n] = f"{side.lower()}{finger}{seg}" if seg else ""
-        out["unreal"][n] = f"{ue_name[finger]}_0{k}_{side[0].lower()}" if k < 4 else ""
-    return out
+        first = int(np.argmax(s))
+        out[:first, j] = L[first, j]
+        held = L[first, j]
+        f = first
+        while f < F:
+            if s[f]:
+                held = out[f, j]
+                f += 1
+                continue
+            g = f
+            while g < F and not s[g]:
+                g += 1
+            out[f:g, j] = held
+            if g < F:  # back: blend in over n_blend frames
+                k = np.arange(min(n_blend, F - g))
+                out[g : g + len(k), j] = slerp_rot(
+                    np.broadcast_to(held, (len(k), 3, 3)), L[g : g + len(k), j], (k + 1) / (n_blend + 1)
+                )
+            f = g + n_blend if g < F else g
+            if f < F:
+                held = out[f - 1, j]
+    return out, seen
 
 
-CONVENTIONS = _conventions()
+def _two_bone(hip, target, a, b, pole):
+    """Knee positions ``[F, 3]`` of legs of lengths ``a`` (thigh) and ``b`` (shin) from ``hip`` reaching for
+    ``target`` with the knee bending towards ``pole`` (unit ``[F, 3]``)."""
+    d = target - hip
+    n = np.linalg.norm(d, axis=-1)
+    n_c = np.clip(n, abs(a - b) + 1e-4, a + b - 1e-4)
+    u = d / np.maximum(n, 1e-9)[:, None]
+    x = (a * a - b * b + n_c * n_c) / (2 * n_c)
+    h = np.sqrt(np.maximum(a * a - x * x, 0.0))
+    side = _unit(pole - (pole * u).sum(-1, keepdims=True) * u)
+    return hip + u * x[:, None] + side * h[:, None]
+
+
+def standing_legs(G: np.ndarray, root: np.ndarray, rest: np.ndarray) -> None:
+    """Legs of a person standing with the feet under the hips (the rest pose's feet, moved with the root's
+    horizontal travel) for hips at ``root``: the knees from two-bone IK bending forwards, the feet flat and
+    forwards. Fills the leg joints of ``G`` in place."""
+    F = len(G)
+    off = rest_offsets(rest)
+    travel = np.stack([root[:, 0] - rest[HIPS, 0], np.zeros(F), root[:, 2] - rest[HIPS, 2]], -1)
+    for S in ("Left", "Right"):
+        up, leg, foot = IX[f"{S}UpLeg"], IX[f"{S}Leg"], IX[f"{S}Foot"]
+        hip = root + np.einsum("fij,j->fi", G[:, HIPS], off[up])
+        target = rest[foot] + travel
+        a, b = np.linalg.norm(off[leg]), np.linalg.norm(off[foot])
+        pole = np.einsum("fij,j->fi", G[:, HIPS], np.array([0.0, 0.0, 1.0]))
+        knee = _two_bone(hip, target, a, b, pole)
+        G[:, up] = _aim(G[:, HIPS], off[leg], knee - hip)
+        G[:, leg] = _aim(G[:, up], off[foot], target - knee)
+        G[:, foot] = np.eye(3)
+        G[:, IX[f"{S}ToeBase"]] = np.eye(3)
+
+
+def tracked_legs(G: np.ndarray, legs: dict, rest: np.ndarray) -> np.ndarray:
+    """Legs from tracked knees and ankles (``legs``: ``{"left_knee": [F, 3], ...}`` hips-relative like the
+    body); fills the leg joints of ``G`` where seen and returns the frames where both legs were seen."""
+    off = rest_offsets(rest)
+    ok = np.ones(len(G), bool)
+    for S, s in (("Left", "left"), ("Right", "right")):
+        up, leg, foot = IX[f"{S}UpLeg"], IX[f"{S}Leg"], IX[f"{S}Foot"]
+        hip, knee, ankle = legs.get(f"{s}_hip"), legs.get(f"{s}_knee"), legs.get(f"{s}_ankle")
+        if hip is None or knee is None or ankle is None:
+            return np.zeros(len(G), bool)
+        g_up = _aim(G[:, HIPS], off[leg], knee - hip)
+        g_leg = _aim(g_up, off[foot], ankle - knee)
+        toe = legs.get(f"{s}_foot_index")
+        g_foot = _aim(g_leg, off[IX[f"{S}ToeBase"]], toe - ankle) if toe is not None else g_leg
+        seen = np.isfinite(g_up).all((-1, -2)) & np.isfinite(g_leg).all((-1, -2))
+        ok &= seen
+        for j, g in ((up, g_up), (leg, g_leg), (foot, g_foot), (IX[f"{S}ToeBase"], g_foot)):
+            G[seen, j] = g[seen]
+    return ok
+
+
+def root_track(image: np.ndarray | None, body: np.ndarray, fps: float) -> np.ndarray:
+    """Horizontal travel ``[F]`` (metres, +x the picture's right) of the person: the shoulders' midpoint in the
+    picture, in metres by the clip's metres per pixel (world over picture shoulder width), relative to its
+    median, smoothed over half a second; zeros without a picture track."""
+    F = len(body)
+    if image is None:
+        return np.zeros(F)
+    from anima.core.filters import gaussian_smooth
+
+    ls, rs = _T["left_shoulder"], _T["right_shoulder"]
+    u = (image[:, ls, 0] + image[:, rs, 0]) / 2
+    wpx = np.linalg.norm(image[:, ls] - image[:, rs], axis=-1)
+    wm = np.linalg.norm(body[:, ls] - body[:, rs], axis=-1)
+    ok = np.isfinite(u) & np.isfinite(wpx) & np.isfinite(wm) & (wpx > 1)
+    if ok.sum() < 2:
+        return np.zeros(F)
+    mpp = float(np.median(wm[ok] / wpx[ok]))
+    x = np.interp(np.arange(F), np.flatnonzero(ok), (u[ok] - np.median(u[ok])) * mpp)
+    return np.clip(gaussian_smooth(x[:, None], 0.5 * fps)[:, 0], -1.0, 1.0)
+
+
+def solve(
+    body: np.ndarray | None,
+    rest: np.ndarray,
+    fps: float,
+    head_rot: np.ndarray | None = None,
+    image: np.ndarray | None = None,
+    legs: dict | None = None,
+    seed: int = 0,
+    blend_s: float = BLEND_S,
+    frames: int | None = None,
+) -> dict:
+    """The motion on the rig: ``{"root" [F, 3], "local" [F, J, 3, 3], "global", "positions" [F, J, 3],
+    "report"}``. ``body [F, 55, 3]``: tracked or generated joints (pelvis-relative, NaN where unseen; None: an
+    idle body, e.g. for a face from text); ``rest [J, 3]``: the character's rest joints; ``head_rot [F, 3, 3]``:
+    the face fit's head rotations (they turn the head where finite); ``image [F, 55, 2]``: the joints in the
+    picture (the root's travel); ``legs``: tracked leg joints (else the standing legs)."""
+    F = len(body) if body is not None else frames if frames is not None else len(head_rot)
+    idle = body is None
+    if idle:
+        body = idle_body(F, rest, fps, seed)
+    G = _globals(body, rest, head_rot)
+    t = np.arange(F) / fps
+    phase = np.random.default_rng(seed).uniform(0, 2 * np.pi)
+    sway = SWAY_M * np.sin(2 * np.pi * t / SWAY_PERIOD_S + phase)
+    root = np.tile(rest[HIPS], (F, 1))
+    root[:, 0] += sway + root_track(image, body, fps)
+    root[:, 1] += -0.008 - 0.004 * (1 - np.cos(4 * np.pi * t / SWAY_PERIOD_S + 2 * phase)) / 2
+    # the upper body's rotations as locals, held and blended where unseen, then forward again
+    upper = np.ones(N_RIG, bool)
+    for S in ("Left", "Right"):
+        for n in ("UpLeg", "Leg", "Foot", "ToeBase", "Toe_End"):
+            upper[IX[f"{S}{n}"]] = False
+    par = np.maximum(PARENTS_RIG, 0)
+    Lu = np.full_like(G, np.nan)
+    for j in range(N_RIG):
+        if not upper[j] or LEAVES[j]:
+            continue
+        Lu[:, j] = G[:, j] if j == HIPS else np.swapaxes(G[:, par[j]], -1, -2) @ G[:, j]
+    for j in np.flatnonzero(LEAVES):
+        Lu[:, j] = np.eye(3)
+    filled, seen = hold_and_blend(np.where(upper[None, :, None, None], Lu, np.eye(3)), fps, blend_s)
+    G2, _ = forward(filled, rest, root)
+    leg_seen = tracked_legs(G2, legs, rest) if legs else np.zeros(F, bool)
+    stand = ~leg_seen
+    if stand.any():
+        Gs = G2[stand].copy()
+        standing_legs(Gs, root[stand], rest)
+        for S in ("Left", "Right"):
+            for n in ("UpLeg", "Leg", "Foot", "ToeBase"):
+                G2[stand, IX[f"{S}{n}"]] = Gs[:, IX[f"{S}{n}"]]
+    for j in np.flatnonzero(LEAVES):
+        G2[:, j] = G2[:, PARENTS_RIG[j]]
+    L = local_rotations(G2, PARENTS_RIG)
+    L, _ = hold_and_blend(L, fps, blend_s)  # (legs seen in some frames only: the same rule)
+    G3, P = forward(L, rest, root)
+    report = {
+        "joints_never_seen": [NAMES[j] for j in range(N_RIG) if upper[j] and not LEAVES[j] and not seen[:, j].any()]
+        if not idle
+        else [],
+        "legs": "tracked"
+        if leg_seen.all()
+        else ("standing" if not leg_seen.any() else "tracked where seen, else standing"),
+        "max_joint_step_m": round(float(np.linalg.norm(np.diff(P, axis=0), axis=-1).max()), 4) if F > 1 else 0.0,
+    }
+    return {"root": root, "local": L, "global": G3, "positions": P, "report": report}
+
+
+def _relaxed_hand(J: np.ndarray, s: str, wrist: np.ndarray, down: np.ndarray, palm: np.ndarray, rest) -> None:
+    """A hanging hand at rest: the palm towards the thigh (``palm``), the fingers down along ``down`` and
+    curled a little towards the palm, the thumb forwards; lengths from the character's rest hand."""
+    S = s.capitalize()
+    r = lambda n: rest[IX[f"{S}{n}"]]
+    side = _unit(np.cross(palm, down))  # across the knuckles, from the little finger to the index
+    if (side @ np.array([0.0, 0.0, 1.0])).mean() < 0:
+        side = -side
+    J[:, _T[f"{s}_hand_wrist"]] = wrist
+    spread = {"index": 0.028, "middle": 0.008, "ring": -0.011, "pinky": -0.028}
+    for f, off in spread.items():
+        F_ = f.capitalize()
+        lens = [np.linalg.norm(r(f"Hand{F_}{k + 1}") - r(f"Hand{F_}{k}")) for k in (1, 2, 3)]
+        p = wrist + down * np.linalg.norm(r(f"Hand{F_}1") - r("Hand")) + side * off
+        J[:, _T[f"{s}_hand_{f}_mcp"]] = p
+        for k, (seg, ln) in enumerate(zip(("pip", "dip", "tip"), lens), 1):
+            p = p + ln * _unit(down + 0.35 * k * palm)
+            J[:, _T[f"{s}_hand_{f}_{seg}"]] = p
+    fwd = np.broadcast_to(np.array([0.0, 0.0, 1.0]), wrist.shape)
+    p = wrist + down * 0.03 + side * 0.03
+    J[:, _T[f"{s}_hand_thumb_cmc"]] = p
+    for seg in ("mcp", "ip", "tip"):
+        p = p + 0.03 * _unit(down + fwd + 0.3 * palm)
+        J[:, _T[f"{s}_hand_thumb_{seg}"]] = p
+
+
+def idle_body(F: int, rest: np.ndarray, fps: float, seed: int = 0) -> np.ndarray:
+    """A tracked-like body ``[F, 55, 3]`` of a person standing at ease (for a face from text): arms hanging
+    with the elbows slightly bent, breathing (the chest rising 4 mm every 4 s), a slow sway of the arms; hands
+    relaxed. Made from the character's rest proportions, pelvis-relative."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(F) / fps
+    J = np.full((F, len(JOINT_NAMES), 3), np.nan)
+    hips = rest[HIPS]
+    put = lambda name, p: J.__setitem__((slice(None), _T[name]), p)
+    breath = 0.004 * np.sin(2 * np.pi * t / 4.0 + rng.uniform(0, 6.3))[:, None]
+    put("pelvis", np.zeros((F, 3)))
+    put("left_hip", np.tile(rest[IX["LeftUpLeg"]] - hips, (F, 1)))
+    put("right_hip", np.tile(rest[IX["RightUpLeg"]] - hips, (F, 1)))
+    for S, s, sx in (("Left", "left", 1.0), ("Right", "right", -1.0)):
+        sh = rest[IX[f"{S}Arm"]] - hips + np.array([0, 1, 0]) * breath
+        upper = np.linalg.norm(rest[IX[f"{S}ForeArm"]] - rest[IX[f"{S}Arm"]])
+        fore = np.linalg.norm(rest[IX[f"{S}Hand"]] - rest[IX[f"{S}ForeArm"]])
+        swing = 0.03 * np.sin(2 * np.pi * t / 5.5 + rng.uniform(0, 6.3))
+        elbow = sh + upper * _unit(np.stack([np.full(F, sx * 0.12), -np.ones(F), swing], -1))
+        wrist = elbow + fore * _unit(np.stack([np.full(F, sx * 0.05), -np.ones(F), 0.3 + swing], -1))
+        put(f"{s}_shoulder", sh)
+        put(f"{s}_elbow", elbow)
+        put(f"{s}_wrist", wrist)
+        _relaxed_hand(J, s, wrist, _unit(wrist - elbow), np.array([-sx, 0.0, 0.0]), rest)
+    put("neck", (J[:, _T["left_shoulder"]] + J[:, _T["right_shoulder"]]) / 2)
+    head = J[:, _T["neck"]] + (rest[HEAD] - (rest[IX["LeftArm"]] + rest[IX["RightArm"]]) / 2) + np.array([0, 0.08, 0])
+    put("head", head)
+    put("nose", head + np.array([0.0, -0.02, 0.10]))
+    put("spine", J[:, _T["neck"]] / 2)
+    return J
+
+
+# ---- names in other conventions ----------------------------------------------------------------------------
+
+_VRM_BODY = {
+    "Hips": "hips", "Spine": "spine", "Spine1": "chest", "Spine2": "upperChest", "Neck": "neck", "Head": "head",
+    "Shoulder": "Shoulder", "Arm": "UpperArm", "ForeArm": "LowerArm", "Hand": "Hand",
+    "UpLeg": "UpperLeg", "Leg": "LowerLeg", "Foot": "Foot", "ToeBase": "Toes",
+}  # fmt: skip
+_VRM_FINGER = {
+    "Thumb": ("Metacarpal", "Proximal", "Distal"),
+    **{f: ("Proximal", "Intermediate", "Distal") for f in FINGERS[1:]},
+}
+_UE_BODY = {
+    "Hips": "pelvis", "Spine": "spine_01", "Spine1": "spine_02", "Spine2": "spine_03", "Neck": "neck_01",
+    "Head": "head", "Shoulder": "clavicle", "Arm": "upperarm", "ForeArm": "lowerarm", "Hand": "hand",
+    "UpLeg": "thigh", "Leg": "calf", "Foot": "foot", "ToeBase": "ball",
+}  # fmt: skip
+
+
+def _convention(name: str, kind: str) -> str:
+    """A rig joint's name in ``kind`` (mixamo, vrm, unreal); "" where the convention names no such joint."""
+    if kind == "anima":
+        return name
+    if kind == "mixamo":
+        return f"mixamorig:{name}"
+    side = "Left" if name.startswith("Left") else "Right" if name.startswith("Right") else ""
+    rest = name[len(side) :]
+    if rest.startswith("Hand") and rest[4:-1] in FINGERS:
+        finger, k = rest[4:-1], int(rest[-1])
+        if k == 4:
+            return ""
+        if kind == "vrm":  # VRM calls the little finger "Little"
+            return f"{side.lower()}{'Little' if finger == 'Pinky' else finger}{_VRM_FINGER[finger][k - 1]}"
+        return f"{finger.lower()}_0{k}_{side[0].lower()}"
+    table = _VRM_BODY if kind == "vrm" else _UE_BODY
+    if rest not in table:
+        return ""
+    if not side:
+        return table[rest]
+    if kind == "vrm":
+        return f"{side.lower()}{table[rest]}"
+    return f"{table[rest]}_{side[0].lower()}"
+
+
+CONVENTIONS = {k: {n: _convention(n, k) for n in NAMES} for k in ("anima", "mixamo", "vrm", "unreal")}
+"""``{convention: {rig joint: its name there}}`` ("" where the convention has no such joint: the end joints in
+VRM and Unreal)."""
+PRESETS = tuple(CONVENTIONS)
+
+
+def preset_names(preset: str) -> list[str]:
+    """The rig's joint names in ``preset`` (anima, vrm, mixamo, unreal); a joint the convention does not name
+    keeps anima's name (VRM's and Unreal's end joints)."""
+    if preset not in CONVENTIONS:
+        raise ValueError(f"unknown rig preset {preset!r}; one of {', '.join(PRESETS)}")
+    return [CONVENTIONS[preset][n] or n for n in NAMES]

@@ -1,111 +1,144 @@
-"""The animated avatar: the canonical rig (``anima.core.rig``) with the ICT head on its head joint, in one glTF
-file (``avatar.glb``), the speech beside it (``speech.wav``), and a preview video of both (``avatar.mp4``).
+"""The animated character: anima's default person (``anima.facemodel.character``: a full body with the 53
+expressions on its own face) shaped like the person, moved by the sequence on the rig (``anima.core.rig``),
+in one glTF file (``avatar.glb``), the speech beside it (``speech.wav``), and a preview video
+(``avatar.mp4``).
 
-* The rig's bone lengths come from the sequence (``measure_lengths``: medians, symmetric, hands of human
-  size); a sequence without any body (a face-only capture, text2face) gets the head alone.
-* The head mesh is the sequence's fitted identity (the neutral face for generated motion), metres, placed
-  with its ear midpoint on the ``Head`` joint; its 53 morph targets carry the expression weights.
-* Where the sequence has a face, the head joint turns with the face fit's head rotation (more precise than the
-  skeleton's ear and nose points); elsewhere it follows the skeleton.
-* ``speech.wav``: the speech the motion goes with (the video's audio track, ``--audio``, or the gesture
-  command's speech), 16-bit PCM; its offset from the motion's frame 0 (0 s) is written into ``avatar.glb``
-  (``asset.extras.anima``) and ``info.json``.
+* **Shape**: the captured bone lengths (shoulder width, upper arm, forearm, hip width) choose the character's
+  shape (:func:`anima.facemodel.character.fit_shape`); the fit's error per measure is reported. A sequence
+  without a body gets the mean adult.
+* **Motion**: the tracked or generated body retargeted onto the character's own proportions; the head turns
+  with the face fit's rotation where the sequence has a face; the legs stand with a weight shift unless the
+  clip tracked them; a sequence without a body (a face-only capture, text2face) stands at ease (breathing,
+  arms hanging), said in ``info.json``.
+* **Face**: the sequence's 53 expression weights drive the character's morph targets.
+* **One timeline, one unit**: the animation is sampled at the sequence's frame rate, in metres; the scene's
+  ``extras`` carry the frame rate and the frame range (``tools/blender_import.py`` sets Blender's scene from
+  them: Blender's own importer keeps them as the scene's custom properties but opens at 24 fps, 250 frames).
+* ``speech.wav``: the speech the motion goes with, 16-bit PCM; its offset from frame 0 (0 s) is in
+  ``asset.extras.anima`` and ``info.json``.
 """
 
 from __future__ import annotations
 
 import subprocess
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
 from anima.core import rig
+from anima.core.contract import EXPR_NAMES
 from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
 from anima.errors import InputError
-from anima.export.formats import export_glb, has_body
-from anima.facemodel.ict import load_face_model
+from anima.facemodel.character import fit_shape, load_character, skin, tracked_measures
 from anima.io.atomic import atomic_path
-from anima.io.gltf import write_avatar_glb
+from anima.io.gltf import write_character_glb
 from anima.io.sequence import TrackedSequence
 from anima.io.video import FFMPEG
-from anima.render.avatar import render_avatar_video
+from anima.render.avatar import render_character_video
+from anima.render.raster import vertex_normals
 
-CM_TO_M = 0.01
-
-
-@lru_cache(maxsize=1)
-def _head_geometry() -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str], np.ndarray]:
-    """(neutral skin cm, triangles, expression deltas cm, names, ear midpoint cm) of the ICT skin mesh."""
-    fm = load_face_model()
-    skin = fm.skin()
-    ear = (skin.neutral[skin.landmarks68[0]] + skin.neutral[skin.landmarks68[16]]) / 2
-    ear = np.array([0.0, ear[1], ear[2]])  # on the midline
-    return skin.neutral, skin.triangles(), skin.expr_deltas, list(skin.expr_names), ear
+UNIT = "metre"
 
 
-def rig_motion(seq: TrackedSequence) -> dict:
-    """The sequence's body on the rig: bone lengths (with the measurement report), root positions, local
-    rotations ``[F, 66, 3, 3]`` (the head joint following the face fit where there is a face) and posed
-    positions. Needs some body joints (raises InputError otherwise)."""
+def body_of(seq: TrackedSequence) -> np.ndarray | None:
+    """The sequence's body joints when some joint was tracked, else None."""
     if seq.body_joints is None or not np.isfinite(seq.body_joints).all(-1).any():
-        raise InputError("this sequence has no body: no rig can be posed from it")
-    lengths, report = rig.measure_lengths(seq.body_joints)
-    root, L, P = rig.rig_rotations(seq.body_joints, lengths)
-    if report["defaulted_bones"]:
-        report["warning"] = (
-            f"{len(report['defaulted_bones'])} bones never seen in the clip take a default "
-            "adult's length: " + ", ".join(report["defaulted_bones"][:6])
-        )
-    if seq.tracked.any():  # the head turns with the face fit: G_head = R_face, so L_head = G_neck^T R_face
-        G = np.tile(np.eye(3), (len(L), rig.N_RIG, 1, 1))
-        for j in range(rig.N_RIG):
-            p = rig.PARENTS_RIG[j]
-            G[:, j] = L[:, j] if p < 0 else G[:, p] @ L[:, j]
-        neck = G[:, rig.PARENTS_RIG[rig.HEAD]]
-        L[:, rig.HEAD] = neck.transpose(0, 2, 1) @ rotvec_to_matrix(seq.rotation.astype(np.float64))
-    return {"lengths": lengths, "report": report, "root": root, "local": L, "positions": P}
+        return None
+    return seq.body_joints
 
 
-def _head_vertices(seq: TrackedSequence, at: np.ndarray) -> np.ndarray:
-    neutral, _, _, _, ear = _head_geometry()
-    skin = load_face_model().skin()
-    v = skin.vertices(seq.identity) if np.any(seq.identity) else neutral
-    return (np.asarray(v, np.float64) - ear) * CM_TO_M + at
+def head_rotations(seq: TrackedSequence) -> np.ndarray | None:
+    """The face fit's head rotations ``[F, 3, 3]`` (NaN where no face was tracked), or None when the sequence
+    has no head rotation of its own (no face, or a generated face that never turns: the body's head joints
+    then turn the head)."""
+    if not seq.tracked.any() or not np.any(np.abs(seq.rotation[seq.tracked]) > 1e-6):
+        return None
+    R = rotvec_to_matrix(seq.rotation.astype(np.float64))
+    R[~seq.tracked] = np.nan
+    return R
 
 
-def write_avatar(seq: TrackedSequence, path: str | Path, speech: str | None = None) -> dict:
-    """``avatar.glb`` for ``seq`` (see the module docstring); returns what it holds."""
-    extras = {"anima": {"speech": "speech.wav" if speech else None, "speech_offset_s": 0.0, "fps": seq.fps}}
-    if not has_body(seq) and (seq.body_joints is None or not np.isfinite(seq.body_joints).any()):
-        export_glb(seq, path)  # the head alone (a face-only capture, text2face)
-        return {"kind": "head", "joints": 0, **extras["anima"]}
-    m = rig_motion(seq)
-    _, tris, deltas, names, _ = _head_geometry()
-    head_at = rig.rest_positions(m["lengths"])[rig.HEAD]
-    extras["anima"]["rig"] = {
-        "joints": rig.N_RIG,
-        "hand_length_m": m["report"]["hand_length_m"],
-        "conventions": "docs/rig.md",
+def character_motion(seq: TrackedSequence, seed: int = 0) -> dict:
+    """The sequence on the character (see the module docstring): ``coeffs``, ``vertices`` (the shaped rest
+    mesh), ``rest`` (its rest joints), the rig motion (``root``, ``local``, ``global``, ``positions``) and a
+    ``report`` (shape fit, legs, body)."""
+    ch = load_character()
+    body = body_of(seq)
+    if body is not None:
+        coeffs, shape = fit_shape(tracked_measures(body), ch)
+    else:
+        coeffs = np.zeros(ch.n_components)
+        shape = {"measures": {}, "height_m": round(float(ch.vertices[:, 1].max()), 3)}
+    V, rest = ch.shaped(coeffs)
+    image = seq.body_image if body is not None else None
+    mo = rig.solve(body, rest, seq.fps, head_rotations(seq), image=image, seed=seed, frames=seq.n_frames)
+    idle = "idle: no body in this sequence, the default body stands at ease"
+    report = {
+        "body": "tracked" if body is not None else idle,
+        "height_m": shape["height_m"],
+        "shape_fit": shape["measures"],
+        **mo["report"],
     }
-    write_avatar_glb(
+    return {"coeffs": coeffs, "vertices": V, "rest": rest, **mo, "report": report}
+
+
+def write_avatar(seq: TrackedSequence, path: str | Path, speech: str | None = None, preset: str = "anima") -> dict:
+    """``avatar.glb`` for ``seq`` (see the module docstring), joints named by ``preset`` (anima, mixamo, vrm,
+    unreal); returns what it holds (for ``info.json``)."""
+    ch = load_character()
+    m = character_motion(seq)
+    F = seq.n_frames
+    weights = _expression_weights(seq)
+    extras = {
+        "anima": {
+            "speech": "speech.wav" if speech else None,
+            "speech_offset_s": 0.0,
+            "fps": seq.fps,
+            "frames": F,
+            "unit": UNIT,
+            "rig": {"preset": preset, "joints": rig.N_RIG, "conventions": "docs/rig.md"},
+            "character": ch.provenance.get("licences", {}),
+        }
+    }
+    # frames as Blender numbers them after import (the first sample at frame 0)
+    scene_extras = {
+        "anima_fps": float(seq.fps),
+        "anima_frame_start": 0,
+        "anima_frame_end": int(F) - 1,
+        "anima_unit": UNIT,
+    }
+    write_character_glb(
         path,
-        rig.NAMES,
+        rig.preset_names(preset),
         rig.PARENTS_RIG,
-        rig.rest_offsets(m["lengths"]),
+        m["rest"],
         m["root"],
         matrix_to_quat(m["local"]),
-        rig.HEAD,
-        _head_vertices(seq, head_at),
-        tris,
-        np.asarray(deltas) * CM_TO_M,
-        names,
-        seq.expression,
+        m["vertices"],
+        vertex_normals(m["vertices"], ch.faces),
+        ch.faces,
+        ch.skin_joints,
+        ch.skin_weights,
+        list(zip(ch.morph_index, ch.morph_delta)),
+        list(EXPR_NAMES),
+        weights,
         seq.fps,
         extras,
+        scene_extras,
+        animated=~rig.LEAVES,
     )
-    out = {"kind": "rig+head", "joints": rig.N_RIG, **extras["anima"], **m["report"]}
-    return out
+    return {"kind": "character", "joints": rig.N_RIG, "preset": preset, "unit": UNIT, **extras["anima"], **m["report"]}
+
+
+def _expression_weights(seq: TrackedSequence) -> np.ndarray:
+    """The sequence's 53 expression weights ``[F, 53]`` in the character's order (0 where no face)."""
+    W = np.zeros((seq.n_frames, len(EXPR_NAMES)), np.float32)
+    if seq.tracked.any():
+        idx = [seq.expr_names.index(n) if n in seq.expr_names else -1 for n in EXPR_NAMES]
+        for k, i in enumerate(idx):
+            if i >= 0:
+                W[:, k] = np.where(seq.tracked, seq.expression[:, i], 0.0)
+    return np.clip(W, 0.0, 1.0)
 
 
 def write_speech(source: str, path: str | Path) -> Path:
@@ -144,27 +177,18 @@ def write_speech(source: str, path: str | Path) -> Path:
 def render_avatar_preview(
     seq: TrackedSequence, path: str | Path, audio: str | None = None, progress: bool = False
 ) -> Path:
-    """``avatar.mp4``: the rig and the head, front and 3/4 views, with the speech."""
-    m = rig_motion(seq)
-    _, tris, deltas, _, ear = _head_geometry()
-    skin = load_face_model().skin()
-    base = skin.vertices(seq.identity) if np.any(seq.identity) else skin.neutral
-    G = np.tile(np.eye(3), (len(m["local"]), rig.N_RIG, 1, 1))
-    for j in range(rig.N_RIG):
-        p = rig.PARENTS_RIG[j]
-        G[:, j] = m["local"][:, j] if p < 0 else G[:, p] @ m["local"][:, j]
-    render_avatar_video(
-        path,
-        seq.fps,
-        m["positions"],
-        rig.PARENTS_RIG,
-        rig.HEAD,
-        G[:, rig.HEAD],
-        (base - ear) * CM_TO_M,
-        np.asarray(deltas) * CM_TO_M,
-        seq.expression,
-        tris,
-        audio=audio,
-        progress=progress,
-    )
+    """``avatar.mp4``: the character, front and 3/4 views, with the speech."""
+    ch = load_character()
+    m = character_motion(seq)
+    weights = _expression_weights(seq)
+
+    def posed(f0: int, f1: int) -> np.ndarray:
+        """Vertices ``[n, V, 3]`` of frames ``f0:f1``: the expressions on the rest mesh, then skinned."""
+        out = []
+        for f in range(f0, f1):
+            V = ch.expressed(m["vertices"], weights[f])
+            out.append(skin(V, m["rest"], m["global"][f], m["positions"][f], ch))
+        return np.stack(out) if out else np.zeros((0, len(ch.vertices), 3))
+
+    render_character_video(path, seq.fps, m["positions"], rig.HEAD, posed, ch.faces, audio=audio, progress=progress)
     return Path(path)

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 
 from anima.core import rig
-from anima.core.filters import resample_joints
 from anima.core.rotations import matrix_to_euler, matrix_to_quat
 from anima.errors import InputError
+from anima.export.avatar import character_motion, write_avatar
 from anima.facemodel.ict import load_face_model
 from anima.io.arkit import write_live_link_csv
 from anima.io.bvh import write_bvh
@@ -18,7 +18,7 @@ from anima.io.outdir import check_out_file
 from anima.io.sequence import TrackedSequence, read_sequence
 from anima.io.validate import MAX_FRAMES
 
-FORMATS = ("arkit", "glb", "bvh")
+FORMATS = ("arkit", "glb", "avatar", "bvh")
 
 
 def export_arkit_csv(seq: TrackedSequence, path: str | Path) -> Path:
@@ -47,44 +47,56 @@ def export_glb(seq: TrackedSequence, path: str | Path, animate_head: bool = True
 MAX_RESAMPLE = 16  # the BVH export's frames at most 16 x the sequence's (15 -> 240 fps): memory stays bounded
 
 
-def has_body(seq: TrackedSequence) -> bool:
-    """True when some frame has every joint."""
-    return seq.body_joints is not None and bool(np.isfinite(seq.body_joints).all(-1).all(-1).any())
-
-
-def export_bvh(seq: TrackedSequence, path: str | Path, fps: float | None = None) -> Path:
-    """Upper body + hands on the canonical rig (``anima.core.rig``: T-pose rest, conventional names, the clip's
-    bone lengths with human-size hands), centimetres, optionally resampled to ``fps``."""
+def export_bvh(seq: TrackedSequence, path: str | Path, fps: float | None = None, preset: str = "anima") -> Path:
+    """The body on the character's rig (``anima.core.rig``: Mixamo's hierarchy, the character's T-pose rest in
+    the person's proportions, joints named by ``preset``; legs standing unless tracked), metres, optionally
+    resampled to ``fps`` (the rotations interpolated along the shortest arc)."""
     if seq.body_joints is None:
         raise InputError("this sequence has no body (captured with --face-only, or schema v1): nothing to export")
     if not np.isfinite(seq.body_joints).all(-1).any():
         raise InputError("no body joint was tracked in any frame of this sequence: no BVH can be made from it")
-    J, rate = seq.body_joints, seq.fps
+    n, rate = seq.n_frames, seq.fps
     if fps and abs(fps - rate) > 1e-6:
-        n_out = int(np.ceil(len(J) * fps / rate))
-        if n_out > min(MAX_RESAMPLE * len(J) + 1000, MAX_FRAMES):
+        n_out = int(np.ceil(n * fps / rate))
+        if n_out > min(MAX_RESAMPLE * n + 1000, MAX_FRAMES):
             raise InputError(
-                f"--fps {fps:g}: {n_out:,} frames from {len(J):,} at {rate:g} fps; anima resamples to at most "
+                f"--fps {fps:g}: {n_out:,} frames from {n:,} at {rate:g} fps; anima resamples to at most "
                 f"{MAX_RESAMPLE}x the frames (and {MAX_FRAMES:,} in all)"
             )
-        conf = seq.body_conf if seq.body_conf is not None else np.ones(J.shape[:2])
-        J, _, _ = resample_joints(J, conf, np.zeros(J.shape[:2], bool), rate, fps)
+    m = character_motion(seq)
+    root, local = m["root"], m["local"]
+    if fps and abs(fps - rate) > 1e-6:
+        root, local = resample_motion(root, local, rate, fps)
         rate = fps
-    lengths, _ = rig.measure_lengths(seq.body_joints)
-    root, local, _ = rig.rig_rotations(J, lengths)
-    leaves = np.array([not (rig.PARENTS_RIG == j).any() for j in range(rig.N_RIG)])
-    ends = np.where(leaves[:, None], rig.REST_DIRECTIONS * 0.02, 0.0)  # 2 cm end sites along the last bone
-    return write_bvh(path, rig.NAMES, rig.PARENTS_RIG, rig.rest_offsets(lengths), root, local, rate, ends)
+    return write_bvh(path, rig.preset_names(preset), rig.PARENTS_RIG, rig.rest_offsets(m["rest"]), root, local, rate)
 
 
-def export_file(fmt: str, sequence_path: str | Path, out: str | Path, fps: float | None = None) -> Path:
-    """``anima export FORMAT FILE --out OUT``: read a tracked sequence and write one export."""
+def resample_motion(root: np.ndarray, local: np.ndarray, fps: float, new_fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Root positions ``[F, 3]`` (linear) and local rotations ``[F, J, 3, 3]`` (shortest arc) at ``new_fps``."""
+    F = len(root)
+    t = np.arange(int(np.floor((F - 1) * new_fps / fps + 1e-6)) + 1) * fps / new_fps
+    i0 = np.minimum(np.floor(t).astype(int), F - 1)
+    i1 = np.minimum(i0 + 1, F - 1)
+    a = t - i0
+    R = root[i0] * (1 - a)[:, None] + root[i1] * a[:, None]
+    L = rig.slerp_rot(local[i0], local[i1], np.repeat(a[:, None], local.shape[1], 1))
+    return R, L
+
+
+def export_file(
+    fmt: str, sequence_path: str | Path, out: str | Path, fps: float | None = None, preset: str = "anima"
+) -> Path:
+    """``anima export FORMAT FILE --out OUT``: read a tracked sequence and write one export (``preset``: the
+    joint names of a BVH or an avatar)."""
     check_out_file(out, inputs=[sequence_path])
     seq = read_sequence(sequence_path, landmarks=False)
     if fmt == "bvh":
-        return export_bvh(seq, out, fps)
+        return export_bvh(seq, out, fps, preset)
     if fps is not None:
         raise InputError("--fps applies to the BVH export only")
+    if fmt == "avatar":
+        write_avatar(seq, out, preset=preset)
+        return Path(out)
     if not seq.tracked.any():
         raise InputError(f"no frame of {sequence_path} has a face: no {fmt} export can be made from it")
     if fmt == "arkit":

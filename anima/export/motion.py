@@ -8,15 +8,15 @@ file                   what                                                     
 ``<name>.npz``         the tracked sequence (``anima.io.sequence``)                always, written first
 ``arkit.csv``          Live Link Face CSV (52 ARKit weights + head)                a face in some frame
 ``face.glb``           ICT face with 53 morph targets, animated                    a face in some frame
-``body.bvh``           upper body + hands on the canonical rig (T-pose rest)       a body joint tracked
-``avatar.glb``         the rig with the ICT head on its head joint, one timeline   a face or a body
-                       (the head alone without a body)
+``body.bvh``           the body on the character's rig (metres, T-pose rest)       a body joint tracked
+``avatar.glb``         the skinned character (body + face), one timeline           always
+                       (standing at ease without a body)
 ``speech.wav``         the speech the motion goes with (offset 0 s)                the source has speech
 ``overlay.mp4``        the fitted mesh over the source video                       a face and a source
 ``mesh.mp4``           the fitted mesh alone                                       a face and a source
 ``face.mp4``           the animated neutral face (generated motion)                a face, no source
 ``skeleton_overlay``   2D joints over the source video (``.mp4``)                  a body and a source
-``avatar.mp4``         the rig and its head, front and 3/4 views                   a body
+``avatar.mp4``         the character, front and 3/4 views                          always
 ``info.json``          what made it (prompt, settings, notes, summary, avatar)     always
 =====================  ==========================================================  =======================
 
@@ -31,11 +31,10 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-import numpy as np
 from threadpoolctl import threadpool_limits
 
 from anima.core.clock import Stopwatch
-from anima.export.avatar import render_avatar_preview, write_avatar, write_speech
+from anima.export.avatar import body_of, render_avatar_preview, write_avatar, write_speech
 from anima.export.formats import export_arkit_csv, export_bvh, export_glb
 from anima.io.atomic import write_json
 from anima.io.outdir import OutputFolder
@@ -54,6 +53,7 @@ def write_motion_outputs(
     info: dict | None = None,
     progress: bool = True,
     sw: Stopwatch | None = None,
+    preset: str = "anima",
 ) -> dict[str, Path]:
     """Write the output set of ``seq`` (see the module table); returns ``{role: path}``. The exports (CSV,
     glTF, BVH, speech) are written on a thread beside the videos. ``sw``: a stopwatch given the stages
@@ -64,9 +64,9 @@ def write_motion_outputs(
         files = {"sequence": write_sequence(seq, out.file(name))}  # first: everything else is made from it
     speech = _speech_source(seq, source_video, audio)
     face = bool(seq.tracked.any())
-    body = seq.body_joints is not None and bool(np.isfinite(seq.body_joints).all(-1).any())
+    body = body_of(seq) is not None
     exported: dict = {}
-    jobs = [({}, lambda: exported.update(_write_exports(seq, out, speech, info is not None)))]
+    jobs = [({}, lambda: exported.update(_write_exports(seq, out, speech, info is not None, preset)))]
     if render and face:
         if source_video is not None:
             ov, me = out.file("overlay.mp4"), out.file("mesh.mp4")
@@ -81,15 +81,15 @@ def write_motion_outputs(
             jobs.append(
                 ({"face_video": fv}, lambda: render_videos(seq, None, None, fv, progress=progress, audio=audio))
             )
-    if render and body:
-        if source_video is not None and seq.body_image is not None:
-            so = out.file("skeleton_overlay.mp4")
-            jobs.append(
-                (
-                    {"skeleton_overlay_video": so},
-                    lambda: render_skeleton_videos(seq, source_video, so, None, progress=progress, audio=audio),
-                )
+    if render and body and source_video is not None and seq.body_image is not None:
+        so = out.file("skeleton_overlay.mp4")
+        jobs.append(
+            (
+                {"skeleton_overlay_video": so},
+                lambda: render_skeleton_videos(seq, source_video, so, None, progress=progress, audio=audio),
             )
+        )
+    if render:
         av = out.file("avatar.mp4")
         jobs.append(({"avatar_video": av}, lambda: render_avatar_preview(seq, av, audio=speech, progress=progress)))
     with sw("render" if len(jobs) > 1 else "write"):  # the exports are written beside the videos
@@ -103,23 +103,21 @@ def write_motion_outputs(
     return files
 
 
-def _write_exports(seq, out, speech: str | None, describe: bool) -> dict:
+def _write_exports(seq, out, speech: str | None, describe: bool, preset: str = "anima") -> dict:
     """The files made from the sequence, no videos: ``{"files": {role: path}, "avatar": what avatar.glb
     holds (when ``describe``)}``."""
     files = {}
     face = bool(seq.tracked.any())
-    body = seq.body_joints is not None and bool(np.isfinite(seq.body_joints).all(-1).any())
+    body = body_of(seq) is not None
     if face:
         files["arkit_csv"] = export_arkit_csv(seq, out.file("arkit.csv"))
         files["glb"] = export_glb(seq, out.file("face.glb"))
     if body:
-        files["bvh"] = export_bvh(seq, out.file("body.bvh"))
+        files["bvh"] = export_bvh(seq, out.file("body.bvh"), preset=preset)
     if speech is not None:
         files["speech"] = write_speech(speech, out.file("speech.wav"))
-    avatar = None
-    if face or body:
-        avatar = write_avatar(seq, out.file("avatar.glb"), speech="speech.wav" if speech else None)
-        files["avatar"] = out.path / "avatar.glb"
+    avatar = write_avatar(seq, out.file("avatar.glb"), speech="speech.wav" if speech else None, preset=preset)
+    files["avatar"] = out.path / "avatar.glb"
     return {"files": files, "avatar": avatar if describe else None}
 
 

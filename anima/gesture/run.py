@@ -23,6 +23,7 @@ from anima.gesture.features import N_STEP, audio_features
 from anima.gesture.keywords import keyword_masks, parse_keyword, union
 from anima.gesture.knn import search
 from anima.gesture.post import finish_knn, joins_of, one_skeleton
+from anima.io.mapped import cache_key, file_stamp, mapped_arrays
 from anima.io.outdir import OutputFolder, check_out_dir
 
 
@@ -121,10 +122,36 @@ def synthesize(
         "notes": notes,
         "refined": refiner is not None,
         "picks": [(int(m), int(r)) for m, r in picks],
+        "speech_features": feats.features[: len(J)],  # (the talking face's input; not written to info.json)
     }
     if used is not None:
         info["database_per_step"] = used
     return J, info
+
+
+FACE_NOTE = "the jaw on the speech's envelope, the mouth's other channels on the jaw as in the dataset's faces; blinks"
+
+
+def talking_face_of(db: str, S: np.ndarray, fps: float, seed: int = 0) -> tuple[np.ndarray, str | None]:
+    """A talking face ``[T, 56]`` for speech features ``S`` (:mod:`anima.gesture.face`), its mouth model from
+    the dataset's captured faces (through a memory-mapped cache keyed on the dataset's manifest); a note when
+    the dataset has no captured face."""
+    from anima.dataset.windows import read_windows
+    from anima.gesture.face import fit_speech_face, talking_face
+
+    manifest = Path(db) / "manifest.json"
+    code = file_stamp(Path(__file__).parent / "face.py")
+
+    def make():
+        m = fit_speech_face(read_windows(db).face)
+        return m if m is not None else {"none": np.zeros(1)}
+
+    key = cache_key(file_stamp(manifest) if manifest.is_file() else db, code)
+    model = mapped_arrays("gesture_face", key, make)
+    if "none" in model:
+        note = "the dataset has no captured talking face: the mouth follows an adult's default jaw range"
+        return talking_face(S, fps, None, seed), note
+    return talking_face(S, fps, dict(model), seed), None
 
 
 def read_speech(speech_path: str, fps: float):
@@ -160,6 +187,7 @@ def gesture_to_folder(
     render: bool = True,
     command: str | None = None,
     progress: bool = False,
+    preset: str = "anima",
 ) -> dict:
     """``anima gesture``: check every input, then search (``db``) or generate (``generator``) and write the
     result folder. Returns the run's info (notes, controls, files written, and ``time_s``: seconds per stage,
@@ -214,8 +242,11 @@ def gesture_to_folder(
                 control_every_frame=not cfg.control_ends_only,
                 sw=sw,
             )
-            face = None
+            with sw("face"):
+                face, face_note = talking_face_of(db, info.pop("speech_features"), info["fps"], cfg.seed)
             info = {k: v for k, v in info.items() if k != "picks"} | {"database_windows": match_db.M}
+            info["notes"] = info.get("notes", []) + ([face_note] if face_note else [])
+            info["face"] = FACE_NOTE
         seq = generated_sequence(
             info["fps"],
             face=face,
@@ -228,6 +259,6 @@ def gesture_to_folder(
         )
         od.info = info
         files = write_motion_outputs(
-            seq, od, "gesture.npz", audio=str(speech), render=render, info=info, progress=progress, sw=sw
+            seq, od, "gesture.npz", audio=str(speech), render=render, info=info, progress=progress, sw=sw, preset=preset
         )
     return info | {"written": [str(p) for p in files.values()], "time_s": sw.report()}

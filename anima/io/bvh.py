@@ -2,7 +2,8 @@
 
 Writer (:func:`write_bvh`): a skeleton given by its rest offsets and its motion as root positions and local
 rotations relative to that rest pose; every joint has channels ``Zrotation Xrotation Yrotation`` (the root
-also ``Xposition Yposition Zposition``), units centimetres, Y up. anima's exports write the canonical rig
+also ``Xposition Yposition Zposition``), units metres (as anima's every file; Blender's importer takes
+them 1:1), Y up. anima's exports write the canonical rig
 (``anima.core.rig``: T-pose rest, conventional names) through it (``anima.export.formats.export_bvh``).
 
 Reader (:func:`read_bvh`): any channel order, position channels on any joint, End Sites; returns names,
@@ -23,8 +24,6 @@ from anima.core.bvh_math import (
 )
 from anima.errors import InputError
 from anima.io.atomic import write_text
-
-M_TO_CM = 100.0
 
 
 @dataclass
@@ -140,14 +139,14 @@ def write_bvh(
     fps: float,
     end_sites_m: np.ndarray | None = None,
 ) -> Path:
-    """Write a skeleton and its motion as BVH, in centimetres: rest offsets ``[J, 3]`` (the rest pose: every
+    """Write a skeleton and its motion as BVH, in metres: rest offsets ``[J, 3]`` (the rest pose: every
     local rotation identity), root positions ``[F, 3]``, local rotations ``[F, J, 3, 3]`` relative to the rest
     pose (channels Zrotation Xrotation Yrotation; the root also Xposition Yposition Zposition), and for each
     leaf an End Site ``end_sites_m[j]`` (default zero). Written atomically."""
     parents = np.asarray(parents)
-    offsets = np.asarray(offsets_m, np.float64) * M_TO_CM
-    root = np.asarray(root_m, np.float64) * M_TO_CM
-    ends = np.zeros_like(offsets) if end_sites_m is None else np.asarray(end_sites_m, np.float64) * M_TO_CM
+    offsets = np.asarray(offsets_m, np.float64)
+    root = np.asarray(root_m, np.float64)
+    ends = np.zeros_like(offsets) if end_sites_m is None else np.asarray(end_sites_m, np.float64)
     eul = matrix_to_euler_zxy(local_rotations_)  # (F, J, 3)
     kids = {j: [int(c) for c in np.flatnonzero(parents == j)] for j in range(len(names))}
     lines = ["HIERARCHY"]
@@ -185,7 +184,7 @@ def write_bvh(
     dfs(r)
     lines += ["MOTION", f"Frames: {len(root)}", f"Frame Time: {1.0 / fps:.8f}"]
     motion = np.concatenate([root, eul[:, order].reshape(len(root), -1)], 1)  # [F, 3 + 3J], the channel order
-    row = " ".join(["%.5f"] * motion.shape[1])  # one format per row: 3x faster than one per value
+    row = " ".join(["%.6f"] * motion.shape[1])  # one format per row: 3x faster than one per value
     lines += [row % tuple(r) for r in motion.tolist()]
     return write_text(path, "\n".join(lines) + "\n")
 

@@ -1,6 +1,7 @@
-"""Binary glTF 2.0 (GLB) export of the fitted face: mesh (identity applied, metres), the 53 expression
-blendshapes as morph targets (``mesh.extras.targetNames``), and an animation of their weights plus the
-head rotation. glTF axes match anima's camera convention (+Y up, +Z towards the viewer)."""
+"""Binary glTF 2.0 (GLB) writers: the fitted face (:func:`write_glb`: mesh with identity applied, metres, the 53
+expression blendshapes as morph targets named in ``mesh.extras.targetNames``, animated with the head
+rotation), and the skinned character with its motion (:func:`write_character_glb`). glTF axes match anima's
+convention (+Y up, +Z towards the viewer: the character's forward)."""
 
 from __future__ import annotations
 
@@ -40,6 +41,15 @@ class _Buffer:
             acc["max"] = [float(x) for x in a2.max(0)]
         self.accessors.append(acc)
         return len(self.accessors) - 1
+
+    def view(self, arr: np.ndarray) -> int:
+        """A buffer view of ``arr``'s bytes (no accessor: a sparse accessor's indices or values)."""
+        while len(self.data) % 4:
+            self.data += b"\0"
+        raw = np.ascontiguousarray(arr).tobytes()
+        self.views.append({"buffer": 0, "byteOffset": len(self.data), "byteLength": len(raw)})
+        self.data += raw
+        return len(self.views) - 1
 
 
 def write_glb(
@@ -95,63 +105,91 @@ def write_glb(
 UBYTE, USHORT = 5121, 5123
 
 
-def write_avatar_glb(
+def write_character_glb(
     path: str | Path,
     joint_names: list[str],
     parents: np.ndarray,
-    rest_offsets_m: np.ndarray,
+    rest_joints_m: np.ndarray,
     root_positions_m: np.ndarray,
     local_quats_xyzw: np.ndarray,
-    head_joint: int,
-    head_vertices_m: np.ndarray,
+    vertices_m: np.ndarray,
+    normals: np.ndarray,
     tris: np.ndarray,
-    expr_deltas_m: np.ndarray,
-    expr_names: list[str],
+    skin_joints: np.ndarray,
+    skin_weights: np.ndarray,
+    morphs: list[tuple[np.ndarray, np.ndarray]],
+    morph_names: list[str],
     weights: np.ndarray,
     fps: float,
     extras: dict | None = None,
+    scene_extras: dict | None = None,
+    animated: np.ndarray | None = None,
 ) -> Path:
-    """A skeleton and a head in one animated glTF 2.0 binary (one timeline):
+    """A skinned character and its motion in one animated glTF 2.0 binary (one timeline):
 
-    * one node per joint (``joint_names``, ``parents``), rest translation ``rest_offsets_m [J, 3]``, the rest
-      pose's rotations identity; a skin over all of them (inverse bind matrices of the rest pose);
-    * the head mesh ``head_vertices_m [V, 3]`` (in the rest pose, metres) skinned wholly to ``head_joint``,
-      with ``expr_deltas_m [E, V, 3]`` as morph targets named ``expr_names`` (``mesh.extras.targetNames``);
-    * one animation: the root's translation ``[F, 3]``, every joint's local rotation ``[F, J, 4]`` (x, y, z, w)
-      and the morph ``weights [F, E]``, LINEAR, at ``fps``.
+    * one node per joint (``joint_names``, ``parents``, parents first), at its rest position
+      ``rest_joints_m [J, 3]`` (its translation is the offset from its parent; rest rotations identity), and a
+      skin over all of them (inverse bind matrices of that rest pose);
+    * the mesh ``vertices_m [V, 3]`` (rest pose, metres) with ``normals``, ``tris [T, 3]``, four joints and
+      weights a vertex, a neutral material, and the morph targets ``morphs`` (``(vertex indices, deltas)``
+      each, written as sparse accessors) named ``morph_names`` (``mesh.extras.targetNames``);
+    * one animation: the root's translation ``[F, 3]``, the local rotations ``[F, J, 4]`` (x, y, z, w) of the
+      joints in ``animated`` (default: every joint), and the morph ``weights [F, E]``, LINEAR, at ``fps``;
+    * ``scene_extras``: the scene's ``extras`` (Blender's importer keeps them as the scene's custom
+      properties: anima puts the frame rate, the frame range and the unit there).
     """
     J = len(joint_names)
     F = len(root_positions_m)
+    parents = np.asarray(parents)
+    rest = np.asarray(rest_joints_m, np.float64)
     buf = _Buffer()
     nodes = []
     for j in range(J):
-        nodes.append({"name": joint_names[j], "translation": [float(x) for x in rest_offsets_m[j]]})
+        off = rest[j] - (rest[parents[j]] if parents[j] >= 0 else 0.0)
+        nodes.append({"name": joint_names[j], "translation": [float(x) for x in off]})
     for j in range(J):
-        kids = [int(c) for c in np.flatnonzero(np.asarray(parents) == j)]
+        kids = [int(c) for c in np.flatnonzero(parents == j)]
         if kids:
             nodes[j]["children"] = kids
-    rest = np.zeros((J, 3))
-    for j in range(J):
-        rest[j] = (rest[parents[j]] if parents[j] >= 0 else 0.0) + rest_offsets_m[j]
     ibm = np.tile(np.eye(4, dtype=np.float32), (J, 1, 1))
     ibm[:, :3, 3] = -rest
     ibm_acc = buf.add(ibm.transpose(0, 2, 1).reshape(J, 16), FLOAT, "MAT4")  # column-major
-    pos = buf.add(np.asarray(head_vertices_m, np.float32), FLOAT, "VEC3", ARRAY_BUFFER, minmax=True)
-    idx = buf.add(np.asarray(tris, np.uint32).ravel(), UINT, "SCALAR", ELEMENT_ARRAY_BUFFER)
-    V = len(head_vertices_m)
-    jnt = np.zeros((V, 4), np.uint16 if J > 255 else np.uint8)
-    jnt[:, 0] = head_joint
-    jnt_acc = buf.add(jnt, USHORT if J > 255 else UBYTE, "VEC4", ARRAY_BUFFER)
-    wgt = np.zeros((V, 4), np.float32)
-    wgt[:, 0] = 1.0
-    wgt_acc = buf.add(wgt, FLOAT, "VEC4", ARRAY_BUFFER)
-    targets = [
-        {"POSITION": buf.add(np.asarray(d, np.float32), FLOAT, "VEC3", ARRAY_BUFFER, minmax=True)}
-        for d in expr_deltas_m
-    ]
+    V = len(vertices_m)
+    pos = buf.add(np.asarray(vertices_m, np.float32), FLOAT, "VEC3", ARRAY_BUFFER, minmax=True)
+    nrm = buf.add(np.asarray(normals, np.float32), FLOAT, "VEC3", ARRAY_BUFFER)
+    small = V < 65536
+    idx = buf.add(
+        np.asarray(tris, np.uint16 if small else np.uint32).ravel(),
+        USHORT if small else UINT,
+        "SCALAR",
+        ELEMENT_ARRAY_BUFFER,
+    )
+    jnt_acc = buf.add(np.asarray(skin_joints, np.uint8), UBYTE, "VEC4", ARRAY_BUFFER)
+    w = np.asarray(skin_weights, np.float32)
+    w = w / w.sum(1, keepdims=True)
+    wgt_acc = buf.add(w, FLOAT, "VEC4", ARRAY_BUFFER)
+    targets = []
+    for vi, d in morphs:
+        vi = np.asarray(vi)
+        order = np.argsort(vi)
+        vi, d = vi[order], np.asarray(d, np.float32)[order]
+        lo = np.minimum(d.min(0), 0.0) if len(d) else np.zeros(3)
+        hi = np.maximum(d.max(0), 0.0) if len(d) else np.zeros(3)
+        acc = {"componentType": FLOAT, "count": V, "type": "VEC3", "min": [float(x) for x in lo],
+               "max": [float(x) for x in hi]}  # fmt: skip
+        if len(vi):
+            i_view = buf.view(vi.astype(np.uint16 if small else np.uint32))
+            v_view = buf.view(d)
+            acc["sparse"] = {
+                "count": int(len(vi)),
+                "indices": {"bufferView": i_view, "componentType": USHORT if small else UINT},
+                "values": {"bufferView": v_view},
+            }
+        buf.accessors.append(acc)
+        targets.append({"POSITION": len(buf.accessors) - 1})
     mesh_node = len(nodes)
-    nodes.append({"name": "head_mesh", "mesh": 0, "skin": 0})
-    root = int(np.flatnonzero(np.asarray(parents) < 0)[0])
+    nodes.append({"name": "character", "mesh": 0, "skin": 0})
+    root = int(np.flatnonzero(parents < 0)[0])
     times = (np.arange(F, dtype=np.float32) / np.float32(fps)).astype(np.float32)
     t_acc = buf.add(times, FLOAT, "SCALAR", minmax=True)
     samplers = [
@@ -164,38 +202,52 @@ def write_avatar_glb(
     channels = [{"sampler": 0, "target": {"node": root, "path": "translation"}}]
     q = np.asarray(local_quats_xyzw, np.float64)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    for j in range(J):
+    for j in range(J) if animated is None else np.flatnonzero(animated):
         samplers.append(
             {"input": t_acc, "output": buf.add(q[:, j].astype(np.float32), FLOAT, "VEC4"), "interpolation": "LINEAR"}
         )
-        channels.append({"sampler": len(samplers) - 1, "target": {"node": j, "path": "rotation"}})
-    samplers.append(
-        {
-            "input": t_acc,
-            "output": buf.add(np.clip(weights, 0, 1).astype(np.float32).ravel(), FLOAT, "SCALAR"),
-            "interpolation": "LINEAR",
-        }
-    )
-    channels.append({"sampler": len(samplers) - 1, "target": {"node": mesh_node, "path": "weights"}})
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": int(j), "path": "rotation"}})
+    if len(morph_names):
+        samplers.append(
+            {
+                "input": t_acc,
+                "output": buf.add(np.clip(weights, 0, 1).astype(np.float32).ravel(), FLOAT, "SCALAR"),
+                "interpolation": "LINEAR",
+            }
+        )
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": mesh_node, "path": "weights"}})
+    prim = {
+        "attributes": {"POSITION": pos, "NORMAL": nrm, "JOINTS_0": jnt_acc, "WEIGHTS_0": wgt_acc},
+        "indices": idx,
+        "material": 0,
+        "mode": 4,
+    }
+    if targets:
+        prim["targets"] = targets
     gltf = {
         "asset": {"version": "2.0", "generator": "anima", **({"extras": extras} if extras else {})},
         "scene": 0,
-        "scenes": [{"name": "avatar", "nodes": [root, mesh_node]}],
+        "scenes": [
+            {"name": "avatar", "nodes": [root, mesh_node], **({"extras": scene_extras} if scene_extras else {})}
+        ],
         "nodes": nodes,
         "skins": [{"name": "rig", "joints": list(range(J)), "skeleton": root, "inverseBindMatrices": ibm_acc}],
+        "materials": [
+            {
+                "name": "neutral",
+                "pbrMetallicRoughness": {
+                    "baseColorFactor": [0.78, 0.76, 0.74, 1.0],
+                    "metallicFactor": 0.0,
+                    "roughnessFactor": 0.7,
+                },
+            }
+        ],  # fmt: skip
         "meshes": [
             {
-                "name": "ict_head",
-                "primitives": [
-                    {
-                        "attributes": {"POSITION": pos, "JOINTS_0": jnt_acc, "WEIGHTS_0": wgt_acc},
-                        "indices": idx,
-                        "targets": targets,
-                        "mode": 4,
-                    }
-                ],
-                "weights": [0.0] * len(targets),
-                "extras": {"targetNames": list(expr_names)},
+                "name": "character",
+                "primitives": [prim],
+                **({"weights": [0.0] * len(targets)} if targets else {}),
+                "extras": {"targetNames": list(morph_names)},
             }
         ],
         "animations": [{"name": "motion", "samplers": samplers, "channels": channels}],

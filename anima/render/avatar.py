@@ -1,17 +1,15 @@
-"""The avatar preview: the rig's bones and the animated head mesh, front and 3/4 views side by side."""
+"""The avatar preview: the skinned character (:func:`render_character_video`), front and 3/4 views side by side."""
 
 from __future__ import annotations
 
 from contextlib import ExitStack
 from pathlib import Path
 
-import cv2
 import numpy as np
 from tqdm import tqdm
 
 from anima.io.video import VideoWriter, even_size, to_i420
 from anima.render.face import SKIN, label_width, put_label
-from anima.render.lod import decimate_morph_mesh
 from anima.render.parallel import ordered_map
 from anima.render.raster import draw_shaded
 
@@ -62,87 +60,50 @@ def framing(
     return max(height, 8), out
 
 
-def render_avatar_video(
+def render_character_video(
     path: str | Path,
     fps: float,
     positions: np.ndarray,
-    parents: np.ndarray,
     head: int,
-    head_rot: np.ndarray,
-    head_verts: np.ndarray,
-    deltas: np.ndarray,
-    weights: np.ndarray,
+    posed,
     tris: np.ndarray,
     audio: str | None = None,
     size: int = 512,
     progress: bool = False,
-    head_triangles: int = 4000,
 ) -> None:
-    """Rig joints ``positions [F, J, 3]`` (metres) with ``parents``; the head mesh hangs on joint ``head``:
-    ``head_verts [V, 3]`` around that joint, turned by ``head_rot [F, 3, 3]``, with morph ``deltas [E, V, 3]``
-    at ``weights [F, E]``. Front and 3/4 views at ``size`` pixels for 1.4 m, each cropped to where the figure
-    moves during the clip (:func:`framing`), the speech ``audio`` muxed in. The head is drawn about 90 px
-    tall, so it is decimated to ``head_triangles`` first (:mod:`anima.render.lod`)."""
-    head_verts, tris, deltas = decimate_morph_mesh(head_verts, tris, deltas, head_triangles)
-    centre = np.nanmedian(positions[:, head], axis=0) - np.array([0.0, 0.35, 0.0])
-    scale = size / 1.4
-    D = np.asarray(deltas, np.float32).reshape(len(deltas), -1)
-    base = np.asarray(head_verts, np.float32)
+    """The skinned character, front and 3/4 views side by side: ``posed(f0, f1)`` gives the posed vertices
+    ``[n, V, 3]`` (metres) of frames ``f0:f1`` and ``positions [F, J, 3]`` its joints (the framing: each view
+    cropped to where the figure moves during the clip, :func:`framing`). ``size`` pixels for 2.1 m; the speech
+    ``audio`` muxed in."""
+    centre = np.nanmedian(positions[:, 0], axis=0) + np.array([0.0, 0.05, 0.0])
+    scale = size / 2.1
     tris = np.ascontiguousarray(tris, np.int64)
     yaws = (0.0, np.deg2rad(-60))
-    radius = float(np.linalg.norm(base, axis=1).max()) + 0.03  # the head about its joint, 3 cm for expressions
-    height, crops = framing(positions, head, radius, yaws, size, centre, scale)
-    x_at = np.cumsum([0] + [w for _, w, _ in crops])  # each view's first column in the canvas
+    height, crops = framing(positions, head, 0.16, yaws, size, centre, scale, margin=20)
+    x_at = np.cumsum([0] + [w for _, w, _ in crops])
     blank = np.full((height, int(x_at[-1]), 3), 28, np.uint8)
-    put_label(blank, "front | 3/4 view", inplace=True, x=8 + label_width("000.00 s  "))  # once; the time per frame
+    put_label(blank, "front | 3/4 view", inplace=True, x=8 + label_width("000.00 s  "))
     frame_size = even_size((blank.shape[1], height))
+    F = len(positions)
 
-    def chunk_geometry(f0: int, f1: int):
-        """Frames ``f0:f1`` in bulk (one matrix product for the expressions, no per-frame Python): per frame
-        the expressive head around its joint, and per view the head's pose as one affine map into the view's
-        pixels (``X = V @ M + t``) and the bones as integer segments."""
-        n = f1 - f0
-        V = base + (np.asarray(weights[f0:f1], np.float32) @ D).reshape(n, -1, 3)
-        views = []
-        for yaw, (x0, _, y0) in zip(yaws, crops):
-            M = head_rot[f0:f1].transpose(0, 2, 1) @ _view(np.eye(3), 0, yaw, np.zeros(3), scale)  # [n, 3, 3]
-            t = _view(positions[f0:f1, head], size, yaw, centre, scale, (x0, y0))  # [n, 3]
-            P = _view(positions[f0:f1], size, yaw, centre, scale, (x0, y0))
-            uv = np.stack([P[..., 0], -P[..., 1]], -1)
-            a, b = uv[:, parents[1:]], uv[:, 1:]
-            ok = np.isfinite(a).all(-1) & np.isfinite(b).all(-1) & (np.abs(a - b).sum(-1) > 0.5)
-            segs = np.round(np.nan_to_num(np.stack([a, b], 2))).astype(np.int32)  # [n, S, 2, 2]
-            bones = [segs[i] if ok[i].all() else segs[i][ok[i]] for i in range(n)]  # OpenCV: [S, 2, 2] = S lines
-            views.append((bones, M, t))
-        for i in range(n):
-            yield f0 + i, V[i], [(bones[i], M[i], t[i]) for bones, M, t in views]
-
-    def frames(chunk: int = 128):
-        for f0 in range(0, len(positions), chunk):
-            yield from chunk_geometry(f0, min(len(positions), f0 + chunk))
+    def frames(chunk: int = 32):
+        for f0 in range(0, F, chunk):
+            V = posed(f0, min(F, f0 + chunk))
+            for i in range(len(V)):
+                yield f0 + i, V[i]
 
     def frame(item) -> np.ndarray:
-        """One frame drawn into one canvas (each view a slice of it), returned as I420: one full-size copy
-        and one conversion per frame, on the rendering threads."""
-        f, V, views = item
+        f, V = item
         canvas = blank.copy()
-        for k, (segs, M, t) in enumerate(views):
-            X = V @ M + t  # the head in the view's pixels (float64, as the rasterizer takes it)
-            img = canvas[:, x_at[k] : x_at[k + 1]]  # a view: OpenCV and the rasterizer draw into the canvas
-            if len(segs):
-                cv2.polylines(img, segs, False, (255, 170, 60), 2, cv2.LINE_AA)
-            draw_shaded(img, X, tris, SKIN, back_faces=False)
+        for k, (yaw, (x0, _, y0)) in enumerate(zip(yaws, crops)):
+            X = _view(V, size, yaw, centre, scale, (x0, y0))
+            draw_shaded(canvas[:, x_at[k] : x_at[k + 1]], X, tris, SKIN, back_faces=False)
         put_label(canvas, f"{f / fps:5.2f} s", inplace=True)
         return to_i420(canvas, frame_size)
 
     with ExitStack() as stack:
         w = stack.enter_context(VideoWriter(path, fps, frame_size, audio, quality=6, drawn=True))
         for img in tqdm(
-            ordered_map(frame, frames()),
-            total=len(positions),
-            desc="avatar",
-            unit="fr",
-            disable=not progress,
-            leave=False,
+            ordered_map(frame, frames()), total=F, desc="avatar", unit="fr", disable=not progress, leave=False
         ):
             w.write_i420(img)

@@ -97,6 +97,7 @@ def text_to_folder(
     progress: bool = True,
     command: str | None = None,
     db: str | Path | None = None,
+    preset: str = "anima",
 ) -> dict:
     """``anima text2face``: a sentence -> a result folder (``motion.npz``, ``arkit.csv``, ``face.glb``,
     ``face.mp4``, ``info.json``; :func:`anima.export.motion.write_motion_outputs`). ``--out`` is checked
@@ -113,7 +114,7 @@ def text_to_folder(
             raise InputError("--method timeline needs --db (a dataset folder from `anima dataset build`)")
         if checkpoint:
             raise InputError("--checkpoint is for --method model; the timeline method reads --db")
-        return _timeline_to_folder(prompt, out, cfg, db, video, progress, command)
+        return _timeline_to_folder(prompt, out, cfg, db, video, progress, command, preset)
     with OutputFolder(out, kind="text2face", command=command) as od:
         gen = Generator(checkpoint)
         n = gen.check_length(int(round(cfg.seconds * gen.fps)) if cfg.seconds else cfg.length)
@@ -135,11 +136,13 @@ def text_to_folder(
         }
         seq = generated_sequence(gen.fps, face=motion, meta={"generated_by": "anima text2face", **info})
         od.info = info
-        files = write_motion_outputs(seq, od, "motion.npz", render=video, info=info, progress=progress)
+        files = write_motion_outputs(seq, od, "motion.npz", render=video, info=info, progress=progress, preset=preset)
     return info | {"written": [str(p) for p in files.values()]}
 
 
-def _timeline_to_folder(prompt, out, cfg: PromptConfig, db, video: bool, progress: bool, command) -> dict:
+def _timeline_to_folder(
+    prompt, out, cfg: PromptConfig, db, video: bool, progress: bool, command, preset: str = "anima"
+) -> dict:
     """The timeline method (:mod:`anima.text2face.compose`): the prompt's events from the dataset's captured
     segments. ``info.json`` records how the prompt was read, what was not understood, and where every event's
     motion comes from."""
@@ -171,5 +174,5 @@ def _timeline_to_folder(prompt, out, cfg: PromptConfig, db, video: bool, progres
         }
         seq = generated_sequence(fps, face=motion, meta={"generated_by": "anima text2face --method timeline"})
         od.info = info
-        files = write_motion_outputs(seq, od, "motion.npz", render=video, info=info, progress=progress)
+        files = write_motion_outputs(seq, od, "motion.npz", render=video, info=info, progress=progress, preset=preset)
     return info | {"written": [str(p) for p in files.values()]}

@@ -1,7 +1,8 @@
 """Every BVH and GLB anima writes, opened by the tool it is for: headless Blender (``blender -b``) imports each
-file as a user does (``tools/blender_inspect.py``) and says what it got. Checked from inside Blender: joint
-count and names, frame count and rate, a T-pose rest, bones that move (and move where anima put them), and
-the face's shape-key values at chosen frames equal to the artifact's weights."""
+file as a user does (``tools/blender_inspect.py`` for a BVH, ``tools/blender_import.py`` for an avatar) and says
+what it got. Checked from inside Blender: joint count and names, frame count and rate, a T-pose rest, bones
+that move (and move where anima put them), one skinned human of human height, and the face's shape-key values
+at chosen frames equal to the artifact's weights."""
 
 import json
 import shutil
@@ -11,7 +12,6 @@ import numpy as np
 import pytest
 
 from anima.core import rig
-from anima.core.bvh_math import forward_kinematics
 from anima.io.assets import asset
 from anima.io.sequence import read_sequence
 
@@ -70,58 +70,82 @@ def _blender_from_yup(P):
     return np.stack([P[..., 0], -P[..., 2], P[..., 1]], -1)
 
 
+def blender_import(path, tmp_path, frames=(), render_frame=None):
+    """``tools/blender_import.py`` as a user runs it: its report (and a front render at ``render_frame``)."""
+    blender = shutil.which("blender")
+    assert blender, "Blender is not installed: ./dev setup installs it (Debian package blender)"
+    args = ["--report", str(tmp_path / "r.json"), "--frames", ",".join(map(str, frames))]
+    if render_frame is not None:
+        args += ["--render", str(tmp_path / "front.png"), "--frame", str(render_frame)]
+    r = subprocess.run(
+        [blender, "-b", "--factory-startup", "--python", str(REPO / "tools" / "blender_import.py"), "--", str(path)]
+        + args,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0 and (tmp_path / "r.json").exists(), (r.stdout + r.stderr)[-3000:]
+    return json.loads((tmp_path / "r.json").read_text())
+
+
 @pytest.mark.parametrize("kind,name", [("capture", "capture.npz"), ("gesture", "gesture.npz")])
 def test_bvh_in_blender(results, kind, name, tmp_path):
+    """The body on the character's rig, in metres: Blender's default import (scale 1) gives a person of human
+    size, a T-pose rest, and every joint where anima put it."""
+    from anima.export.avatar import character_motion
+
     seq = read_sequence(results / kind / name)
     got = inspect(results / kind / "body.bvh", tmp_path / "b.json", seq.fps)
-    assert got["bones"] == rig.NAMES and got["fps"] == pytest.approx(seq.fps)
+    assert got["bones"] == list(rig.NAMES) and got["fps"] == pytest.approx(seq.fps)
     first, last = got["action_frame_range"]
     assert round(last - first) + 1 == seq.n_frames
     head = np.array(got["rest_head"])
-    arm = head[rig.NAMES.index("LeftForeArm")] - head[rig.NAMES.index("LeftArm")]  # T-pose: arms out along +x
-    spine = head[rig.NAMES.index("Neck")] - head[rig.NAMES.index("Spine")]  # and the spine up (+z in Blender)
+    arm = head[rig.IX["LeftForeArm"]] - head[rig.IX["LeftArm"]]  # T-pose: arms out along +x
+    spine = head[rig.IX["Neck"]] - head[rig.IX["Spine"]]  # and the spine up (+z in Blender)
     assert arm[0] > 0.95 * np.linalg.norm(arm) and spine[2] > 0.95 * np.linalg.norm(spine)
-    H = np.array(got["pose_heads"]) / 100.0  # Blender units are the file's centimetres
-    wrist = H[:, rig.NAMES.index("LeftHand")]
-    assert np.ptp(wrist, axis=0).max() > 0.02  # the bones move
-    lengths, _ = rig.measure_lengths(seq.body_joints)
-    root, local, P = rig.rig_rotations(seq.body_joints, lengths)
-    np.testing.assert_allclose(H, _blender_from_yup(P), atol=0.01)  # where anima put them
+    top = head[rig.IX["HeadTop_End"], 2] - min(head[rig.IX["LeftToe_End"], 2], head[rig.IX["LeftFoot"], 2])
+    assert 1.4 < top < 1.95  # metres: a person, not a 170-unit giant
+    H = np.array(got["pose_heads"])
+    assert np.ptp(H[:, rig.IX["LeftHand"]], axis=0).max() > 0.02  # the bones move
+    np.testing.assert_allclose(H, _blender_from_yup(character_motion(seq)["positions"]), atol=1e-3)
 
 
-@pytest.mark.parametrize("kind,name", [("capture", "capture.npz"), ("gesture", "gesture.npz")])
-def test_avatar_in_blender(results, kind, name, tmp_path):
-    from anima.export.avatar import rig_motion
+@pytest.mark.parametrize("kind,name", [("capture", "capture.npz"), ("gesture", "gesture.npz"), ("t2f", "motion.npz")])
+def test_avatar_is_one_skinned_human_with_its_own_timeline_in_blender(results, kind, name, tmp_path):
+    """Issue 34: a capture of a half-body clip, a gesture result and a text2face result each open in Blender as
+    one skinned human 1.5-1.95 m tall whose scene plays the whole clip at its rate; its joints are where anima
+    put them and its 53 face shape keys carry the weights; a workbench render from the front shows a standing
+    person (a tall silhouette with a head on top and two legs at the bottom)."""
+    from anima.export.avatar import character_motion
 
     seq = read_sequence(results / kind / name)
     picks = [0, seq.n_frames // 2, seq.n_frames - 1]
-    got = inspect(results / kind / "avatar.glb", tmp_path / "a.json", seq.fps, picks)
-    assert got["bones"] == rig.NAMES and got["fps"] == pytest.approx(seq.fps)
-    first, last = got["action_frame_range"]
-    assert round(last - first) + 1 == seq.n_frames
-    head = np.array(got["rest_head"])
-    arm = head[rig.NAMES.index("LeftForeArm")] - head[rig.NAMES.index("LeftArm")]
-    assert arm[0] > 0.95 * np.linalg.norm(arm)
-    m = rig_motion(seq)
-    P = forward_kinematics(m["local"], rig.PARENTS_RIG, rig.rest_offsets(m["lengths"]), m["root"])
-    H = np.array(got["pose_heads"])
-    assert np.ptp(H[:, rig.NAMES.index("RightHand")], axis=0).max() > 0.02
-    np.testing.assert_allclose(H, _blender_from_yup(P), atol=1e-3)
-    assert len(got["shape_keys"]) == 54  # Basis + the 53 expressions
+    got = blender_import(results / kind / "avatar.glb", tmp_path, picks, render_frame=seq.n_frames // 2)
+    assert len(got["meshes"]) == 1 and got["skinned"] == got["meshes"] and len(got["bones"]) == rig.N_RIG
+    assert 1.5 <= got["height_m"] <= 1.95, got["height_m"]
+    assert got["fps"] == pytest.approx(seq.fps) and got["frame_end"] - got["frame_start"] + 1 == seq.n_frames
+    assert got["action_frame_range"] == pytest.approx([got["frame_start"], got["frame_end"]], abs=1e-3)
+    P = character_motion(seq)["positions"]
+    assert np.linalg.norm(np.diff(P, axis=0), axis=-1).max() < 0.20  # no joint jumps 20 cm in a frame
     for f in picks:
-        values = got["shape_key_values"][str(f)]
-        for i, n in enumerate(seq.expr_names):
-            assert values[n] == pytest.approx(float(seq.expression[f, i]), abs=1e-5), (f, n)
-
-
-def test_head_alone_in_blender(results, tmp_path):
-    seq = read_sequence(results / "t2f" / "motion.npz")
-    picks = [5, 30]
-    got = inspect(results / "t2f" / "avatar.glb", tmp_path / "h.json", seq.fps, picks)
-    assert "bones" not in got and len(got["shape_keys"]) == 54  # no body: the head alone
+        np.testing.assert_allclose(np.array(got["pose_heads"][str(f)]), _blender_from_yup(P[f]), atol=1e-3)
+    assert got["shape_keys"] == 54  # Basis + the 53 expressions
     for f in picks:
         for i, n in enumerate(seq.expr_names):
-            assert got["shape_key_values"][str(f)][n] == pytest.approx(float(seq.expression[f, i]), abs=1e-5)
+            w = float(np.clip(seq.expression[f, i], 0, 1)) if seq.tracked[f] else 0.0
+            assert got["shape_key_values"][str(f)][n] == pytest.approx(w, abs=1e-5), (f, n)
+    import cv2
+
+    img = cv2.imread(str(tmp_path / "front.png"), cv2.IMREAD_UNCHANGED)
+    sil = img[..., 3] > 0
+    ys, xs = np.nonzero(sil)
+    h, w = ys.max() - ys.min(), xs.max() - xs.min()
+    assert h > 1.6 * w and 0.1 < sil.mean() < 0.5, (h, w, sil.mean())
+    top = sil[ys.min() : ys.min() + h // 12].sum(0)  # the head: a narrow top
+    assert (top > 0).sum() < 0.5 * w
+    feet = sil[ys.max() - h // 30]  # two feet apart at the bottom
+    runs = np.flatnonzero(np.diff(np.concatenate([[0], feet.astype(int), [0]])) == 1)
+    assert len(runs) >= 2
 
 
 def test_avatar_files_validate_and_carry_the_speech(results):
@@ -137,4 +161,8 @@ def test_avatar_files_validate_and_carry_the_speech(results):
         assert report["issues"]["numErrors"] == 0, report["issues"]["messages"][:5]
     info = json.loads((results / "gesture" / "info.json").read_text())
     assert info["avatar"]["speech"] == "speech.wav" and info["avatar"]["speech_offset_s"] == 0.0
+    assert (
+        info["avatar"]["unit"] == "metre"
+        and info["avatar"]["frames"] == read_sequence(results / "gesture" / "gesture.npz").n_frames
+    )
     assert (results / "gesture" / "speech.wav").stat().st_size > 10_000

@@ -88,3 +88,25 @@ def test_ordered_map_keeps_order_bounds_work_ahead_and_raises():
         for x in ordered_map(boom, range(100), workers=2):
             got.append(x)
     assert got == [0, 1, 2, 3, 4]
+
+
+def test_a_minute_of_motion_makes_an_avatar_of_at_most_20_mb(tmp_path):
+    """Issue 34: a 1-minute sequence at 30 fps (body and face) as avatar.glb: at most 20 MB (the mesh and the
+    sparse morph targets are written once; the animation grows with the frames)."""
+    from anima.export.avatar import write_avatar
+    from anima.export.framing import generated_sequence
+
+    rng = np.random.default_rng(0)
+    F = 1800
+    from anima.core.contract import JOINT_NAMES
+    from anima.core.rig import idle_body
+    from anima.facemodel.character import load_character
+
+    body = idle_body(F, load_character().joints, 30.0)
+    body = np.where(np.isfinite(body), body, 0.0) + rng.normal(0, 0.002, body.shape)
+    body[:, JOINT_NAMES.index("pelvis")] = 0.0
+    face = np.concatenate([rng.random((F, 53)) * 0.3, rng.normal(0, 0.05, (F, 3))], 1).astype(np.float32)
+    seq = generated_sequence(30.0, face=face, body=body.astype(np.float32))
+    info = write_avatar(seq, tmp_path / "avatar.glb")
+    size = (tmp_path / "avatar.glb").stat().st_size
+    assert info["frames"] == F and size <= 20e6, size / 1e6

@@ -1,11 +1,14 @@
-"""The canonical rig: T-pose rest, exact forward kinematics, one skeleton, human-size hands, a default skeleton
-for clips that never show the whole body; and the gesture joins that feed it."""
+"""The character's rig (issue 34): a full skeleton in a T-pose rest with exact export presets, the person's
+proportions chosen from the captured bone lengths, every tracked bone followed on the character's own lengths,
+standing legs with the feet on the floor, and joints that come back blending in instead of snapping."""
+
+import dataclasses
 
 import numpy as np
 import pytest
 
 from anima.core import rig
-from anima.core.bvh_math import forward_kinematics
+from anima.core.rotations import matrix_to_rotvec
 from anima.io.assets import asset
 
 PATS = ["oliver1", "seth3", "noah1", "chem1"]
@@ -24,55 +27,149 @@ def captures():
     }
 
 
-def test_rest_pose_is_a_t_pose():
-    d = dict(zip(rig.NAMES, rig.REST_DIRECTIONS))
+@pytest.fixture(scope="module")
+def motions(captures):
+    from anima.export.avatar import character_motion
+
+    return {n: character_motion(seq) for n, seq in captures.items()}
+
+
+def _angle(a, b):
+    c = (a * b).sum(-1) / np.linalg.norm(a, axis=-1) / np.linalg.norm(b, axis=-1)
+    return np.degrees(np.arccos(np.clip(c, -1, 1)))
+
+
+def test_the_rest_pose_is_a_t_pose_and_the_presets_are_exact():
+    from anima.facemodel.character import load_character
+
+    rest = load_character().joints
+    d = lambda a, b: (rest[rig.IX[b]] - rest[rig.IX[a]]) / np.linalg.norm(rest[rig.IX[b]] - rest[rig.IX[a]])
     for side, sx in (("Left", 1), ("Right", -1)):
-        for j in (f"{side}Arm", f"{side}ForeArm", f"{side}Hand", f"{side}HandMiddle2"):
-            np.testing.assert_allclose(d[j], (sx, 0, 0))
-    np.testing.assert_allclose(d["Spine"], (0, 1, 0))
-    assert len(set(rig.NAMES)) == rig.N_RIG and all(rig.PARENTS_RIG[j] < j for j in range(1, rig.N_RIG))
-    for conv in ("mixamo", "vrm", "unreal"):
-        assert set(rig.CONVENTIONS[conv]) == set(rig.NAMES)
-    assert rig.CONVENTIONS["vrm"]["LeftForeArm"] == "leftLowerArm"
+        for a, b in (("Arm", "ForeArm"), ("ForeArm", "Hand"), ("HandMiddle1", "HandMiddle2")):
+            np.testing.assert_allclose(d(f"{side}{a}", f"{side}{b}"), (sx, 0, 0), atol=1e-3)
+        np.testing.assert_allclose(d(f"{side}UpLeg", f"{side}Leg"), (0, -1, 0), atol=1e-3)
+        assert rest[rig.IX[f"{side}Toe_End"], 2] > rest[rig.IX[f"{side}Foot"], 2] + 0.1  # the feet point forwards
+    assert d("Spine", "Neck")[1] > 0.97 and rest[:, 1].min() > -0.01  # the spine up, nothing below the floor
+    assert len(set(rig.NAMES)) == rig.N_RIG == 65 and all(rig.PARENTS_RIG[j] < j for j in range(1, rig.N_RIG))
+    for preset in rig.PRESETS:
+        assert len(set(rig.preset_names(preset))) == rig.N_RIG
+    mixamo = rig.preset_names("mixamo")  # Mixamo's names and its hierarchy
+    parent = {mixamo[j]: mixamo[rig.PARENTS_RIG[j]] for j in range(1, rig.N_RIG)}
+    assert (
+        parent["mixamorig:LeftArm"] == "mixamorig:LeftShoulder"
+        and parent["mixamorig:LeftShoulder"] == "mixamorig:Spine2"
+    )
+    assert parent["mixamorig:Spine2"] == "mixamorig:Spine1" and parent["mixamorig:LeftUpLeg"] == "mixamorig:Hips"
+    assert (
+        parent["mixamorig:LeftHandIndex1"] == "mixamorig:LeftHand"
+        and parent["mixamorig:HeadTop_End"] == "mixamorig:Head"
+    )
+    vrm = dict(zip(rig.NAMES, rig.preset_names("vrm")))
+    assert (
+        vrm["Spine1"] == "chest"
+        and vrm["LeftForeArm"] == "leftLowerArm"
+        and vrm["LeftHandThumb1"] == "leftThumbMetacarpal"
+    )
+    assert vrm["LeftToeBase"] == "leftToes" and vrm["RightHandPinky3"] == "rightLittleDistal"
+    ue = dict(zip(rig.NAMES, rig.preset_names("unreal")))
+    assert ue["Hips"] == "pelvis" and ue["LeftArm"] == "upperarm_l" and ue["RightToeBase"] == "ball_r"
 
 
-def test_motion_on_the_rig_is_exact_and_one_skeleton(captures):
+def test_every_tracked_bone_is_followed_on_the_characters_own_lengths(captures, motions):
+    from anima.core.contract import JOINT_NAMES
+
+    T = {n: i for i, n in enumerate(JOINT_NAMES)}
     for name, seq in captures.items():
-        lengths, report = rig.measure_lengths(seq.body_joints)
-        root, local, P = rig.rig_rotations(seq.body_joints, lengths)
-        fk = forward_kinematics(local, rig.PARENTS_RIG, rig.rest_offsets(lengths), root)
-        assert np.abs(fk - P).max() < 2e-3, name  # every bone where the clip has it (the hips' line aside)
-        L = np.linalg.norm(P - P[:, np.maximum(rig.PARENTS_RIG, 0)], axis=-1)[:, 1:]
-        assert np.allclose(L, lengths[1:], atol=1e-9), name  # the same bone lengths in every frame
-        body = rig.rig_positions(seq.body_joints)
-        ok = np.isfinite(body).all(-1)
-        near = np.linalg.norm(P - body, axis=-1)[ok & ~rig.ZERO_LENGTH[None]]
-        assert np.median(near[: len(near) // 3]) < 0.05, name  # the motion is the clip's
+        m = motions[name]
+        P = m["positions"]
+        G, fk = rig.forward(m["local"], m["rest"], m["root"])
+        np.testing.assert_allclose(fk, P, atol=1e-9)  # the positions are the rotations' forward kinematics
+        off = np.linalg.norm(rig.rest_offsets(m["rest"])[1:], axis=-1)
+        L = np.linalg.norm(P[:, 1:] - P[:, rig.PARENTS_RIG[1:]], axis=-1)
+        np.testing.assert_allclose(L, np.broadcast_to(off, L.shape), atol=1e-9)  # one skeleton, every frame
+        J = seq.body_joints
+        for S, s in (("Left", "left"), ("Right", "right")):
+            for a, b, ta, tb in (("Arm", "ForeArm", "shoulder", "elbow"), ("ForeArm", "Hand", "elbow", "wrist")):
+                got = P[:, rig.IX[f"{S}{b}"]] - P[:, rig.IX[f"{S}{a}"]]
+                want = J[:, T[f"{s}_{tb}"]] - J[:, T[f"{s}_{ta}"]]
+                ok = np.isfinite(want).all(-1)
+                assert np.median(_angle(got[ok], want[ok])) < 1.0, (name, S, a)
+        steps = np.linalg.norm(np.diff(P, axis=0), axis=-1)
+        assert steps.max() < 0.20, (name, steps.max())  # no joint jumps 20 cm in a frame (40 ms)
+        feet = P[:, [rig.IX["LeftFoot"], rig.IX["RightFoot"]]]
+        assert feet[..., 1].min() > 0.03 and np.ptp(feet[..., 1]) < 0.01, name  # standing: the feet on the floor
+        assert m["report"]["legs"] == "standing"
 
 
-def test_hands_have_human_size(captures):
-    """Wrist to middle fingertip is 17-20 cm on the shared gesture clips (MediaPipe's measure is ~30 % less)."""
-    sizes, raw = [], []
-    for seq in captures.values():
-        lengths, report = rig.measure_lengths(seq.body_joints)
-        middle = [rig.NAMES.index(f"LeftHandMiddle{k}") for k in range(1, 5)]
-        sizes.append(lengths[middle].sum())
-        raw.append(report["hand_length_measured_m"])
-    assert all(0.17 <= s <= 0.20 for s in sizes), sizes
-    assert np.mean(raw) < 0.16  # what was measured before the prior
+def test_the_character_has_the_persons_proportions(captures, motions):
+    """The captured arm (shoulder to wrist) chooses the character's within 10 % on the shared gesture clips;
+    the fitted person is of human height and its hands are of human size (17-20 cm wrist to fingertip)."""
+    from anima.facemodel.character import tracked_measures
+
+    for name, seq in captures.items():
+        m, rest = tracked_measures(seq.body_joints), motions[name]["rest"]
+        arm = np.linalg.norm(rest[rig.IX["LeftForeArm"]] - rest[rig.IX["LeftArm"]]) + np.linalg.norm(
+            rest[rig.IX["LeftHand"]] - rest[rig.IX["LeftForeArm"]]
+        )
+        assert abs(arm / (m["upper_arm"] + m["forearm"]) - 1) < 0.10, name
+        assert 1.5 <= motions[name]["report"]["height_m"] <= 1.95, name
+        hand = np.linalg.norm(rest[rig.IX["LeftHandMiddle4"]] - rest[rig.IX["LeftHand"]])
+        assert 0.17 <= hand <= 0.21, (name, hand)
 
 
-def test_a_clip_that_never_shows_the_whole_body_gets_a_default_skeleton(captures, tmp_path):
-    import dataclasses
+def test_a_joint_that_returns_blends_in_instead_of_snapping(captures):
+    """An arm lost for 2 s comes back over at least 0.3 s: its bones hold, then turn into the tracked pose a
+    little each frame, and no joint moves 20 cm in a frame."""
+    from anima.core.contract import JOINT_NAMES
+    from anima.export.avatar import character_motion
 
+    seq = captures["oliver1"]
+    J = seq.body_joints.copy()
+    lost = [i for i, n in enumerate(JOINT_NAMES) if n.startswith(("left_elbow", "left_wrist", "left_hand"))]
+    gap = slice(20, 70)
+    J[gap, lost] = np.nan
+    m = character_motion(dataclasses.replace(seq, body_joints=J))
+    P = m["positions"]
+    assert np.linalg.norm(np.diff(P, axis=0), axis=-1).max() < 0.20
+    fore = m["local"][:, rig.IX["LeftForeArm"]]
+    assert np.allclose(fore[gap], fore[gap.start])  # held while lost
+    n = int(np.ceil(rig.BLEND_S * seq.fps))
+    step = np.swapaxes(fore[gap.stop - 1 : gap.stop + n], -1, -2) @ fore[gap.stop : gap.stop + n + 1]
+    d = np.degrees(np.linalg.norm(matrix_to_rotvec(step), axis=-1))
+    assert (d > 0).sum() >= n - 1  # turning over the blend's frames, not in one
+
+
+def test_a_clip_that_never_shows_the_hips_still_gets_a_whole_body(captures, tmp_path):
     from anima.export.formats import export_bvh
     from anima.io.bvh import read_bvh
 
     J = captures["oliver1"].body_joints.copy()
     J[:, 1:3] = np.nan  # the hips are never seen
     seq = dataclasses.replace(captures["oliver1"], body_joints=J)
-    lengths, report = rig.measure_lengths(J)
-    assert set(report["defaulted_bones"]) == {"LeftUpLeg", "RightUpLeg"}
-    assert lengths[rig.NAMES.index("LeftUpLeg")] == rig.DEFAULT_LENGTHS[rig.NAMES.index("LeftUpLeg")]
     b = read_bvh(export_bvh(seq, tmp_path / "x.bvh"))
-    assert np.isfinite(b.positions()).all() and b.names == rig.NAMES
+    assert np.isfinite(b.positions()).all() and b.names == list(rig.NAMES)
+    b = read_bvh(export_bvh(seq, tmp_path / "m.bvh", preset="mixamo"))
+    assert b.names[0] == "mixamorig:Hips" and len(b.names) == rig.N_RIG
+
+
+def test_the_cli_presets_are_the_rigs():
+    from anima.cli.common import RIG_PRESETS
+
+    assert set(RIG_PRESETS) == set(rig.PRESETS)
+
+
+def test_a_missing_or_damaged_character_is_one_line_with_the_install_step(monkeypatch, tmp_path):
+    import anima.facemodel.character as character
+    from anima.errors import AssetNotFound
+
+    for content in (None, b"not an npz"):
+        p = tmp_path / "character.npz"
+        if content is not None:
+            p.write_bytes(content)
+        monkeypatch.setattr(character, "package_data", lambda name, p=p: p)
+        character.load_character.cache_clear()
+        with pytest.raises(AssetNotFound, match="reinstall anima"):
+            character.load_character()
+    monkeypatch.undo()
+    character.load_character.cache_clear()
+    assert character.load_character().vertices.shape == (13718, 3)

@@ -145,28 +145,34 @@ def test_draw_shaded_equals_raster_then_compose():
 
 
 def test_avatar_preview_frames_the_figure_on_real_motion(tmp_path):
-    """The preview of a real capture (a TED-style gesture clip): each view is cropped to where the figure
-    moves, every joint of every frame stays inside its view, and the video has that size and the speech."""
+    """The preview of a real capture (a TED-style gesture clip) draws the skinned character: each view is cropped
+    to where the figure moves, every joint of every frame stays inside its view, the body is drawn there (a
+    tall figure in each view), and the video has that size and the speech."""
     from anima.capture.pipeline import CaptureConfig
     from anima.capture.run import capture_to_folder
     from anima.core import rig
-    from anima.export.avatar import rig_motion
+    from anima.export.avatar import character_motion
     from anima.io.assets import asset
     from anima.io.sequence import read_sequence
-    from anima.io.video import probe_video
+    from anima.io.video import probe_video, read_video
     from anima.render.avatar import _view, framing
 
     clip = asset("gesture-video/tango-interviews/speaker8_jjRWaMCWs44_00-00-30.16_00-00-33.32.mp4")
     capture_to_folder(clip, tmp_path / "c", CaptureConfig(max_frames=24), progress=False)
     seq = read_sequence(tmp_path / "c" / "capture.npz")
-    P = rig_motion(seq)["positions"]
-    centre = np.nanmedian(P[:, rig.HEAD], axis=0) - np.array([0.0, 0.35, 0.0])
-    yaws = (0.0, np.deg2rad(-60))
-    height, crops = framing(P, rig.HEAD, 0.25, yaws, 512, centre, 512 / 1.4)
-    assert height < 512 and sum(w for _, w, _ in crops) < 1024  # smaller than two full squares
+    P = character_motion(seq)["positions"]
+    centre = np.nanmedian(P[:, 0], axis=0) + np.array([0.0, 0.05, 0.0])
+    yaws, scale = (0.0, np.deg2rad(-60)), 512 / 2.1
+    height, crops = framing(P, rig.HEAD, 0.16, yaws, 512, centre, scale, margin=20)
+    assert height <= 512 and sum(w for _, w, _ in crops) < 1024  # smaller than two full squares
     for yaw, (x0, w, y0) in zip(yaws, crops):
-        uv = _view(P.reshape(-1, 3), 512, yaw, centre, 512 / 1.4, (x0, y0))
+        uv = _view(P.reshape(-1, 3), 512, yaw, centre, scale, (x0, y0))
         assert (uv[:, 0] >= 0).all() and (uv[:, 0] < w).all()
         assert (-uv[:, 1] >= 0).all() and (-uv[:, 1] < height).all()
     info = probe_video(tmp_path / "c" / "avatar.mp4")
     assert info.has_audio and info.n_frames == 24 and info.height <= 512 and info.width < 1024
+    frames, _ = read_video(tmp_path / "c" / "avatar.mp4", max_frames=1)
+    drawn = np.abs(frames[0].astype(int) - 28).max(-1) > 30
+    for x0, x1 in ((0, crops[0][1]), (crops[0][1], crops[0][1] + crops[1][1])):  # a standing figure in each view
+        ys, xs = np.nonzero(drawn[40:, x0 : min(x1, drawn.shape[1])])
+        assert len(ys) > 5000 and np.ptp(ys) > 0.7 * (drawn.shape[0] - 40) and np.ptp(ys) > 1.5 * np.ptp(xs)

@@ -18,7 +18,6 @@ import pytest
 from browser import chromium, console, have_browser, play_and_sample, requests, served, wait_media, wait_ready
 
 from anima.core import rig
-from anima.core.bvh_math import forward_kinematics
 from anima.dataset.windows import read_clips
 from anima.io.assets import asset
 from anima.io.sequence import FLAG_LOW_CONFIDENCE, FLAG_NO_FACE, read_sequence
@@ -77,10 +76,9 @@ def assert_head_drawn(b, name: str) -> None:
 
 def test_capture_page_shows_the_artifact(results, browser):
     seq = read_sequence(results / "capture" / "capture.npz")
-    from anima.export.avatar import rig_motion
+    from anima.export.avatar import character_motion
 
-    m = rig_motion(seq)
-    P = forward_kinematics(m["local"], rig.PARENTS_RIG, rig.rest_offsets(m["lengths"]), m["root"])
+    P = character_motion(seq)["positions"]
     with served(results / "capture") as (url, _):
         browser.get(url)
         wait_ready(browser)
@@ -131,9 +129,12 @@ def test_text2face_page_from_disk(results, browser, tmp_path, cli):
     browser.get((out / "index.html").as_uri())  # opened from disk: no server at all
     wait_ready(browser)
     assert "a man smiles" in browser.find_element("id", "prompt").text
+    from anima.export.avatar import character_motion
+
+    P = character_motion(seq)["positions"]  # text2face: the character standing at ease (issue 34)
     for f in (0, 23, 59):
         s = state(browser, f)
-        assert s["joints"] == {}  # the head alone
+        np.testing.assert_allclose(np.array([s["joints"][n] for n in rig.NAMES]), P[f], atol=1e-3)
         for i, n in enumerate(seq.expr_names):
             assert s["morphs"][n] == pytest.approx(float(seq.expression[f, i]), abs=1e-4), (f, n)
     jaw = seq.expression[:, seq.expr_names.index("jawOpen")]
@@ -206,7 +207,7 @@ def test_another_site_reads_nothing_of_a_served_page(results, browser, tmp_path)
 
 
 def test_gesture_page_shows_joins_and_controls(gesture_ds, browser, tmp_path, cli):
-    from anima.export.avatar import rig_motion
+    from anima.export.avatar import character_motion
 
     g = tmp_path / "g"
     speech = asset("videoretalking-examples/examples/audio/1.wav")
@@ -241,8 +242,7 @@ def test_gesture_page_shows_joins_and_controls(gesture_ds, browser, tmp_path, cl
         "end": round(3 * seq.fps),
         "label": "left_wrist_height>=p85@1-3s",
     }
-    m = rig_motion(seq)
-    P = forward_kinematics(m["local"], rig.PARENTS_RIG, rig.rest_offsets(m["lengths"]), m["root"])
+    P = character_motion(seq)["positions"]
     for f in (0, seq.n_frames // 2):
         s = state(browser, f)
         np.testing.assert_allclose(np.array([s["joints"][n] for n in rig.NAMES]), P[f], atol=1e-3)

@@ -79,6 +79,10 @@ let mixer = null;
 let morphMesh = null;
 let bones = {};
 let headNode = null;
+let skeletonHelper = null;
+$("skeleton").onchange = () => {
+  if (skeletonHelper) skeletonHelper.visible = $("skeleton").checked;
+};
 let clipIndex = 0;
 
 function resize() {
@@ -136,9 +140,13 @@ function load3d() {
         });
         headNode = morphMesh && !Object.keys(bones).length ? root.getObjectByName("face") || morphMesh : null;
         if (Object.keys(bones).length) {
-          const helper = new THREE.SkeletonHelper(root);
-          helper.material.linewidth = 2;
-          scene.add(helper);
+          // the skeleton: an optional overlay (the "skeleton" box), drawn with depth so the body hides it
+          skeletonHelper = new THREE.SkeletonHelper(root);
+          skeletonHelper.material.depthTest = true;
+          skeletonHelper.material.depthWrite = false;
+          skeletonHelper.visible = $("skeleton").checked;
+          scene.add(skeletonHelper);
+          $("skeletonBox").style.display = "inline";
         }
         if (gltf.animations.length) {
           mixer = new THREE.AnimationMixer(root);
@@ -456,11 +464,21 @@ api._debug = { scene, renderer, camera, get mesh() { return morphMesh; } };
 api.headOnScreen = () => {
   if (!morphMesh) return null;
   scene.updateMatrixWorld(true);
-  const box = new THREE.Box3().setFromObject(morphMesh, true);
-  const p = box.getCenter(new THREE.Vector3()).project(camera);
+  let centre;
+  let size;
+  const head = bones.Head || bones["mixamorig:Head"] || bones.head;
+  if (head) {
+    // a character: the head bone's joint is the skull's base; the face is about 9 cm above it, 18 cm wide
+    centre = head.localToWorld(new THREE.Vector3(0, 0.09, 0.03));
+    size = new THREE.Vector3(0.18, 0.22, 0.2);
+  } else {
+    const box = new THREE.Box3().setFromObject(morphMesh, true);
+    centre = box.getCenter(new THREE.Vector3());
+    size = box.getSize(new THREE.Vector3());
+  }
+  const p = centre.clone().project(camera);
   const r = canvas.getBoundingClientRect();
-  const size = box.getSize(new THREE.Vector3());
-  const q = box.getCenter(new THREE.Vector3()).add(new THREE.Vector3(size.x / 2, 0, 0)).project(camera);
+  const q = centre.clone().add(new THREE.Vector3(size.x / 2, 0, 0)).project(camera);
   return {
     x: r.left + ((p.x + 1) / 2) * r.width,
     y: r.top + ((1 - p.y) / 2) * r.height,

