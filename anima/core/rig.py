@@ -25,6 +25,7 @@ import numpy as np
 
 from anima.core.bvh_math import _kabsch, _min_rotation, local_rotations
 from anima.core.contract import FINGERS, JOINT_NAMES, RIG_JOINTS, RIG_PARENTS
+from anima.core.filters import gaussian_smooth
 from anima.core.rotations import matrix_to_rotvec, rotvec_to_matrix
 
 NAMES = RIG_JOINTS
@@ -252,8 +253,6 @@ def root_track(image: np.ndarray | None, body: np.ndarray, fps: float) -> np.nda
     F = len(body)
     if image is None:
         return np.zeros(F)
-    from anima.core.filters import gaussian_smooth
-
     ls, rs = _T["left_shoulder"], _T["right_shoulder"]
     u = (image[:, ls, 0] + image[:, rs, 0]) / 2
     wpx = np.linalg.norm(image[:, ls] - image[:, rs], axis=-1)

@@ -19,6 +19,7 @@ from anima.export.framing import generated_sequence
 from anima.export.motion import write_motion_outputs
 from anima.gesture.control import parse_control, speed_steps, step_masks
 from anima.gesture.database import from_dataset
+from anima.gesture.face import fit_speech_face, talking_face
 from anima.gesture.features import N_STEP, audio_features
 from anima.gesture.keywords import keyword_masks, parse_keyword, union
 from anima.gesture.knn import search
@@ -136,8 +137,7 @@ def talking_face_of(db: str, S: np.ndarray, fps: float, seed: int = 0) -> tuple[
     """A talking face ``[T, 56]`` for speech features ``S`` (:mod:`anima.gesture.face`), its mouth model from
     the dataset's captured faces (through a memory-mapped cache keyed on the dataset's manifest); a note when
     the dataset has no captured face."""
-    from anima.dataset.windows import read_windows
-    from anima.gesture.face import fit_speech_face, talking_face
+    from anima.dataset.windows import read_windows  # lazy: pyarrow, only when the cache is made
 
     manifest = Path(db) / "manifest.json"
     code = file_stamp(Path(__file__).parent / "face.py")

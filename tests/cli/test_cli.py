@@ -146,14 +146,18 @@ def test_capture_body_outputs_and_bvh_export(tmp_path, cli):
         assert (out / name).stat().st_size > 1000, name
     info = probe_video(out / "avatar.mp4")
     assert info.has_audio and info.n_frames == 30
+    run = json.loads((out / "info.json").read_text())  # issue 34: the BVH line agrees with the manifest
+    assert run["bvh"] == "written" and "body.bvh" in json.loads((out / "manifest.json").read_text())["files"]
     r = cli("export", "bvh", out / "capture.npz", "--out", tmp_path / "g.bvh", "--fps", "15")
     assert r.returncode == 0, r.stderr
     b = read_bvh(tmp_path / "g.bvh")
     from anima.core.rig import NAMES
 
-    assert abs(b.frame_time - 1 / 15) < 1e-6 and b.names == NAMES  # the canonical rig
+    assert abs(b.frame_time - 1 / 15) < 1e-6 and b.names == list(NAMES)  # the character's rig
     r = cli("capture", clip, "--out", tmp_path / "f", "--max-frames", "10", "--face-only", "--quiet", "--json")
     assert r.returncode == 0 and "body_tracked_fraction" not in json.loads(r.stdout)
+    avatar = json.loads((tmp_path / "f" / "info.json").read_text())["avatar"]  # a face-only clip: the idle body, said
+    assert avatar["body"].startswith("idle") and avatar["legs"] == "standing"
     r = cli("export", "bvh", tmp_path / "f" / "capture.npz", "--out", tmp_path / "x.bvh")
     assert r.returncode == 2 and "no body" in r.stderr
 

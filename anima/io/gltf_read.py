@@ -1,0 +1,165 @@
+"""Reading a user's glTF 2.0 binary (``.glb``) or VRM (``.vrm``, a GLB with ``VRMC_vrm``): the JSON document,
+its binary chunk, every node's rest transform, the skins, the meshes' morph target names, and the VRM
+humanoid map and expressions. Bounded before reading (a file over :data:`MAX_BYTES` is refused by its size;
+declared buffer sizes are checked against the file). No code runs, no external file is fetched (only
+embedded buffers are read: an avatar that names an external ``.bin`` or a data URI is refused)."""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from anima.errors import InputError, SchemaError
+from anima.io.validate import input_file, parse_json
+
+MAX_BYTES = 200 * 2**20
+_GLB, _JSON, _BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
+_COMP = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
+_N = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
+
+
+@dataclass
+class Gltf:
+    path: Path
+    doc: dict
+    bin: bytes
+    names: list[str] = field(default_factory=list)
+    parents: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+
+    @property
+    def nodes(self) -> list[dict]:
+        return self.doc.get("nodes", [])
+
+    @property
+    def vrm(self) -> dict | None:
+        return (self.doc.get("extensions") or {}).get("VRMC_vrm")
+
+    def accessor(self, i: int) -> np.ndarray:
+        """An accessor's values ``[count, n]`` (sparse accessors applied), as float64."""
+        acc = self.doc["accessors"][i]
+        n, count = _N[acc["type"]], int(acc["count"])
+        dtype = _COMP[acc["componentType"]]
+        out = np.zeros((count, n), np.float64)
+        if "bufferView" in acc:
+            out = self._view(acc["bufferView"], dtype, count * n, acc.get("byteOffset", 0), n).reshape(count, n)
+            out = out.astype(np.float64)
+            if acc.get("normalized") and np.issubdtype(dtype, np.integer):
+                out /= np.iinfo(dtype).max
+        sp = acc.get("sparse")
+        if sp:
+            k = int(sp["count"])
+            idx = self._view(sp["indices"]["bufferView"], _COMP[sp["indices"]["componentType"]], k,
+                             sp["indices"].get("byteOffset", 0)).astype(np.int64)  # fmt: skip
+            val = self._view(sp["values"]["bufferView"], dtype, k * n, sp["values"].get("byteOffset", 0), n)
+            if np.any(idx >= count) or np.any(idx < 0):
+                raise SchemaError(f"{self.path}: a sparse accessor points outside its data")
+            out[idx] = val.reshape(k, n)
+        return out
+
+    def _view(self, v: int, dtype, n: int, offset: int, width: int = 1) -> np.ndarray:
+        """``n`` values of ``dtype`` from buffer view ``v`` (elements of ``width`` values; a stride other than
+        the element's size, i.e. interleaved attributes, is refused)."""
+        view = self.doc["bufferViews"][v]
+        start = int(view.get("byteOffset", 0)) + int(offset)
+        size = np.dtype(dtype).itemsize * n
+        stride = view.get("byteStride")
+        if stride and stride != np.dtype(dtype).itemsize * width:
+            raise SchemaError(f"{self.path}: interleaved buffer views (byteStride {stride}) are not read")
+        if view.get("buffer", 0) != 0 or start < 0 or start + size > len(self.bin):
+            raise SchemaError(f"{self.path}: a buffer view lies outside the file's embedded buffer")
+        return np.frombuffer(self.bin, dtype, n, start)
+
+    def local(self, i: int) -> np.ndarray:
+        """A node's rest transform (4x4) from its matrix or its translation, rotation (x, y, z, w), scale."""
+        nd = self.nodes[i]
+        if "matrix" in nd:
+            return np.asarray(nd["matrix"], np.float64).reshape(4, 4).T
+        M = np.eye(4)
+        q = np.asarray(nd.get("rotation", [0, 0, 0, 1]), np.float64)
+        x, y, z, w = q / max(np.linalg.norm(q), 1e-12)
+        M[:3, :3] = [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+        M[:3, :3] *= np.asarray(nd.get("scale", [1, 1, 1]), np.float64)[None]
+        M[:3, 3] = nd.get("translation", [0, 0, 0])
+        return M
+
+    def world(self) -> np.ndarray:
+        """Every node's rest world transform ``[N, 4, 4]`` (parents first)."""
+        W = np.tile(np.eye(4), (len(self.nodes), 1, 1))
+        for i in _order(self.parents):
+            p = self.parents[i]
+            W[i] = (W[p] if p >= 0 else np.eye(4)) @ self.local(i)
+        return W
+
+
+def _order(parents: np.ndarray) -> list[int]:
+    """Node indices with every parent before its children."""
+    out, seen = [], set()
+
+    def visit(i):
+        if i in seen:
+            return
+        if parents[i] >= 0:
+            visit(parents[i])
+        seen.add(i)
+        out.append(i)
+
+    for i in range(len(parents)):
+        visit(i)
+    return out
+
+
+def read_gltf(path: str | Path) -> Gltf:
+    """Read a ``.glb`` / ``.vrm`` (see the module docstring). InputError for what is not one, SchemaError for a
+    glTF this reader does not take (a VRM 0.x, external buffers, a node graph with cycles)."""
+    p = input_file(path, "avatar")
+    size = p.stat().st_size
+    if size > MAX_BYTES:
+        raise InputError(f"{p} is {size / 2**20:.0f} MB: avatars of at most {MAX_BYTES // 2**20} MB are read")
+    data = p.read_bytes()
+    if len(data) < 20 or struct.unpack("<I", data[:4])[0] != _GLB:
+        raise InputError(f"{p} is not a binary glTF (.glb / .vrm)")
+    _, version, total = struct.unpack("<III", data[:12])
+    if version != 2 or total > len(data):
+        raise InputError(f"{p}: a glTF binary of version {version} or cut short ({len(data)} of {total} bytes)")
+    js_len, js_type = struct.unpack("<II", data[12:20])
+    if js_type != _JSON or 20 + js_len > len(data):
+        raise InputError(f"{p}: no JSON chunk")
+    doc = parse_json(data[20 : 20 + js_len], str(p))
+    if not isinstance(doc, dict):
+        raise InputError(f"{p}: its JSON is not a glTF document")
+    rest = data[20 + js_len :]
+    binary = b""
+    if len(rest) >= 8:
+        b_len, b_type = struct.unpack("<II", rest[:8])
+        if b_type == _BIN:
+            binary = rest[8 : 8 + b_len]
+    for b in doc.get("buffers", [])[:1]:
+        if "uri" in b:
+            raise SchemaError(f"{p}: its buffer is an external file or a data URI; anima reads embedded buffers only")
+        if int(b.get("byteLength", 0)) > len(binary):
+            raise SchemaError(f"{p}: its buffer declares more bytes than the file holds")
+    if (doc.get("extensions") or {}).get("VRM") is not None and (doc.get("extensions") or {}).get("VRMC_vrm") is None:
+        raise SchemaError(f"{p} is a VRM 0.x file: convert it to VRM 1.0 (e.g. with UniVRM or VRoid Studio)")
+    nodes = doc.get("nodes", [])
+    if not isinstance(nodes, list):
+        raise InputError(f"{p}: its nodes are not a list")
+    parents = np.full(len(nodes), -1, int)
+    for i, nd in enumerate(nodes):
+        for c in nd.get("children", []) if isinstance(nd, dict) else []:
+            if not isinstance(c, int) or not 0 <= c < len(nodes) or parents[c] >= 0 or c == i:
+                raise SchemaError(f"{p}: node {i} has a child that is not a node or already has a parent")
+            parents[c] = i
+    for i in range(len(nodes)):  # cycles
+        j, hops = i, 0
+        while j >= 0:
+            j, hops = parents[j], hops + 1
+            if hops > len(nodes):
+                raise SchemaError(f"{p}: its node graph has a cycle")
+    return Gltf(p, doc, binary, [str(nd.get("name", f"node{i}")) for i, nd in enumerate(nodes)], parents)
