@@ -17,12 +17,14 @@ when videos are added). Normalisation statistics come from the training split on
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import glob
 import hashlib
 import json
 import os
 import secrets
+import sys
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -50,6 +52,7 @@ from anima.io.video import VideoInfo, frame_times, probe_video
 VIDEO_EXT = (".mp4", ".mov", ".mkv", ".webm", ".avi", ".m4v", ".flv")
 
 
+RETRIES = 3  # times Ray runs a task again whose worker or node was lost
 CHUNK_S = 15.0  # contract: not a rate (seconds of video per tracking task)
 
 
@@ -141,12 +144,44 @@ def process_video(
     started_at: float | None = None,
     chunk_seconds: float = 0.0,
 ) -> dict:
-    """Everything for one video; writes shards and ``videos/<id>.json``. Returns that result.
+    """Everything for one video, stored into ``out_dir`` (:func:`video_payload`, then :func:`store_payload`).
+    Returns the video's result."""
+    return store_payload(
+        Path(out_dir), video_payload(path, cfg, annotation, on_progress, tracked, started_at, chunk_seconds)
+    )
+
+
+def store_payload(out: Path, payload: dict) -> dict:
+    """Write what a video's task returned: its shards and ``videos/<id>.json`` (or ``errors/<id>.json``), each
+    atomically; written again, the same payload leaves the same files (a retried task changes nothing).
+    Returns the video's result."""
+    if payload.get("status") == "error":
+        _write_json(out / "errors" / f"{payload['video_id']}.json", payload)
+        return payload
+    vid = payload["result"]["video_id"]
+    write_shard(payload["text_motion"], out / "shards" / "text_motion" / f"{vid}.parquet", "text_motion")
+    write_shard(payload["audio_motion"], out / "shards" / "audio_motion" / f"{vid}.parquet", "audio_motion")
+    _write_json(out / "videos" / f"{vid}.json", payload["result"])
+    err = out / "errors" / f"{vid}.json"
+    if err.exists():
+        err.unlink()
+    return payload["result"]
+
+
+def video_payload(
+    path: str,
+    cfg: BuildConfig,
+    annotation: dict | None = None,
+    on_progress=None,
+    tracked: Tracked | None = None,
+    started_at: float | None = None,
+    chunk_seconds: float = 0.0,
+) -> dict:
+    """Everything for one video, nothing written: ``{"result": ..., "text_motion": rows, "audio_motion":
+    windows}`` (a task returns it through Ray, so a worker needs no access to the output folder).
     ``on_progress(1)`` after each tracked frame. ``tracked``: the video's chunks, tracked by other tasks and
     joined (:func:`~anima.capture.pipeline.join_chunks`), ``started_at`` when the first of them started and
     ``chunk_seconds`` the time they took together."""
-
-    out = Path(out_dir)
     vid = video_id(path)
     t0 = time.perf_counter()
     started_at = started_at or time.time()
@@ -237,8 +272,6 @@ def process_video(
                     "provenance": prov,
                 }
             )
-    write_shard(rows, out / "shards" / "text_motion" / f"{vid}.parquet", "text_motion")
-    write_shard(windows, out / "shards" / "audio_motion" / f"{vid}.parquet", "audio_motion")
     result = {
         "video_id": vid,
         "source": str(path),
@@ -262,12 +295,18 @@ def process_video(
         "started_at": started_at,  # wall clock, for the build's task span (start-up excluded)
         "ended_at": time.time(),
         "worker_pid": os.getpid(),
+        "node": _node_id(),
     }
-    _write_json(out / "videos" / f"{vid}.json", result)
-    err = out / "errors" / f"{vid}.json"
-    if err.exists():
-        err.unlink()
-    return result
+    return {"result": result, "text_motion": rows, "audio_motion": windows}
+
+
+def _node_id() -> str | None:
+    """The Ray node this runs on (None outside a Ray task)."""
+    ray = sys.modules.get("ray")
+    try:
+        return ray.get_runtime_context().get_node_id() if ray is not None and ray.is_initialized() else None
+    except Exception:
+        return None
 
 
 def _write_json(path: Path, obj) -> None:
@@ -301,13 +340,13 @@ class _Batched:
             self.n = 0
 
 
-def _task(path: str, out_dir: str, cfg: BuildConfig, annotation: dict | None, counter=None) -> dict:
-    """Ray task body: never raises; failures are recorded."""
+def _task(path: str, cfg: BuildConfig, annotation: dict | None, counter=None) -> dict:
+    """Ray task body: the video's payload (the driver stores it); never raises: a failure is the payload."""
     try:
         cb = _Batched(counter, video_id(path)) if counter is not None else None
-        return process_video(path, out_dir, cfg, annotation, on_progress=cb)
+        return video_payload(path, cfg, annotation, on_progress=cb)
     except Exception as e:
-        return _record_error(path, Path(out_dir), e, traceback.format_exc(limit=4))
+        return _error(path, e, traceback.format_exc(limit=4))
 
 
 def _chunk_task(info: VideoInfo, a: int, b: int, warmup: int, times, counter=None) -> dict:
@@ -328,16 +367,15 @@ def _chunk_task(info: VideoInfo, a: int, b: int, warmup: int, times, counter=Non
         }
 
 
-def _assemble_task(path: str, out_dir: str, cfg: BuildConfig, annotation, plan, warmup: int, *chunks) -> dict:
+def _assemble_task(path: str, cfg: BuildConfig, annotation, plan, warmup: int, *chunks) -> dict:
     """Ray task body: join a video's tracked chunks and do everything after tracking; never raises."""
     try:
         failed = [c for c in chunks if "error" in c]
         if failed:
-            return _record_error(path, Path(out_dir), RuntimeError(failed[0]["error"]), failed[0]["traceback"])
+            return _error(path, RuntimeError(failed[0]["error"]), failed[0]["traceback"])
         tracked = join_chunks([c["part"] for c in chunks], plan, warmup)
-        return process_video(
+        return video_payload(
             path,
-            out_dir,
             cfg,
             annotation,
             tracked=tracked,
@@ -345,22 +383,24 @@ def _assemble_task(path: str, out_dir: str, cfg: BuildConfig, annotation, plan, 
             chunk_seconds=sum(c["seconds"] for c in chunks),
         )
     except Exception as e:
-        return _record_error(path, Path(out_dir), e, traceback.format_exc(limit=4))
+        return _error(path, e, traceback.format_exc(limit=4))
 
 
-def _follow(ray, futs: dict, counter, progress: bool) -> None:
+def _follow(ray, futs: dict, counter, progress: bool, out: Path) -> dict[str, list[str]]:
     """Wait for the video tasks ``{future: (frames, path)}`` with one bar over all their frames: tracked
     frames as the workers count them, a finished video counting whole (also one that failed). The ETA is the
     average rate since the start (no smoothing: it does not swing with each video's speed)."""
     total = {video_id(p): n for n, p in futs.values()}
+    nodes: dict[str, list[str]] = {}
     bar = tqdm(total=sum(total.values()), desc="frames", unit="fr", smoothing=0, disable=not progress)
     finished: set[str] = set()
     remaining = list(futs)
     while remaining:
         done, remaining = ray.wait(remaining, num_returns=1, timeout=1.0)
         for d in done:
-            r = ray.get(d)
+            r = store_payload(out, ray.get(d))  # the driver writes: workers need no shared storage
             finished.add(video_id(futs[d][1]))
+            nodes.setdefault(str(r.get("node")), []).append(r["video_id"])
             bar.set_postfix_str(f"{len(finished)}/{len(futs)} videos; {r['video_id'][:24]} {r['status']}")
         if bar.disable:
             continue
@@ -368,20 +408,24 @@ def _follow(ray, futs: dict, counter, progress: bool) -> None:
         now = sum(n if v in finished else min(counted.get(v, 0), n) for v, n in total.items())
         bar.update(now - bar.n)
     bar.close()
+    return nodes
 
 
-def _record_error(path, out: Path, e: Exception, tb: str = "") -> dict:
+def _error(path, e: Exception, tb: str = "") -> dict:
     msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-    res = {
+    return {
         "video_id": video_id(path),
         "source": str(path),
         "status": "error",
         "error": msg,
         "kind": type(e).__name__,
         "traceback": tb,
+        "node": _node_id(),
     }
-    _write_json(out / "errors" / f"{video_id(path)}.json", res)
-    return res
+
+
+def _record_error(path, out: Path, e: Exception, tb: str = "") -> dict:
+    return store_payload(out, _error(path, e, tb))
 
 
 def _start_ray(address: str | None, num_workers: int | None):
@@ -519,28 +563,37 @@ def _build(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_workers,
     # longest first (LPT scheduling): a long video started last would leave the other workers idle at the end;
     # a long video's chunks go first, spread over the workers
     pending.sort(key=lambda x: -x[0])
+    nodes: dict[str, list[str]] = {}
     if pending:
         ray, started = _start_ray(address, num_workers)
+        quiet = contextlib.redirect_stdout(sys.stderr)  # Ray's messages (a retried task...) are not the result
+        quiet.__enter__()
         try:
-            task = ray.remote(num_cpus=1, max_retries=0)(_task)
-            chunk_task = ray.remote(num_cpus=1, max_retries=0)(_chunk_task)
-            assemble_task = ray.remote(num_cpus=1, max_retries=0)(_assemble_task)
-            counter = ray.remote(num_cpus=0)(FrameCounter).remote()
+            # a task lost with its node (or its worker process) runs again elsewhere: the tasks write nothing,
+            # so a rerun is harmless; an exception inside a task is not retried (it becomes the video's error)
+            from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+            task = ray.remote(num_cpus=1, max_retries=RETRIES)(_task)
+            chunk_task = ray.remote(num_cpus=1, max_retries=RETRIES)(_chunk_task)
+            assemble_task = ray.remote(num_cpus=1, max_retries=RETRIES)(_assemble_task)
+            here = NodeAffinitySchedulingStrategy(ray.get_runtime_context().get_node_id(), soft=False)
+            counter = ray.remote(num_cpus=0, scheduling_strategy=here)(FrameCounter).remote()  # beside the driver
             cfg_ref = ray.put(cfg)
             futs = {}
             for n, p, plan, warm, info in pending:
                 times = frame_times(p) if plan is not None else None
                 if plan is None or len(times) < n:  # (no timestamps to seek by: one task)
-                    futs[task.remote(str(p), str(out), cfg_ref, ann.get(p.stem), counter)] = (n, p)
+                    futs[task.remote(str(p), cfg_ref, ann.get(p.stem), counter)] = (n, p)
                     continue
                 times = ray.put(times)
                 info_ref = ray.put(info)
                 parts = [chunk_task.remote(info_ref, a, b, warm, times, counter) for a, b in plan]
-                futs[assemble_task.remote(str(p), str(out), cfg_ref, ann.get(p.stem), plan, warm, *parts)] = (n, p)
-            _follow(ray, futs, counter, progress)
+                futs[assemble_task.remote(str(p), cfg_ref, ann.get(p.stem), plan, warm, *parts)] = (n, p)
+            nodes = _follow(ray, futs, counter, progress, out)
         finally:
             if started:  # our own local instance: shut it down on success, error or interrupt
                 ray.shutdown()
+            quiet.__exit__(None, None, None)
     wall = time.perf_counter() - t0
     stats = compute_stats(out)
     _write_json(out / "stats.json", stats)
@@ -551,6 +604,7 @@ def _build(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_workers,
         "workers": num_workers or os.cpu_count(),
         "address": address,
         "command": command,
+        "videos_per_node": nodes,  # which Ray node's task made each video (a retried one: where it finished)
     }
     _write_json(out / "manifest.json", manifest)
     if manifest["videos_done"] == 0:
