@@ -23,7 +23,17 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from anima.core.filters import gaussian_smooth, resample_joints, valid_runs
-from anima.core.skeleton import BODY_JOINTS, LEFT_HAND, MP_POSE, N_JOINTS, RIGHT_HAND, bone_lengths, fix_bone_lengths
+from anima.core.skeleton import (
+    BODY_JOINTS,
+    LEFT_HAND,
+    LEG_JOINTS,
+    MP_LEGS,
+    MP_POSE,
+    N_JOINTS,
+    RIGHT_HAND,
+    bone_lengths,
+    fix_bone_lengths,
+)
 
 _UPPER = [0, 7, 8, 11, 12, 13, 14, 15, 16, 23, 24]
 
@@ -35,6 +45,8 @@ class BodyTrack:
     fps: float
     interpolated: np.ndarray = field(default=None)  # (F, 55) bool: filled by interpolation
     image: np.ndarray = field(default=None)  # (F, 55, 2) pixel positions of the tracked joints (raw)
+    legs: np.ndarray = field(default=None)  # (F, 8, 3) metres, pelvis-relative (LEG_JOINTS), NaN where missing
+    leg_conf: np.ndarray = field(default=None)  # (F, 8) pose visibility of the leg joints
 
     @property
     def valid(self) -> np.ndarray:
@@ -133,12 +145,25 @@ def assemble_frame(
     return J, C, _image_joints(pose, left, right, width, height)
 
 
+def assemble_legs(pose_world: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """One frame's legs: (joints ``[8, 3]`` metres pelvis-relative in LEG_JOINTS order, visibility ``[8]``)."""
+    if pose_world is None:
+        return np.full((len(LEG_JOINTS), 3), np.nan), np.zeros(len(LEG_JOINTS))
+    W = _to_anima(pose_world[:, :3].astype(np.float64))
+    pelvis = (W[MP_POSE["left_hip"]] + W[MP_POSE["right_hip"]]) / 2
+    idx = list(MP_LEGS)
+    return W[idx] - pelvis, pose_world[idx, 3].astype(np.float64)
+
+
 def assemble(frames, width: int, height: int, fps: float) -> BodyTrack:
     out = [assemble_frame(f.pose, f.pose_world, f.left_hand, f.right_hand, width, height) for f in frames]
+    legs = [assemble_legs(f.pose_world if f.pose is not None else None) for f in frames]
     J = np.stack([o[0] for o in out]) if out else np.zeros((0, N_JOINTS, 3))
     C = np.stack([o[1] for o in out]) if out else np.zeros((0, N_JOINTS))
     UV = np.stack([o[2] for o in out]) if out else np.zeros((0, N_JOINTS, 2))
-    return BodyTrack(J, C, fps, np.zeros(C.shape, bool), UV)
+    LJ = np.stack([g[0] for g in legs]) if legs else np.zeros((0, len(LEG_JOINTS), 3))
+    LC = np.stack([g[1] for g in legs]) if legs else np.zeros((0, len(LEG_JOINTS)))
+    return BodyTrack(J, C, fps, np.zeros(C.shape, bool), UV, LJ, LC)
 
 
 def _interp_gaps(x: np.ndarray, max_gap: int) -> tuple[np.ndarray, np.ndarray]:
@@ -236,7 +261,26 @@ def clean(
         fps = resample_fps
     if fixed_bones:
         J = fix_bone_lengths(J)
-    return BodyTrack(J, conf, fps, interp)
+    legs, leg_conf = (None, None)
+    if track.legs is not None:
+        legs, leg_conf = clean_legs(track.legs, track.leg_conf, track.fps, min_conf, max_gap, sigma, resample_fps)
+    return BodyTrack(J, conf, fps, interp, legs=legs, leg_conf=leg_conf)
+
+
+def clean_legs(legs, conf, fps: float, min_conf=0.5, max_gap=8, sigma=1.5, resample_fps=None):
+    """The legs' track cleaned by the body's rules: joints under ``min_conf`` dropped, short drop-outs
+    interpolated, zero-phase smoothing, optional resampling. Returns (legs ``[F, 8, 3]``, confidence ``[F, 8]``)."""
+    L = np.where((conf >= min_conf)[..., None], legs, np.nan)
+    interp = np.zeros(conf.shape, bool)
+    for j in range(L.shape[1]):
+        L[:, j], interp[:, j] = _interp_gaps(L[:, j], max_gap)
+        ok = np.isfinite(L[:, j]).all(-1)
+        if sigma > 0 and ok.any():
+            L[:, j] = np.where(ok[:, None], gaussian_smooth(np.nan_to_num(L[:, j]), sigma, ok), np.nan)
+    C = np.where(np.isfinite(L).all(-1), np.maximum(conf, interp * min_conf), 0.0)
+    if resample_fps and abs(resample_fps - fps) > 1e-6:
+        L, C, _ = resample_joints(L, C, interp, fps, resample_fps)
+    return L, C
 
 
 def bone_length_cv(J: np.ndarray) -> float:

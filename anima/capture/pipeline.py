@@ -516,6 +516,7 @@ def capture_video(
         seq.body_joints, seq.body_joints_raw = cleaned.joints, body.joints
         seq.body_conf, seq.body_interpolated = cleaned.conf, cleaned.interpolated
         seq.body_image = body.image
+        seq.leg_joints, seq.leg_conf = cleaned.legs, cleaned.leg_conf
         seq.meta["skeleton"] = {
             "joints": JOINT_NAMES,
             "parents": PARENTS.tolist(),

@@ -64,6 +64,11 @@ BODY_JOINTS = (
     "left_shoulder", "left_elbow", "left_wrist", "right_shoulder", "right_elbow", "right_wrist",
 )  # fmt: skip
 BODY_PARENTS = (-1, 0, 0, 0, 3, 4, 5, 4, 7, 8, 4, 10, 11)
+# the legs, where Holistic sees them (an optional track beside the 55 joints; the rig stands in elsewhere)
+LEG_JOINTS = (
+    "left_knee", "left_ankle", "left_heel", "left_foot_index",
+    "right_knee", "right_ankle", "right_heel", "right_foot_index",
+)  # fmt: skip
 HAND_JOINTS = (
     "wrist", "thumb_cmc", "thumb_mcp", "thumb_ip", "thumb_tip", "index_mcp", "index_pip", "index_dip", "index_tip",
     "middle_mcp", "middle_pip", "middle_dip", "middle_tip", "ring_mcp", "ring_pip", "ring_dip", "ring_tip",
@@ -124,4 +129,4 @@ def _rig_list() -> tuple[tuple[str, ...], tuple[int, ...]]:
 RIG_JOINTS, RIG_PARENTS = _rig_list()
 
 assert FACE_DIM == 56 and BODY_DIM == 165 and SPEECH_DIM == 28
-assert len(EXPR_NAMES) == N_EXPR and len(JOINT_NAMES) == N_JOINTS and len(RIG_JOINTS) == 65
+assert len(EXPR_NAMES) == N_EXPR and len(JOINT_NAMES) == N_JOINTS and len(RIG_JOINTS) == 65 and len(LEG_JOINTS) == 8

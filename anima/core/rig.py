@@ -35,6 +35,9 @@ IX = {n: i for i, n in enumerate(NAMES)}
 HIPS, HEAD = IX["Hips"], IX["Head"]
 LEAVES = np.array([not (PARENTS_RIG == j).any() for j in range(N_RIG)])
 BLEND_S = 0.3
+# a hand that turns more than FLIP_DEG in one frame and back within FLIP_RUN_S is a tracker flip (the palm
+# seen edge-on, its depth mistaken): those frames count as unseen (held, then blended back)
+FLIP_DEG, FLIP_RUN_S = 60.0, 0.5
 SWAY_M, SWAY_PERIOD_S = 0.015, 7.0
 _T = {n: i for i, n in enumerate(JOINT_NAMES)}
 _SEG = {"Thumb": ("cmc", "mcp", "ip", "tip"), **{f: ("mcp", "pip", "dip", "tip") for f in FINGERS[1:]}}
@@ -97,7 +100,29 @@ def _tracked(body: np.ndarray, name: str) -> np.ndarray:
     return body[:, _T[name]]
 
 
-def _globals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None) -> np.ndarray:
+def _flipped_runs(G: np.ndarray, fps: float, max_deg: float = FLIP_DEG, max_run_s: float = FLIP_RUN_S) -> np.ndarray:
+    """Frames ``[F]`` of rotation track ``G [F, 3, 3]`` (NaN where unseen) inside a short run that starts with a
+    step of more than ``max_deg`` from the previous frame and ends with such a step back (or at an unseen
+    frame) within ``max_run_s``: a tracker's flip, not a motion."""
+    F = len(G)
+    seen = np.isfinite(G).all((-1, -2))
+    step = np.zeros(F)
+    both = seen[1:] & seen[:-1]
+    rel = np.einsum("fji,fjk->fik", G[:-1][both], G[1:][both])
+    step[1:][both] = np.degrees(np.linalg.norm(matrix_to_rotvec(rel), axis=-1))
+    jump = step > max_deg
+    out = np.zeros(F, bool)
+    n = max(1, int(round(max_run_s * fps)))
+    for a in np.flatnonzero(jump):
+        b = a + 1
+        while b < F and seen[b] and not jump[b] and b - a <= n:
+            b += 1
+        if b - a <= n and (b == F or not seen[b] or jump[b]):
+            out[a:b] = True
+    return out
+
+
+def _globals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None, fps: float) -> np.ndarray:
     """Global rotations ``[F, J, 3, 3]`` of the upper body from the tracked joints (NaN where unseen; the legs
     and the end joints are left NaN for the caller)."""
     F = len(body)
@@ -140,6 +165,7 @@ def _globals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None) ->
             np.stack([r(f"{S}Hand{f}1") - r(f"{S}Hand") for f in FINGERS[1:]]),
             np.stack([t(k) - wrist for k in knuckles], 1),
         )
+        hand[_flipped_runs(hand, fps)] = np.nan
         G[:, IX[f"{S}Hand"]] = hand
         for f in FINGERS:
             seg = _SEG[f]
@@ -190,6 +216,16 @@ def hold_and_blend(L: np.ndarray, fps: float, blend_s: float = BLEND_S) -> tuple
             if f < F:
                 held = out[f - 1, j]
     return out, seen
+
+
+def _run_depth(mask: np.ndarray) -> np.ndarray:
+    """Per frame, the distance in frames to the nearest frame outside ``mask`` (0 outside it; the clip's ends
+    count as outside)."""
+    F = len(mask)
+    i = np.arange(F)
+    last_off = np.maximum.accumulate(np.where(~mask, i, -1))
+    next_off = np.minimum.accumulate(np.where(~mask, i, F)[::-1])[::-1]
+    return np.where(mask, np.minimum(i - last_off, next_off - i), 0).astype(np.float64)
 
 
 def _two_bone(hip, target, a, b, pole):
@@ -285,7 +321,7 @@ def solve(
     idle = body is None
     if idle:
         body = idle_body(F, rest, fps, seed)
-    G = _globals(body, rest, head_rot)
+    G = _globals(body, rest, head_rot, fps)
     t = np.arange(F) / fps
     phase = np.random.default_rng(seed).uniform(0, 2 * np.pi)
     sway = SWAY_M * np.sin(2 * np.pi * t / SWAY_PERIOD_S + phase)
@@ -307,18 +343,21 @@ def solve(
         Lu[:, j] = np.eye(3)
     filled, seen = hold_and_blend(np.where(upper[None, :, None, None], Lu, np.eye(3)), fps, blend_s)
     G2, _ = forward(filled, rest, root)
-    leg_seen = tracked_legs(G2, legs, rest) if legs else np.zeros(F, bool)
-    stand = ~leg_seen
-    if stand.any():
-        Gs = G2[stand].copy()
-        standing_legs(Gs, root[stand], rest)
-        for S in ("Left", "Right"):
-            for n in ("UpLeg", "Leg", "Foot", "ToeBase"):
-                G2[stand, IX[f"{S}{n}"]] = Gs[:, IX[f"{S}{n}"]]
+    standing_legs(G2, root, rest)
     for j in np.flatnonzero(LEAVES):
         G2[:, j] = G2[:, PARENTS_RIG[j]]
     L = local_rotations(G2, PARENTS_RIG)
-    L, _ = hold_and_blend(L, fps, blend_s)  # (legs seen in some frames only: the same rule)
+    leg_seen = np.zeros(F, bool)
+    if legs:
+        Gt = G2.copy()
+        leg_seen = tracked_legs(Gt, legs, rest)
+        if leg_seen.any():
+            # tracked where both legs are seen, standing elsewhere, cross-faded over blend_s at each change
+            n = max(1, int(round(blend_s * fps)))
+            w = np.clip(_run_depth(leg_seen) / (n + 1), 0.0, 1.0)
+            Lt = local_rotations(Gt, PARENTS_RIG)
+            for j in np.flatnonzero(~upper & ~LEAVES):
+                L[leg_seen, j] = slerp_rot(L[leg_seen, j], Lt[leg_seen, j], w[leg_seen])
     G3, P = forward(L, rest, root)
     report = {
         "joints_never_seen": [NAMES[j] for j in range(N_RIG) if upper[j] and not LEAVES[j] and not seen[:, j].any()]

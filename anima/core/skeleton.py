@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from anima.core.contract import BODY_JOINTS, HAND_JOINTS, JOINT_NAMES, JOINT_PARENTS, N_JOINTS
+from anima.core.contract import BODY_JOINTS, HAND_JOINTS, JOINT_NAMES, JOINT_PARENTS, LEG_JOINTS, N_JOINTS
 
 PARENTS = np.array(JOINT_PARENTS, np.int64)
-__all__ = ["BODY_JOINTS", "HAND_JOINTS", "JOINT_NAMES", "N_JOINTS", "PARENTS"]
+__all__ = ["BODY_JOINTS", "HAND_JOINTS", "JOINT_NAMES", "LEG_JOINTS", "N_JOINTS", "PARENTS"]
 LEFT_HAND = slice(13, 34)
 RIGHT_HAND = slice(34, 55)
 BODY = slice(0, 13)
@@ -35,6 +35,8 @@ MP_POSE = {
     "left_hip": 23,
     "right_hip": 24,
 }
+# ... and for the legs (anima.core.contract.LEG_JOINTS, in order)
+MP_LEGS = (25, 27, 29, 31, 26, 28, 30, 32)
 
 
 def bone_lengths(joints: np.ndarray) -> np.ndarray:

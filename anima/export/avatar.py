@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from anima.core import rig
-from anima.core.contract import EXPR_NAMES
+from anima.core.contract import EXPR_NAMES, JOINT_NAMES, LEG_JOINTS
 from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
 from anima.errors import InputError
 from anima.facemodel.character import fit_shape, load_character, skin, tracked_measures
@@ -45,6 +45,17 @@ def body_of(seq: TrackedSequence) -> np.ndarray | None:
     if seq.body_joints is None or not np.isfinite(seq.body_joints).all(-1).any():
         return None
     return seq.body_joints
+
+
+def legs_of(seq: TrackedSequence) -> dict | None:
+    """The tracked legs as the rig takes them (``{"left_hip": [F, 3], "left_knee": ..., ...}``,
+    pelvis-relative), or None when the sequence has no leg track or never saw a knee."""
+    if seq.leg_joints is None or seq.body_joints is None or not np.isfinite(seq.leg_joints).all(-1).any():
+        return None
+    out = {n: seq.leg_joints[:, k].astype(np.float64) for k, n in enumerate(LEG_JOINTS)}
+    for side in ("left", "right"):
+        out[f"{side}_hip"] = seq.body_joints[:, JOINT_NAMES.index(f"{side}_hip")].astype(np.float64)
+    return out
 
 
 def head_rotations(seq: TrackedSequence) -> np.ndarray | None:
@@ -71,7 +82,8 @@ def character_motion(seq: TrackedSequence, seed: int = 0) -> dict:
         shape = {"measures": {}, "height_m": round(float(ch.vertices[:, 1].max()), 3)}
     V, rest = ch.shaped(coeffs)
     image = seq.body_image if body is not None else None
-    mo = rig.solve(body, rest, seq.fps, head_rotations(seq), image=image, seed=seed, frames=seq.n_frames)
+    legs = legs_of(seq) if body is not None else None
+    mo = rig.solve(body, rest, seq.fps, head_rotations(seq), image=image, legs=legs, seed=seed, frames=seq.n_frames)
     idle = "idle: no body in this sequence, the default body stands at ease"
     report = {
         "body": "tracked" if body is not None else idle,

@@ -22,6 +22,9 @@ body_joints_raw    (F, 55, 3) f4    the same before cleaning                    
 body_conf          (F, 55) f4       per-joint confidence (pose visibility; hands 1/0)     [v2, optional]
 body_interpolated  (F, 55) u1       1 where a short drop-out was filled by interpolation   [v2, optional]
 body_image         (F, 55, 2) f4    raw pixel positions of the joints (2D evidence)       [v2, optional]
+leg_joints         (F, 8, 3) f4     knees, ankles, heels, toes (contract LEG_JOINTS), metres,
+                                    pelvis-relative, cleaned, NaN where not seen           [v2, optional]
+leg_conf           (F, 8) f4        their confidence (pose visibility)                    [v2, optional]
 speech             (F, 28) f4       13 MFCC + log energy + first derivatives per frame    [v2, optional]
 speech_valid       (F,) u1          1 where the frame's time lies inside the audio        [v2, optional]
 =================  ===============  ===========================================================
@@ -43,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.core.contract import N_JOINTS
+from anima.core.contract import LEG_JOINTS, N_JOINTS
 from anima.core.rotations import matrix_to_euler, rotvec_to_matrix
 from anima.core.skeleton import LEFT_HAND, RIGHT_HAND
 from anima.errors import InputError, SchemaError
@@ -63,7 +66,10 @@ VERSION = 2
 FLAG_NO_FACE = 1
 FLAG_LOW_CONFIDENCE = 2
 ARRAYS = ("identity", "expression", "rotation", "scale", "translation", "fit_error_px", "fit_nme", "flags", "landmarks")
-OPTIONAL = ("body_joints", "body_joints_raw", "body_conf", "body_interpolated", "body_image", "speech", "speech_valid")
+OPTIONAL = (
+    "body_joints", "body_joints_raw", "body_conf", "body_interpolated", "body_image", "leg_joints", "leg_conf",
+    "speech", "speech_valid",
+)  # fmt: skip
 
 
 @dataclass
@@ -87,6 +93,8 @@ class TrackedSequence:
     body_conf: np.ndarray | None = None
     body_interpolated: np.ndarray | None = None
     body_image: np.ndarray | None = None
+    leg_joints: np.ndarray | None = None
+    leg_conf: np.ndarray | None = None
     speech: np.ndarray | None = None
     speech_valid: np.ndarray | None = None
 
@@ -203,6 +211,8 @@ _FRAME_ARRAYS = {
     "body_conf": ((None,), False),
     "body_interpolated": ((None,), True),
     "body_image": ((None, 2), False),
+    "leg_joints": ((len(LEG_JOINTS), 3), False),
+    "leg_conf": ((len(LEG_JOINTS),), False),
     "speech": ((None,), False),
     "speech_valid": ((), True),
 }
@@ -315,7 +325,7 @@ def _check_shapes(path: Path, meta: dict, headers: dict) -> None:
 
 # the largest magnitude a value of a real sequence can have (metres for joints and translation, radians,
 # weights, pixels): a 1e30 is damage or an attack, and would reach every export as garbage
-_MAX_VALUE = {"body_joints": 1e3, "body_joints_raw": 1e3, "expression": 1e2, "rotation": 1e2}
+_MAX_VALUE = {"body_joints": 1e3, "body_joints_raw": 1e3, "leg_joints": 1e3, "expression": 1e2, "rotation": 1e2}
 _MAX_ANY = 1e7
 
 

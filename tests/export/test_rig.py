@@ -173,3 +173,68 @@ def test_a_missing_or_damaged_character_is_one_line_with_the_install_step(monkey
     monkeypatch.undo()
     character.load_character.cache_clear()
     assert character.load_character().vertices.shape == (13718, 3)
+
+
+@pytest.fixture(scope="module")
+def standing_clip():
+    """A real clip whose legs are in the picture (LivePortrait's s13: a woman standing, knees to feet)."""
+    from anima.capture.pipeline import CaptureConfig, capture_video
+
+    src = "liveportrait-examples/assets/examples/source/s13.mp4"
+    return capture_video(str(asset(src)), CaptureConfig(max_frames=60), progress=False)
+
+
+def test_legs_in_the_picture_are_followed_and_blend_with_standing_where_lost(standing_clip):
+    from anima.core.contract import JOINT_NAMES, LEG_JOINTS
+    from anima.export.avatar import character_motion
+
+    seq = standing_clip
+    assert seq.leg_joints.shape == (seq.n_frames, len(LEG_JOINTS), 3)
+    seen = np.isfinite(seq.leg_joints).all((-1, -2))
+    assert seen.mean() > 0.9
+    hip_y = seq.body_joints[:, JOINT_NAMES.index("left_hip"), 1]
+    knee_y, ankle_y = seq.leg_joints[:, LEG_JOINTS.index("left_knee"), 1], seq.leg_joints[:, 1, 1]
+    assert (ankle_y[seen] < knee_y[seen]).all() and (knee_y[seen] < hip_y[seen]).all()
+    m = character_motion(seq)
+    assert m["report"]["legs"] == "tracked"
+    P = m["positions"]
+    assert np.linalg.norm(np.diff(P, axis=0), axis=-1).max() < 0.20
+    # the character's thighs and shins point where the person's do (the rig's world is the body's frame)
+    for S, s in (("Left", "left"), ("Right", "right")):
+        thigh = P[:, rig.IX[f"{S}Leg"]] - P[:, rig.IX[f"{S}UpLeg"]]
+        shin = P[:, rig.IX[f"{S}Foot"]] - P[:, rig.IX[f"{S}Leg"]]
+        hip = seq.body_joints[:, JOINT_NAMES.index(f"{s}_hip")]
+        knee, ankle = (
+            seq.leg_joints[:, LEG_JOINTS.index(f"{s}_knee")],
+            seq.leg_joints[:, LEG_JOINTS.index(f"{s}_ankle")],
+        )
+        assert np.median(_angle(thigh[seen], (knee - hip)[seen])) < 10
+        assert np.median(_angle(shin[seen], (ankle - knee)[seen])) < 10
+    # the legs lost for a second: standing there, cross-faded in and out over BLEND_S, no snap
+    legs = seq.leg_joints.copy()
+    gap = slice(15, 40)
+    legs[gap] = np.nan
+    m2 = character_motion(dataclasses.replace(seq, leg_joints=legs))
+    assert m2["report"]["legs"] == "tracked where seen, else standing"
+    P2 = m2["positions"]
+    assert np.linalg.norm(np.diff(P2, axis=0), axis=-1).max() < 0.20
+    up = m2["local"][:, rig.IX["LeftUpLeg"]]
+    step = np.swapaxes(up[gap.stop - 1 : -1], -1, -2) @ up[gap.stop :]
+    n = int(np.ceil(rig.BLEND_S * seq.fps))
+    assert (np.degrees(np.linalg.norm(matrix_to_rotvec(step[:n]), axis=-1)) > 0.05).sum() >= n - 1
+
+
+def test_a_hand_flipped_for_a_few_frames_is_a_tracker_flip_not_a_motion():
+    from anima.core.rotations import rotvec_to_matrix
+
+    fps = 25.0
+    t = np.arange(50)
+    steady = rotvec_to_matrix(np.stack([np.radians(40.0) * t, 0 * t, 0 * t], -1))  # 40 deg a frame: a motion
+    assert not rig._flipped_runs(steady, fps).any()
+    flip = rotvec_to_matrix(np.tile([0.1, 0.2, 0.0], (50, 1)))
+    flip[20:23] = rotvec_to_matrix(np.array([np.radians(160.0), 0, 0])) @ flip[20:23]
+    out = rig._flipped_runs(flip, fps)
+    assert out[20:23].all() and out.sum() == 3
+    stays = flip.copy()
+    stays[20:] = stays[20]  # flipped and never back: kept (nothing says which side is right)
+    assert not rig._flipped_runs(stays, fps).any()
