@@ -104,10 +104,14 @@ def cmd_pose(a) -> int:
 
 
 def cmd_text2face(a) -> int:
+    from anima.text2face.ship import check_ship
+
     check_out_dir(a.out)  # a user's folder is refused first
+    if a.ship:
+        check_ship(a.ship, inputs=[a.dataset])  # before the training it would come after
     check_dataset(a.dataset)  # before torch loads
     from anima.eval.text2face import quick_metrics  # lazy: torch
-    from anima.text2face.ship import ship  # lazy: torch
+    from anima.text2face.ship import ship
     from anima.text2face.train import train  # lazy: torch
 
     model = {

@@ -460,6 +460,8 @@ def quick_metrics(dataset, checkpoint, reps: int = 5) -> dict:
     clips, pool, pool_E, stats, gram, enc = prepare(dataset, TrainConfig(preset="small"))
     _, held = split_clips(clips)
     items = eval_items(held)
+    if not items:
+        return {"eval_windows": 0, "note": "no held-out window in this dataset (too few videos for a test split)"}
     item_E = encode_cached(enc, [t for it in items for t in it.texts]).reshape(len(items), len(items[0].texts), -1)
     s = score(model_method("ours", checkpoint), items, item_E, FaceGeometry(), reps, progress=False)
     real = np.stack([it.motion for it in items])

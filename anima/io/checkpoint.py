@@ -192,6 +192,18 @@ def _no_constant(name: str):
     raise ValueError(f"{name} in the config")
 
 
+def looks_like_checkpoint(p: Path) -> bool:
+    """Whether ``p`` is a torch checkpoint file (a zip holding ``data.pkl``), without loading it: what an
+    output path must be before anima replaces it."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(p) as z:
+            return any(n.endswith("/data.pkl") or n == "data.pkl" for n in z.namelist())
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError):
+        return False
+
+
 def _check_zip(p: Path) -> None:
     """A torch file is a zip: refuse one whose members declare far more bytes than the file holds."""
     import zipfile

@@ -22,7 +22,8 @@ folder, a user's folder) is refused at once, and:
   manifest whose files match it is complete; anything else is partial (:func:`check_complete`).
 
 Single output files (``--out FILE``) are checked by :func:`check_out_file`: never a folder, a special file
-(device, pipe, socket) or one of the command's own inputs.
+(device, pipe, socket) or one of the command's own inputs; files that only anima's own artifact may replace
+(a packaged data file, a shipped model's manifest) also by :func:`check_replaceable`.
 """
 
 from __future__ import annotations
@@ -245,6 +246,19 @@ def check_out_file(
     if not base.is_dir() or not _can_create_in(base):
         raise InputError(f"{flag} {p}: cannot write in {base}")
     return p
+
+
+def check_replaceable(path: Path, flag: str, ours, what: str) -> Path:
+    """Refuse an existing ``path`` that ``ours(path)`` does not recognise as anima's ``what`` (an output file
+    anima would replace must be one it wrote: never a user's file that happens to carry the name)."""
+    if path.exists():
+        try:
+            ok = bool(ours(path))
+        except Exception:
+            ok = False
+        if not ok:
+            raise InputError(f"{flag} {path} exists and is not {what} anima wrote; choose another path")
+    return path
 
 
 def sha256(path: str | os.PathLike) -> str:

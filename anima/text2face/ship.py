@@ -6,6 +6,7 @@ command), so the feature package does not reach up into the evaluation layer."""
 from __future__ import annotations
 
 import hashlib
+import json
 from collections.abc import Callable
 from pathlib import Path
 
@@ -13,12 +14,24 @@ import numpy as np
 
 from anima import __version__
 from anima.io.atomic import write_json
-from anima.io.outdir import check_out_file
-from anima.text2face.train import TrainConfig, load_checkpoint, save_checkpoint
+from anima.io.outdir import check_out_file, check_replaceable
+
+
+def check_ship(dest: str | Path, inputs=()) -> Path:
+    """``--ship PATH``, refused before any training: a ``.pt`` file anima may write, whose manifest (the same
+    name, ``.json``) is not a user's file."""
+    dest = check_out_file(dest, "--ship", inputs=inputs, suffixes=(".pt",))
+    man = check_out_file(dest.with_suffix(".json"), "--ship (its manifest)", inputs=inputs)
+    check_replaceable(
+        man, "--ship (its manifest)", lambda q: "heldout_metrics" in json.loads(q.read_text()), "a manifest"
+    )
+    return dest
 
 
 def ship(checkpoint: str | Path, dest: str | Path, evaluate: Callable[[Path], dict]) -> list[Path]:
-    dest = check_out_file(dest, "--ship", inputs=[checkpoint])
+    from anima.text2face.train import TrainConfig, load_checkpoint, save_checkpoint  # lazy: torch
+
+    dest = check_ship(dest, inputs=[checkpoint])
     ck = load_checkpoint(checkpoint)
     cfg = TrainConfig(**ck["train_config"])
     save_checkpoint(

@@ -304,7 +304,10 @@ def _float_wav(path: Path, x: np.ndarray, sr: int = 16000) -> Path:
 
 # what the red team's ownership cases must refuse, by the reason they give (a refusal for another reason
 # would hide a command that skipped the check)
-OWNERSHIP = ("did not write", "special file", "is an input of this command", "existing file", "expected a .mp4")
+OWNERSHIP = (
+    "did not write", "special file", "is an input of this command", "existing file", "expected a .",
+    "anima wrote; choose another path",
+)  # fmt: skip
 
 
 def _red_team(d: Path, files: dict, npz: dict, base: Path, ck: dict, ds: dict) -> list[tuple[str, list]]:
@@ -348,6 +351,30 @@ def _red_team(d: Path, files: dict, npz: dict, base: Path, ck: dict, ds: dict) -
         add(f"own train text2face --out {where}", "train", "text2face", ds["corrupt_shard"], "--out", folder)
         add(f"own eval reenact --out {where}", "eval", "reenact", "--out", folder)
         add(f"own eval all --out {where}", "eval", "all", "--db", ds["corrupt_shard"], "--out", folder)
+    # single files of anima's own kind only: a user's file of another kind, or of that name, is never replaced
+    (user / "notes.pt").write_text("not a checkpoint\n")
+    (user / "notes.json").write_text('{"mine": true}\n')
+    (user / "notes.npz").write_bytes(b"PK\x05\x06" + bytes(18))
+    for name in ("notes.txt", "notes.pt"):
+        add(f"own train pose --out user {name}", "train", "pose", "--out", user / name, "--steps", "1")
+        add(f"own train gesture --out user {name}", "train", "gesture", "--db", ds["corrupt_shard"], "--out", user / name)
+    for name in ("notes.txt", "notes.npz"):
+        add(f"own facemodel correspondence --out user {name}", "facemodel", "correspondence", "--out", user / name)
+    for name in ("index.html", "notes.json"):
+        add(f"own facemodel landmarks68 --out user {name}", "facemodel", "landmarks68", "--out", user / name)
+    for name in ("notes.txt", "notes.pt"):  # notes.pt: its manifest would be the user's notes.json
+        add(
+            f"own train text2face --ship user {name}",
+            "train",
+            "text2face",
+            ds["corrupt_shard"],
+            "--out",
+            d / "t_ship",
+            "--ship",
+            user / name,
+        )
+    add("own eval text2face --work user folder", "eval", "text2face", ds["corrupt_shard"], "--work", user)
+    add("own eval pose --ablation user folder", "eval", "pose", "--ablation", user)
     for fmt in ("arkit", "glb", "bvh"):
         add(f"own export {fmt} --out its input", "export", fmt, seq, "--out", seq)
     add("own audio features --out its input", "audio", "features", wav, "--out", wav)
