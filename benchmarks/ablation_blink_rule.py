@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from anima.dataset.attributes import DetectorConfig
+from anima.dataset.config import DetectorConfig
 from anima.eval.annotations import capture_labelled, load_labels, score
 from anima.io.atomic import write_json
 

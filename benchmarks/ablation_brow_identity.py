@@ -17,8 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.capture.fit import FitConfig, LandmarkBasis, choose_keyframes, fit_frames, fit_identity
-from anima.capture.pipeline import CaptureConfig, capture_video
+from anima.capture.config import CaptureConfig, FitConfig
+from anima.capture.fit import LandmarkBasis, choose_keyframes, fit_frames, fit_identity
+from anima.capture.pipeline import capture_video
 from anima.core.camera import mediapipe_to_camera
 from anima.eval.annotations import CREMA_D_CLIPS, EMOTION_WEIGHTS, inner_brow_height
 from anima.facemodel.correspondence import load_correspondence

@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 import scipy.io as sio
 
-from anima.capture.fit import FitConfig
+from anima.capture.config import FitConfig
 from anima.capture.landmark_sets import calibration_samples
 from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.eval.landmarks import aflw_items, fit_image_68

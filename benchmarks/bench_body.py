@@ -19,8 +19,9 @@ from pathlib import Path
 
 os.environ.setdefault("GLOG_minloglevel", "2")
 
+from anima.capture.config import CaptureConfig
 from anima.capture.holistic import HolisticTracker
-from anima.capture.pipeline import CaptureConfig, capture_video
+from anima.capture.pipeline import capture_video
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
 from anima.io.assets import asset

@@ -43,14 +43,15 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=150)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "reenact.json"))
     a = ap.parse_args()
+    from anima.capture.config import CaptureConfig
     from anima.capture.fit import LandmarkBasis, choose_keyframes, fit_frames, fit_identity
     from anima.capture.mediapipe_face import FaceMeshTracker
-    from anima.capture.pipeline import CaptureConfig
     from anima.core.camera import mediapipe_to_camera
     from anima.facemodel.correspondence import load_correspondence
     from anima.facemodel.ict import load_face_model
+    from anima.reenact.config import ReenactConfig
     from anima.reenact.database import build_database
-    from anima.reenact.pipeline import ReenactConfig, Reenactor
+    from anima.reenact.pipeline import Reenactor
     from anima.reenact.render import composite
     from anima.reenact.synth import adaptive_sigma, nearest, weighted_median_listing1, weights
 

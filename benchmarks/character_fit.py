@@ -14,7 +14,8 @@ import argparse
 import glob
 from pathlib import Path
 
-from anima.capture.pipeline import CaptureConfig, capture_video
+from anima.capture.config import CaptureConfig
+from anima.capture.pipeline import capture_video
 from anima.export.avatar import character_motion
 from anima.facemodel.character import tracked_measures
 from anima.io.assets import data_root

@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.capture.fit import FitConfig, LandmarkBasis, fit_frames, fit_identity
+from anima.capture.config import FitConfig
+from anima.capture.fit import LandmarkBasis, fit_frames, fit_identity
 from anima.capture.landmark_sets import calibration_samples
 from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.core.camera import camera_to_image, mediapipe_to_camera

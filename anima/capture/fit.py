@@ -27,33 +27,11 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
+from anima.capture.config import FitConfig
 from anima.core.camera import camera_to_image, umeyama
 from anima.core.rotations import matrix_to_euler
 from anima.facemodel.correspondence import Correspondence
 from anima.facemodel.ict import FaceModel
-
-
-@dataclass
-class FitConfig:
-    z_weight: float = 0.5
-    """Weight of MediaPipe's depth residual relative to the image-plane residual."""
-    lam_expr: float = 0.5
-    """L2 regularisation of expression weights (cm^2 per unit weight^2, summed over landmarks)."""
-    lam_expr_l1: float = 0.05
-    """L1 (sparsity) regularisation of expression weights."""
-    lam_id: float = 2.0
-    """L2 regularisation of identity coefficients (PCA modes, prior N(0, 1))."""
-    n_keyframes: int = 12
-    """Frames used to fit the per-clip identity."""
-    n_alternations: int = 3
-    """Pose / expression alternations per frame."""
-    qp_sweeps: int = 200
-    """Maximum coordinate-descent sweeps of the bounded expression solve (stops earlier on convergence)."""
-    use_iris: bool = True
-    """Use MediaPipe's 10 iris landmarks (468-477) for the eye-gaze shapes."""
-    huber_cm: float = 0.3
-    """Huber threshold (cm) of the robust identity fit."""
-
 
 _BASIS_CACHE: dict = {}
 

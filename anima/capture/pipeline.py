@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -13,15 +13,8 @@ from tqdm import tqdm
 from anima import __version__
 from anima.audio.features import NoAudio, read_audio, speech_features
 from anima.capture.body import assemble, clean
-from anima.capture.fit import (
-    FitConfig,
-    FrameFit,
-    LandmarkBasis,
-    choose_keyframes,
-    fit_frames,
-    fit_identity,
-    landmark_error,
-)
+from anima.capture.config import CaptureConfig
+from anima.capture.fit import FrameFit, LandmarkBasis, choose_keyframes, fit_frames, fit_identity, landmark_error
 from anima.capture.holistic import HolisticTracker
 from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.core.camera import mediapipe_to_camera
@@ -37,42 +30,6 @@ from anima.pose3d.config import default_checkpoint
 from anima.pose3d.infer import lift_frames, replace_body
 
 MIN_SIZE = 32  # px; smaller videos cannot hold a trackable face
-
-
-@dataclass
-class CaptureConfig:
-    smooth_sigma: float = field(default=1.0, metadata={"flag": "--sigma", "range": (0.0, 100.0)})
-    """Gaussian temporal smoothing of the fitted parameters, in frames (0 = off). Zero-phase, so no lag.
-    1.0 frame (33-40 ms at 25-30 fps) removes ~2/3 of MediaPipe's landmark jitter while the landmark
-    error grows < 10 % (``anima eval stability``); seed 004 used 1.5 frames on 15 fps gesture data."""
-    max_frames: int | None = field(default=None, metadata={"range": (1, None)})
-    """Only the first N frames (default: the whole video)."""
-    low_conf_nme: float = 0.05
-    """Frames whose fit NME exceeds this are flagged low-confidence."""
-    min_face_px: float = 40.0
-    """Faces whose landmark box is smaller than this (sqrt of area, px) are flagged low-confidence."""
-    identity_tolerance_cm: float = 0.05
-    """Fit-while-tracking keeps its per-frame fits if the whole-clip identity moves its landmarks by less
-    than this on average (else the clip is refitted)."""
-    stream: bool = True
-    """Fit chunks of frames on a worker thread while MediaPipe tracks (hides most of the fitting time)."""
-    face_only: bool = False
-    """Track the face only (MediaPipe face mesh: the fast path); otherwise Holistic: face, body and hands."""
-    body_min_conf: float = 0.5
-    """Body joints with a pose visibility below this are dropped before interpolation."""
-    max_gap: int = field(default=8, metadata={"range": (0, 10_000)})
-    """Longest hand/body drop-out (frames) filled by cubic interpolation; longer gaps stay missing and flagged."""
-    body_sigma: float = 1.5
-    """Gaussian smoothing of the skeleton, frames (seed 004 §4.3.1)."""
-    fixed_bones: bool = False
-    """Impose the clip's median bone lengths on every frame."""
-    body_3d: str = field(default="mediapipe", metadata={"choices": ("mediapipe", "lifter")})
-    """Where the body's 3D comes from: ``mediapipe`` (Pose world landmarks) or ``lifter`` (anima's trained
-    2D->3D lifter on MediaPipe's 2D keypoints, :mod:`anima.pose3d`)."""
-    pose_model: str | None = None
-    """Lifter checkpoint for --body-3d lifter (default: $ANIMA_HOME/models/pose_lifter.pt, where
-    ``anima train pose`` writes)."""
-    fit: FitConfig = field(default_factory=FitConfig)
 
 
 @dataclass

@@ -7,7 +7,8 @@ import time
 from pathlib import Path
 
 from anima.audio.features import read_audio
-from anima.capture.pipeline import CaptureConfig, Timings, capture_video
+from anima.capture.config import CaptureConfig
+from anima.capture.pipeline import Timings, capture_video
 from anima.core.clock import Stopwatch
 from anima.errors import InputError
 from anima.export.motion import write_motion_outputs
@@ -36,7 +37,7 @@ def check_capture_inputs(
         load_checkpoint(Path(cfg.pose_model) if cfg.pose_model else default_checkpoint())
 
 
-def capture_to_folder(
+def run(
     video: str,
     out: str | Path,
     cfg: CaptureConfig | None = None,

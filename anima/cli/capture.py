@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from anima.capture.pipeline import CaptureConfig
-from anima.capture.run import capture_to_folder
+from anima.capture import run as capture
+from anima.capture.config import CaptureConfig
 from anima.cli.common import add_json_quiet, add_rig, command_line, emit, time_split
 from anima.cli.options import add_options, config_from_args, number
 from anima.export.formats import FORMATS, export_file
@@ -76,7 +76,7 @@ def cmd_capture(a) -> int:
     cfg = config_from_args(CaptureConfig, a, CAPTURE_OPTIONS)
     if a.no_smooth:
         cfg.smooth_sigma = 0.0
-    s = capture_to_folder(
+    s = capture.run(
         a.video,
         a.out,
         cfg,

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from anima.cli.common import add_json_quiet, command_line, emit, group, notes
 from anima.cli.options import add_options, config_from_args, number
-from anima.dataset.build import BuildConfig, build_dataset, build_summary
-from anima.dataset.filters import FilterConfig
+from anima.dataset import run as dataset
+from anima.dataset.build import build_summary
+from anima.dataset.config import BuildConfig, FilterConfig
 from anima.dataset.report import write_report
 
 FILTER_OPTIONS = ["min_s", "max_s", "emotion_min_s", "max_yaw_deg", "max_fit_nme"]
@@ -47,7 +48,7 @@ def register(sub) -> None:
 
 def cmd_build(a) -> int:
     cfg = config_from_args(BuildConfig, a, BUILD_OPTIONS, filters=config_from_args(FilterConfig, a, FILTER_OPTIONS))
-    m = build_dataset(
+    m = dataset.run(
         a.videos,
         a.out,
         cfg,

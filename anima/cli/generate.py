@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from anima.cli.common import add_rig, command_line, emit, notes, time_split
 from anima.cli.options import add_options, config_from_args
-from anima.gesture.run import GestureConfig, gesture_to_folder
+from anima.gesture import run as gesture
+from anima.gesture.config import GestureConfig
+from anima.text2face import run as text2face
 from anima.text2face.config import PromptConfig
 
 PROMPT_OPTIONS = ["length", "seconds", "seed", "method"]
@@ -76,9 +78,8 @@ def register(sub) -> None:
 
 
 def cmd_text2face(a) -> int:
-    from anima.text2face.generate import text_to_folder  # lazy: torch
 
-    info = text_to_folder(
+    info = text2face.run(
         a.prompt,
         a.out,
         config_from_args(PromptConfig, a, PROMPT_OPTIONS),
@@ -96,7 +97,7 @@ def cmd_text2face(a) -> int:
 
 
 def cmd_gesture(a) -> int:
-    info = gesture_to_folder(
+    info = gesture.run(
         a.speech,
         a.out,
         config_from_args(GestureConfig, a, GESTURE_OPTIONS),

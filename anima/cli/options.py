@@ -7,7 +7,11 @@ refines it:
 * ``flag``: another option name (``--sigma`` for ``smooth_sigma``);
 * ``choices``: allowed values;
 * ``range``: ``(low, high)`` inclusive bounds of a number (NaN and infinity are always refused);
-* ``metavar``; ``repeat``: a list filled by repeating the option.
+* ``metavar``; ``repeat``: a list filled by repeating the option;
+* ``positional``: a positional argument (a list field: any number of them);
+* ``required``: the option must be given; ``nargs``: e.g. ``"+"`` for a list after one option;
+* ``parse``: the name of a parser in this module (``step_grid``); ``const``: the option may be given without a
+  value, which then is ``const``.
 
 A ``bool`` field that defaults to False is a switch (``--face-only``); one that defaults to True gets a
 ``--no-...`` switch (or the ``flag`` given). :func:`config_from_args` builds the config back from the parsed
@@ -95,6 +99,13 @@ def add_options(parser: argparse.ArgumentParser, cls, names: list[str], help_ext
         help_ = docs.get(name, "") + ((" " + help_extra[name]) if help_extra and name in help_extra else "")
         help_ = help_.replace("%", "%%")
         kw: dict = {"dest": name}
+        if md.get("positional"):
+            is_list = base.startswith("list")
+            kw = {"nargs": "*" if is_list else None, "metavar": md.get("metavar", name.upper()), "help": help_}
+            if is_list:
+                kw["default"] = []
+            parser.add_argument(name, **{k: v for k, v in kw.items() if v is not None})
+            continue
         if base == "bool":
             if default:
                 kw.update(action="store_false", help=help_)
@@ -107,7 +118,15 @@ def add_options(parser: argparse.ArgumentParser, cls, names: list[str], help_ext
             kw.update(action="append", default=[], metavar=md.get("metavar"), help=help_)
             parser.add_argument(flag, **kw)
             continue
-        if base in ("int", "float"):
+        if md.get("nargs"):
+            kw["nargs"] = md["nargs"]
+        if md.get("required"):
+            kw["required"] = True
+        if "const" in md:
+            kw.update(nargs="?", const=md["const"])
+        if "parse" in md:
+            kw["type"] = globals()[md["parse"]]
+        elif base in ("int", "float"):
             lo, hi = md.get("range", SEED_RANGE if name == "seed" else (None, None))
             kw["type"] = number(int if base == "int" else float, lo, hi)
         elif base == "str":
@@ -117,6 +136,10 @@ def add_options(parser: argparse.ArgumentParser, cls, names: list[str], help_ext
         if "metavar" in md or "choices" not in md:
             kw["metavar"] = md.get("metavar", flag.lstrip("-").upper().replace("-", "_"))
         shown = "none" if default is None else str(default).replace("%", "%%")
+        if md.get("required"):
+            kw.update(help=help_)
+            parser.add_argument(flag, **kw)
+            continue
         if "default" not in help_.lower():
             help_ = f"{help_} (default: {shown})".strip()
         kw.update(default=default, help=help_)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from anima.cli.common import add_json_quiet, emit, notes
 from anima.cli.options import add_options, config_from_args, number
-from anima.reenact.pipeline import ReenactConfig
-from anima.reenact.run import run_reenact
+from anima.reenact import run as reenact
+from anima.reenact.config import ReenactConfig
 
 REENACT_OPTIONS = ["n", "a", "smooth", "detail", "map_expressions", "color_transfer"]
 
@@ -44,7 +44,7 @@ def register(sub) -> None:
 
 
 def cmd_reenact(a) -> int:
-    r = run_reenact(
+    r = reenact.run(
         a.target,
         a.out,
         config_from_args(ReenactConfig, a, REENACT_OPTIONS),

@@ -8,14 +8,15 @@ from pathlib import Path
 from anima.cli.common import add_json_quiet, command_line, emit, group
 from anima.cli.options import SEED_RANGE, add_options, config_from_args, number
 from anima.dataset.storage import check_dataset
+from anima.gesture.config import MODELS
 from anima.io.outdir import check_out_dir, check_out_file
 from anima.pose3d.config import TrainConfig as PoseTrainConfig
 from anima.pose3d.config import default_cache, default_checkpoint
 from anima.text2face.config import TrainConfig as FaceTrainConfig
+from anima.text2face.ship import check_ship, ship
 
 POSE_OPTIONS = ["steps", "batch", "seed", "wild", "projection", "latent_2d", "bone"]
 FACE_OPTIONS = ["kind", "preset", "scheme", "steps", "batch", "lr", "seed", "encoder", "tf_drop"]
-GESTURE_MODELS = ("refiner", "generator", "regression", "lstm", "velocity_adversarial", "moglow")
 
 
 def register(sub) -> None:
@@ -77,7 +78,7 @@ def register(sub) -> None:
     )
     tg.add_argument("--db", required=True, help="dataset folder from `anima dataset build`")
     tg.add_argument("--out", required=True, help="checkpoint path (.pt)")
-    tg.add_argument("--model", default="refiner", choices=GESTURE_MODELS)
+    tg.add_argument("--model", default="refiner", choices=MODELS)
     tg.add_argument(
         "--steps",
         type=number(int, 1, 10_000_000),
@@ -104,14 +105,11 @@ def cmd_pose(a) -> int:
 
 
 def cmd_text2face(a) -> int:
-    from anima.text2face.ship import check_ship
-
     check_out_dir(a.out)  # a user's folder is refused first
     if a.ship:
         check_ship(a.ship, inputs=[a.dataset])  # before the training it would come after
     check_dataset(a.dataset)  # before torch loads
     from anima.eval.text2face import quick_metrics  # lazy: torch
-    from anima.text2face.ship import ship
     from anima.text2face.train import train  # lazy: torch
 
     model = {

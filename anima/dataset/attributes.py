@@ -9,14 +9,13 @@ reports them out of sample: thresholds chosen leave-one-clip-out).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.ndimage import median_filter, uniform_filter1d
 from scipy.signal import find_peaks
 
 from anima.core.filters import valid_runs
 from anima.core.rotations import matrix_to_euler, rotvec_to_matrix
+from anima.dataset.config import DetectorConfig
 
 ATTRIBUTES = [
     "blink",
@@ -32,42 +31,6 @@ ATTRIBUTES = [
     "shake head",
     "turn",
 ]
-
-
-@dataclass
-class DetectorConfig:
-    blink_on: float = 0.2
-    blink_max_s: float = 0.6
-    blink_baseline_s: float | None = 1.0
-    """``blink_on`` is measured above the running median of this many seconds of eyeBlink (the lids' own
-    resting level: the fit leaves open lids at about 0.2 on some faces, where closed lids peak at only 0.5-0.6).
-    None: ``blink_on`` is an absolute eyeBlink level (before issue 16: 0.5). The window and 0.2 were chosen on
-    the labelled clips other than uncrop_obama, which was held out to test the change."""
-    smile_on: float = 0.35
-    frown_on: float = 0.25
-    squint_on: float = 0.2
-    brow_on: float = 0.3
-    mouth_open_on: float = 0.3
-    yawn_jaw: float = 0.45
-    yawn_min_s: float = 1.0
-    talk_motion: float = 0.6
-    """Mean absolute speed of the lip shapes (weights per second) above which the mouth is 'talking'."""
-    talk_reversals_per_s: float = 1.0
-    """Mouth-opening direction changes per second needed for 'talk' (speech is oscillatory)."""
-    talk_voice_log_energy: float = -9.0
-    """Speech log mean energy above which a frame is voiced (features are normalised to -20 dBFS)."""
-    talk_voice_decides: bool = True
-    """Where the clip's own audio is voiced, lip motion alone decides talk, without the reversal count (voice
-    activity plus lip motion: speech with few clear mouth reversals is still talk while the voice is heard).
-    Without audio, lip motion and reversals decide. False: the detector before issue 19 (voice only gated)."""
-    nod_deg: float = 4.0
-    shake_deg: float = 7.0
-    turn_deg: float = 20.0
-    baseline_pct: float = 25.0
-    """Brow and lid signals are measured above this percentile of the clip (the face's own neutral)."""
-    min_s: float = 0.2
-    hysteresis: float = 0.7
-    """Events end when the signal drops below ``hysteresis * on-threshold``."""
 
 
 def _mean(seq, names):

@@ -27,7 +27,6 @@ import secrets
 import sys
 import time
 import traceback
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -35,46 +34,25 @@ from tqdm import tqdm
 
 from anima import __version__
 from anima.audio.features import NoAudio, read_audio, speech_features
-from anima.capture.pipeline import CaptureConfig, Tracked, capture_video, join_chunks, track_holistic_range
-from anima.core.contract import BODY_DIM, FACE_DIM, GESTURE_FPS, HOP, SPEECH_DIM, TEXT_FPS, WINDOW
+from anima.capture.config import CaptureConfig
+from anima.capture.pipeline import Tracked, capture_video, join_chunks, track_holistic_range
+from anima.core.contract import BODY_DIM, FACE_DIM, GESTURE_FPS, SPEECH_DIM, TEXT_FPS
 from anima.dataset import ray_guard
-from anima.dataset.annotations import emotion_from_path, load_annotations
-from anima.dataset.attributes import DetectorConfig, detect
+from anima.dataset.annotations import emotion_from_path
+from anima.dataset.attributes import detect
+from anima.dataset.config import RULES, BuildConfig
 from anima.dataset.describe import fitting_descriptions, segment_timeline
-from anima.dataset.filters import RULES, FilterConfig, clip_rejection, cut_clips
+from anima.dataset.filters import clip_rejection, cut_clips
 from anima.dataset.pairs import audio_motion_windows, text_motion_clip
-from anima.dataset.storage import SCHEMA, VERSION, check_dataset, read_table, write_shard
+from anima.dataset.storage import SCHEMA, VERSION, read_table, write_shard
 from anima.errors import InputError
 from anima.io.atomic import write_json
-from anima.io.outdir import check_out_dir, claim_folder, lock_folder, unlock_folder
 from anima.io.video import VideoInfo, frame_times, probe_video
 
 VIDEO_EXT = (".mp4", ".mov", ".mkv", ".webm", ".avi", ".m4v", ".flv")
 
 
 RETRIES = 3  # times Ray runs a task again whose worker or node was lost
-CHUNK_S = 15.0  # contract: not a rate (seconds of video per tracking task)
-
-
-@dataclass
-class BuildConfig:
-    filters: FilterConfig = field(default_factory=FilterConfig)
-    detector: DetectorConfig = field(default_factory=DetectorConfig)
-    n_descriptions: int = field(default=10, metadata={"flag": "--descriptions", "range": (1, 1000)})
-    """Descriptions per clip."""
-    seed: int = 0
-    """Random seed of the descriptions."""
-    window: int = WINDOW
-    hop: int = HOP
-    max_frames: int | None = field(default=None, metadata={"range": (1, None)})
-    """Capture at most N frames per video."""
-    chunk_s: float = field(default=CHUNK_S, metadata={"flag": "--chunk-len", "range": (0.0, 3600.0)})
-    """Videos longer than 1.5x this (seconds) are tracked in chunks of about this length, one Ray task each,
-    then fitted, filtered and cut as one video (so clips and windows do not depend on the chunks); 0: one task
-    per video."""
-    chunk_warmup_s: float = field(default=1.0, metadata={"flag": "--chunk-warmup", "range": (0.0, 60.0)})
-    """Seconds tracked before each chunk and dropped, so MediaPipe's tracking state has settled at its first
-    frame."""
 
 
 def video_id(path: str | Path) -> str:
@@ -512,41 +490,7 @@ def build_summary(m: dict) -> dict:
     return {k: m[k] for k in keys} | {"videos_failed": len(m["videos_failed"])}
 
 
-def build_dataset(
-    inputs: list[str],
-    out_dir: str | Path,
-    cfg: BuildConfig | None = None,
-    annotations: str | None = None,
-    address: str | None = None,
-    num_workers: int | None = None,
-    progress: bool = True,
-    command: str | None = None,
-) -> dict:
-
-    cfg = cfg or BuildConfig()
-    out = check_out_dir(out_dir)
-    if cfg.filters.min_s > cfg.filters.max_s:
-        raise InputError(f"--min-len {cfg.filters.min_s} is longer than --max-len {cfg.filters.max_s}")
-    videos = expand_videos(inputs)
-    if not videos:
-        raise InputError("no videos found in the given paths")
-    missing = [str(p) for p in videos if not p.is_file()]
-    if missing:
-        raise InputError(
-            f"video not found: {missing[0]}" + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else "")
-        )
-    if (out / "manifest.json").exists():
-        check_dataset(out)  # refuses a dataset folder of another schema version
-    ann = load_annotations(annotations, [p.stem for p in videos]) if annotations else {}
-    claim_folder(out, "dataset")
-    lock = lock_folder(out)
-    try:
-        return _build(videos, out, cfg, ann, address, num_workers, progress, command)
-    finally:
-        unlock_folder(lock)
-
-
-def _build(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_workers, progress, command) -> dict:
+def build_videos(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_workers, progress, command) -> dict:
     todo = [p for p in videos if not (out / "videos" / f"{video_id(p)}.json").exists()]
     _write_json(out / "manifest.json", _manifest(out, videos, cfg, status="building"))
     t0 = time.perf_counter()

@@ -14,40 +14,16 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from anima.core.skeleton import LEFT_HAND, RIGHT_HAND
 from anima.dataset.attributes import head_angles_deg
+from anima.dataset.config import FilterConfig
 from anima.io.sequence import FLAG_LOW_CONFIDENCE
 
-RULES = ["length", "action_keywords", "head_yaw", "fit_error", "low_confidence", "occlusion"]
 # MediaPipe face-mesh points bounding the lower face: nose tip, chin, right and left cheek
 NOSE_TIP, CHIN, CHEEK_R, CHEEK_L = 1, 152, 234, 454
 HANDS = np.r_[LEFT_HAND.start : LEFT_HAND.stop, RIGHT_HAND.start : RIGHT_HAND.stop]
-
-
-@dataclass
-class FilterConfig:
-    min_s: float = field(default=5.0, metadata={"flag": "--min-len", "range": (0.1, 3600.0)})
-    """Shortest clip, s."""
-    max_s: float = field(default=10.0, metadata={"flag": "--max-len", "range": (0.1, 3600.0)})
-    """Longest clip, s; longer videos are cut."""
-    emotion_min_s: float = field(default=1.5, metadata={"flag": "--emotion-min-len", "range": (0.1, 3600.0)})
-    """Shortest clip of an emotion clip (a video whose file name states its emotion), s. Not in the seed:
-    the emotion-labelled clips are few and short (CREMA-D's are 2 s), so the 5-s rule would drop them."""
-    action_keywords: list[str] = field(default_factory=lambda: ["turn", "shake head", "head wagging"])
-    max_yaw_deg: float = field(default=35.0, metadata={"flag": "--max-yaw", "range": (0.0, 180.0)})
-    """Head yaw limit, degrees."""
-    max_fit_nme: float = field(default=0.05, metadata={"range": (0.0, 1.0)})
-    """Per-frame fit-error failsafe (NME)."""
-    min_tracked: float = 0.95
-    max_low_conf: float = 0.1
-    max_occluded: float = 0.1
-    """Largest share of tracked frames with a hand over the lower face."""
-    occluding_joints: int = 3
-    enabled: list[str] = field(default_factory=lambda: list(RULES))
 
 
 def cut_clips(n_frames: int, fps: float, cfg: FilterConfig) -> list[tuple[int, int]]:

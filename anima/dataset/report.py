@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.capture.pipeline import CaptureConfig, capture_video
+from anima.capture.config import CaptureConfig
+from anima.capture.pipeline import capture_video
 from anima.dataset.storage import check_dataset, read_table
 from anima.io.atomic import write_figure, write_image, write_text
 from anima.io.video import read_video

@@ -21,8 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.capture.pipeline import CaptureConfig, capture_video
-from anima.dataset.attributes import ATTRIBUTES, DetectorConfig, detect, frame_mask
+from anima.capture.config import CaptureConfig
+from anima.capture.pipeline import capture_video
+from anima.dataset.attributes import ATTRIBUTES, detect, frame_mask
+from anima.dataset.config import DetectorConfig
+from anima.eval.config import AnnotationsEval
 from anima.io.assets import asset
 
 LABELS = Path(__file__).resolve().parent / "labels" / "attributes"
@@ -293,3 +296,37 @@ def evaluate_annotations(cfg: DetectorConfig | None = None) -> dict:
         "talk_on_speech": talk_on_speech(base),
         "capture_emotions": capture_emotion_checks(),
     }
+
+
+def run(cfg: AnnotationsEval, progress: bool = False) -> dict:
+    """``anima eval annotations``."""
+    return evaluate_annotations()
+
+
+def summary(r: dict) -> list[str]:
+    out = [
+        f"Out of sample ({r['protocol']}, {len(r['clips'])} clips).",
+        "",
+        "| attribute | events | P | R |",
+        "|---|---|---|---|",
+    ]
+    f = lambda x: "-" if x is None else f"{x:.2f}"
+    for a, v in r["per_attribute"].items():
+        out.append(f"| {a} | {v['labelled_events']} | {f(v['precision'])} | {f(v['recall'])} |")
+    return out
+
+
+def text(r: dict) -> str:
+    def f(x):
+        return "  -  " if x is None else f"{x:5.2f}"
+
+    lines = [
+        f"out of sample ({r['protocol']}, {len(r['clips'])} labelled clips; in-sample figures in --json)",
+        f"{'attribute':<16} {'P':>5} {'R':>5} {'frameP':>7} {'frameR':>7} {'events':>7} {'detections':>10}",
+    ]
+    for k, v in r["per_attribute"].items():
+        lines.append(
+            f"{k:<16} {f(v['precision'])} {f(v['recall'])} {f(v['frame_precision']):>7} "
+            f"{f(v['frame_recall']):>7} {v['labelled_events']:>7} {v['detections']:>10}"
+        )
+    return "\n".join(lines)

@@ -9,8 +9,10 @@ import glob
 import numpy as np
 
 from anima.capture.body import assemble, bone_length_cv, clean
-from anima.capture.pipeline import CaptureConfig, track_holistic
+from anima.capture.config import CaptureConfig
+from anima.capture.pipeline import track_holistic
 from anima.core.skeleton import LEFT_HAND, RIGHT_HAND
+from anima.eval.config import BodyEval
 from anima.io.assets import asset
 from anima.io.video import probe_video
 
@@ -81,3 +83,28 @@ def evaluate_body(patterns: list[str] | None = None, max_frames: int | None = No
         "bone_cv_dropped_on": f"{sum(r['bone_cv_cleaned'] < r['bone_cv_raw'] for r in rows)}/{len(rows)} clips",
         "hand_images": hand_images_report(),
     }
+
+
+def run(cfg: BodyEval, progress: bool = False) -> dict:
+    """``anima eval body``."""
+    return evaluate_body(cfg.clips or None, cfg.max_frames, progress=progress)
+
+
+def summary(r: dict) -> list[str]:
+    return ["See results.json."]
+
+
+def text(r: dict) -> str:
+    lines = [
+        f"{'clip':<44} {'body':>6} {'L hand':>7} {'R hand':>7} {'L int':>6} {'R int':>6} {'CV raw':>7} {'CV cln':>7}"
+    ]
+    for c in r["clips"]:
+        lines.append(
+            f"{c['clip'][:44]:<44} {100 * c['body_tracked']:>5.1f}% {100 * c['left_hand_tracked']:>6.1f}% "
+            f"{100 * c['right_hand_tracked']:>6.1f}% {100 * c['left_hand_after_interpolation']:>5.1f}% "
+            f"{100 * c['right_hand_after_interpolation']:>5.1f}% {c['bone_cv_raw']:>7.3f} "
+            f"{c['bone_cv_cleaned']:>7.3f}"
+        )
+    lines.append(f"bone-length CV dropped on {r['bone_cv_dropped_on']}")
+    lines += [f"hand image {h['image']}: {h['hands_found']} hand(s) {h['scores']}" for h in r["hand_images"]]
+    return "\n".join(lines)

@@ -24,10 +24,12 @@ import cv2
 import numpy as np
 import scipy.io as sio
 
-from anima.capture.fit import FitConfig, LandmarkBasis, fit_frames, fit_identity
+from anima.capture.config import FitConfig
+from anima.capture.fit import LandmarkBasis, fit_frames, fit_identity
 from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.core.camera import camera_to_image, mediapipe_to_camera
-from anima.eval.metrics import nme_bbox
+from anima.eval.config import LandmarksEval
+from anima.eval.metrics import nme_bbox, pct
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
 from anima.facemodel.landmarks68 import ibug68_vertices
@@ -164,3 +166,35 @@ def _paired_interval(rows: list[dict], reps: int = 2000, seed: int = 0) -> list[
     pick = np.random.default_rng(seed).integers(0, len(diff), (reps, len(diff)))
     means = diff[pick].mean(1)
     return [float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))]
+
+
+def run(cfg: LandmarksEval, progress: bool = False) -> dict:
+    """``anima eval landmarks``."""
+    r = evaluate_aflw(progress=progress)
+    if not cfg.per_image:
+        r.pop("per_image")
+    return r
+
+
+def summary(r: dict) -> list[str]:
+    out = [
+        "| definition | raw MediaPipe NME | fitted model NME | fit - MediaPipe [95 % over images] |",
+        "|---|---|---|---|",
+    ]
+    for name, v in r["by_definition"].items():
+        lo, hi = v["fit_minus_mediapipe_ci95_over_images"]
+        out.append(f"| {name} | {pct(v['mediapipe_nme'])} | {pct(v['fit_nme'])} | [{100 * lo:+.2f}, {100 * hi:+.2f}] |")
+    return out + ["", f"{r['detected']} of {r['images']} AFLW2000-3D images."]
+
+
+def text(r: dict) -> str:
+    return (
+        f"AFLW2000-3D samples: {r['detected']}/{r['images']} faces found; 68-pt NME per landmark definition\n"
+        + "\n".join(
+            f"  {name:<13} raw MediaPipe {100 * v['mediapipe_nme']:.2f} %, fitted ICT model "
+            f"{100 * v['fit_nme']:.2f} % (fit - MediaPipe, 95 % over images: "
+            f"[{100 * v['fit_minus_mediapipe_ci95_over_images'][0]:+.2f}, "
+            f"{100 * v['fit_minus_mediapipe_ci95_over_images'][1]:+.2f}])"
+            for name, v in r["by_definition"].items()
+        )
+    )

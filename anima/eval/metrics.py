@@ -21,3 +21,8 @@ def mean_acceleration(x: np.ndarray, norm: np.ndarray | None = None) -> float:
     if norm is not None:
         m = m / norm[1:-1]
     return float(np.nanmean(m))
+
+
+def pct(x) -> str:
+    """A fraction as a percentage for tables (``-`` for None)."""
+    return "-" if x is None else f"{100 * x:.2f} %"

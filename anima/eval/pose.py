@@ -1,7 +1,7 @@
 """``anima eval pose``: the lifter against MediaPipe's own 3D on real Human3.6M S9 images and on HumanEva-I
 (seed 004 §3.4.1), and the ablation of table 3.6.
 
-Protocols, metrics: :mod:`anima.pose3d.metrics` (17 H36M joints, root-relative; HumanEva: its 15 joints).
+Protocols, metrics: :mod:`anima.eval.pose_metrics` (17 H36M joints, root-relative; HumanEva: its 15 joints).
 """
 
 from __future__ import annotations
@@ -11,11 +11,12 @@ import json
 from pathlib import Path
 
 from anima.errors import InputError
+from anima.eval.config import PoseEval
+from anima.eval.pose_metrics import pose_metrics
 from anima.io.outdir import claim_folder
 from anima.pose3d.config import TrainConfig, default_cache, default_checkpoint
 from anima.pose3d.data import humaneva_validation, s9_image_evidence
 from anima.pose3d.joints import HUMANEVA_EVAL
-from anima.pose3d.metrics import pose_metrics
 
 # seed 004, tables 3.2 and 3.3 (H3.6M test subjects S9 and S11, all actions, average over actions)
 SEED_PUBLISHED = {
@@ -147,3 +148,14 @@ def evaluate_pose(
             Path(ablation_dir), cache_p, ablation_steps, ablation_width, ablation_dropout, progress=progress
         )
     return r
+
+
+def run(cfg: PoseEval, progress: bool = False) -> dict:
+    """``anima eval pose``."""
+    return evaluate_pose(
+        cfg.model, cfg.cache, cfg.ablation, cfg.ablation_steps, cfg.ablation_width, cfg.ablation_dropout, progress
+    )
+
+
+def summary(r: dict) -> list[str]:
+    return ["See results.json."]

@@ -25,14 +25,19 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from anima.capture.config import CaptureConfig
 from anima.capture.mediapipe_face import FaceMeshTracker
-from anima.capture.pipeline import CaptureConfig, capture_face
+from anima.capture.pipeline import capture_face
+from anima.eval.config import ReenactEval
+from anima.eval.metrics import pct
 from anima.facemodel.ict import load_face_model
 from anima.io.assets import asset
 from anima.io.atomic import write_figure, write_image
+from anima.io.outdir import claim_folder
 from anima.io.video import read_video
+from anima.reenact.config import ReenactConfig
 from anima.reenact.database import INTERIOR, build_database, sample_colors
-from anima.reenact.pipeline import ReenactConfig, Reenactor, Smoother
+from anima.reenact.pipeline import Reenactor, Smoother
 from anima.reenact.run import pingpong
 from anima.reenact.synth import expression_mapping
 
@@ -396,3 +401,21 @@ def evaluate(out_dir: Path | None = None, progress: bool = False) -> dict:
     if out_dir is not None:
         plot_ssim_vs_n({"adult (Obama)": res["adult_obama"], "child (d11)": child}, out_dir / "ssim_vs_n.png")
     return res
+
+
+def run(cfg: ReenactEval, progress: bool = False) -> dict:
+    """``anima eval reenact``."""
+    out = claim_folder(cfg.out, "eval_reenact") if cfg.out else None
+    return evaluate(out, progress=progress)
+
+
+def summary(r: dict) -> list[str]:
+    out = ["| run | SSIM | LPIPS | lip NME | tOF (L2, px) | tLP |", "|---|---|---|---|---|---|"]
+    for clip in ("adult_obama", "child_d11"):
+        for m in ("base_true_colors", "method1", "method2"):
+            v = r[clip][m]
+            out.append(
+                f"| {clip} {m} | {v['ssim']:.4f} | {v['lpips']:.4f} | {pct(v['nme_lips'])} | "
+                f"{v['tof']:.3f} | {v['tlp']:.4f} |"
+            )
+    return out + ["", "One video per row: no interval over videos."]

@@ -15,9 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from anima.capture.config import CaptureConfig
 from anima.capture.fit import LandmarkBasis
-from anima.capture.pipeline import CaptureConfig, fit_landmark_sequence, track_landmarks
+from anima.capture.pipeline import fit_landmark_sequence, track_landmarks
 from anima.core.camera import camera_to_image, mediapipe_to_camera
+from anima.eval.config import StabilityEval
 from anima.eval.metrics import mean_acceleration
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
@@ -84,3 +86,26 @@ def evaluate_stability(clips: list[str] | None = None, max_frames: int | None = 
         "mean_error_ratio": float(np.mean([r["error_ratio_smoothed_vs_unsmoothed"] for r in rows])),
         "targets": {"acc_reduction": ">= 0.40", "error_ratio": "<= 1.10"},
     }
+
+
+def run(cfg: StabilityEval, progress: bool = False) -> dict:
+    """``anima eval stability``."""
+    return evaluate_stability(cfg.clips or None, max_frames=cfg.max_frames)
+
+
+def summary(r: dict) -> list[str]:
+    return [f"jitter reduction {100 * r['mean_acc_reduction']:.1f} %, error ratio {r['mean_error_ratio']:.3f}."]
+
+
+def text(r: dict) -> str:
+    lines = [f"{'clip':<28} {'acc raw':>9} {'acc fit':>9} {'reduction':>9} {'err ratio':>9}"]
+    for c in r["clips"]:
+        lines.append(
+            f"{c['clip']:<28} {c['acc_raw']:>9.5f} {c['acc_fit_smoothed']:>9.5f} "
+            f"{100 * c['acc_reduction']:>8.1f}% {c['error_ratio_smoothed_vs_unsmoothed']:>9.3f}"
+        )
+    lines.append(
+        f"mean reduction {100 * r['mean_acc_reduction']:.1f}% (target >= 40%), "
+        f"mean error ratio {r['mean_error_ratio']:.3f} (target <= 1.10)"
+    )
+    return "\n".join(lines)

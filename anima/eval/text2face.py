@@ -16,7 +16,7 @@ Protocol (``anima eval text2face DATASET``):
   generated motion shows it too, and the false-alarm share on items without it. "Real" runs the detectors on
   the real windows (their ceiling: labels were made on whole clips with audio).
 * **R-precision** (top 1/2/3) among all held-out windows' texts with a contrastive evaluator trained on the
-  training crops (:mod:`anima.text2face.evaluator`).
+  training crops (:mod:`anima.eval.text2face_evaluator`).
 """
 
 from __future__ import annotations
@@ -31,12 +31,14 @@ from tqdm import tqdm
 from anima.core.contract import N_EXPR, TEXT_FPS
 from anima.dataset.attributes import ATTRIBUTES, detect
 from anima.errors import InputError
+from anima.eval.config import Text2FaceEval
+from anima.eval.text2face_evaluator import load_evaluator, r_precision, save_evaluator, train_evaluator
+from anima.eval.text2face_prompts import evaluate_prompts, prompts_summary
 from anima.export.framing import generated_sequence
 from anima.io.atomic import copy_file, write_json
 from anima.io.outdir import claim_folder
 from anima.text2face.data import EVAL_LEN, FaceGeometry, eval_items, split_clips
 from anima.text2face.encoders import encode_cached
-from anima.text2face.evaluator import load_evaluator, r_precision, save_evaluator, train_evaluator
 from anima.text2face.generate import SHIPPED, Generator
 from anima.text2face.train import TrainConfig, load_checkpoint, prepare, train
 
@@ -473,3 +475,30 @@ def quick_metrics(dataset, checkpoint, reps: int = 5) -> dict:
         "diversity_mm": s["diversity_mm"],
         "real_diversity_mm": ci([diversity(real, FaceGeometry(), np.random.default_rng(r)) for r in range(reps)]),
     }
+
+
+def run(cfg: Text2FaceEval, progress: bool = False) -> dict:
+    """``anima eval text2face``: the tables, or with ``cfg.prompts`` the prompt suite
+    (:mod:`anima.eval.text2face_prompts`). The raw generated samples are for scoring only: not in the result."""
+    if cfg.prompts is not None:
+        return evaluate_prompts(cfg.dataset, cfg.prompts or None, cfg.seeds, cfg.checkpoint, progress=progress)
+    r = evaluate(
+        cfg.dataset,
+        Path(cfg.work),
+        reps=cfg.reps,
+        ablations=cfg.ablations,
+        steps=cfg.steps,
+        seed_preset=cfg.seed_preset,
+        **({"step_grid": cfg.step_grid} if cfg.step_grid else {}),
+        checkpoint=cfg.checkpoint,
+        progress=progress,
+    )
+    for m in r["methods"].values():
+        m.pop("generated", None)
+    return r
+
+
+def summary(r: dict) -> list[str]:
+    if "tables" not in r:
+        return prompts_summary(r)
+    return [r["tables"]]

@@ -324,3 +324,15 @@ def evaluate_prompts(
         "notes": notes,
         "timeline_refused": refused,
     }
+
+
+def prompts_summary(r: dict) -> list[str]:
+    out = [f"{r['protocol']['prompts']} prompts x {r['protocol']['seeds']} seeds."]
+    for name, m in r["methods"].items():
+        out.append(
+            f"{name}: lowest event recall {m['min_recall']}, highest false alarm {m['max_false_alarm']}, "
+            f"order {m['order']['accuracy']}, count {m['count']['accuracy']}, emotion checks "
+            f"{m['emotion_checks']['holds']}/{m['emotion_checks']['of']}, same-motion pairs "
+            f"{m['distinct']['same_motion_pairs']} of {m['distinct']['pairs']}."
+        )
+    return out

@@ -7,7 +7,6 @@ The result is a tracked sequence (``gesture.npz``) written by the one motion wri
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +16,7 @@ from anima.core.clock import Stopwatch
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
 from anima.export.motion import write_motion_outputs
+from anima.gesture.config import GestureConfig
 from anima.gesture.control import parse_control, speed_steps, step_masks
 from anima.gesture.database import from_dataset
 from anima.gesture.face import fit_speech_face, talking_face
@@ -26,35 +26,6 @@ from anima.gesture.knn import search
 from anima.gesture.post import finish_knn, joins_of, one_skeleton
 from anima.io.mapped import cache_key, file_stamp, mapped_arrays
 from anima.io.outdir import OutputFolder, check_out_dir
-
-
-@dataclass
-class GestureConfig:
-    k: int = field(default=0, metadata={"range": (0, 1000)})
-    """Take the k-th best candidate at every step (variety; 0 = the best)."""
-    init: str = field(default="mean", metadata={"choices": ("mean", "random")})
-    """Initial pose feature: the database mean, or a random database frame (seeded)."""
-    seed: int = 0
-    """Random seed (``--init random``)."""
-    all_splits: bool = False
-    """Search the windows of every split (default: the training split only)."""
-    control: list = field(default_factory=list, metadata={"metavar": "CONTROL", "repeat": True})
-    """A control, repeatable: NAME OP VALUE[@START-ENDs], e.g. left_wrist_height>=p85@0-5s (names:
-    left/right_wrist_height, left/right_wrist_speed, hand_symmetry; pXX = percentile of the database)."""
-    keyword: list = field(default_factory=list, metadata={"metavar": "WORD@START-ENDs", "repeat": True})
-    """A keyword spoken at that time (e.g. from a speech recogniser): while it is spoken, gestures come from
-    its --keyword-db (repeatable)."""
-    keyword_db: list = field(default_factory=list, metadata={"metavar": "WORD=DATASET", "repeat": True})
-    """The gesture database of a keyword: a dataset folder (repeatable)."""
-    no_repeat_s: float = field(default=4.0, metadata={"range": (0.0, 60.0)})
-    """Do not replay a stretch of database motion output within the last this-many seconds (variety; 0 = the
-    seed's search, which can loop over a few windows)."""
-    blend: bool = True
-    """Blend the joins between database windows (inertialization over one 8-frame step; off: --no-blend, the
-    seed's raw concatenation)."""
-    control_ends_only: bool = False
-    """Check a control on the first and last frame of each 8-frame step only, as the seed does (default: on
-    every frame, so the frames between them keep the control too)."""
 
 
 def synthesize(
@@ -177,7 +148,7 @@ def generate(speech_path: str, gen) -> tuple[np.ndarray, np.ndarray, dict]:
     return J, face, {"frames": len(J), "fps": gen.fps, "notes": notes, "model": gen.cfg.kind}
 
 
-def gesture_to_folder(
+def run(
     speech: str,
     out: str | Path,
     cfg: GestureConfig,

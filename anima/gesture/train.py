@@ -19,15 +19,13 @@ from tqdm import tqdm
 
 from anima.dataset.windows import read_windows
 from anima.errors import InputError
+from anima.gesture.config import MODELS, GestureConfig
 from anima.gesture.database import from_dataset
 from anima.gesture.features import N_STEP
 from anima.gesture.generator import GeneratorConfig, GeneratorTrainConfig, save_generator, train_generator
 from anima.gesture.refine import RefinerTrainConfig, knn_pairs, save_refiner, train_refiner
-from anima.gesture.run import GestureConfig
 from anima.io.checkpoint import looks_like_checkpoint
 from anima.io.outdir import check_out_file, check_replaceable
-
-MODELS = ("refiner", "generator", "regression", "lstm", "velocity_adversarial", "moglow")
 
 
 def train_from_dataset(

@@ -38,7 +38,8 @@ from pathlib import Path
 import numpy as np
 
 from anima import __version__
-from anima.capture.pipeline import CaptureConfig, capture_face
+from anima.capture.config import CaptureConfig
+from anima.capture.pipeline import capture_face
 from anima.errors import InputError, SchemaError
 from anima.facemodel.ict import load_face_model
 from anima.io.atomic import write_npz

@@ -12,9 +12,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from anima.capture.config import CaptureConfig
 from anima.capture.fit import LandmarkBasis, choose_keyframes, fit_frames, fit_identity
 from anima.capture.mediapipe_face import FaceMeshTracker
-from anima.capture.pipeline import CaptureConfig, capture_face
+from anima.capture.pipeline import capture_face
 from anima.core.camera import mediapipe_to_camera
 from anima.errors import InputError
 from anima.facemodel.correspondence import load_correspondence
@@ -23,8 +24,9 @@ from anima.io.atomic import write_json
 from anima.io.outdir import check_out_file
 from anima.io.validate import input_file, read_json
 from anima.io.video import VideoWriter, iter_frames, probe_video
+from anima.reenact.config import ReenactConfig
 from anima.reenact.database import build_database, read_database, write_database
-from anima.reenact.pipeline import ReenactConfig, Reenactor, Smoother, actor_expressions
+from anima.reenact.pipeline import Reenactor, Smoother, actor_expressions
 from anima.reenact.synth import expression_mapping
 
 MAX_TARGET_BYTES = 1 << 30
@@ -396,7 +398,7 @@ def _reenact_live(source, targets, out, cfg, db_path, max_seconds, progress) -> 
     }
 
 
-def run_reenact(
+def run(
     targets: list[str],
     out: str | None,
     cfg: ReenactConfig,

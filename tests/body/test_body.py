@@ -71,7 +71,8 @@ def test_cleaning_fills_short_gaps_flags_long_ones_and_lowers_bone_cv(tango_trac
 
 
 def test_capture_artifact_v2_and_v1_compat(tmp_path, d0_capture):
-    from anima.capture.pipeline import CaptureConfig, capture_video
+    from anima.capture.config import CaptureConfig
+    from anima.capture.pipeline import capture_video
 
     seq = capture_video(str(asset(TANGO)), CaptureConfig(max_frames=40), progress=False)
     assert seq.body_joints.shape == (40, 55, 3) and seq.speech.shape == (40, 28)
@@ -93,7 +94,8 @@ def test_capture_artifact_v2_and_v1_compat(tmp_path, d0_capture):
 
 
 def test_video_without_audio_keeps_motion_and_says_why(d0_path):
-    from anima.capture.pipeline import CaptureConfig, capture_video
+    from anima.capture.config import CaptureConfig
+    from anima.capture.pipeline import capture_video
 
     seq = capture_video(str(d0_path), CaptureConfig(max_frames=20), progress=False)
     assert seq.speech is None and seq.meta["audio"]["present"] is False
@@ -132,7 +134,8 @@ def test_hands_whose_wrist_is_unsure_are_kept(tango_track):
 def test_summary_counts_joints_after_the_confidence_filter(tmp_path, tango_track):
     """Tracked fractions are read after the confidence filter, per joint group: a clip whose hips are never
     confidently seen reads hips 0, whatever the raw detector returned."""
-    from anima.capture.pipeline import CaptureConfig, capture_video
+    from anima.capture.config import CaptureConfig
+    from anima.capture.pipeline import capture_video
 
     seq = capture_video(str(asset(TANGO)), CaptureConfig(max_frames=30), progress=False)
     seq.body_conf[:, 1:3] = 0.2  # hips below the filter's 0.5

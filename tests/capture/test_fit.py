@@ -5,7 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.capture.fit import FitConfig, LandmarkBasis, fit_frames, fit_identity
+from anima.capture.config import FitConfig
+from anima.capture.fit import LandmarkBasis, fit_frames, fit_identity
 from anima.core.rotations import euler_to_matrix
 from anima.facemodel.correspondence import load_correspondence
 

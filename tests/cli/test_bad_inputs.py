@@ -357,7 +357,15 @@ def _red_team(d: Path, files: dict, npz: dict, base: Path, ck: dict, ds: dict) -
     (user / "notes.npz").write_bytes(b"PK\x05\x06" + bytes(18))
     for name in ("notes.txt", "notes.pt"):
         add(f"own train pose --out user {name}", "train", "pose", "--out", user / name, "--steps", "1")
-        add(f"own train gesture --out user {name}", "train", "gesture", "--db", ds["corrupt_shard"], "--out", user / name)
+        add(
+            f"own train gesture --out user {name}",
+            "train",
+            "gesture",
+            "--db",
+            ds["corrupt_shard"],
+            "--out",
+            user / name,
+        )
     for name in ("notes.txt", "notes.npz"):
         add(f"own facemodel correspondence --out user {name}", "facemodel", "correspondence", "--out", user / name)
     for name in ("index.html", "notes.json"):

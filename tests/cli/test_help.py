@@ -42,8 +42,8 @@ def test_group_alone_prints_its_help(capsys):
 
 
 def test_defaults_come_from_the_configs():
-    from anima.capture.pipeline import CaptureConfig
-    from anima.reenact.pipeline import ReenactConfig
+    from anima.capture.config import CaptureConfig
+    from anima.reenact.config import ReenactConfig
 
     p = build_parser()
     a = p.parse_args(["capture", "v.mp4", "--out", "o"])
@@ -134,3 +134,28 @@ def test_gesture_runs_with_one_blas_thread_unless_the_user_set_one(preset):
     assert var == (preset or "1")
     if not preset:
         assert threads and set(threads) == {1}
+
+
+def test_eval_commands_and_eval_all_come_from_one_registry():
+    """`anima eval --help` lists every evaluation of the registry (and `all`); `anima eval all` runs exactly
+    the registry's rows, and each row's recorded command parses back into the same config."""
+    import argparse
+    import shlex
+    from pathlib import Path
+
+    from anima.cli.main import build_parser
+    from anima.cli.options import config_from_args
+    from anima.eval.registry import BY_NAME, EVALUATIONS, Context, rows
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    ev = next(a for a in sub.choices["eval"]._actions if isinstance(a, argparse._SubParsersAction))
+    assert set(ev.choices) == {e.name for e in EVALUATIONS} | {"all"}
+    for quick in (False, True):
+        table = rows(Context("ds", Path("out"), Path("work"), quick))
+        assert {e.name for e, _, _ in table} == set(BY_NAME)
+        for e, name, cfg in table:
+            argv = shlex.split(e.command(cfg))[1:]
+            a = parser.parse_args(argv)
+            back = config_from_args(e.config, a, [f for f in vars(cfg)])
+            assert back == cfg, (name, argv)

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from anima.dataset.annotations import load_annotations
-from anima.dataset.filters import FilterConfig, cut_clips
+from anima.dataset.config import FilterConfig
+from anima.dataset.filters import cut_clips
 from anima.errors import InputError
 from anima.io.assets import asset
 
@@ -171,7 +172,8 @@ def test_hands_over_the_face_remove_a_clip_and_gestures_do_not(tmp_path):
     a talk-show clip with hands gesturing in front of the body is kept."""
     import imageio_ffmpeg
 
-    from anima.capture.pipeline import CaptureConfig, capture_video
+    from anima.capture.config import CaptureConfig
+    from anima.capture.pipeline import capture_video
     from anima.dataset.filters import clip_rejection, hand_over_face
 
     video = tmp_path / "hands.mp4"
@@ -198,7 +200,8 @@ def test_a_long_video_is_tracked_in_chunks_and_cut_as_one(tmp_path, cli):
 
     import pyarrow.parquet as pq
 
-    from anima.dataset.build import BuildConfig, chunk_plan, process_video, video_id
+    from anima.dataset.build import chunk_plan, process_video, video_id
+    from anima.dataset.config import BuildConfig
 
     clip = asset("gesture-video/pats-crops/oliver1_gt.mp4")  # 9.6 s at 25 fps, face, body and hands
     chunked = tmp_path / "chunked"

@@ -1,5 +1,3 @@
-from pathlib import Path
-
 from anima.eval.annotations import capture_labelled, load_labels, score
 
 
@@ -31,7 +29,7 @@ def test_head_motion_detectors_on_labelled_clips():
 def test_eval_annotations_is_out_of_sample():
     """The headline scores each clip with thresholds chosen on the other clips; the shipped thresholds' (tuned
     on these labels) are reported apart, and a held-out clip's thresholds never depend on its own labels."""
-    from anima.dataset.attributes import DetectorConfig
+    from anima.dataset.config import DetectorConfig
     from anima.eval.annotations import choose_thresholds, evaluate_annotations
 
     r = evaluate_annotations()
@@ -53,20 +51,16 @@ def test_eval_annotations_is_out_of_sample():
     brows = {b["emotion"]: b for b in emo["landmark_inner_brow_height_iod"]}  # the tracker's own brow evidence
     assert brows["fearful"]["raised"] and brows["fearful"]["clip"] > brows["fearful"]["neutral"] + 0.01
 
-    assert "leave-one-clip-out" in "\n".join(_annotations_row().summary(r))
+    from anima.eval.registry import BY_NAME
 
-
-def _annotations_row():
-    from anima.eval.all import default_rows
-
-    return next(r for r in default_rows("ds", Path("out"), Path("work")) if r.name == "annotations")
+    assert "leave-one-clip-out" in "\n".join(BY_NAME["annotations"].runner().summary(r))
 
 
 def test_blink_is_measured_against_the_lids_own_rest():
     """CREMA-D's neutral sentence: one blink (frames 8-10, watched) whose fitted eyeBlink peaks just under
     0.5 over open lids at about 0.2. The relative rule finds it and nothing else; the old absolute rule
     (0.5) does not."""
-    from anima.dataset.attributes import DetectorConfig
+    from anima.dataset.config import DetectorConfig
 
     lab = next(l for l in load_labels() if l["name"] == "crema_neutral")
     seq = capture_labelled(lab)

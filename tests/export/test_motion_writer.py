@@ -15,7 +15,8 @@ D0 = "liveportrait-examples/assets/examples/driving/d0.mp4"
 
 @pytest.fixture(scope="module")
 def seq(tmp_path_factory):
-    from anima.capture.pipeline import CaptureConfig, capture_video
+    from anima.capture.config import CaptureConfig
+    from anima.capture.pipeline import capture_video
 
     return capture_video(str(asset(D0)), CaptureConfig(max_frames=24), progress=False)
 

@@ -17,7 +17,8 @@ pytestmark = pytest.mark.slow  # MediaPipe on four real clips
 
 @pytest.fixture(scope="module")
 def captures():
-    from anima.capture.pipeline import CaptureConfig, capture_video
+    from anima.capture.config import CaptureConfig
+    from anima.capture.pipeline import capture_video
 
     return {
         n: capture_video(
@@ -178,7 +179,8 @@ def test_a_missing_or_damaged_character_is_one_line_with_the_install_step(monkey
 @pytest.fixture(scope="module")
 def standing_clip():
     """A real clip whose legs are in the picture (LivePortrait's s13: a woman standing, knees to feet)."""
-    from anima.capture.pipeline import CaptureConfig, capture_video
+    from anima.capture.config import CaptureConfig
+    from anima.capture.pipeline import capture_video
 
     src = "liveportrait-examples/assets/examples/source/s13.mp4"
     return capture_video(str(asset(src)), CaptureConfig(max_frames=60), progress=False)

@@ -148,8 +148,8 @@ def test_moglow_baseline_learns_the_likelihood_of_real_motion_and_samples_by_see
 
 
 def test_frechet_distance_and_lip_error_maths():
+    from anima.eval.gesture.fgd import frechet_distance
     from anima.eval.gesture.metrics import lip_error_mm, mouth_opening_mm
-    from anima.gesture.fgd import frechet_distance
 
     rng = np.random.default_rng(0)
     a = rng.normal(size=(4000, 3))
@@ -169,7 +169,7 @@ def test_frechet_distance_and_lip_error_maths():
 
 
 def test_fgd_separates_captured_from_shuffled_motion(db):
-    from anima.gesture.fgd import train_fgd
+    from anima.eval.gesture.fgd import train_fgd
 
     G = db.G.reshape(db.M, 64, 165)
     fgd = train_fgd(G, steps=150)

@@ -35,7 +35,8 @@ def test_reader_rejects_garbage(tmp_path):
 def test_capture_to_bvh_round_trip_under_1cm(tmp_path):
     """A real capture exported to BVH and read back: the rig's names, its T-pose rest in metres, and forward
     kinematics of the file within 1 cm of the character's posed joints."""
-    from anima.capture.pipeline import CaptureConfig, capture_video
+    from anima.capture.config import CaptureConfig
+    from anima.capture.pipeline import capture_video
     from anima.core import rig
     from anima.export.avatar import character_motion
     from anima.export.formats import export_bvh

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from anima.io.assets import asset
-from anima.reenact.pipeline import ReenactConfig, Smoother, actor_expressions
+from anima.reenact.config import ReenactConfig
+from anima.reenact.pipeline import Smoother, actor_expressions
 from anima.reenact.render import laplacian_blend
 from anima.reenact.run import pingpong
 from anima.reenact.synth import adaptive_sigma, nearest, weighted_median, weighted_median_listing1

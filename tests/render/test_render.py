@@ -148,8 +148,8 @@ def test_avatar_preview_frames_the_figure_on_real_motion(tmp_path):
     """The preview of a real capture (a TED-style gesture clip) draws the skinned character: each view is cropped
     to where the figure moves, every joint of every frame stays inside its view, the body is drawn there (a
     tall figure in each view), and the video has that size and the speech."""
-    from anima.capture.pipeline import CaptureConfig
-    from anima.capture.run import capture_to_folder
+    from anima.capture.config import CaptureConfig
+    from anima.capture.run import run as capture
     from anima.core import rig
     from anima.export.avatar import character_motion
     from anima.io.assets import asset
@@ -158,7 +158,7 @@ def test_avatar_preview_frames_the_figure_on_real_motion(tmp_path):
     from anima.render.avatar import _view, framing
 
     clip = asset("gesture-video/tango-interviews/speaker8_jjRWaMCWs44_00-00-30.16_00-00-33.32.mp4")
-    capture_to_folder(clip, tmp_path / "c", CaptureConfig(max_frames=24), progress=False)
+    capture(clip, tmp_path / "c", CaptureConfig(max_frames=24), progress=False)
     seq = read_sequence(tmp_path / "c" / "capture.npz")
     P = character_motion(seq)["positions"]
     centre = np.nanmedian(P[:, 0], axis=0) + np.array([0.0, 0.05, 0.0])

@@ -14,6 +14,7 @@ from tqdm import tqdm
 from anima.core.contract import BODY_DIM, SPEECH_DIM
 from anima.dataset.windows import Windows
 from anima.eval.gesture.facegood import facegood_sync
+from anima.eval.gesture.fgd import train_fgd
 from anima.eval.gesture.metrics import (
     adherence_table,
     beat_consistency,
@@ -28,7 +29,6 @@ from anima.eval.gesture.metrics import (
 )
 from anima.facemodel.ict import load_face_model
 from anima.gesture.control import control_features
-from anima.gesture.fgd import train_fgd
 from anima.gesture.generator import KINDS, GeneratorConfig, GeneratorTrainConfig, train_generator
 from anima.gesture.post import one_skeleton
 from anima.gesture.refine import RefinerTrainConfig, train_refiner

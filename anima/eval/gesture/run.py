@@ -27,6 +27,7 @@ import numpy as np
 
 from anima.dataset.windows import read_windows
 from anima.errors import InputError
+from anima.eval.config import GestureEval
 from anima.eval.gesture.learned import generator_rows, refiner_rows, sync_rows
 from anima.eval.gesture.metrics import (
     adherence_table,
@@ -40,13 +41,13 @@ from anima.eval.gesture.metrics import (
     speaker_of,
     wrist_motion,
 )
+from anima.gesture.config import GestureConfig
 from anima.gesture.control import control_features, parse_control, speed_steps, step_masks
 from anima.gesture.database import from_dataset
 from anima.gesture.features import N_STEP
 from anima.gesture.knn import search
 from anima.gesture.post import finish_knn
 from anima.gesture.refine import RefinerTrainConfig, pair_draws
-from anima.gesture.run import GestureConfig
 
 NO_REPEAT_S = GestureConfig().no_repeat_s
 CONTROLS = ["left_wrist_height>=p85", "left_wrist_height<=p15", "left_wrist_speed>=p85", "left_wrist_speed<=p15"]
@@ -196,4 +197,55 @@ def evaluate(
     for src, st in starts.items():
         per[speaker_of(src)].append((src, st))
     out["minutes_per_speaker"] = {k: minutes_covered(v, window_s) for k, v in sorted(per.items())}
+    return out
+
+
+def run(cfg: GestureEval, progress: bool = False) -> dict:
+    """``anima eval gesture``."""
+    return evaluate(
+        cfg.db,
+        refiner_folds=cfg.refiner_folds,
+        refiner_steps=cfg.refiner_steps,
+        progress=progress,
+        sync_steps=cfg.sync_steps,
+        generator_steps=cfg.generator_steps,
+        speaker=cfg.speaker,
+        blend=cfg.blend,
+        refiner_ablation=cfg.refiner_ablation,
+        fgd_steps=cfg.fgd_steps,
+    )
+
+
+def summary(r: dict) -> list[str]:
+    k, ci = r["knn"], r.get("knn_ci95_over_videos", {})
+    iv = lambda n: f" [{ci[n][0]:.2f}, {ci[n][1]:.2f}]" if n in ci else ""
+    out = [
+        f"{r['windows']} full-body windows from {r['videos']} videos ({r['minutes_of_audio_motion']:.2f} min); "
+        "intervals: 95 % over test videos.",
+        "",
+        f"k-NN: L1 {k['l1_cm']:.2f} cm{iv('l1_cm')}, wrist jerk {k['jerk']:.1f}{iv('jerk')} (captured "
+        f"{k['jerk_captured']:.1f}), beat consistency {k['beat_consistency']:.3f}{iv('beat_consistency')}.",
+    ]
+    if "knn_cgan" in r:
+        m = r["knn_cgan"]["metrics"]
+        out.append(
+            f"k-NN + cGAN: L1 {m['l1_cm']:.2f} cm, jerk {m['jerk']:.1f}, "
+            f"moved {m['l1_to_knn_cm']:.2f} cm from the k-NN."
+        )
+    if "generator" in r:
+        out += [
+            "",
+            "| generator row | L1 cm | FGD | wrist motion cm | jerk | lip error mm |",
+            "|---|---|---|---|---|---|",
+        ]
+        for name, g in r["generator"]["rows"].items():
+            out.append(
+                f"| {name} | {g['l1_cm']:.2f} | {g['fgd']:.2f} | {g['wrist_motion_cm']:.2f} | {g['jerk']:.1f} | "
+                f"{g['lip_error_mm']:.2f} |"
+            )
+    out += ["", "| control | satisfied [95 % over videos] |", "|---|---|"]
+    for c, v in r["control_adherence"].items():
+        if "satisfied_fraction" in v:
+            lo, hi = v["satisfied_fraction_ci95_over_videos"]
+            out.append(f"| {c} | {100 * v['satisfied_fraction']:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] |")
     return out

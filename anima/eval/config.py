@@ -1,0 +1,127 @@
+"""The evaluations' settings (light: no torch, no MediaPipe): one dataclass per evaluation, whose fields are the
+options of ``anima eval NAME`` (:mod:`anima.cli.options`; a field's docstring is its help). The registry
+(:mod:`anima.eval.registry`) pairs each with its runner."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+HELDOUT_PROMPTS = Path(__file__).parent / "prompts" / "text2face_heldout.json"
+
+
+@dataclass
+class LandmarksEval:
+    per_image: bool = False
+    """Include per-image rows."""
+
+
+@dataclass
+class StabilityEval:
+    clips: list = field(default_factory=list, metadata={"positional": True, "metavar": "CLIP"})
+    """Videos (default: the shared talking clips)."""
+    max_frames: int = field(default=300, metadata={"range": (1, None)})
+    """Frames per clip."""
+
+
+@dataclass
+class BodyEval:
+    clips: list = field(default_factory=list, metadata={"positional": True, "metavar": "PATTERN"})
+    """Glob patterns under the data root (default: the gesture sets)."""
+    max_frames: int | None = field(default=None, metadata={"range": (1, None)})
+    """Frames per clip (default: all)."""
+
+
+@dataclass
+class AnnotationsEval:
+    pass
+
+
+@dataclass
+class PoseEval:
+    model: str | None = None
+    """Lifter checkpoint (default: $ANIMA_HOME/models/pose_lifter.pt)."""
+    ablation: str | None = field(default=None, metadata={"metavar": "DIR"})
+    """Train (resumable) and evaluate the ablation rows of seed table 3.6 into DIR."""
+    ablation_steps: int = field(default=8000, metadata={"range": (1, None)})
+    """Training steps of each ablation row."""
+    ablation_width: int = field(default=256, metadata={"range": (8, 8192)})
+    """Network width of the ablation rows (256 keeps the five trainings to minutes on 2 cores; the seed's 1024
+    is the `train pose` default)."""
+    ablation_dropout: float = field(default=0.1, metadata={"range": (0.0, 0.99)})
+    """Dropout of the ablation rows."""
+    cache: str | None = None
+    """MediaPipe detection cache (default: $ANIMA_HOME/cache/pose3d)."""
+
+
+@dataclass
+class ReenactEval:
+    out: str | None = field(default=None, metadata={"metavar": "DIR"})
+    """Folder for plots and side-by-side frames."""
+
+
+@dataclass
+class GestureEval:
+    db: str = field(default="", metadata={"required": True, "metavar": "DB"})
+    """Dataset folder from `anima dataset build`."""
+    refiner_folds: int = field(default=3, metadata={"range": (0, 100)})
+    """k-NN + cGAN rows: cross-validation folds by video (0 = skip the learned models)."""
+    refiner_steps: int | None = field(default=None, metadata={"range": (1, None)})
+    """Generator steps per fold of the refiner (default 600)."""
+    refiner_ablation: bool = False
+    """Also train the refiner with anima's earlier settings (L1 10, gradient penalty 10, k = 0..4) on the same
+    folds: knn_cgan_anima_v1 (about 9 minutes more)."""
+    speaker: str | None = None
+    """Only this speaker's windows (the seed's subject-specific protocol), e.g. oliver."""
+    generator_steps: int | None = field(default=None, metadata={"range": (1, None)})
+    """The §4.4 generator and baselines: training steps per fold (default 1000)."""
+    sync_steps: int = field(default=300, metadata={"range": (1, None)})
+    """Training steps of the sync classifier (table 4.4)."""
+    fgd_steps: int = field(default=1500, metadata={"range": (1, None)})
+    """Training steps of the FGD feature extractor."""
+    blend: bool = True
+    """k-NN rows with blended joins and the no-repeat rule (off: --no-blend, the seed's raw concatenation)."""
+
+
+@dataclass
+class Text2FaceEval:
+    dataset: str = field(default="", metadata={"positional": True})
+    """Dataset folder from `anima dataset build`."""
+    work: str = "runs/eval_text2face"
+    """Folder for the trained models (reused)."""
+    reps: int = field(default=20, metadata={"range": (1, 1000)})
+    """Sampling repetitions of every score (95 % intervals over them and over test videos)."""
+    steps: int | None = field(default=None, metadata={"range": (1, None)})
+    """Training steps of every model (default: table 7.1's learned models each get the count of --step-grid with
+    the lowest MAE on the validation videos, the ablation rows ours')."""
+    step_grid: tuple | None = field(default=None, metadata={"parse": "step_grid", "metavar": "N,N,..."})
+    """The step counts tried on the validation videos (default 250,500,1000,2000); one training per model reaches
+    the largest and keeps a snapshot at each."""
+    ablations: bool = True
+    """The ablation rows too (--no-ablations: only the model and the baselines)."""
+    seed_preset: bool = False
+    """Also train the seed-size model (13.6 M parameters)."""
+    checkpoint: str | None = None
+    """Score this checkpoint as 'ours' instead of training it."""
+    prompts: str | None = field(default=None, metadata={"const": "", "metavar": "FILE"})
+    """Instead of the tables: the prompt suite (default: the 114 prompts shipped in
+    anima/eval/prompts/text2face.json; the 40 held-out ones are text2face_heldout.json beside it) scored for the
+    timeline method, the seed model (the shipped checkpoint or --checkpoint) and retrieval with the dataset's
+    detectors: per-event recall and false alarms, order, count and side accuracy, emotion checks, distinct
+    motions (about 1 min on 2 cores)."""
+    seeds: int = field(default=3, metadata={"range": (1, 100)})
+    """With --prompts: seeds per prompt."""
+
+
+@dataclass
+class AllEval:
+    db: str = field(default="", metadata={"required": True, "metavar": "DB"})
+    """Dataset folder from `anima dataset build` (gesture, text2face)."""
+    out: str = field(default="", metadata={"required": True, "metavar": "DIR"})
+    """Result folder."""
+    work: str | None = None
+    """text2face models (reused when there; default OUT/text2face_work)."""
+    only: list = field(default_factory=list, metadata={"nargs": "+", "metavar": "NAME"})
+    """Only these evaluations (rows)."""
+    quick: bool = False
+    """Learned models with a few steps: checks that everything runs, not results."""
