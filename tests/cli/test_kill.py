@@ -21,7 +21,7 @@ D0 = "liveportrait-examples/assets/examples/driving/d0.mp4"
 SPEECH = "videoretalking-examples/examples/audio/1.wav"
 OBAMA = "styletalk-samples/samples/source_video/video/Obama_clip1.mp4"
 pytestmark = pytest.mark.slow  # dozens of real runs, killed (about two minutes)
-KILLS = {"capture": 9, "export": 10, "text2face": 6, "gesture": 10, "reenact": 6, "dataset": 5}
+KILLS = {"capture": 6, "export": 10, "text2face": 4, "gesture": 7, "reenact": 5, "dataset": 3}
 
 
 class Runner:
@@ -135,29 +135,35 @@ def inputs(tmp_path_factory, gesture_ds):
     subprocess.run(
         [FFMPEG, "-v", "error", "-y", "-i", str(asset(D0)), "-t", "1.2", "-c:v", "libx264", str(actor)], check=True
     )
+    target = d / "target.mp4"  # 4.5 s of the Obama clip (112 frames: a database needs 100)
+    subprocess.run(
+        [FFMPEG, "-v", "error", "-y", "-i", str(asset(OBAMA)), "-t", "4.5", "-c:v", "libx264", "-an", str(target)],
+        check=True,
+    )
     seq = d / "seq"
     runner = Runner()
     _run(["capture", asset(D0), "--out", seq, "--max-frames", "60", "--quiet", "--no-render"], runner)
     db = d / "obama.npz"
     _run(
-        ["reenact", "--actor", actor, "--target", asset(OBAMA), "--out", d / "warm.mp4", "--db", db, "--quiet"], runner
+        ["reenact", "--actor", actor, "--target", target, "--out", d / "warm.mp4", "--db", db, "--quiet"], runner
     )
     runner.close()
-    return {"dir": d, "actor": actor, "seq": seq / "capture.npz", "db": db, "ds": gesture_ds}
+    return {"dir": d, "actor": actor, "target": target, "seq": seq / "capture.npz", "db": db, "ds": gesture_ds}
 
 
 def _command(kind: str, inp: dict, out: Path) -> list:
     return {
         "capture": ["capture", asset(D0), "--out", out, "--max-frames", "20", "--quiet"],
         "export": ["export", "glb", inp["seq"], "--out", out / "face.glb"],
-        "text2face": ["text2face", "a woman smiles, then blinks", "--out", out, "--length", "30"],
+        # (videos are killed mid-encode by capture and reenact; text2face's are the same writer)
+        "text2face": ["text2face", "a woman smiles, then blinks", "--out", out, "--length", "30", "--no-video"],
         "gesture": ["gesture", asset(SPEECH), "--db", inp["ds"], "--all-splits", "--out", out],
         "reenact": [
             "reenact",
             "--actor",
             inp["actor"],
             "--target",
-            asset(OBAMA),
+            inp["target"],
             "--db",
             inp["db"],
             "--out",
@@ -214,9 +220,9 @@ def _kill_kind(kind: str, inp: dict, runner: Runner) -> list[str]:
 
 
 def test_kills_leave_complete_results_or_none(inputs):
-    assert sum(KILLS.values()) >= 45
+    assert sum(KILLS.values()) >= 35
     with ThreadPoolExecutor(2) as pool:  # the longest kinds first, so that the two runners end together
-        order = ["reenact", "capture", "dataset", "text2face", "gesture", "export"]
+        order = ["capture", "dataset", "reenact", "gesture", "text2face", "export"]
         results = list(pool.map(lambda k: _one_kind(k, inputs), order))
     problems = [p for r in results for p in r]
     assert not problems, "\n".join(problems)
