@@ -144,9 +144,7 @@ def inputs(tmp_path_factory, gesture_ds):
     runner = Runner()
     _run(["capture", asset(D0), "--out", seq, "--max-frames", "60", "--quiet", "--no-render"], runner)
     db = d / "obama.npz"
-    _run(
-        ["reenact", "--actor", actor, "--target", target, "--out", d / "warm.mp4", "--db", db, "--quiet"], runner
-    )
+    _run(["reenact", "--actor", actor, "--target", target, "--out", d / "warm.mp4", "--db", db, "--quiet"], runner)
     runner.close()
     return {"dir": d, "actor": actor, "target": target, "seq": seq / "capture.npz", "db": db, "ds": gesture_ds}
 
