@@ -54,10 +54,12 @@ def register(sub) -> None:
 
     x = sub.add_parser(
         "export",
-        help="export a tracked sequence (ARKit CSV, face GLB, character GLB or BVH)",
+        help="export a tracked sequence (ARKit CSV, face GLB, character GLB/VRM, BVH or VRM Animation)",
         description="Export FILE (capture.npz, motion.npz or gesture.npz) as a Live Link Face "
         "CSV (arkit), the face with morph targets (glb), the animated character (avatar: body and face, "
-        "one timeline) or a BVH of the character's skeleton (bvh: metres, T-pose rest, docs/rig.md).",
+        "one timeline; --out x.vrm writes it as a VRM 1.0 with its humanoid map and expression presets), "
+        "a BVH of the character's skeleton (bvh: metres, T-pose rest, docs/rig.md) or a VRM Animation "
+        "(vrma: plays on any VRM in three-vrm, UniVRM, VRoid apps; the face as VRM expression presets).",
     )
     x.add_argument("format", choices=FORMATS)
     x.add_argument("file")

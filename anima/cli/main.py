@@ -23,6 +23,7 @@ COMMANDS = {
     "capture": "capture",
     "info": "capture",
     "export": "capture",
+    "retarget": "avatar",
     "audio": "audio",
     "dataset": "dataset",
     "train": "train",

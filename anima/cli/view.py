@@ -32,13 +32,27 @@ def register(sub) -> None:
         default=None,
         help="write the page as files into OUT (open OUT/index.html from disk) instead of serving it",
     )
+    p.add_argument(
+        "--avatar",
+        default=None,
+        help="play the result on your own avatar: a VRM 1.0 (.vrm: loaded with three-vrm, the motion as a VRM "
+        "Animation) or a skinned .glb (the motion retargeted as `anima retarget` does)",
+    )
+    p.add_argument(
+        "--motion",
+        choices=("auto", "vrma", "retarget"),
+        default="auto",
+        help="how the result reaches a VRM --avatar: vrma (three-vrm plays a VRM Animation, relative to the "
+        "VRM's rest: right for the T-pose VRM 1.0 asks for), retarget (anima measures the avatar's rest: any "
+        "pose), auto (vrma for a T-pose VRM, else retarget)",
+    )
     p.set_defaults(func=cmd_view)
 
 
 def cmd_view(a) -> int:
     if a.static:
-        r = write_static(a.folder, a.static, command=command_line(a))
+        r = write_static(a.folder, a.static, command=command_line(a), avatar=a.avatar, motion=a.motion)
         notes(r["notes"])
         print(f"anima view: {r['kind']} page written: open {r['page']}")
         return 0
-    return serve(a.folder, a.port, browser=not a.no_browser)
+    return serve(a.folder, a.port, browser=not a.no_browser, avatar=a.avatar, motion=a.motion)

@@ -38,6 +38,7 @@ BLEND_S = 0.3
 # a hand that turns more than FLIP_DEG in one frame and back within FLIP_RUN_S is a tracker flip (the palm
 # seen edge-on, its depth mistaken): those frames count as unseen (held, then blended back)
 FLIP_DEG, FLIP_RUN_S = 60.0, 0.5
+FINGER_FLIP_DEG = 35.0
 SWAY_M, SWAY_PERIOD_S = 0.015, 7.0
 _T = {n: i for i, n in enumerate(JOINT_NAMES)}
 _SEG = {"Thumb": ("cmc", "mcp", "ip", "tip"), **{f: ("mcp", "pip", "dip", "tip") for f in FINGERS[1:]}}
@@ -101,9 +102,10 @@ def _tracked(body: np.ndarray, name: str) -> np.ndarray:
 
 
 def _flipped_runs(G: np.ndarray, fps: float, max_deg: float = FLIP_DEG, max_run_s: float = FLIP_RUN_S) -> np.ndarray:
-    """Frames ``[F]`` of rotation track ``G [F, 3, 3]`` (NaN where unseen) inside a short run that starts with a
-    step of more than ``max_deg`` from the previous frame and ends with such a step back (or at an unseen
-    frame) within ``max_run_s``: a tracker's flip, not a motion."""
+    """Frames ``[F]`` of rotation track ``G [F, 3, 3]`` (NaN where unseen) after a step of more than ``max_deg``
+    from the previous frame: up to the step back (or an unseen frame) when one comes within ``max_run_s`` (a
+    tracker's flip), else the ``max_run_s`` after it (a one-way snap, faster than a person turns: the caller
+    holds those frames and blends into the new rotation instead of snapping)."""
     F = len(G)
     seen = np.isfinite(G).all((-1, -2))
     step = np.zeros(F)
@@ -113,12 +115,19 @@ def _flipped_runs(G: np.ndarray, fps: float, max_deg: float = FLIP_DEG, max_run_
     jump = step > max_deg
     out = np.zeros(F, bool)
     n = max(1, int(round(max_run_s * fps)))
+    back = np.zeros(F, bool)  # steps that end a flip: the return, not a new snap
     for a in np.flatnonzero(jump):
+        if back[a]:
+            continue
         b = a + 1
         while b < F and seen[b] and not jump[b] and b - a <= n:
             b += 1
         if b - a <= n and (b == F or not seen[b] or jump[b]):
             out[a:b] = True
+            if b < F:
+                back[b] = True
+        else:
+            out[a : min(F, a + n)] = True
     return out
 
 
@@ -173,6 +182,9 @@ def _globals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None, fp
             for k in range(1, 4):
                 a, b = t(f"{s}_hand_{f.lower()}_{seg[k - 1]}"), t(f"{s}_hand_{f.lower()}_{seg[k]}")
                 g = _aim(parent, r(f"{S}Hand{f}{k + 1}") - r(f"{S}Hand{f}{k}"), b - a)
+                # a finger bone that turns more than FINGER_FLIP_DEG in one frame is the tracker's (fingers
+                # crossing, seen edge-on): held and blended like the hand's flips
+                g[_flipped_runs(g, fps, FINGER_FLIP_DEG)] = np.nan
                 G[:, IX[f"{S}Hand{f}{k}"]] = g
                 parent = g
     return G
@@ -207,12 +219,14 @@ def hold_and_blend(L: np.ndarray, fps: float, blend_s: float = BLEND_S) -> tuple
             while g < F and not s[g]:
                 g += 1
             out[f:g, j] = held
-            if g < F:  # back: blend in over n_blend frames
-                k = np.arange(min(n_blend, F - g))
-                out[g : g + len(k), j] = slerp_rot(
-                    np.broadcast_to(held, (len(k), 3, 3)), L[g : g + len(k), j], (k + 1) / (n_blend + 1)
-                )
-            f = g + n_blend if g < F else g
+            if g < F:  # back: blend in over n_blend frames (or until it is lost again)
+                e = g
+                while e < F and e - g < n_blend and s[e]:
+                    e += 1
+                k = np.arange(e - g)
+                out[g:e, j] = slerp_rot(np.broadcast_to(held, (len(k), 3, 3)), L[g:e, j], (k + 1) / (n_blend + 1))
+                g = e
+            f = g
             if f < F:
                 held = out[f - 1, j]
     return out, seen

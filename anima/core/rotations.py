@@ -116,3 +116,18 @@ def matrix_to_euler(R: np.ndarray) -> np.ndarray:
     yaw = np.arctan2(R[..., 0, 2], R[..., 2, 2])
     roll = np.arctan2(R[..., 1, 0], R[..., 1, 1])
     return np.stack([yaw, pitch, roll], -1)
+
+
+def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """Quaternions ``(x, y, z, w) [..., 4]`` (normalised here) -> rotation matrices ``[..., 3, 3]``."""
+    q = np.asarray(q, np.float64)
+    q = q / np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), 1e-12)
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
+    )

@@ -29,6 +29,7 @@ from anima.core import rig
 from anima.core.contract import EXPR_NAMES, JOINT_NAMES, LEG_JOINTS
 from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
 from anima.errors import InputError
+from anima.export.vrm import character_vrm
 from anima.facemodel.character import fit_shape, load_character, skin, tracked_measures
 from anima.io.atomic import atomic_path
 from anima.io.gltf import write_character_glb
@@ -138,8 +139,16 @@ def write_avatar(seq: TrackedSequence, path: str | Path, speech: str | None = No
         extras,
         scene_extras,
         animated=~rig.LEAVES,
+        doc_extensions=_vrm_extension(path),
     )
     return {"kind": "character", "joints": rig.N_RIG, "preset": preset, "unit": UNIT, **extras["anima"], **m["report"]}
+
+
+def _vrm_extension(path: str | Path) -> dict | None:
+    """``VRMC_vrm`` (humanoid map, expression presets) when ``path`` is a ``.vrm``; else None."""
+    if Path(path).suffix.lower() != ".vrm":
+        return None
+    return {"VRMC_vrm": character_vrm(rig.N_RIG, {n: j for j, n in enumerate(rig.NAMES)})}
 
 
 def _expression_weights(seq: TrackedSequence) -> np.ndarray:

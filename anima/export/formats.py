@@ -10,15 +10,16 @@ from anima.core import rig
 from anima.core.rotations import matrix_to_euler, matrix_to_quat
 from anima.errors import InputError
 from anima.export.avatar import character_motion, write_avatar
+from anima.export.vrm import arkit_weights, vrm_expressions
 from anima.facemodel.ict import load_face_model
 from anima.io.arkit import write_live_link_csv
 from anima.io.bvh import write_bvh
-from anima.io.gltf import write_glb
+from anima.io.gltf import write_glb, write_vrma
 from anima.io.outdir import check_out_file
 from anima.io.sequence import TrackedSequence, read_sequence
 from anima.io.validate import MAX_FRAMES
 
-FORMATS = ("arkit", "glb", "avatar", "bvh")
+FORMATS = ("arkit", "glb", "avatar", "bvh", "vrma")
 
 
 def export_arkit_csv(seq: TrackedSequence, path: str | Path) -> Path:
@@ -71,6 +72,21 @@ def export_bvh(seq: TrackedSequence, path: str | Path, fps: float | None = None,
     return write_bvh(path, rig.preset_names(preset), rig.PARENTS_RIG, rig.rest_offsets(m["rest"]), root, local, rate)
 
 
+def export_vrma(seq: TrackedSequence, path: str | Path) -> Path:
+    """VRM Animation (``.vrma``): the body on the character's rig (idle where the sequence has none; VRM bone
+    names, T-pose rest) and the face as VRM expression presets (``anima.export.vrm.VRM_PRESETS``)."""
+    m = character_motion(seq)
+    vrm = rig.CONVENTIONS["vrm"]
+    humanoid = {vrm[n]: j for j, n in enumerate(rig.NAMES) if vrm[n]}
+    expr = vrm_expressions(arkit_weights(seq.expression, seq.expr_names) * seq.tracked[:, None])
+    extras = {"anima": {"fps": seq.fps, "frames": seq.n_frames, "unit": "metre", "body": m["report"]["body"],
+                        "expressions": "anima.export.vrm.VRM_PRESETS"}}  # fmt: skip
+    return write_vrma(
+        path, rig.preset_names("vrm"), rig.PARENTS_RIG, m["rest"], m["root"], matrix_to_quat(m["local"]), seq.fps,
+        humanoid, expr, extras,
+    )  # fmt: skip
+
+
 def resample_motion(root: np.ndarray, local: np.ndarray, fps: float, new_fps: float) -> tuple[np.ndarray, np.ndarray]:
     """Root positions ``[F, 3]`` (linear) and local rotations ``[F, J, 3, 3]`` (shortest arc) at ``new_fps``."""
     F = len(root)
@@ -97,6 +113,8 @@ def export_file(
     if fmt == "avatar":
         write_avatar(seq, out, preset=preset)
         return Path(out)
+    if fmt == "vrma":
+        return export_vrma(seq, out)
     if not seq.tracked.any():
         raise InputError(f"no frame of {sequence_path} has a face: no {fmt} export can be made from it")
     if fmt == "arkit":

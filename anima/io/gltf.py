@@ -5,6 +5,7 @@ convention (+Y up, +Z towards the viewer: the character's forward)."""
 
 from __future__ import annotations
 
+import copy
 import json
 import struct
 from pathlib import Path
@@ -12,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from anima.core.contract import TEXT_FPS
+from anima.core.rotations import matrix_to_quat
 from anima.io.atomic import write_bytes
 
 CM_TO_M = 0.01
@@ -124,6 +126,8 @@ def write_character_glb(
     extras: dict | None = None,
     scene_extras: dict | None = None,
     animated: np.ndarray | None = None,
+    rest_rotations: np.ndarray | None = None,
+    doc_extensions: dict | None = None,
 ) -> Path:
     """A skinned character and its motion in one animated glTF 2.0 binary (one timeline):
 
@@ -136,23 +140,34 @@ def write_character_glb(
     * one animation: the root's translation ``[F, 3]``, the local rotations ``[F, J, 4]`` (x, y, z, w) of the
       joints in ``animated`` (default: every joint), and the morph ``weights [F, E]``, LINEAR, at ``fps``;
     * ``scene_extras``: the scene's ``extras`` (Blender's importer keeps them as the scene's custom
-      properties: anima puts the frame rate, the frame range and the unit there).
+      properties: anima puts the frame rate, the frame range and the unit there);
+    * ``rest_rotations [J, 3, 3]``: the joints' rest *world* rotations (default identity: anima's own rig); a
+      rig with other rest axes (an A-pose, rolled bones) gets them as its nodes' rest rotations and inverse
+      bind matrices, and ``local_quats_xyzw`` are then the nodes' local rotations as glTF has them;
+    * ``doc_extensions``: top-level glTF extensions (e.g. ``VRMC_vrm``; listed in ``extensionsUsed``).
     """
     J = len(joint_names)
     F = len(root_positions_m)
     parents = np.asarray(parents)
     rest = np.asarray(rest_joints_m, np.float64)
     buf = _Buffer()
+    Rw = np.tile(np.eye(3), (J, 1, 1)) if rest_rotations is None else np.asarray(rest_rotations, np.float64)
     nodes = []
     for j in range(J):
-        off = rest[j] - (rest[parents[j]] if parents[j] >= 0 else 0.0)
+        p = parents[j]
+        Rp = Rw[p] if p >= 0 else np.eye(3)
+        off = Rp.T @ (rest[j] - (rest[p] if p >= 0 else 0.0))
         nodes.append({"name": joint_names[j], "translation": [float(x) for x in off]})
+        if rest_rotations is not None:
+            nodes[j]["rotation"] = [float(x) for x in matrix_to_quat(Rp.T @ Rw[j])]
     for j in range(J):
         kids = [int(c) for c in np.flatnonzero(parents == j)]
         if kids:
             nodes[j]["children"] = kids
-    ibm = np.tile(np.eye(4, dtype=np.float32), (J, 1, 1))
-    ibm[:, :3, 3] = -rest
+    ibm = np.tile(np.eye(4), (J, 1, 1))
+    ibm[:, :3, :3] = np.swapaxes(Rw, -1, -2)
+    ibm[:, :3, 3] = -np.einsum("jab,jb->ja", np.swapaxes(Rw, -1, -2), rest)
+    ibm = ibm.astype(np.float32)
     ibm_acc = buf.add(ibm.transpose(0, 2, 1).reshape(J, 16), FLOAT, "MAT4")  # column-major
     V = len(vertices_m)
     pos = buf.add(np.asarray(vertices_m, np.float32), FLOAT, "VEC3", ARRAY_BUFFER, minmax=True)
@@ -252,6 +267,132 @@ def write_character_glb(
         ],
         "animations": [{"name": "motion", "samplers": samplers, "channels": channels}],
     }
+    if doc_extensions:
+        gltf["extensions"] = doc_extensions
+        gltf["extensionsUsed"] = sorted(doc_extensions)
+    return _pack(path, gltf, buf)
+
+
+def write_vrma(
+    path: str | Path,
+    bone_names: list[str],
+    parents: np.ndarray,
+    rest_joints_m: np.ndarray,
+    root_positions_m: np.ndarray,
+    local_quats_xyzw: np.ndarray,
+    fps: float,
+    humanoid: dict[str, int],
+    expressions: dict[str, np.ndarray],
+    extras: dict | None = None,
+) -> Path:
+    """A VRM Animation (``.vrma``: glTF 2.0 binary with ``VRMC_vrm_animation`` 1.0): the skeleton's nodes at
+    their rest (world rotations identity, i.e. the T-pose rest, offsets ``rest_joints_m`` child minus parent),
+    one animation of the root's translation ``[F, 3]``, every joint's local rotation ``[F, J, 4]`` and one node
+    per expression whose translation's x is the weight (as the extension defines); ``humanoid``: VRM bone name
+    -> joint index; ``expressions``: VRM preset name -> weights ``[F]``."""
+    J = len(bone_names)
+    parents = np.asarray(parents)
+    rest = np.asarray(rest_joints_m, np.float64)
+    buf = _Buffer()
+    nodes = []
+    for j in range(J):
+        off = rest[j] - (rest[parents[j]] if parents[j] >= 0 else 0.0)
+        nodes.append({"name": bone_names[j], "translation": [float(x) for x in off]})
+    for j in range(J):
+        kids = [int(c) for c in np.flatnonzero(parents == j)]
+        if kids:
+            nodes[j]["children"] = kids
+    root = int(np.flatnonzero(parents < 0)[0])
+    F = len(root_positions_m)
+    times = (np.arange(F, dtype=np.float32) / np.float32(fps)).astype(np.float32)
+    t_acc = buf.add(times, FLOAT, "SCALAR", minmax=True)
+    samplers, channels = [], []
+
+    def track(node: int, what: str, values: np.ndarray, typ: str) -> None:
+        samplers.append({"input": t_acc, "output": buf.add(values.astype(np.float32), FLOAT, typ),
+                         "interpolation": "LINEAR"})  # fmt: skip
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": int(node), "path": what}})
+
+    track(root, "translation", np.asarray(root_positions_m), "VEC3")
+    q = np.asarray(local_quats_xyzw, np.float64)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    for j in humanoid.values():
+        track(j, "rotation", q[:, j], "VEC4")
+    preset = {}
+    for name, w in expressions.items():
+        nodes.append({"name": f"expression_{name}", "translation": [0.0, 0.0, 0.0]})
+        k = len(nodes) - 1
+        preset[name] = {"node": k}
+        v = np.zeros((F, 3))
+        v[:, 0] = np.clip(np.asarray(w, np.float64), 0.0, 1.0)
+        track(k, "translation", v, "VEC3")
+    ext = {
+        "specVersion": "1.0",
+        "humanoid": {"humanBones": {b: {"node": int(j)} for b, j in humanoid.items()}},
+        "expressions": {"preset": preset},
+    }
+    gltf = {
+        "asset": {"version": "2.0", "generator": "anima", **({"extras": extras} if extras else {})},
+        "scene": 0,
+        "scenes": [{"name": "vrma", "nodes": [root] + [preset[n]["node"] for n in preset]}],
+        "nodes": nodes,
+        "animations": [{"name": "anima", "samplers": samplers, "channels": channels}],
+        "extensions": {"VRMC_vrm_animation": ext},
+        "extensionsUsed": ["VRMC_vrm_animation"],
+    }
+    return _pack(path, gltf, buf)
+
+
+def write_with_animation(
+    path: str | Path,
+    doc: dict,
+    binary: bytes,
+    fps: float,
+    tracks: list[tuple[int, str, np.ndarray]],
+    name: str = "anima",
+    extras: dict | None = None,
+    scene_extras: dict | None = None,
+) -> Path:
+    """A copy of a user's glTF (``doc`` and its embedded ``binary``, as :func:`anima.io.gltf_read.read_gltf` gives
+    them) with one more animation, first in the list: ``tracks`` of (node, ``"translation" | "rotation" |
+    "weights"``, values ``[F, n]``; rotations ``(x, y, z, w)``), sampled at ``fps``. Everything else of the file
+    (meshes, materials, textures, extensions) is kept byte for byte; the new data is appended to the buffer. An
+    animated node given by a ``matrix`` gets the same transform as translation, rotation and scale (glTF does
+    not animate matrix nodes)."""
+    gltf = copy.deepcopy(doc)
+    buf = _Buffer()
+    buf.data = bytearray(binary)
+    buf.views = gltf.get("bufferViews", [])
+    buf.accessors = gltf.get("accessors", [])
+    F = len(tracks[0][2]) if tracks else 0
+    times = (np.arange(F, dtype=np.float32) / np.float32(fps)).astype(np.float32)
+    t_acc = buf.add(times, FLOAT, "SCALAR", minmax=True)
+    typ = {"translation": "VEC3", "rotation": "VEC4", "scale": "VEC3", "weights": "SCALAR"}
+    samplers, channels = [], []
+    for node, what, values in tracks:
+        nd = gltf["nodes"][node]
+        if "matrix" in nd:
+            M = np.asarray(nd.pop("matrix"), np.float64).reshape(4, 4).T
+            sc = np.linalg.norm(M[:3, :3], axis=0)
+            nd.update(
+                translation=[float(x) for x in M[:3, 3]],
+                rotation=[float(x) for x in matrix_to_quat(M[:3, :3] / sc)],
+                scale=[float(x) for x in sc],
+            )
+        v = np.asarray(values, np.float32)
+        v = v.ravel() if what == "weights" else v
+        samplers.append({"input": t_acc, "output": buf.add(v, FLOAT, typ[what]), "interpolation": "LINEAR"})
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": int(node), "path": what}})
+    gltf["animations"] = [{"name": name, "samplers": samplers, "channels": channels}] + gltf.get("animations", [])
+    if extras:
+        gltf.setdefault("asset", {}).setdefault("extras", {}).update(extras)
+    if scene_extras:
+        scene = gltf.get("scene", 0)
+        if gltf.get("scenes"):
+            gltf["scenes"][scene].setdefault("extras", {}).update(scene_extras)
+    gltf.pop("buffers", None)
+    gltf.pop("bufferViews", None)
+    gltf.pop("accessors", None)
     return _pack(path, gltf, buf)
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.core.rotations import matrix_to_quat, quat_to_matrix
 from anima.errors import InputError, SchemaError
 from anima.io.validate import input_file, parse_json
 
@@ -89,13 +90,56 @@ class Gltf:
         M[:3, 3] = nd.get("translation", [0, 0, 0])
         return M
 
-    def world(self) -> np.ndarray:
-        """Every node's rest world transform ``[N, 4, 4]`` (parents first)."""
+    def world(self, overrides: dict | None = None) -> np.ndarray:
+        """Every node's world transform ``[N, 4, 4]`` (parents first): the rest pose, or with ``overrides``
+        ``{node: {"translation" | "rotation" | "scale": value}}`` replacing parts of nodes' local transforms."""
         W = np.tile(np.eye(4), (len(self.nodes), 1, 1))
         for i in _order(self.parents):
             p = self.parents[i]
-            W[i] = (W[p] if p >= 0 else np.eye(4)) @ self.local(i)
+            L = self.local(i) if not overrides or i not in overrides else self._local_with(i, overrides[i])
+            W[i] = (W[p] if p >= 0 else np.eye(4)) @ L
         return W
+
+    def _local_with(self, i: int, parts: dict) -> np.ndarray:
+        nd = dict(self.nodes[i])
+        if "matrix" in nd:  # as the writer splits it
+            M = np.asarray(nd.pop("matrix"), np.float64).reshape(4, 4).T
+            sc = np.linalg.norm(M[:3, :3], axis=0)
+            nd.update(translation=M[:3, 3], rotation=matrix_to_quat(M[:3, :3] / sc), scale=sc)
+        M = np.eye(4)
+        M[:3, :3] = quat_to_matrix(np.asarray(parts.get("rotation", nd.get("rotation", [0, 0, 0, 1])), np.float64))
+        M[:3, :3] *= np.asarray(parts.get("scale", nd.get("scale", [1, 1, 1])), np.float64)[None]
+        M[:3, 3] = parts.get("translation", nd.get("translation", [0, 0, 0]))
+        return M
+
+    def animation(self, index: int = 0) -> dict:
+        """Animation ``index`` as ``{(node, path): (times [F], values [F, n])}`` (weights: ``[F, targets]``)."""
+        anims = self.doc.get("animations") or []
+        if not 0 <= index < len(anims):
+            raise InputError(f"{self.path} has no animation {index}")
+        a, out = anims[index], {}
+        for ch in a.get("channels", []):
+            smp = a["samplers"][ch["sampler"]]
+            t = self.accessor(smp["input"])[:, 0]
+            v = self.accessor(smp["output"])
+            if ch["target"]["path"] == "weights":
+                v = v.reshape(len(t), -1)
+            out[(int(ch["target"]["node"]), ch["target"]["path"])] = (t, v)
+        return out
+
+    def posed_worlds(self, index: int = 0) -> np.ndarray:
+        """World transforms ``[F, N, 4, 4]`` of every node at each sample of animation ``index`` (its channels
+        sampled on the same times, as anima writes them)."""
+        tracks = self.animation(index)
+        F = max(len(t) for t, _ in tracks.values())
+        out = np.zeros((F, len(self.nodes), 4, 4))
+        for f in range(F):
+            ov: dict = {}
+            for (node, path), (_, v) in tracks.items():
+                if path != "weights":
+                    ov.setdefault(node, {})[path] = v[min(f, len(v) - 1)]
+            out[f] = self.world(ov)
+        return out
 
 
 def _order(parents: np.ndarray) -> list[int]:

@@ -31,12 +31,15 @@ from anima.core.skeleton import JOINT_NAMES, LEFT_HAND, RIGHT_HAND
 from anima.dataset.storage import check_dataset
 from anima.dataset.windows import read_clips
 from anima.errors import AssetNotFound, InputError, SchemaError
-from anima.export.formats import export_glb
+from anima.export.formats import export_glb, export_vrma
 from anima.export.framing import generated_sequence
+from anima.export.retarget import find_humanoid, in_t_pose
+from anima.export.retarget import run as retarget
 from anima.io.atomic import copy_file, write_text
+from anima.io.gltf_read import read_gltf
 from anima.io.outdir import MANIFEST, confined, read_manifest
 from anima.io.sequence import FLAG_LOW_CONFIDENCE, FLAG_NO_FACE, read_sequence
-from anima.io.validate import read_json
+from anima.io.validate import input_file, read_json
 from anima.io.video import probe_video
 
 SCHEMA = "anima.view"
@@ -361,9 +364,57 @@ def _reenact_view(path: Path, out: Path, notes: list, wrote: list) -> dict:
     }
 
 
-def build_view(folder: str | Path, out: str | Path) -> dict:
+def check_avatar(avatar: str | Path | None, kind: str, motion: str = "auto") -> None:
+    """Refuse, before any work, an ``--avatar`` that is not a .vrm/.glb file or a result it cannot play on
+    (a dataset, a re-enactment)."""
+    if avatar is None:
+        if motion != "auto":
+            raise InputError("--motion says how the result reaches --avatar: give --avatar")
+        return
+    if motion not in MOTIONS:
+        raise InputError(f"--motion {motion}: one of {', '.join(MOTIONS)}")
+    p = input_file(avatar, "avatar")
+    if p.suffix.lower() not in (".vrm", ".glb"):
+        raise InputError(f"--avatar {p}: expected a .vrm (VRM 1.0) or a .glb (skinned glTF binary)")
+    if kind not in SEQUENCES:
+        raise InputError(f"--avatar plays a capture, gesture or text2face result on the avatar; {kind} has no motion")
+
+
+MOTIONS = ("auto", "vrma", "retarget")
+
+
+def _avatar_view(folder: Path, kind: str, avatar: Path, out: Path, notes: list, wrote: list, how: str) -> dict:
+    """The user's avatar on the page. ``how``: "vrma" sends a VRM as it is with the result as a VRM Animation
+    (``ANIMA_VRMA``: three-vrm plays it, relative to the VRM's rest, which VRM 1.0 requires to be a T-pose);
+    "retarget" sends the avatar with the motion retargeted onto its own rest (``anima.export.retarget``: any
+    rest pose); "auto": vrma for a VRM in a T-pose, else retarget."""
+    seq_path = folder / SEQUENCES[kind]
+    g = read_gltf(avatar)
+    if how == "vrma" and g.vrm is None:
+        raise InputError(f"--motion vrma plays on a VRM; {avatar} is a plain glTF (use --motion retarget)")
+    if how == "auto":
+        how = "vrma" if g.vrm is not None and in_t_pose(g, find_humanoid(g)) else "retarget"
+    with tempfile.TemporaryDirectory(prefix="anima-view-") as tmp:
+        if how == "vrma":
+            vrma = Path(export_vrma(read_sequence(seq_path, landmarks=False), Path(tmp) / "take.vrma")).read_bytes()
+            glb_bytes = avatar.read_bytes()
+            info = {"avatar": avatar.name, "as": "VRM with a VRM Animation (three-vrm)", "vrm": True}
+        else:
+            out_file = Path(tmp) / ("avatar.vrm" if g.vrm is not None else "avatar.glb")
+            r = retarget(seq_path, avatar, out_file)
+            glb_bytes, vrma = out_file.read_bytes(), None
+            how = f"retargeted onto its rest ({r['convention']})"
+            info = {"avatar": avatar.name, "as": how, "vrm": g.vrm is not None}
+            notes.append(f"face on {avatar.name}: {r['face']['via']}, {len(r['face']['found_a_home'])} channels")
+    wrote.append(write_text(out / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(glb_bytes).decode())
+                            + _js("ANIMA_VRMA", base64.b64encode(vrma).decode() if vrma else None)))  # fmt: skip
+    return info
+
+
+def build_view(folder: str | Path, out: str | Path, avatar: str | Path | None = None, motion: str = "auto") -> dict:
     """Write the page for the result in ``folder`` into ``out`` (created); returns the page's data, with
-    ``written``: the names of the files written into ``out`` (nothing else there is touched)."""
+    ``written``: the names of the files written into ``out`` (nothing else there is touched). ``avatar``: a
+    user's .vrm / .glb the result plays on instead of anima's character (``motion``: see :func:`_avatar_view`)."""
     folder, out = Path(folder), Path(out)
     kind = detect(folder)
     files = viewer_files()
@@ -377,6 +428,9 @@ def build_view(folder: str | Path, out: str | Path) -> dict:
         wrote.append(write_text(out / "avatar-glb.js", _js("ANIMA_GLB", None)))
     else:
         data = _sequence_view(folder, kind, out, notes, wrote)
+        if avatar is not None:
+            data["avatar"] = _avatar_view(folder, kind, Path(avatar), out, notes, wrote, motion)
+            wrote = list(dict.fromkeys(wrote))
     data.update(schema=SCHEMA, version=VERSION, anima_version=__version__, notes=notes, source=str(folder))
     wrote.append(write_text(out / "view-data.js", _js("ANIMA_VIEW", data)))
     for f in files:

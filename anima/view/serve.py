@@ -33,7 +33,7 @@ from urllib.parse import unquote, urlsplit
 
 from anima.errors import InputError
 from anima.io.outdir import OutputFolder, check_out_dir
-from anima.view.export import build_view, detect
+from anima.view.export import build_view, check_avatar, detect
 
 HOST = "127.0.0.1"
 IDLE_TIMEOUT_S = 20
@@ -183,28 +183,39 @@ def page_url(server) -> str:
     return f"http://{HOST}:{server.server_address[1]}/{server.token}/index.html"
 
 
-def write_static(folder: str | Path, out: str | Path, command: str | None = None) -> dict:
+def write_static(
+    folder: str | Path, out: str | Path, command: str | None = None, avatar: str | None = None, motion: str = "auto"
+) -> dict:
     """``anima view DIR --static OUT``: the page as files (open ``OUT/index.html`` from disk). ``OUT`` follows
     the result-folder rule (new, empty, or anima's own); only the page's own files are written and listed."""
     kind = detect(Path(folder))  # refuse a folder that holds no result before touching OUT
+    check_avatar(avatar, kind, motion)
     check_out_dir(out, "--static")
     with OutputFolder(out, kind="view", command=command) as od:
-        data = build_view(folder, od.path)
+        data = build_view(folder, od.path, avatar, motion)
         for name in data["written"]:
             od.file(name)
         od.info = {"kind": kind, "source": str(folder)}
     return {"kind": kind, "page": str(Path(out) / "index.html"), "notes": data["notes"]}
 
 
-def serve(folder: str | Path, port: int | None = None, browser: bool = True, announce=print) -> int:
+def serve(
+    folder: str | Path,
+    port: int | None = None,
+    browser: bool = True,
+    announce=print,
+    avatar: str | None = None,
+    motion: str = "auto",
+) -> int:
     """``anima view DIR``: build the page into a temporary folder and serve it until Ctrl-C / SIGTERM."""
     kind = detect(Path(folder))
+    check_avatar(avatar, kind, motion)
     if port is not None and not 1 <= port <= 65535:
         raise InputError(f"--port {port}: expected 1 to 65535")
     root = Path(tempfile.mkdtemp(prefix="anima-view-"))
     server = None
     try:
-        data = build_view(folder, root)
+        data = build_view(folder, root, avatar, motion)
         server, note = open_server(root, port)
         url = page_url(server)
         for n in ([note] if note else []) + data["notes"]:

@@ -18,6 +18,7 @@ from anima.io.assets import asset
 REPO = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.slow  # hundreds of command runs (about three minutes)
 D0 = "liveportrait-examples/assets/examples/driving/d0.mp4"
+AVATAR = "avatars/VRMC_materials_mtoon_UV_Animation_Test.vrm"
 SPEECH = "videoretalking-examples/examples/audio/1.wav"
 PATS = "gesture-video/pats-crops/oliver1_gt.mp4"
 
@@ -80,6 +81,14 @@ def _files(d: Path) -> dict:
     run("-i", str(asset(SPEECH)), "-t", "0.3", str(f.setdefault("short_wav", d / "short.wav")))
     f["novideo_audio"] = asset(D0)  # a video without an audio track
     return f
+
+
+def npz_glb(d: Path, seq: Path) -> Path:
+    """A plain glTF (the face of ``seq`` exported as .glb: morph targets, no skin, no VRM)."""
+    from anima.export.formats import export_file
+
+    out = d / "face_only.glb"
+    return out if out.exists() else export_file("glb", seq, out)
 
 
 def _put(store: dict, key, path: Path) -> Path:
@@ -383,8 +392,14 @@ def _red_team(d: Path, files: dict, npz: dict, base: Path, ck: dict, ds: dict) -
         )
     add("own eval text2face --work user folder", "eval", "text2face", ds["corrupt_shard"], "--work", user)
     add("own eval pose --ablation user folder", "eval", "pose", "--ablation", user)
-    for fmt in ("arkit", "glb", "bvh"):
+    for fmt in ("arkit", "glb", "bvh", "vrma"):
         add(f"own export {fmt} --out its input", "export", fmt, seq, "--out", seq)
+    vrm = _copy(asset(AVATAR), inputs / "me.vrm")
+    add("own retarget --out its avatar", "retarget", seq, "--avatar", vrm, "--out", vrm)
+    add("own retarget --out its sequence", "retarget", seq, "--avatar", vrm, "--out", seq)
+    add("own retarget --out a user's notes", "retarget", seq, "--avatar", vrm, "--out", user / "notes.txt")
+    (inputs / "take.vrm").write_bytes(b"glTF my own avatar")  # a user's file at --out
+    add("own retarget --out a user's vrm", "retarget", seq, "--avatar", vrm, "--out", inputs / "take.vrm")
     add("own audio features --out its input", "audio", "features", wav, "--out", wav)
     add("own reenact --out the actor", "reenact", "--actor", clip, "--target", target, "--out", clip)
     add("own reenact --out the record's name", "reenact", "--actor", clip, "--target", target, "--out", d / "r.json")
@@ -407,6 +422,12 @@ def _red_team(d: Path, files: dict, npz: dict, base: Path, ck: dict, ds: dict) -
         add(f"own train gesture --out {sp}", "train", "gesture", "--db", ds["corrupt_shard"], "--out", sp)
         add(f"own facemodel import --out {sp}", "facemodel", "import", facemodel_in, "--out", sp)
         add(f"own view --static {sp}", "view", res, "--static", sp)
+        add(f"own retarget --out {sp}", "retarget", seq, "--avatar", vrm, "--out", sp)
+    add("view --avatar missing", "view", res, "--avatar", d / "none.vrm", "--static", d / "v_av1")
+    add("view --avatar a text file", "view", res, "--avatar", files["text"], "--static", d / "v_av2")
+    add("view --motion without --avatar", "view", res, "--motion", "vrma", "--static", d / "v_av3")
+    add("view --motion vrma onto a glTF", "view", res, "--avatar", npz_glb(d, base), "--motion", "vrma", "--static",
+        d / "v_av4")  # fmt: skip
     # memory: bounded by the input before anything is allocated
     slow = _edit(_copy(base, d / "slow_fps.npz"), meta={"fps": 0.001})
     add(
@@ -595,8 +616,16 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
         other = {"missing_file": files["missing"], "dir_file": files["dir"], "empty_file": files["empty"]}
         f = other.get(k, npz.get(k))
         add(f"info {k}", "info", f, "--json")
-        for fmt in ("arkit", "glb", "bvh"):
+        for fmt in ("arkit", "glb", "bvh", "vrma"):
             add(f"export {fmt} {k}", "export", fmt, f, "--out", out / f"e_{k}.{fmt}")
+        add(f"retarget {k}", "retarget", f, "--avatar", asset(AVATAR), "--out", out / f"r_{k}.vrm")
+    for k in ("missing", "dir", "empty", "random", "text", "png", "wav"):
+        add(f"retarget --avatar {k}", "retarget", base, "--avatar", files[k], "--out", out / f"ra_{k}.glb")
+    add("retarget .vrm out of a glTF avatar", "retarget", base, "--avatar", npz_glb(d, base), "--out", out / "r.vrm")
+    add("retarget a folder without a sequence", "retarget", files["dir"], "--avatar", asset(AVATAR), "--out",
+        out / "r2.vrm")  # fmt: skip
+    add("retarget no --avatar", "retarget", base, "--out", out / "r3.vrm")
+
     add("export bvh of a face-only sequence", "export", "bvh", npz["face_only"], "--out", out / "x.bvh")
     add("export bvh with no full body", "export", "bvh", npz["body_all_nan"], "--out", out / "y.bvh")
     add("export arkit with no face", "export", "arkit", npz["no_face"], "--out", out / "z.csv")

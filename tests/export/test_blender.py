@@ -166,3 +166,28 @@ def test_avatar_files_validate_and_carry_the_speech(results):
         and info["avatar"]["frames"] == read_sequence(results / "gesture" / "gesture.npz").n_frames
     )
     assert (results / "gesture" / "speech.wav").stat().st_size > 10_000
+
+
+def test_a_retargeted_avatar_in_blender(results, tmp_path):
+    """Issue 35: the capture retargeted onto a Mixamo-named A-pose character with rolled forearm axes imports
+    in Blender as one skinned human playing anima's animation: every bone's head where anima's forward
+    kinematics put it, at the first, middle and last frame."""
+    from anima.export.retarget import find_humanoid, run
+    from anima.export.vrm import write_character_avatar
+    from anima.io.gltf_read import read_gltf
+
+    avatar = write_character_avatar(tmp_path / "tall.glb", "tall", "A", 90.0)
+    out = tmp_path / "retargeted.glb"
+    run(results / "capture", avatar, out)
+    seq = read_sequence(results / "capture" / "capture.npz")
+    picks = [0, seq.n_frames // 2, seq.n_frames - 1]
+    got = blender_import(out, tmp_path, picks)
+    assert len(got["meshes"]) == 1 and got["skinned"] == got["meshes"] and len(got["bones"]) == rig.N_RIG
+    assert got["fps"] == pytest.approx(seq.fps) and got["frame_end"] - got["frame_start"] + 1 == seq.n_frames
+    g = read_gltf(out)
+    W = g.posed_worlds(0)
+    hum = find_humanoid(g)
+    for f in picks:
+        heads = dict(zip(got["bones"], got["pose_heads"][str(f)]))
+        for n, i in hum.nodes.items():
+            np.testing.assert_allclose(heads[g.names[i]], _blender_from_yup(W[f, i, :3, 3]), atol=2e-3, err_msg=n)

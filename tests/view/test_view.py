@@ -299,6 +299,64 @@ def test_missing_videos_and_an_older_result(results, browser, tmp_path, cli):
     assert_head_drawn(browser, "older_capture")
 
 
+def _deg(x, y):
+    return np.degrees(np.arccos(np.clip(np.dot(x, y) / np.linalg.norm(x) / np.linalg.norm(y), -1, 1)))
+
+
+def _arm_pose(pos):
+    out = []
+    for a, e, w in (("leftUpperArm", "leftLowerArm", "leftHand"), ("rightUpperArm", "rightLowerArm", "rightHand")):
+        u, f = pos(e) - pos(a), pos(w) - pos(e)
+        up = pos("neck") - pos("hips")
+        out += [_deg(u, f), _deg(u, up)]
+    return np.array(out)
+
+
+def test_a_users_vrm_plays_the_result_in_three_vrm(results, browser, tmp_path):
+    """Issue 35: anima's character written as a VRM loads in @pixiv/three-vrm (>= 50 humanoid bones, >= 15
+    expressions); the capture reaches it as a VRM Animation (three-vrm-animation) with the arm pose of the
+    source and the blink and viseme expressions following the face; an A-pose VRM plays the VRM Animation
+    too (relative to its rest, as VRM defines it) and, retargeted by anima, keeps the source's arm pose."""
+    from anima.export.avatar import character_motion
+    from anima.export.vrm import arkit_weights, vrm_expressions, write_character_avatar
+
+    seq = read_sequence(results / "capture" / "capture.npz")
+    P = character_motion(seq)["positions"]
+    vrm_of = {v: k for k, v in rig.CONVENTIONS["vrm"].items() if v}
+    want = vrm_expressions(arkit_weights(seq.expression, seq.expr_names) * seq.tracked[:, None])
+    frames = list(range(0, seq.n_frames, 5))
+    t_vrm = write_character_avatar(tmp_path / "t.vrm")
+    a_vrm = write_character_avatar(tmp_path / "a.vrm", "heavy", "A", 45.0)
+    errors = {}
+    for name, args in {
+        "T, vrma": (t_vrm,),
+        "A, vrma": (a_vrm, "--motion", "vrma"),
+        "A, retargeted": (a_vrm,),
+    }.items():
+        with served(results / "capture", "--avatar", *args) as (url, _):
+            browser.get(url)
+            wait_ready(browser, 120)
+            S = [state(browser, f) for f in frames]
+        assert len(S[0]["humanoid"]) >= 50 and len(S[0]["expressions"] or {}) >= 15, name
+        err = [
+            np.abs(_arm_pose(lambda n: np.array(s["humanoid"][n])) - _arm_pose(lambda n: P[f, rig.IX[vrm_of[n]]]))
+            for s, f in zip(S, frames)
+        ]
+        errors[name] = (np.median(err), np.percentile(err, 95))
+        hand = np.array([s["humanoid"]["leftHand"] for s in S])
+        assert np.ptp(hand, axis=0).max() > 0.02, name  # it plays
+        if "vrma" in name:  # three-vrm's expressions follow the face
+            for e in ("blink", "aa"):
+                got = np.array([s["expressions"][e] for s in S])
+                np.testing.assert_allclose(got, want[e][frames], atol=0.02)
+                assert np.ptp(got) > 0.05, (name, e)
+    print(errors)
+    for name in ("T, vrma", "A, retargeted"):
+        assert errors[name][0] <= 8.0 and errors[name][1] <= 20.0, errors
+    # a VRM Animation is relative to the VRM's rest (VRM 1.0 asks for a T-pose): an A-pose VRM's arms hang lower
+    assert errors["A, vrma"][0] > errors["A, retargeted"][0], errors
+
+
 def test_refusals(results, tmp_path, cli):
     """No result in the folder: exit 2; a result newer than this anima: exit 4; one stderr line each, and no
     page written."""

@@ -5,6 +5,8 @@
 import * as THREE from "three";
 import { GLTFLoader } from "three/examples/jsm/loaders/GLTFLoader.js";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
+import { VRMLoaderPlugin } from "@pixiv/three-vrm";
+import { VRMAnimationLoaderPlugin, createVRMAnimationClip } from "@pixiv/three-vrm-animation";
 
 const V = window.ANIMA_VIEW;
 const t0 = performance.now();
@@ -114,7 +116,40 @@ function frameView() {
   controls.update();
 }
 
+// a user's VRM (`anima view --avatar x.vrm`): three-vrm loads it, the result comes as a VRM Animation
+let vrm = null;
+let vrmUpdate = false; // a VRM Animation drives the normalized bones and the expressions: vrm.update() applies them
+function parseGltf(b64, plugin) {
+  const loader = new GLTFLoader();
+  if (plugin) loader.register(plugin);
+  return new Promise((resolve, reject) => loader.parse(b64ToBuffer(b64), "", resolve, reject));
+}
+async function loadVrm() {
+  const gltf = await parseGltf(window.ANIMA_GLB, (p) => new VRMLoaderPlugin(p));
+  vrm = gltf.userData.vrm;
+  if (!vrm) throw new Error("the avatar is not a VRM 1.0 three-vrm can read");
+  let clip;
+  if (window.ANIMA_VRMA) {
+    const anim = await parseGltf(window.ANIMA_VRMA, (p) => new VRMAnimationLoaderPlugin(p));
+    clip = createVRMAnimationClip(anim.userData.vrmAnimations[0], vrm);
+    vrmUpdate = true;
+  } else {
+    // retargeted by anima onto the avatar's own rest: the animation moves its bones and morphs directly
+    vrm.humanoid.autoUpdateHumanBones = false;
+    clip = gltf.animations[0];
+  }
+  scene.add(vrm.scene);
+  vrm.scene.traverse((o) => {
+    if (o.isMesh) o.frustumCulled = false;
+    if (o.isBone) bones[o.name] = o;
+  });
+  mixer = new THREE.AnimationMixer(vrm.scene);
+  mixer.clipAction(clip).play();
+  resize();
+}
+
 function load3d() {
+  if (window.ANIMA_GLB && !V.no3d && V.avatar && V.avatar.vrm) return loadVrm();
   return new Promise((resolve, reject) => {
     if (!window.ANIMA_GLB || V.no3d) {
       $("view3d").style.display = "none";
@@ -127,13 +162,14 @@ function load3d() {
       (gltf) => {
         const root = gltf.scene;
         scene.add(root);
+        const own = !V.avatar; // a user's avatar keeps its materials and draws its morphs on the GPU
         root.traverse((o) => {
           if (o.isMesh) {
-            o.material = new THREE.MeshLambertMaterial({ color: 0xd9d2cc });
+            if (own) o.material = new THREE.MeshLambertMaterial({ color: 0xd9d2cc });
             o.frustumCulled = false;
-            if (o.morphTargetDictionary) {
+            if (o.morphTargetDictionary && (own || !morphMesh)) {
               morphMesh = o;
-              setupCpuMorph(o);
+              if (own) setupCpuMorph(o);
             }
           }
           if (o.isBone) bones[o.name] = o;
@@ -375,6 +411,7 @@ function apply(f) {
     morphMesh.parent.quaternion.setFromAxisAngle(a > 1e-9 ? r.normalize() : new THREE.Vector3(1, 0, 0), a);
   } else if (mixer) {
     mixer.setTime(f / fps);
+    if (vrmUpdate) vrm.update(0); // the normalized bones and the expressions onto the avatar's own
   }
   updateMorph();
   slider.value = f;
@@ -447,9 +484,22 @@ api.state = () => {
     const p = b.getWorldPosition(new THREE.Vector3());
     joints[name] = [p.x, p.y, p.z];
   }
+  let humanoid = null;
+  let expressions = null;
+  if (vrm) {
+    humanoid = {};
+    for (const name of Object.keys(vrm.humanoid.humanBones)) {
+      const node = vrm.humanoid.getRawBoneNode(name);
+      if (node) humanoid[name] = node.getWorldPosition(new THREE.Vector3()).toArray();
+    }
+    expressions = {};
+    for (const e of vrm.expressionManager.expressions) expressions[e.expressionName] = e.weight;
+  }
   return {
     frame: api.frame,
     time: api.frame / fps,
+    humanoid,
+    expressions,
     playing: api.playing,
     morphs,
     joints,
