@@ -182,6 +182,14 @@ def gesture_ds(tmp_path_factory, cli):
     return out
 
 
+@pytest.fixture(scope="session")
+def gesture_db(gesture_ds):
+    """The motion-matching database of ``gesture_ds`` (every split), built once for the session."""
+    from anima.gesture.database import from_dataset
+
+    return from_dataset(gesture_ds, None)
+
+
 def synthetic_rng(seed: int = 0) -> np.random.Generator:
     return np.random.default_rng(seed)
 

@@ -289,6 +289,17 @@ def _choose(lib: Library, attr: str, rng: np.random.Generator, k: int, avoid: fr
     return [good[i] for i in rng.choice(len(good), size=k, replace=k > len(good))]
 
 
+class TooShort(InputError):
+    """The asked length cannot hold the prompt's events (``need``: the frames they need)."""
+
+    def __init__(self, message: str, need: int):
+        super().__init__(message)
+        self.need = need
+
+
+DEFAULT_FRAMES = 90  # contract: not (3 s at the text rate: the shortest clip a prompt gets when no length is asked)
+
+
 def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0, avoid: frozenset = frozenset()) -> list[Placed]:
     """Where each event goes in ``n_frames``: clauses in order, events of a clause together, the free time
     shared between held events and the pauses. Raises :class:`InputError` when the events cannot fit."""
@@ -323,9 +334,10 @@ def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0, avoid: f
     lead, between = int(LEAD_S * fps), int(BETWEEN_S * fps)
     need = 2 * lead + sum(slot_len) + between * (len(slot_len) - 1)
     if need > n_frames:
-        raise InputError(
+        raise TooShort(
             f"the prompt's events need at least {need} frames ({need / fps:.1f} s) and {n_frames} were asked "
-            f"for: ask for --seconds {np.ceil(10 * need / fps) / 10:g} or fewer events"
+            f"for: ask for --seconds {np.ceil(10 * need / fps) / 10:g} (or leave the length out) or fewer events",
+            need,
         )
     slack = n_frames - need
     holdable = [any(e.attribute in HOLDABLE or e.attribute in ("talk", "neutral") for e, _, _ in r) for r in chosen]
@@ -447,17 +459,30 @@ def _found(events, attr: str, start: int, end: int, fps: float) -> int:
 
 
 def compose(
-    plan: Plan, lib: Library, n_frames: int, seed: int = 0, rounds: int = 3, draws: int = 6
+    plan: Plan, lib: Library, n_frames: int | None, seed: int = 0, rounds: int = 3, draws: int = 6
 ) -> tuple[np.ndarray, dict]:
     """The prompt's motion ``[n_frames, 56]`` and a record of what made it (segments, gains, checks).
+    ``n_frames`` None: as long as the prompt's events need, at least :data:`DEFAULT_FRAMES` (the first
+    layout's need; a later draw that would need more is skipped); a given ``n_frames`` that cannot hold the
+    events is refused (:class:`TooShort`).
 
     Up to ``draws`` layouts (other segments), each rendered up to ``rounds`` + 1 times: an event the
     detectors miss is made 1.35x stronger, a mouth that reads as talk when none was asked is smoothed more.
     The first clean rendering is kept, else the one with the fewest misses."""
     best = None
     avoid: set = set()
+    fit = n_frames is None
+    n_frames = DEFAULT_FRAMES if fit else n_frames
     for draw in range(draws):
-        placed = plan_layout(plan, lib, n_frames, seed + 1009 * draw, frozenset(avoid))
+        try:
+            placed = plan_layout(plan, lib, n_frames, seed + 1009 * draw, frozenset(avoid))
+        except TooShort as e:
+            if not fit:
+                raise
+            if best is not None:  # the length is set by the first layout: skip a draw that needs more
+                continue
+            n_frames = e.need
+            placed = plan_layout(plan, lib, n_frames, seed + 1009 * draw, frozenset(avoid))
         detectable = [p for p in placed if p.attribute in ATTRIBUTES and (p.side is None or p.attribute == "turn")]
         lip_s = LIP_SMOOTH_S
         talking = any(p.attribute == "talk" for p in placed)
@@ -504,5 +529,6 @@ def compose(
         ],
         "detected": [[a, round(s, 3), round(e, 3)] for a, s, e in events],
         "all_found": best[0] == 0,
+        "length": "fitted to the events" if fit else "asked",
     }
     return motion, record

@@ -45,8 +45,10 @@ class TrainConfig:
 class PromptConfig:
     """What ``anima text2face PROMPT`` generates."""
 
-    length: int = field(default=90, metadata={"range": (1, 100_000)})
-    """Frames at 30 fps (90 = 3 s); the model's trained range applies."""
+    length: int | None = field(default=None, metadata={"range": (1, 100_000)})
+    """Frames at 30 fps; default: the timeline method makes the clip as long as the prompt's events need (at
+    least 90 = 3 s), the model 90; a length too short for the events is refused; the model's trained range
+    applies."""
     seconds: float | None = field(default=None, metadata={"range": (0.01, 3600.0)})
     """Length in seconds (overrides --length)."""
     seed: int = 0

@@ -15,7 +15,7 @@ from anima.errors import InputError
 from anima.export.framing import generated_sequence
 from anima.export.motion import write_motion_outputs
 from anima.io.outdir import OutputFolder
-from anima.text2face.compose import Library, compose
+from anima.text2face.compose import DEFAULT_FRAMES, Library, compose
 from anima.text2face.config import PromptConfig
 from anima.text2face.encoders import clean_prompt, get_encoder, require_prompt
 from anima.text2face.prompt import parse
@@ -52,7 +52,7 @@ def run(
 
     with OutputFolder(out, kind="text2face", command=command) as od:
         gen = Generator(checkpoint)
-        n = gen.check_length(int(round(cfg.seconds * gen.fps)) if cfg.seconds else cfg.length)
+        n = gen.check_length(int(round(cfg.seconds * gen.fps)) if cfg.seconds else cfg.length or DEFAULT_FRAMES)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             text = clean_prompt(prompt, gen.encoder)
@@ -91,7 +91,7 @@ def _timeline(prompt, out, cfg: PromptConfig, db, video: bool, progress: bool, c
         motion, record = compose(plan, lib, n, cfg.seed)
         info = {
             "prompt": plan.text,
-            "frames": n,
+            "frames": len(motion),
             "fps": fps,
             "seed": cfg.seed,
             "method": "timeline",

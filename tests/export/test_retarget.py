@@ -89,10 +89,9 @@ def avatars(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def sources(captures, gesture_ds, tmp_path_factory):
+def sources(captures, gesture_db, tmp_path_factory):
     """A real capture and a gesture result (speech the dataset never saw), as sequence files."""
     from anima.export.framing import generated_sequence
-    from anima.gesture.database import from_dataset
     from anima.gesture.run import synthesize
     from anima.io.sequence import write_sequence
     from anima.io.video import FFMPEG
@@ -100,7 +99,7 @@ def sources(captures, gesture_ds, tmp_path_factory):
     d = tmp_path_factory.mktemp("sources")
     speech = d / "speech.wav"
     subprocess.run([FFMPEG, "-v", "error", "-y", "-i", str(asset(SPEECH)), "-t", "6", "-vn", str(speech)], check=True)
-    J, _ = synthesize(str(speech), from_dataset(gesture_ds, None))
+    J, _ = synthesize(str(speech), gesture_db)
     gesture = generated_sequence(15.0, body=J.astype(np.float32))  # contract: not (the gesture rate)
     return {
         "capture": write_sequence(captures["oliver1"], d / "capture.npz"),

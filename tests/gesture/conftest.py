@@ -9,7 +9,5 @@ def ds(gesture_ds):
 
 
 @pytest.fixture(scope="session")
-def db(ds):
-    from anima.gesture.database import from_dataset
-
-    return from_dataset(ds, None)
+def db(gesture_db):
+    return gesture_db

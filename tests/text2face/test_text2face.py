@@ -441,8 +441,13 @@ def test_timeline_method_on_real_clips_follows_order_and_counts(ds):
     np.testing.assert_array_equal(m, m2)  # seeded
     m3, _ = compose(parse("a person blinks"), lib, 120, seed=0)
     assert np.abs(m - m3).max() > 0.1
+    long = parse("she blinks five times, then smiles, then blinks five times")
     with pytest.raises(InputError, match="at least"):
-        compose(parse("she blinks five times, then smiles, then blinks five times"), lib, 40)
+        compose(long, lib, 40)
+    # issue 37: with no length asked, the clip grows to hold every event (3 s at least)
+    m4, rec = compose(long, lib, None, seed=0)
+    assert len(m4) > 90 and rec["length"] == "fitted to the events" and rec["all_found"], rec["detected"]
+    assert len(compose(parse("a person blinks"), lib, None)[0]) == 90
     still, rec = compose(parse("xyzzy"), lib, 60)
     assert np.ptp(still, axis=0).max() == 0 and rec["events"] == []
 
