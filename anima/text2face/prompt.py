@@ -182,10 +182,25 @@ COUNTS = [
     (r"\b(?:three|3)\s+times\b", 3),
     (r"\b(?:four|4)\s+times\b", 4),
     (r"\b(?:five|5)\s+times\b", 5),
-    (r"\b(?:a\s+few|several|a\s+couple\s+of)\s+times\b", 3),
+    (r"\ba\s+couple\s+of\s+times\b", 2),
+    (r"\b(?:a\s+few|several)\s+times\b", 3),
     (r"\brepeatedly\b", 3),
     (r"\b(?:\d+)\s+times\b", None),  # a number the table does not name: read it
+    # quantities before the event's noun: "a couple of quick blinks", "a few nods", "two winks"
+    (r"\ba\s+couple\s+(?:of\s+)?(?=(?:\w+\s+){0,2}?(?:blinks|winks|nods|smiles|shakes|yawns)\b)", 2),
+    (r"\ba\s+few\s+(?=(?:\w+\s+){0,2}?(?:blinks|winks|nods|smiles|shakes|yawns)\b)", 3),
+    (r"\bseveral\s+(?=(?:\w+\s+){0,2}?(?:blinks|winks|nods|smiles|shakes|yawns)\b)", 4),
+    (r"\b(?:two|2)\s+(?=(?:\w+\s+){0,2}?(?:blinks|winks|nods|smiles|shakes|yawns)\b)", 2),
+    (r"\b(?:three|3)\s+(?=(?:\w+\s+){0,2}?(?:blinks|winks|nods|smiles|shakes|yawns)\b)", 3),
+    (r"\b(?:four|4)\s+(?=(?:\w+\s+){0,2}?(?:blinks|winks|nods|smiles|shakes|yawns)\b)", 4),
+    (r"\b(?:five|5)\s+(?=(?:\w+\s+){0,2}?(?:blinks|winks|nods|smiles|shakes|yawns)\b)", 5),
 ]
+NEGATION = (
+    r"\b(?:without|doesn't|does\s+not|don't|do\s+not|didn't|did\s+not|won't|never|no|not|isn't|aren't|stops|stop|"
+    r"stopped|nor|neither|avoids|avoiding|refrains\s+from)\b"
+)
+"""Words that exclude the next event of their clause: "talks without smiling", "doesn't blink at all",
+"no smile", "never looks up". The excluded event is not made, and the plan says so."""
 INTENSITY = [
     (r"\b(?:slightly|a\s+little|a\s+bit|subtly|faintly|barely|softly|gently|mildly|a\s+touch|small|faint)\b", 0.6),
     (
@@ -208,7 +223,7 @@ GRAMMAR = set(
     both once twice thrice times time few several couple repeatedly again first begins starts start starting
     by up down out towards toward into from camera speaker actor actress presenter gently softly quite rather
     some something somewhat moderately over around just now after before finally next later afterwards lastly
-    end last followed two three four five him them us me give gives giving side""".split()
+    end last followed two three four five him them us me give gives giving side quick slow""".split()
 )
 SIDE = r"\b(left|right)\b"
 
@@ -232,6 +247,7 @@ class Plan:
 
     text: str
     events: list[Event] = field(default_factory=list)
+    excluded: list[str] = field(default_factory=list)
     unknown: list[str] = field(default_factory=list)
     paraphrased: list[dict] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
@@ -244,6 +260,7 @@ class Plan:
         return {
             "text": self.text,
             "events": [asdict(e) for e in self.events],
+            "excluded": self.excluded,
             "unknown": self.unknown,
             "paraphrased": self.paraphrased,
             "notes": self.notes,
@@ -325,9 +342,18 @@ def parse(prompt: str, encoder=None) -> Plan:
             for p in pats:
                 for m in re.finditer(r"\b" + p + r"\b", clause):
                     used.update(range(*m.span()))
-        for pat, _ in COUNTS + INTENSITY:
+        for pat, _ in COUNTS + INTENSITY + [(NEGATION, None), (r"\bat\s+all\b", None)]:
             for m in re.finditer(pat, clause):
                 used.update(range(*m.span()))
+        # a negation excludes the first event after it in the clause
+        negated = set()
+        for m in re.finditer(NEGATION, clause):
+            nxt = next((k for k, h in enumerate(hits) if h[0] >= m.end()), None)
+            if nxt is not None:
+                negated.add(nxt)
+        for k in sorted(negated):
+            plan.excluded.append(hits[k][1] + f" ('{clause[hits[k][2][0] : hits[k][2][1]]}')")
+        hits = [h for k, h in enumerate(hits) if k not in negated]
         rest = "".join(ch if i not in used else " " for i, ch in enumerate(clause))
         words = [w for w in re.findall(r"[a-z']+", rest) if w not in GRAMMAR and not w.isdigit()]
         if not hits and encoder is not None and words:
@@ -379,6 +405,8 @@ def parse(prompt: str, encoder=None) -> Plan:
             e.clause = order[e.clause]
     else:
         plan.notes.append("no facial event recognised: a neutral face is returned")
+    if plan.excluded:
+        plan.notes.append("not made, as the prompt says: " + ", ".join(plan.excluded))
     if plan.unknown:
         plan.notes.append("not understood: " + ", ".join(dict.fromkeys(plan.unknown)))
     return plan

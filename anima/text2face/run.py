@@ -99,6 +99,7 @@ def _timeline(prompt, out, cfg: PromptConfig, db, video: bool, progress: bool, c
             "understood": [
                 {k: v for k, v in vars(e).items() if k != "words"} | {"from_words": e.words} for e in plan.events
             ],
+            "excluded": plan.excluded,
             "paraphrased": plan.paraphrased,
             "not_understood": list(dict.fromkeys(plan.unknown)),
             "sampling_s": round(time.perf_counter() - t, 3),

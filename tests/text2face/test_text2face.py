@@ -388,6 +388,15 @@ def test_prompt_parser_reads_order_counts_intensity_side_and_reports_unknown_wor
     assert not p.events and p.unknown == ["xyzzy", "blorf"] and any("neutral" in n for n in p.notes)
     p = parse("eyes closed while winking")  # cannot co-occur: the wink follows
     assert [e.attribute for e in p.events] == ["close eyes", "blink"] and p.n_clauses == 2 and p.notes
+    # issue 37: negation excludes the event it governs (and says so); quantities before the noun count
+    p = parse("He talks without smiling.")
+    assert [e.attribute for e in p.events] == ["talk"] and p.excluded == ["smile ('smiling')"] and p.notes
+    p = parse("She doesn't blink at all.")
+    assert not p.events and p.excluded and not p.unknown
+    for text, n in (("A couple of quick blinks.", 2), ("a few nods", 3), ("several blinks", 4), ("two winks", 2),
+                    ("she smiles a couple of times", 2), ("he blinks a few times", 3)):  # fmt: skip
+        p = parse(text)
+        assert [e.count for e in p.events] == [n] and not p.unknown, text
 
 
 def test_prompt_parser_agrees_with_every_annotated_prompt_of_the_suite():
