@@ -6,6 +6,7 @@ from anima.capture import run as capture
 from anima.capture.config import CaptureConfig
 from anima.cli.common import add_json_quiet, add_rig, command_line, emit, time_split
 from anima.cli.options import add_options, config_from_args, number
+from anima.export import livelink
 from anima.export.formats import FORMATS, export_file
 from anima.io.sequence import read_sequence
 
@@ -73,6 +74,21 @@ def register(sub) -> None:
     add_rig(x)
     x.set_defaults(func=cmd_export)
 
+    ll = sub.add_parser(
+        "livelink",
+        help="play a sequence into Unreal's Live Link (Live Link Face UDP packets)",
+        description="Send FILE (capture.npz, motion.npz or gesture.npz) to Unreal's Live Link as the Live Link "
+        "Face iPhone app does: one UDP packet per frame at the sequence's rate, 52 ARKit blendshapes plus head "
+        "and eye rotations (the values of arkit.csv). In Unreal: Live Link > Source > Live Link Face, port "
+        "11111; the subject appears under --subject. Layout: docs/artifacts.md.",
+    )
+    ll.add_argument("file")
+    ll.add_argument("--to", required=True, help="HOST:PORT of the machine running Unreal (e.g. 127.0.0.1:11111)")
+    ll.add_argument("--subject", default="anima", help="the Live Link subject name (default: anima)")
+    ll.add_argument("--loops", type=number(int, 1, 10_000), default=1, help="play it this many times")
+    add_json_quiet(ll)
+    ll.set_defaults(func=cmd_livelink)
+
 
 def cmd_capture(a) -> int:
     cfg = config_from_args(CaptureConfig, a, CAPTURE_OPTIONS)
@@ -99,6 +115,10 @@ def cmd_info(a) -> int:
 def cmd_export(a) -> int:
     print(f"wrote {export_file(a.format, a.file, a.out, a.fps, a.rig)}")
     return 0
+
+
+def cmd_livelink(a) -> int:
+    return emit(livelink.send(a.file, a.to, a.subject, a.loops, progress=not a.quiet and not a.json), a.json)
 
 
 def summary_table(s: dict) -> str:

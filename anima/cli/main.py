@@ -24,6 +24,7 @@ COMMANDS = {
     "info": "capture",
     "export": "capture",
     "retarget": "avatar",
+    "livelink": "capture",
     "audio": "audio",
     "dataset": "dataset",
     "train": "train",

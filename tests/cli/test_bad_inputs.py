@@ -619,6 +619,12 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
         for fmt in ("arkit", "glb", "bvh", "vrma"):
             add(f"export {fmt} {k}", "export", fmt, f, "--out", out / f"e_{k}.{fmt}")
         add(f"retarget {k}", "retarget", f, "--avatar", asset(AVATAR), "--out", out / f"r_{k}.vrm")
+        add(f"livelink {k}", "livelink", f, "--to", "127.0.0.1:9")
+    add("livelink of a sequence with no face", "livelink", npz["no_face"], "--to", "127.0.0.1:9")
+    for to in ("", "11111", "host:", ":11111", "127.0.0.1:70000", "127.0.0.1:-1", "no.such.host.invalid:11111"):
+        add(f"livelink --to {to!r}", "livelink", base, "--to", to)
+    add("livelink --loops 0", "livelink", base, "--to", "127.0.0.1:9", "--loops", "0")
+    add("livelink --subject ''", "livelink", base, "--to", "127.0.0.1:9", "--subject", "")
     for k in ("missing", "dir", "empty", "random", "text", "png", "wav"):
         add(f"retarget --avatar {k}", "retarget", base, "--avatar", files[k], "--out", out / f"ra_{k}.glb")
     add("retarget .vrm out of a glTF avatar", "retarget", base, "--avatar", npz_glb(d, base), "--out", out / "r.vrm")
