@@ -182,6 +182,24 @@ def gesture_ds(tmp_path_factory, cli):
     return out
 
 
+PATS = ["oliver1", "seth3", "noah1", "chem1"]
+
+
+@pytest.fixture(scope="session")
+def captures():
+    """Four PATS clips (body, hands, face, speech), 90 frames each, captured once with the real pipeline (the
+    rig, retarget and live tests share them)."""
+    from anima.capture.config import CaptureConfig
+    from anima.capture.pipeline import capture_video
+
+    return {
+        n: capture_video(
+            str(asset(f"gesture-video/pats-crops/{n}_gt.mp4")), CaptureConfig(max_frames=90), progress=False
+        )
+        for n in PATS
+    }
+
+
 @pytest.fixture(scope="session")
 def gesture_db(gesture_ds):
     """The motion-matching database of ``gesture_ds`` (every split), built once for the session."""

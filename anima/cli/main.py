@@ -34,6 +34,7 @@ COMMANDS = {
     "eval": "evaluate",
     "facemodel": "facemodel",
     "view": "view",
+    "live": "view",
 }
 """Each top-level command -> the module of ``anima/cli`` that registers it, in the order ``--help`` lists
 them. A command line names one command, so only its module (and what that module imports) is loaded: a

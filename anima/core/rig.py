@@ -107,6 +107,8 @@ def _flipped_runs(G: np.ndarray, fps: float, max_deg: float = FLIP_DEG, max_run_
     tracker's flip), else the ``max_run_s`` after it (a one-way snap, faster than a person turns: the caller
     holds those frames and blends into the new rotation instead of snapping)."""
     F = len(G)
+    if F < 2:
+        return np.zeros(F, bool)
     seen = np.isfinite(G).all((-1, -2))
     step = np.zeros(F)
     both = seen[1:] & seen[:-1]
@@ -498,3 +500,22 @@ def preset_names(preset: str) -> list[str]:
     if preset not in CONVENTIONS:
         raise ValueError(f"unknown rig preset {preset!r}; one of {', '.join(PRESETS)}")
     return [CONVENTIONS[preset][n] or n for n in NAMES]
+
+
+def frame_locals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None, held: np.ndarray) -> np.ndarray:
+    """One frame of a stream (``anima live``): local rotations ``[J, 3, 3]`` of the upper body from tracked joints
+    ``body [55, 3]`` (NaN where unseen) and the face fit's head rotation (``[3, 3]`` or None), every joint not
+    seen now kept at ``held`` (the previous frame's locals); the legs stand straight, the end joints rest.
+    No look-ahead: the offline retargeting's blends and flip rules need the clip's future, a stream has none."""
+    any_rate = 30.0  # contract: not (one frame: no rate is used)
+    G = _globals(body[None], rest, None if head_rot is None else head_rot[None], any_rate)[0]
+    par = np.maximum(PARENTS_RIG, 0)
+    L = np.einsum("jba,jbc->jac", G[par], G)
+    L[HIPS] = G[HIPS]
+    ok = np.isfinite(L).all((-1, -2))
+    out = np.where(ok[:, None, None], L, held)
+    for S in ("Left", "Right"):
+        for n in ("UpLeg", "Leg", "Foot", "ToeBase"):
+            out[IX[f"{S}{n}"]] = np.eye(3)
+    out[LEAVES] = np.eye(3)
+    return out

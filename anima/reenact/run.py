@@ -21,6 +21,7 @@ from anima.errors import InputError
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
 from anima.io.atomic import write_json
+from anima.io.live_source import PacedReader, check_live_source
 from anima.io.outdir import check_out_file
 from anima.io.validate import input_file, read_json
 from anima.io.video import VideoWriter, iter_frames, probe_video
@@ -167,75 +168,6 @@ def _reenact_video(actor, targets, out, cfg, sbs, db_path, progress) -> dict:
         "notes": notes,
         "mean_ms": {k: float(np.mean(v)) for k, v in vars(rx.times).items() if v},
     }
-
-
-NETWORK_SCHEMES = ("rtsp://", "rtsps://", "rtmp://", "rtmps://", "http://", "https://")
-
-
-def check_live_source(source: str, allow_network: bool = False) -> str:
-    """A ``--live`` source: a camera index, an existing video file, or (with ``allow_network``) an
-    rtsp/rtmp/http(s) URL. Anything else OpenCV's FFmpeg would interpret (``concat:``, ``subfile,``,
-    ``file:``, image patterns, other protocols) is refused."""
-    s = str(source).strip()
-    if s.isdigit() and len(s) <= 3:
-        return s
-    low = s.lower()
-    if low.startswith(NETWORK_SCHEMES):
-        if not allow_network:
-            raise InputError(f"--live {s!r} is a network stream: pass --allow-network to read it")
-        return s
-    if "://" in s or (":" in s.split("/")[0] and not Path(s).exists()) or "%" in s or "," in s.split("/")[0]:
-        raise InputError(f"--live {s!r}: not a camera index, a video file or an rtsp/rtmp/http(s) URL")
-    p = Path(s)
-    if not p.is_file():
-        raise InputError(f"--live source not found: {s} (a camera index, a video file, or a URL with --allow-network)")
-    probe_video(p)  # a file must be a readable video
-    return str(p.resolve())
-
-
-class PacedReader:
-    """Frames of a camera / stream / file on a thread. A file is paced at its real frame rate; only the
-    newest frame is kept, so a slow consumer drops frames instead of falling behind (bounded latency)."""
-
-    def __init__(self, source: str):
-        self.cap = cv2.VideoCapture(int(source) if str(source).isdigit() else str(source))
-        if not self.cap.isOpened():
-            raise InputError(f"cannot open live source {source!r}")
-        self.fps = self.cap.get(cv2.CAP_PROP_FPS) or 30.0  # contract: not ours (a camera that names no rate)
-        self.is_file = not str(source).isdigit() and Path(str(source)).exists()
-        self.lock = threading.Lock()
-        self.latest = None  # (index, capture time, rgb)
-        self.done = False
-        self.read = 0
-        self.th = threading.Thread(target=self._run, daemon=True)
-        self.th.start()
-
-    def _run(self):
-        t0 = time.perf_counter()
-        i = 0
-        while True:
-            ok, bgr = self.cap.read()
-            if not ok:
-                break
-            if self.is_file:  # pace at the real frame rate
-                delay = t0 + i / self.fps - time.perf_counter()
-                if delay > 0:
-                    time.sleep(delay)
-            with self.lock:
-                self.latest = (i, time.perf_counter(), cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
-            i += 1
-        self.read = i
-        self.done = True
-
-    def get(self, after: int):
-        """The newest frame with index > ``after`` (waits for one), or None at the end."""
-        while True:
-            with self.lock:
-                if self.latest is not None and self.latest[0] > after:
-                    return self.latest
-            if self.done:
-                return None
-            time.sleep(0.001)
 
 
 def reenact_live(

@@ -34,6 +34,7 @@ from urllib.parse import unquote, urlsplit
 from anima.errors import InputError
 from anima.io.outdir import OutputFolder, check_out_dir
 from anima.view.export import build_view, check_avatar, detect
+from anima.view.ws import accept_key
 
 HOST = "127.0.0.1"
 IDLE_TIMEOUT_S = 20
@@ -48,6 +49,7 @@ class _Handler(BaseHTTPRequestHandler):
     root: Path
     token: str
     hosts: frozenset
+    live = None  # a Broadcaster (anima live): /TOKEN/live upgrades to its WebSocket
     timeout = IDLE_TIMEOUT_S
     server_version = "anima-view"
     sys_version = ""
@@ -95,7 +97,30 @@ class _Handler(BaseHTTPRequestHandler):
         self._serve(head_only=True)
 
     def do_GET(self):
+        if self.live is not None and urlsplit(self.path).path == f"/{self.token}/live":
+            return self._websocket()
         self._serve(head_only=False)
+
+    def _websocket(self) -> None:
+        """``/TOKEN/live`` (``anima live``): the upgrade to a WebSocket, for this page's own origin only."""
+        origins = {f"http://{h}" for h in self.hosts}
+        key = self.headers.get("Sec-WebSocket-Key", "")
+        if (
+            self.headers.get("Host", "") not in self.hosts
+            or self.headers.get("Origin", "") not in origins
+            or self.headers.get("Upgrade", "").lower() != "websocket"
+            or not key
+            or len(key) > 64
+        ):
+            return self._refuse(HTTPStatus.FORBIDDEN)
+        self.send_response(HTTPStatus.SWITCHING_PROTOCOLS)
+        self.send_header("Upgrade", "websocket")
+        self.send_header("Connection", "Upgrade")
+        self.send_header("Sec-WebSocket-Accept", accept_key(key))
+        self.end_headers()
+        self.wfile.flush()
+        self.close_connection = True
+        self.live.attach(self.connection)
 
     def _serve(self, head_only: bool) -> None:
         p, status = self._file()
@@ -160,11 +185,15 @@ class _Server(ThreadingHTTPServer):
         """A request that failed in a way the handler did not answer (a dropped connection): no traceback."""
 
 
-def open_server(root: Path, port: int | None, token: str | None = None) -> tuple[ThreadingHTTPServer, str | None]:
+def open_server(
+    root: Path, port: int | None, token: str | None = None, live=None
+) -> tuple[ThreadingHTTPServer, str | None]:
     """A server of ``root`` on 127.0.0.1: ``port``, or a free one (and a note) when that one is taken. Its
-    files are under ``/TOKEN/`` (``server.token``)."""
+    files are under ``/TOKEN/`` (``server.token``); with ``live`` (a :class:`anima.view.ws.Broadcaster`),
+    ``/TOKEN/live`` is its WebSocket."""
     token = token or secrets.token_urlsafe(18)
-    handler = type("Handler", (_Handler,), {"root": Path(root), "token": token, "hosts": frozenset()})
+    attrs = {"root": Path(root), "token": token, "hosts": frozenset(), "live": live}
+    handler = type("Handler", (_Handler,), attrs)
     note = None
     try:
         server = _Server((HOST, port or 0), handler)

@@ -423,6 +423,8 @@ def _red_team(d: Path, files: dict, npz: dict, base: Path, ck: dict, ds: dict) -
         add(f"own facemodel import --out {sp}", "facemodel", "import", facemodel_in, "--out", sp)
         add(f"own view --static {sp}", "view", res, "--static", sp)
         add(f"own retarget --out {sp}", "retarget", seq, "--avatar", vrm, "--out", sp)
+        add(f"own live --record {sp}", "live", clip, "--no-browser", "--record", sp)
+    add("own live --record a user's folder", "live", clip, "--no-browser", "--record", user)
     add("view --avatar missing", "view", res, "--avatar", d / "none.vrm", "--static", d / "v_av1")
     add("view --avatar a text file", "view", res, "--avatar", files["text"], "--static", d / "v_av2")
     add("view --motion without --avatar", "view", res, "--motion", "vrma", "--static", d / "v_av3")
@@ -624,6 +626,14 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
     for to in ("", "11111", "host:", ":11111", "127.0.0.1:70000", "127.0.0.1:-1", "no.such.host.invalid:11111"):
         add(f"livelink --to {to!r}", "livelink", base, "--to", to)
     add("livelink --loops 0", "livelink", base, "--to", "127.0.0.1:9", "--loops", "0")
+    for k in ("missing", "dir", "empty", "random", "text", "png", "wav"):
+        add(f"live source {k}", "live", files[k], "--no-browser")
+    for src in ("rtsp://example.com/cam", "concat:a.mp4|b.mp4", "file:/etc/passwd", "9999", "-1"):
+        add(f"live source {src}", "live", src, "--no-browser")
+    add("live --livelink nohost", "live", d0, "--no-browser", "--livelink", "nohost")
+    add("live --trackers 0", "live", d0, "--no-browser", "--trackers", "0")
+    add("live --max-seconds 0", "live", d0, "--no-browser", "--max-seconds", "0")
+    add("live --port 70000", "live", d0, "--no-browser", "--port", "70000")
     add("livelink --subject ''", "livelink", base, "--to", "127.0.0.1:9", "--subject", "")
     for k in ("missing", "dir", "empty", "random", "text", "png", "wav"):
         add(f"retarget --avatar {k}", "retarget", base, "--avatar", files[k], "--out", out / f"ra_{k}.glb")

@@ -184,7 +184,7 @@ function load3d() {
           scene.add(skeletonHelper);
           $("skeletonBox").style.display = "inline";
         }
-        if (gltf.animations.length) {
+        if (gltf.animations.length && !V.live) {
           mixer = new THREE.AnimationMixer(root);
           const action = mixer.clipAction(gltf.animations[0]);
           action.play();
@@ -537,8 +537,52 @@ api.headOnScreen = () => {
   };
 };
 
+// ---- live (`anima live`): each WebSocket message poses the character ---------------------------------------
+// message: {i: source frame, t_cap: its capture time (ms since the epoch), q: [65 x [x, y, z, w]] local rotations
+// in V.rig order, w: [53] expression weights in V.expr order}
+function connectLive() {
+  api.live = api.live || { received: 0, latencies: [], frames: [], connects: 0, faces: 0 };
+  const url = `ws://${location.host}${location.pathname.replace(/[^/]*$/, "")}live`;
+  const ws = new WebSocket(url);
+  ws.onopen = () => (api.live.connects += 1);
+  ws.onmessage = (ev) => {
+    const m = JSON.parse(ev.data);
+    const L = api.live;
+    L.received += 1;
+    L.latencies.push(Date.now() - m.t_cap);
+    L.frames.push([m.i, performance.now()]);
+    if (m.face) L.faces += 1;
+    if (L.latencies.length > 5000) L.latencies.splice(0, 1000);
+    if (L.frames.length > 5000) L.frames.splice(0, 1000);
+    V.rig.forEach((name, j) => {
+      const b = bones[name];
+      if (b) b.quaternion.set(m.q[j][0], m.q[j][1], m.q[j][2], m.q[j][3]);
+    });
+    if (morphMesh) {
+      const d = morphMesh.morphTargetDictionary;
+      V.expr.forEach((name, k) => {
+        if (name in d) morphMesh.morphTargetInfluences[d[name]] = m.w[k];
+      });
+      updateMorph();
+    }
+    api.frame = m.i;
+    api.renderedFrames += 1;
+    const recent = L.frames.slice(-30);
+    const rate = recent.length > 1 ? (1000 * (recent.length - 1)) / (recent[recent.length - 1][1] - recent[0][1]) : 0;
+    const lat = L.latencies.slice(-30).sort((a, b) => a - b);
+    $("frame").textContent = `live: frame ${m.i}  ${rate.toFixed(1)} frames/s  glass to avatar ${Math.round(
+      lat[Math.floor(lat.length / 2)],
+    )} ms`;
+  };
+  ws.onclose = () => setTimeout(connectLive, 1000); // the source restarted, or the page lost it: try again
+}
+
 load3d()
   .then(() => {
+    if (V.live) {
+      for (const id of ["slider", "play", "prev", "next"]) $(id).style.display = "none"; // no timeline: a stream
+      connectLive();
+    }
     resize();
     if (V.kind === "dataset") {
       listClips();

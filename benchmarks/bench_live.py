@@ -1,0 +1,100 @@
+"""``anima live`` in real time on 2 cores (issue 36): real clips fed as a camera (``--realtime --loop``), the
+page open in headless Chromium (software WebGL, on the same 2 cores). Per mode (face only on a 30-fps clip;
+face + body + hands on a 25-fps clip): frames offered, tracked and dropped, the tracking rate, the latency from
+a frame's arrival to its message (process) and to the page's receipt (glass to avatar, from the page's own
+receipt times), and the process's memory over the run.
+
+    python benchmarks/bench_live.py [--seconds 60] [--modes face,full]
+
+Writes benchmarks/results/live.json. Targets: >= 95 % of offered frames tracked, latency median <= 100 ms and
+p95 <= 150 ms, memory growth < 10 %.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from browser import chromium
+
+from anima.io.assets import asset
+from anima.io.atomic import write_json
+
+CLIPS = {
+    "face": ("liveportrait-examples/assets/examples/driving/d6.mp4", ["--face-only"]),  # 30 fps
+    "full": ("gesture-video/pats-crops/oliver1_gt.mp4", []),  # 25 fps, body and hands
+    "full1": ("gesture-video/pats-crops/oliver1_gt.mp4", ["--trackers", "1"]),  # one Holistic: lower latency?
+}
+
+
+def run(mode: str, seconds: float) -> dict:
+    clip, extra = CLIPS[mode]
+    cmd = [sys.executable, "-m", "anima", "live", str(asset(clip)), "--realtime", "--loop", "--no-browser",
+           "--json", "--max-seconds", str(seconds + 30), *extra]  # fmt: skip
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    url = re.search(r"(http://\S+/index\.html)", p.stdout.readline()).group(1)
+    with chromium() as b:
+        b.get(url)
+        time.sleep(seconds)
+        page = b.execute_script("return anima.live")
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=120)
+    proc = json.loads(out[out.index("{") :])
+    lat = np.array(page["latencies"], float)
+    fr = np.array(page["frames"], float)
+    rss = proc["rss_mb"]
+    return {
+        "clip": clip,
+        "mode": proc["mode"],
+        "seconds": seconds,
+        "source_fps": proc["source_fps"],
+        "frames_offered": proc["frames_offered"],
+        "frames_tracked": proc["frames_tracked"],
+        "tracked_fraction": proc["tracked_fraction"],
+        "tracking_fps": proc["fps"],
+        "latency_to_message_ms": proc["latency_ms"],
+        "page": {
+            "messages": page["received"],
+            "fps": round((len(fr) - 1) / ((fr[-1, 1] - fr[0, 1]) / 1e3), 2) if len(fr) > 1 else 0.0,
+            "glass_to_avatar_ms": {
+                "median": round(float(np.median(lat)), 1),
+                "p95": round(float(np.percentile(lat, 95)), 1),
+            },  # fmt: skip
+        },
+        "rss_mb": {
+            "after_10s": rss[min(10, len(rss) - 1)],
+            "end": rss[-1],
+            "samples": len(rss),
+            "growth_pct": round(100 * (rss[-1] / rss[min(10, len(rss) - 1)] - 1), 2),
+        },  # fmt: skip
+    }
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seconds", type=float, default=60.0)
+    ap.add_argument("--modes", default="face,full,full1")
+    ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "live.json"))
+    a = ap.parse_args()
+    rows = {m: run(m, a.seconds) for m in a.modes.split(",")}
+    write_json(a.out, {"machine": "2 cores, no GPU; headless Chromium (SwiftShader) on the same cores", **rows})
+    for m, r in rows.items():
+        print(f"{m:5s} tracked {100 * r['tracked_fraction']:.1f} % of {r['frames_offered']} at {r['source_fps']:g} fps "
+              f"({r['tracking_fps']} fps); page {r['page']['fps']} fps, glass to avatar "
+              f"{r['page']['glass_to_avatar_ms']['median']} / {r['page']['glass_to_avatar_ms']['p95']} ms; "
+              f"memory {r['rss_mb']['after_10s']} -> {r['rss_mb']['end']} MB")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,131 @@
+"""``anima live`` (issue 36): a real clip fed as a camera drives the character in headless Chromium over the
+WebSocket (the page's own receipt times give frames/s and glass-to-avatar latency; numbers in
+benchmarks/bench_live.py, tests check behaviour), Live Link Face packets leave at the tracking rate, and a
+recorded take matches an offline `anima capture` of the same frames."""
+
+import json
+import re
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+from browser import chromium, have_browser
+
+from anima.io.assets import asset
+from anima.io.livelink import unpack
+from anima.io.sequence import read_sequence
+
+pytestmark = pytest.mark.slow
+D0 = "liveportrait-examples/assets/examples/driving/d0.mp4"  # a face: a smile and blinks
+D6 = "liveportrait-examples/assets/examples/driving/d6.mp4"  # a face turning, 30 fps
+
+
+def _live(*args):
+    return subprocess.Popen(
+        [sys.executable, "-m", "anima", "live", *map(str, args), "--no-browser", "--json"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def _result(p, timeout=120):
+    out, err = p.communicate(timeout=timeout)
+    assert p.returncode == 0, err[-2000:]
+    return json.loads(out[out.index("{") :])
+
+
+def test_a_clip_fed_as_a_camera_moves_the_character_in_the_browser(tmp_path):
+    assert have_browser() is None, have_browser()
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx.bind(("127.0.0.1", 0))
+    rx.settimeout(4)
+    packets = []
+
+    def listen():
+        while True:
+            try:
+                packets.append((time.perf_counter(), unpack(rx.recvfrom(4096)[0])))
+            except TimeoutError:
+                return
+
+    th = threading.Thread(target=listen)
+    th.start()
+    p = _live(asset(D6), "--face-only", "--realtime", "--max-seconds", "30", "--livelink",
+              f"127.0.0.1:{rx.getsockname()[1]}")  # fmt: skip
+    url = re.search(r"(http://127\.0\.0\.1:\d+/\S+/index\.html)", p.stdout.readline()).group(1)
+    with chromium() as b:
+        b.get(url)
+        samples = []
+        for _ in range(6):
+            time.sleep(0.5)
+            samples.append(b.execute_script("return [anima.live, anima.state()]"))
+        b.refresh()  # a page that reloads reconnects and keeps receiving
+        time.sleep(1.5)
+        after = b.execute_script("return anima.live")
+    p.send_signal(signal.SIGINT)  # Ctrl-C ends the take: its numbers are still printed
+    r = _result(p)
+    assert r["interrupted"], r
+    th.join()
+    rx.close()
+    live, state = samples[-1]
+    assert live and live["connects"] >= 1 and live["received"] > 20, {k: live[k] for k in ("connects", "received")}
+    frames = [f for f, _ in live["frames"]]
+    assert frames == sorted(frames) and len(set(frames)) == len(frames)  # in order, never back in time
+    lat = np.array(live["latencies"])
+    assert np.isfinite(lat).all() and (lat >= 0).all() and np.median(lat) < 1000
+    heads = np.array([s["joints"]["Head"] for _, s in samples])
+    morphs = np.array([[s["morphs"][n] for n in ("jawOpen", "eyeBlink_L", "mouthSmile_L")] for _, s in samples])
+    assert np.ptp(morphs, 0).max() > 0.02 or np.ptp(heads, 0).max() > 0.005  # the character moves
+    assert after["received"] > 0 and after["connects"] >= 1, after  # the reloaded page's own counters
+    # the take's numbers, and Live Link packets at the tracking rate with finite, moving values
+    assert r["frames_tracked"] + r["frames_dropped"] == r["frames_offered"] and r["frames_with_face"] > 0
+    assert len(packets) == r["frames_tracked"]
+    t = np.array([x for x, _ in packets])
+    V = np.stack([v["values"] for _, v in packets])
+    assert (len(t) - 1) / (t[-1] - t[0]) >= 20 and np.isfinite(V).all() and np.ptp(V[:, :52], 0).max() > 0.1
+
+
+def test_a_recorded_take_matches_an_offline_capture(d0_capture, captures, tmp_path):
+    """Every frame of a file (no --realtime) recorded live: the face-only take against `anima capture
+    --face-only` of d0, the full take (one tracker) against the capture of the same 90 PATS frames: expression
+    weights correlate >= 0.9 per channel that moves, joints within 2 cm median."""
+    r = _result(_live(asset(D0), "--face-only", "--record", tmp_path / "face"))
+    assert r["frames_dropped"] == 0 and r["record"]["frames"] == d0_capture.n_frames
+    take = read_sequence(tmp_path / "face" / "capture.npz")
+    for k in np.flatnonzero(d0_capture.expression.std(0) > 0.05):
+        assert np.corrcoef(take.expression[:, k], d0_capture.expression[:, k])[0, 1] >= 0.9, take.expr_names[k]
+
+    r = _result(_live(asset("gesture-video/pats-crops/oliver1_gt.mp4"), "--trackers", "1", "--max-frames", "90",
+                      "--record", tmp_path / "full"))  # fmt: skip
+    off = captures["oliver1"]
+    take = read_sequence(tmp_path / "full" / "capture.npz")
+    assert take.n_frames == off.n_frames == 90 and (tmp_path / "full" / "body.bvh").is_file()
+    rs = [np.corrcoef(take.expression[:, k], off.expression[:, k])[0, 1]
+          for k in np.flatnonzero(off.expression.std(0) > 0.05)]  # fmt: skip
+    d = np.linalg.norm(take.body_joints - off.body_joints, axis=-1)
+    print(f"full take: {len(rs)} moving channels, r min {min(rs):.3f} median {np.median(rs):.3f}; "
+          f"joints median {np.nanmedian(d) * 100:.1f} cm")  # fmt: skip
+    assert np.median(rs) >= 0.9 and np.nanmedian(d) <= 0.02
+
+
+def test_bad_sources_and_options_are_refused(cli, tmp_path):
+    for args, code, words in (
+        (["nosuchfile.mp4"], 2, "not found"),
+        (["rtsp://example.com/cam"], 2, "--allow-network"),
+        ([str(asset(D0)), "--livelink", "nohost"], 2, "HOST:PORT"),
+        ([str(asset(D0)), "--trackers", "9"], 2, "--trackers"),
+        (["7"], 3, "no camera 7"),  # no camera on this machine (CI has none)
+    ):
+        r = cli("live", *args, "--no-browser")
+        assert r.returncode == code and words in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    user = tmp_path / "mine"
+    user.mkdir()
+    (user / "notes.txt").write_text("mine")
+    r = cli("live", asset(D0), "--no-browser", "--record", user)
+    assert r.returncode == 2 and (user / "notes.txt").read_text() == "mine"
