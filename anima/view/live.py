@@ -297,6 +297,7 @@ def run(
         for i, t_perf, size, lm, body in tracked(reader, tracker, deadline, max_frames):
             t_cap = time.time() - (time.perf_counter() - t_perf)  # the frame's arrival on the epoch clock
             f = tracker.frame(lm, body, size, i, t_cap)
+            frames.append(f)  # counted before it is sent: an interrupt between the two loses no count
             hub.send(message(f))
             if sock is not None:
                 fps = int(round(reader.fps))
@@ -308,7 +309,6 @@ def run(
                     pass
             lat.append(1e3 * (time.time() - t_cap))
             sent_at.append(time.perf_counter())
-            frames.append(f)
             if time.perf_counter() - last_rss >= 1.0:
                 rss.append(round(_rss_mb(), 1))
                 last_rss = time.perf_counter()

@@ -85,7 +85,7 @@ def test_a_clip_fed_as_a_camera_moves_the_character_in_the_browser(tmp_path):
     assert after["received"] > 0 and after["connects"] >= 1, after  # the reloaded page's own counters
     # the take's numbers, and Live Link packets at the tracking rate with finite, moving values
     assert r["frames_tracked"] + r["frames_dropped"] == r["frames_offered"] and r["frames_with_face"] > 0
-    assert len(packets) == r["frames_tracked"]
+    assert r["frames_tracked"] - 1 <= len(packets) <= r["frames_tracked"]  # the interrupt may fall before a send
     t = np.array([x for x, _ in packets])
     V = np.stack([v["values"] for _, v in packets])
     assert (len(t) - 1) / (t[-1] - t[0]) >= 20 and np.isfinite(V).all() and np.ptp(V[:, :52], 0).max() > 0.1
