@@ -13,22 +13,47 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.core.rotations import matrix_to_euler
+from anima.core.rotations import matrix_to_euler, rotvec_to_matrix
 from anima.errors import InputError
 from anima.io.arkit import HEAD_COLUMNS, LIVE_LINK_COLUMNS, ict_to_arkit
 from anima.io.livelink import pack
 from anima.io.sequence import TrackedSequence, read_sequence
 
 
-def livelink_values(seq: TrackedSequence) -> np.ndarray:
-    """``[F, 61]``: the ARKit weights (0 where no face) and the head's yaw, pitch, roll, as ``arkit.csv``."""
-    ark = np.clip(ict_to_arkit(np.asarray(seq.expression), list(seq.expr_names)), 0.0, 1.0)
-    ark = ark * seq.tracked[:, None]
-    head = np.zeros((seq.n_frames, len(HEAD_COLUMNS)))
-    head[:, :3] = matrix_to_euler(seq.rotation_matrices())
-    head[~seq.tracked] = 0.0
+def livelink_rows(expression: np.ndarray, expr_names, rotation: np.ndarray, tracked: np.ndarray) -> np.ndarray:
+    """``[F, 61]`` Live Link Face values: the ARKit weights of ``expression [F, 53]`` clamped to 0..1 and the
+    head's yaw, pitch, roll from ``rotation [F, 3]`` (axis-angle), as ``arkit.csv``; frames not ``tracked``
+    send 0, the eyes 0."""
+    ark = np.clip(ict_to_arkit(np.asarray(expression, np.float64), list(expr_names)), 0.0, 1.0)
+    tracked = np.asarray(tracked, bool)
+    head = np.zeros((len(ark), len(HEAD_COLUMNS)))
+    head[:, :3] = matrix_to_euler(rotvec_to_matrix(np.asarray(rotation, np.float64)))
     assert ark.shape[1] == len(LIVE_LINK_COLUMNS)
-    return np.concatenate([ark, head], 1)
+    return np.where(tracked[:, None], np.concatenate([ark, head], 1), 0.0)
+
+
+def livelink_values(seq: TrackedSequence) -> np.ndarray:
+    """``[F, 61]``: a sequence's Live Link Face values (:func:`livelink_rows`)."""
+    return livelink_rows(seq.expression, seq.expr_names, seq.rotation, seq.tracked)
+
+
+class Sender:
+    """Live Link Face packets to ``(host, port)`` under ``subject`` (one device id per subject, so Unreal keeps
+    one source per subject)."""
+
+    def __init__(self, target: tuple[str, int], subject: str = "anima"):
+        self.target, self.subject = target, subject
+        self.device = str(uuid.uuid5(uuid.NAMESPACE_URL, f"anima:{subject}"))
+        self.sock = socket.socket(socket.AF_INET6 if ":" in target[0] else socket.AF_INET, socket.SOCK_DGRAM)
+
+    def send(self, index: int, fps: float, row: np.ndarray) -> None:
+        """Frame ``index`` of a ``fps`` stream (the frame time in whole frames at the rounded rate)."""
+        rate = int(round(fps))
+        t = index / fps * rate
+        self.sock.sendto(pack(self.device, self.subject, int(t), t - int(t), rate, row), self.target)
+
+    def close(self) -> None:
+        self.sock.close()
 
 
 def parse_target(to: str) -> tuple[str, int]:
@@ -65,28 +90,25 @@ def send(
     if not seq.tracked.any():
         raise InputError(f"no frame of {sequence} has a face: Live Link Face carries a face")
     values = livelink_values(seq)
-    device = str(uuid.uuid5(uuid.NAMESPACE_URL, f"anima:{subject}"))
+    out = Sender((host, port), subject)
     fps = int(round(seq.fps))
-    sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_DGRAM)
     sent, t0 = 0, time.perf_counter()
     try:
         for k in range(loops):
             for i in range(seq.n_frames):
-                due = t0 + (k * seq.n_frames + i) / seq.fps
-                delay = due - time.perf_counter()
+                delay = t0 + (k * seq.n_frames + i) / seq.fps - time.perf_counter()
                 if delay > 0:
                     time.sleep(delay)
-                t = i / seq.fps * fps
-                sock.sendto(pack(device, subject, int(t), t - int(t), fps, values[i]), (host, port))
+                out.send(i, seq.fps, values[i])
                 sent += 1
                 if progress and sent % max(1, fps) == 0:
                     print(f"\ranima livelink: {sent} frames to {host}:{port}", end="", flush=True)
     except OSError as e:
         raise InputError(f"--to {to}: cannot send ({e.strerror or e})") from None
     finally:
-        sock.close()
+        out.close()
         if progress and sent >= fps:
             print(flush=True)
     wall = time.perf_counter() - t0
-    return {"to": f"{host}:{port}", "subject": subject, "device_id": "$" + device, "packets": sent,
+    return {"to": f"{host}:{port}", "subject": subject, "device_id": "$" + out.device, "packets": sent,
             "seconds": round(wall, 3), "packets_per_s": round(sent / max(wall, 1e-9), 2), "fps": seq.fps}  # fmt: skip

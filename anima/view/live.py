@@ -16,12 +16,10 @@ import base64
 import json
 import os
 import shutil
-import socket
 import sys
 import tempfile
 import threading
 import time
-import uuid
 import webbrowser
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,19 +34,17 @@ from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.core import rig
 from anima.core.camera import mediapipe_to_camera
 from anima.core.contract import EXPR_NAMES, FACE_DIM, N_EXPR, N_JOINTS
-from anima.core.rotations import matrix_to_euler, matrix_to_quat, matrix_to_rotvec, rotvec_to_matrix
+from anima.core.rotations import matrix_to_quat, matrix_to_rotvec
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
-from anima.export.livelink import parse_target
+from anima.export.livelink import Sender, livelink_rows, parse_target
 from anima.export.motion import write_motion_outputs
 from anima.export.vrm import write_character_avatar
 from anima.facemodel.character import load_character
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
-from anima.io.arkit import HEAD_COLUMNS, ict_to_arkit
 from anima.io.atomic import copy_file, write_text
 from anima.io.live_source import PacedReader, check_live_source
-from anima.io.livelink import pack
 from anima.io.outdir import OutputFolder, check_out_dir
 from anima.view.export import _js, viewer_files
 from anima.view.serve import open_server, page_url
@@ -210,15 +206,6 @@ def message(f: LiveFrame) -> str:
     )
 
 
-def livelink_row(f: LiveFrame, names) -> np.ndarray:
-    """The 61 Live Link Face values of one frame (ARKit weights, head yaw/pitch/roll, eyes 0)."""
-    ark = np.clip(ict_to_arkit(f.expression[None], list(names))[0], 0.0, 1.0)
-    head = np.zeros(len(HEAD_COLUMNS))
-    if f.face:
-        head[:3] = matrix_to_euler(rotvec_to_matrix(f.rotation))
-    return np.concatenate([ark, head])
-
-
 def _page(root: Path, title: str, fps: float) -> None:
     data = {
         "schema": "anima.view", "version": 1, "kind": "live", "live": True, "title": title, "fps": fps,
@@ -271,6 +258,7 @@ def run(
     reader = PacedReader(src, realtime=realtime or not Path(src).exists(), loop=loop)
     root = Path(tempfile.mkdtemp(prefix="anima-live-"))
     server = None
+    sender = None
     hub = Broadcaster()
     frames: list[LiveFrame] = []
     lat, sent_at, rss = [], [], []
@@ -288,10 +276,7 @@ def run(
         has_screen = sys.platform != "linux" or os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
         if browser and has_screen:
             threading.Thread(target=webbrowser.open, args=(url,), daemon=True).start()
-        sock = None
-        if target:
-            sock = socket.socket(socket.AF_INET6 if ":" in target[0] else socket.AF_INET, socket.SOCK_DGRAM)
-            device = str(uuid.uuid5(uuid.NAMESPACE_URL, "anima:live"))
+        sender = Sender(target) if target else None
         last_rss = 0.0
         deadline = t0 + max_seconds if max_seconds else None
         for i, t_perf, size, lm, body in tracked(reader, tracker, deadline, max_frames):
@@ -299,12 +284,11 @@ def run(
             f = tracker.frame(lm, body, size, i, t_cap)
             frames.append(f)  # counted before it is sent: an interrupt between the two loses no count
             hub.send(message(f))
-            if sock is not None:
-                fps = int(round(reader.fps))
-                t = i / reader.fps * fps
-                row = livelink_row(f, EXPR_NAMES)
+            if sender is not None:
                 try:
-                    sock.sendto(pack(device, "anima", int(t), t - int(t), fps, row), target)
+                    sender.send(
+                        i, reader.fps, livelink_rows(f.expression[None], EXPR_NAMES, f.rotation[None], [f.face])[0]
+                    )
                 except OSError:
                     pass
             lat.append(1e3 * (time.time() - t_cap))
@@ -319,6 +303,8 @@ def run(
         reader.close()
         tracker.close()
         hub.close()
+        if sender is not None:
+            sender.close()
         if server is not None:
             server.shutdown()
             server.server_close()

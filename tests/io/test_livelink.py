@@ -2,12 +2,9 @@
 livelink` playing a real capture into a UDP parser on 127.0.0.1 at the capture's frame rate with the values of
 its arkit.csv."""
 
-import socket
-import threading
-import time
-
 import numpy as np
 import pytest
+from conftest import LiveLinkParser
 
 from anima.io.livelink import N_VALUES, pack, unpack
 
@@ -34,29 +31,16 @@ def test_livelink_plays_a_real_capture_at_its_rate(d0_capture, tmp_path, cli):
     from anima.io.sequence import write_sequence
 
     seq_path = write_sequence(d0_capture, tmp_path / "capture.npz")
-    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    rx.bind(("127.0.0.1", 0))
-    rx.settimeout(5)
-    got = []
-
-    def listen():
-        while True:
-            try:
-                data, _ = rx.recvfrom(4096)
-            except TimeoutError:
-                return
-            got.append((time.perf_counter(), unpack(data)))
-
-    th = threading.Thread(target=listen)
-    th.start()
-    r = cli("livelink", seq_path, "--to", f"127.0.0.1:{rx.getsockname()[1]}", "--subject", "take1", "--json")
-    th.join()
-    rx.close()
+    with LiveLinkParser() as rx:
+        r = cli("livelink", seq_path, "--to", f"127.0.0.1:{rx.port}", "--subject", "take1", "--json")
+    got = rx.packets
     assert r.returncode == 0, r.stderr
     assert len(got) == d0_capture.n_frames and {g[1]["subject"] for g in got} == {"take1"}
     t = np.array([g[0] for g in got])
-    rate = (len(t) - 1) / (t[-1] - t[0])
-    assert rate >= 20 and abs(rate - d0_capture.fps) < 0.1 * d0_capture.fps, rate  # paced at the capture's rate
+    rate = 1.0 / np.median(np.diff(t))  # the pacing (one stall of a loaded machine does not move a median)
+    assert (len(t) - 1) / (t[-1] - t[0]) >= 20 and rate >= 20 and abs(rate - d0_capture.fps) < 0.1 * d0_capture.fps, (
+        rate
+    )  # paced at the capture's rate
     V = np.stack([g[1]["values"] for g in got])
     assert np.isfinite(V).all() and np.ptp(V[:, :52], 0).max() > 0.3  # values that move (d0 smiles and blinks)
     _, csv = read_live_link_csv(export_arkit_csv(d0_capture, tmp_path / "a.csv"))

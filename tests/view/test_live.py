@@ -6,18 +6,16 @@ recorded take matches an offline `anima capture` of the same frames."""
 import json
 import re
 import signal
-import socket
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
 import pytest
 from browser import chromium, have_browser
+from conftest import LiveLinkParser
 
 from anima.io.assets import asset
-from anima.io.livelink import unpack
 from anima.io.sequence import read_sequence
 
 pytestmark = pytest.mark.slow
@@ -42,22 +40,9 @@ def _result(p, timeout=120):
 
 def test_a_clip_fed_as_a_camera_moves_the_character_in_the_browser(tmp_path):
     assert have_browser() is None, have_browser()
-    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    rx.bind(("127.0.0.1", 0))
-    rx.settimeout(4)
-    packets = []
-
-    def listen():
-        while True:
-            try:
-                packets.append((time.perf_counter(), unpack(rx.recvfrom(4096)[0])))
-            except TimeoutError:
-                return
-
-    th = threading.Thread(target=listen)
-    th.start()
+    rx = LiveLinkParser(idle_s=4).__enter__()
     p = _live(asset(D6), "--face-only", "--realtime", "--max-seconds", "30", "--livelink",
-              f"127.0.0.1:{rx.getsockname()[1]}")  # fmt: skip
+              f"127.0.0.1:{rx.port}")  # fmt: skip
     url = re.search(r"(http://127\.0\.0\.1:\d+/\S+/index\.html)", p.stdout.readline()).group(1)
     with chromium() as b:
         b.get(url)
@@ -71,8 +56,8 @@ def test_a_clip_fed_as_a_camera_moves_the_character_in_the_browser(tmp_path):
     p.send_signal(signal.SIGINT)  # Ctrl-C ends the take: its numbers are still printed
     r = _result(p)
     assert r["interrupted"], r
-    th.join()
-    rx.close()
+    rx.__exit__(None, None, None)
+    packets = rx.packets
     live, state = samples[-1]
     assert live and live["connects"] >= 1 and live["received"] > 20, {k: live[k] for k in ("connects", "received")}
     frames = [f for f, _ in live["frames"]]
