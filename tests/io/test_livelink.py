@@ -4,7 +4,7 @@ its arkit.csv."""
 
 import numpy as np
 import pytest
-from conftest import LiveLinkParser
+from livelink_parser import LiveLinkParser
 
 from anima.io.livelink import N_VALUES, pack, unpack
 

@@ -13,7 +13,7 @@ import time
 import numpy as np
 import pytest
 from browser import chromium, have_browser
-from conftest import LiveLinkParser
+from livelink_parser import LiveLinkParser
 
 from anima.io.assets import asset
 from anima.io.sequence import read_sequence
