@@ -25,6 +25,7 @@ LAYERS: dict[str, int] = {
     "export": 4,  # motion to files (the one motion writer)
     "capture": 5,  # stage: video -> tracked sequence
     "dataset": 6,  # stage: tracked sequences -> training pairs
+    "library": 6,  # the built-in motion library (data the features use when no dataset is given)
     "text2face": 7,
     "gesture": 7,
     "reenact": 7,

@@ -9,7 +9,7 @@ from anima.gesture.config import GestureConfig
 from anima.text2face import run as text2face
 from anima.text2face.config import PromptConfig
 
-PROMPT_OPTIONS = ["length", "seconds", "seed", "method"]
+PROMPT_OPTIONS = ["length", "seconds", "seed", "method", "with_builtin"]
 GESTURE_OPTIONS = [
     "k",
     "init",
@@ -31,19 +31,23 @@ def register(sub) -> None:
         description="Seed 000: a sentence -> 3D facial motion (ICT expression weights + head "
         "rotation, 30 fps). Writes into --out: motion.npz (a tracked sequence: `anima info`, "
         "`anima export`), face.mp4, arkit.csv (Live Link Face), face.glb, info.json and "
-        "manifest.json. With --db, the timeline method: the prompt is read as events (smile, blink, "
-        "frown, squint, raise eyebrows, surprise, mouth open, yawn, talk, nod, shake head, turn, and "
-        "the emotions happy, sad, angry, disgusted, fearful, contempt, neutral; 'then', 'while', "
-        "'twice', 'slightly', 'left eye') made from the dataset's captured motion; info.json says how "
-        "the prompt was read and what was not understood. Without --db, the seed model (the shipped "
-        "checkpoint unless --checkpoint is given).",
+        "manifest.json. By default the timeline method: the prompt is read as events (smile, blink, "
+        "wink, frown, squint, raise eyebrows, surprise, mouth open, yawn, talk, nod, shake head, turn, "
+        "gaze, cheek puff, pout, lip press, and the emotions happy, sad, angry, disgusted, fearful, "
+        "contempt, neutral; 'then', 'while', 'twice', 'slightly', 'left eye', 'without') made from "
+        "captured motion: the built-in library (no dataset needed) or --db's; info.json says how the "
+        "prompt was read and what was not understood. --method model (or --checkpoint): the seed "
+        "model (the shipped checkpoint unless --checkpoint is given).",
     )
     tf.add_argument("prompt", help='e.g. "a woman smiles, then blinks"')
     tf.add_argument("--out", required=True, help="output folder")
     add_options(tf, PromptConfig, PROMPT_OPTIONS)
     tf.add_argument("--checkpoint", default=None, help="a checkpoint from `anima train text2face` (--method model)")
     tf.add_argument(
-        "--db", default=None, help="dataset folder from `anima dataset build`: the timeline method's captured motion"
+        "--db",
+        default=None,
+        help="dataset folder from `anima dataset build`: the timeline method's captured motion, instead of "
+        "the built-in library's (with --with-builtin, as well)",
     )
     tf.add_argument("--no-video", action="store_true", help="skip the MP4 render")
     add_rig(tf)
@@ -62,7 +66,11 @@ def register(sub) -> None:
         "arkit.csv, face.glb, face.mp4; info.json and manifest.json. --json adds the time per stage.",
     )
     ge.add_argument("speech", help="speech audio (WAV/MP3/FLAC or a video's audio; resampled to 16 kHz)")
-    ge.add_argument("--db", default=None, help="dataset folder from `anima dataset build` (k-NN search)")
+    ge.add_argument(
+        "--db",
+        default=None,
+        help="dataset folder from `anima dataset build` (k-NN search); default: the built-in motion library",
+    )
     ge.add_argument(
         "--generator",
         default=None,

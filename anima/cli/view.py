@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from anima.cli.common import command_line, emit, notes
 from anima.cli.options import number
+from anima.errors import InputError
 from anima.view import live
 from anima.view.serve import serve, write_static
 
@@ -66,7 +67,9 @@ def register_live(sub) -> None:
         "packets; --record DIR writes the take as a result folder when it ends (end of the source, "
         "--max-seconds, Ctrl-C). The numbers of the take are printed at the end.",
     )
-    p.add_argument("source", help="camera index (0, 1, ...), video file, or stream URL (with --allow-network)")
+    p.add_argument(
+        "source", nargs="?", help="camera index (0, 1, ...), video file, or stream URL (with --allow-network)"
+    )
     p.add_argument("--face-only", action="store_true", help="track the face only (Face Mesh: faster)")
     p.add_argument(
         "--realtime",
@@ -74,8 +77,26 @@ def register_live(sub) -> None:
         help="play a video file at its own frame rate as a camera would, dropping frames when behind "
         "(default for a file: every frame, as fast as they are tracked)",
     )
-    p.add_argument("--record", metavar="DIR", default=None, help="write the take as a result folder into DIR")
+    p.add_argument(
+        "--record",
+        metavar="DIR",
+        default=None,
+        help="write the take as a result folder into DIR (flushed every 2 s while it runs: a killed take is "
+        "kept, see --recover)",
+    )
+    p.add_argument(
+        "--recover",
+        metavar="DIR",
+        default=None,
+        help="instead of a SOURCE: write the result folder of a take that was killed (its parts in DIR/take)",
+    )
     p.add_argument("--livelink", metavar="HOST:PORT", default=None, help="also send Live Link Face UDP packets")
+    p.add_argument(
+        "--avatar",
+        default=None,
+        help="your character (.vrm VRM 1.0, or a skinned .glb with humanoid bone names) instead of anima's: "
+        "each frame is retargeted onto its own rest pose (as `anima retarget` does)",
+    )
     p.add_argument("--port", type=number(int, 1, 65535), default=None, help="port of the page (default: free)")
     p.add_argument("--no-browser", action="store_true", help="print the address only; do not open a browser")
     p.add_argument("--max-seconds", type=number(float, 0.1, 86400.0), default=None, help="stop after this long")
@@ -94,6 +115,12 @@ def register_live(sub) -> None:
 
 
 def cmd_live(a) -> int:
+    if a.recover is not None:
+        if a.source is not None or a.record is not None or a.avatar is not None:
+            raise InputError("--recover DIR takes no SOURCE and no --record: it writes the take already in DIR")
+        return emit(live.recover(a.recover, command_line(a)), a.json)
+    if a.source is None:
+        raise InputError("give a SOURCE (a camera index, a video file or a stream URL), or --recover DIR")
     r = live.run(
         a.source,
         face_only=a.face_only,
@@ -108,6 +135,7 @@ def cmd_live(a) -> int:
         max_frames=a.max_frames,
         trackers=a.trackers,
         loop=a.loop,
+        avatar=a.avatar,
     )
     return emit(r, a.json)
 

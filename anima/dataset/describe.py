@@ -232,11 +232,176 @@ def fits_encoder(text: str) -> bool:
     return n_tokens(text) <= _window_tokenizer()[1]
 
 
+# other words for the same events (each read back by the prompt parser, anima.text2face.prompt)
+SYNONYMS = {
+    "talk": [("talks", "talk"), ("speaks", "speak")],
+    "smile": [("smiles", "smile"), ("grins", "grin")],
+    "frown": [("frowns", "frown"), ("furrows the brow", "furrow the brow")],
+    "raise eyebrows": [("raises the eyebrows", "raise the eyebrows"), ("lifts the eyebrows", "lift the eyebrows")],
+    "mouth open": [("opens the mouth", "open the mouth"), ("drops the jaw", "drop the jaw")],
+    "squint": [("squints", "squint"), ("narrows the eyes", "narrow the eyes")],
+}
+MAX_STEPS = 8  # events an ordered description names before it summarises the rest
+
+
+ING = {"talk": ["talking", "speaking"]}
+
+
+def _ing(a: str, rng) -> str:
+    if a in ING:
+        return ING[a][int(rng.integers(len(ING[a])))]
+    verb = VERBS.get(a, (a + "s", a))[1].split(" ", 1)
+    stem = verb[0][:-1] if verb[0].endswith("e") and not verb[0].endswith("ee") else verb[0]
+    return " ".join([stem + "ing"] + verb[1:])
+
+
+def background(segs: list[Segment]) -> tuple[str, ...]:
+    """States that last through most of the clip (talking, an emotion): said once ("while talking") instead of
+    in every step."""
+    total = sum(s.duration for s in segs if set(s.attributes) - {"neutral"})
+    if total <= 0:
+        return ()
+    cover: dict[str, float] = {}
+    for seg in segs:
+        for a in seg.attributes:
+            cover[a] = cover.get(a, 0.0) + seg.duration
+    return tuple(a for a, c in cover.items() if a not in COUNTABLE and a != "neutral" and c >= 0.6 * total)
+
+
+def _steps(segs: list[Segment], bg: tuple[str, ...] = ()) -> list[list]:
+    """``[attributes, count, start_s, end_s]``: the clip's changes (the ``bg`` states left out), a repeated
+    event counted, pauses dropped."""
+    out: list[list] = []
+    for seg in segs:
+        attrs = tuple(a for a in seg.attributes if a != "neutral" and a not in bg)
+        if not attrs:
+            continue
+        if out and out[-1][0] == attrs:
+            out[-1][1] += 1 if set(attrs) & COUNTABLE else 0
+            out[-1][3] = seg.end
+        else:
+            out.append([attrs, 1, seg.start, seg.end])
+    return out
+
+
+def _verb(a: str, plural: bool, rng) -> str:
+    forms = SYNONYMS.get(a) or [VERBS.get(a, (a + "s", a))]
+    return forms[int(rng.integers(len(forms)))][1 if plural else 0]
+
+
+def _verbs(attrs, n: int, plural: bool, rng) -> str:
+    words = _join([_verb(a, plural, rng) for a in attrs])
+    return f"{words} {COUNT_WORDS.get(n, f'{n} times')}" if n > 1 else words
+
+
+def _subject(gender, rng) -> tuple[str, str, bool]:
+    noun, pronoun, plural = GENDER_WORDS.get(gender, GENDER_WORDS[None])
+    det = ["a", "the", "this"][int(rng.integers(3))]
+    return f"{det} {noun if rng.random() < 0.8 else 'person'}", pronoun, plural
+
+
+def _while(bg, rng) -> str:
+    return "while " + _join([_ing(a, rng) for a in bg]) if bg else ""
+
+
+def _ordered(steps, gender, rng, bg=()) -> str:
+    """Events in order: "A woman smiles, then blinks twice, then speaks." (the first MAX_STEPS, the rest summed)."""
+    subj, _, _ = _subject(gender, rng)
+    conn = [", then ", ", after that ", ", next ", " and then "]
+    parts = [_verbs(a, n, False, rng) for a, n, _, _ in steps[:MAX_STEPS]]
+    if bg:
+        subj = _while(bg, rng).capitalize() + ", " + subj
+    text = subj + " " + parts[0]
+    for p in parts[1:]:
+        text += conn[int(rng.integers(len(conn)))] + p
+    rest = _counts(steps[MAX_STEPS:])
+    if rest:
+        text += ", and later " + _join([_verb(a, False, rng) for a in rest])
+    return text + "."
+
+
+def _counts(steps) -> dict[str, int]:
+    counts: dict[str, int] = {}
+    for attrs, n, _, _ in steps:
+        for a in attrs:
+            counts[a] = counts.get(a, 0) + n
+    return counts
+
+
+def _summary(steps, gender, rng, bg=()) -> str:
+    """What happens, not when: "Over the clip, the man speaks, smiles twice and blinks three times."."""
+    subj, _, _ = _subject(gender, rng)
+    counts = {a: 1 for a in bg} | _counts(steps)
+    parts = [
+        _verb(a, False, rng) + (f" {COUNT_WORDS.get(n, f'{n} times')}" if n > 1 and a in COUNTABLE else "")
+        for a, n in counts.items()
+    ]
+    lead = ["Over the clip, ", "In this clip, ", "", "Throughout, "][int(rng.integers(4))]
+    return lead + subj + " " + _join(parts) + "."
+
+
+def _timed(steps, gender, rng, bg=()) -> str:
+    """Events with their times: "At 0.4 s a woman smiles; at 1.3 s she blinks; from 2.0 to 6.5 s she talks."."""
+    subj, pronoun, plural = _subject(gender, rng)
+    out = [f"{subj} {_join([_verb(a, False, rng) for a in bg])} throughout"] if bg else []
+    if bg:
+        subj = pronoun
+    for k, (attrs, n, a, b) in enumerate(steps[:MAX_STEPS]):
+        who = subj if k == 0 else pronoun
+        when = f"from {a:.1f} to {b:.1f} s" if b - a >= 1.5 else f"at {a:.1f} s"
+        out.append(f"{when} {who} {_verbs(attrs, n, plural and who == pronoun, rng)}")
+    text = "; ".join(out)
+    return text[0].upper() + text[1:] + "."
+
+
+STILL = ["keeps a neutral face", "keeps a calm face", "stays still", "keeps a relaxed expression",
+         "keeps a straight face", "looks calm", "keeps a blank expression", "remains still"]  # fmt: skip
+
+
+def _still(steps, gender, rng, bg=()) -> str:
+    """A clip with no event: the neutral face in one of several phrasings (each read as neutral by the parser)."""
+    subj, _, _ = _subject(gender, rng)
+    when = ["", " for a while", " throughout", " the whole time", " for the whole clip"][int(rng.integers(5))]
+    return f"{subj} {STILL[int(rng.integers(len(STILL)))]}{when}."
+
+
+def _repeats_phrases(text: str, k: int = 4, limit: int = 2) -> bool:
+    """Whether some ``k``-word sequence occurs more than ``limit`` times (unreadable filler)."""
+    w = text.lower().replace(",", "").replace(".", "").split()
+    grams: dict[tuple, int] = {}
+    for i in range(len(w) - k + 1):
+        g = tuple(w[i : i + k])
+        grams[g] = grams.get(g, 0) + 1
+    return any(v > limit for v in grams.values())
+
+
 def fitting_descriptions(segs: list[Segment], n: int, seed: int, gender: str | None) -> tuple[list[str], int]:
-    """A clip's descriptions, each within the text encoder's window: the short form first, then up to ``n``
-    long forms; a long form over the window is left out and counted, never cut."""
+    """A clip's ``n`` distinct descriptions in varied templates and granularity (issue 37): the short form,
+    events in order, a summary of what happens, events with their times, and the seed's long grammar over
+    the clip's condensed changes; each within the text encoder's window and free of repeated phrases (a
+    candidate that is not is left out and counted, never cut). Deterministic in ``seed``."""
+    rng = np.random.default_rng(seed)
+    bg = background(segs)
+    steps = _steps(segs, bg)
+    if not steps:  # nothing but the background states: they are the events
+        bg, steps = (), _steps(segs)
     short = describe_short(segs, gender)
-    longs = describe_many(segs, n, seed, gender)
-    fits = [t for t in longs if fits_encoder(t)]
-    out = [short] if short and fits_encoder(short) else []
-    return out + [t for t in fits if t != short], len(longs) - len(fits)
+    cands = [short] if short else []
+    makers = [_ordered, _summary, _timed] if steps else [_still]
+    condensed = [Segment(a, b, attrs) for attrs, _, a, b in steps[:MAX_STEPS]]
+    out, dropped, tries = [], 0, 0
+    while len(out) < n and tries < 40 * max(n, 1):
+        tries += 1
+        if cands:
+            t = cands.pop(0)
+        else:
+            k = int(rng.integers(len(makers) + (1 if steps and not bg else 0)))
+            t = makers[k](steps, gender, rng, bg) if k < len(makers) else describe(condensed, rng, gender)
+        t = t[0].upper() + t[1:] if t else t
+        if not t or t in out:
+            continue
+        if not fits_encoder(t) or _repeats_phrases(t):
+            dropped += 1
+            continue
+        out.append(t)
+    return out, dropped

@@ -273,12 +273,26 @@ def pose_avatar(g: Gltf, hum: Humanoid, src: dict) -> dict:
     local_rot, hips_t = {}, None
     for i in Wrot:
         Pw = world[:, par[i]] if par[i] >= 0 else np.tile(np.eye(4), (F, 1, 1))
-        Lm = np.linalg.solve(Pw, world[:, i])
+        Lm = _affine_inverse(Pw) @ world[:, i]
         local_rot[i] = _continuous(matrix_to_quat(_rotation_part(Lm[:, :3, :3])))
         if i == hips:
             hips_t = Lm[:, :3, 3]
     return {"local_rot": local_rot, "hips_t": hips_t, "world": world, "A": A, "raised_m": float(raise_m.max()),
             "hip_ratio": float(ratio)}  # fmt: skip
+
+
+def _affine_inverse(M: np.ndarray) -> np.ndarray:
+    """Inverses of affine transforms ``M [..., 4, 4]`` (the 3 x 3 part by its adjugate: no LAPACK call per
+    matrix, which costs milliseconds each on a busy machine)."""
+    A = M[..., :3, :3]
+    c0, c1, c2 = A[..., :, 0], A[..., :, 1], A[..., :, 2]
+    adj = np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], -2)  # rows of the inverse x det
+    det = np.einsum("...i,...i->...", c0, adj[..., 0, :])
+    inv = np.zeros_like(M)
+    inv[..., :3, :3] = adj / det[..., None, None]
+    inv[..., :3, 3] = -np.einsum("...ij,...j->...i", inv[..., :3, :3], M[..., :3, 3])
+    inv[..., 3, 3] = 1.0
+    return inv
 
 
 def _continuous(q: np.ndarray) -> np.ndarray:
@@ -408,6 +422,40 @@ def face_tracks(g: Gltf, arkit: np.ndarray) -> tuple[list[tuple[int, str, np.nda
     return tracks, report
 
 
+def load_avatar(avatar: str | Path) -> tuple[Gltf, Humanoid]:
+    """A user's avatar (.vrm or a skinned .glb) and its humanoid bones; refused (exit 2/4) when it is not one."""
+    if Path(avatar).suffix.lower() not in (".vrm", ".glb"):
+        raise InputError(f"--avatar {avatar}: expected a .vrm (VRM 1.0) or a .glb (skinned glTF binary)")
+    g = read_gltf(avatar)
+    if not g.doc.get("skins") and g.vrm is None:
+        raise SchemaError(f"{avatar} has no skin: anima animates skinned characters (a glTF with a skin)")
+    return g, find_humanoid(g)
+
+
+class LiveRetarget:
+    """One frame at a time (``anima live --avatar``): anima's rig pose and expression weights onto a user's
+    avatar, by the same maths as :func:`run` (:func:`pose_avatar`, :func:`face_tracks`) with no look-ahead."""
+
+    def __init__(self, avatar: str | Path, rest: np.ndarray):
+        self.g, self.hum = load_avatar(avatar)
+        self.rest = rest
+        self.root = rest[rig.HIPS][None]
+
+    def frame(self, local: np.ndarray, expression: np.ndarray, face: bool) -> dict:
+        """``{"r": [[node, x, y, z, w], ...] local rotations, "h": [node, x, y, z] the hips' translation,
+        "m": [[node, [weights]], ...] morph weights}`` of one frame (``local [65, 3, 3]``, ``expression [53]``)."""
+        G, P = rig.forward(local[None], self.rest, self.root)
+        posed = pose_avatar(self.g, self.hum, {"rest": self.rest, "global": G, "positions": P, "root": self.root})
+        arkit = arkit_weights(expression[None], list(EXPR_NAMES)) * float(face)
+        tracks, _ = face_tracks(self.g, arkit)
+        hips = self.hum.nodes["Hips"]
+        return {
+            "r": [[int(i), *np.round(q[0], 4).tolist()] for i, q in posed["local_rot"].items()],
+            "h": [int(hips), *np.round(posed["hips_t"][0], 4).tolist()],
+            "m": [[int(node), np.round(w[0], 3).tolist()] for node, _, w in tracks],
+        }
+
+
 # ---- the command ------------------------------------------------------------------------------------------------
 
 SEQUENCE_FILES = ("capture.npz", "gesture.npz", "motion.npz")
@@ -441,14 +489,9 @@ def run(result: str | Path, avatar: str | Path, out: str | Path, command: str | 
     info_path = check_out_file(out.with_suffix(".json"), "--out (its info)", inputs=[seq_path, avatar])
     check_replaceable(out, "--out", _is_ours, "an avatar")
     check_replaceable(info_path, "--out (its info)", _is_info, "a retarget info file")
-    if Path(avatar).suffix.lower() not in (".vrm", ".glb"):
-        raise InputError(f"--avatar {avatar}: expected a .vrm (VRM 1.0) or a .glb (skinned glTF binary)")
-    g = read_gltf(avatar)
+    g, hum = load_avatar(avatar)
     if out.suffix.lower() == ".vrm" and g.vrm is None:
         raise InputError(f"--out {out}: a .vrm needs a VRM avatar; {avatar} is a plain glTF (write a .glb)")
-    if not g.doc.get("skins") and g.vrm is None:
-        raise SchemaError(f"{avatar} has no skin: anima animates skinned characters (a glTF with a skin)")
-    hum = find_humanoid(g)
     seq = read_sequence(seq_path, landmarks=False)
     F = seq.n_frames
     tracks: list = []

@@ -13,6 +13,7 @@ from anima.errors import InputError
 from anima.gesture.features import POSE_OFFSETS, T_MATCH, audio_features, pose_features
 from anima.gesture.knn import MatchDB
 from anima.io.mapped import cache_key, file_stamp, mapped_arrays
+from anima.library import builtin
 
 LOOKAHEAD = max(POSE_OFFSETS)
 
@@ -49,6 +50,15 @@ def from_dataset(folder: str | Path, split: str | None = "train") -> MatchDB:
     a = mapped_arrays("gesture_db", cache_key(file_stamp(manifest), split, code), lambda: _arrays(folder, split))
     src = json.loads(str(a["source"]))
     return MatchDB(a["F"], a["P"], a["G"], [tuple(x) for x in src], a["S"], fps=float(a["fps"]))
+
+
+def from_builtin() -> MatchDB:
+    """The matching database of the built-in motion library's windows (:mod:`anima.library.builtin`)."""
+    b = builtin.load()
+    g = b.gesture
+    if not len(g["G"]):
+        raise InputError("the built-in motion library has no (audio, gesture) window: give --db DATASET")
+    return MatchDB(g["F"], g["P"], g["G"], b.gesture_source, g["S"], fps=b.gesture_fps)
 
 
 def _arrays(folder, split) -> dict:

@@ -18,7 +18,7 @@ from anima.export.framing import generated_sequence
 from anima.export.motion import write_motion_outputs
 from anima.gesture.config import GestureConfig
 from anima.gesture.control import parse_control, speed_steps, step_masks
-from anima.gesture.database import from_dataset
+from anima.gesture.database import from_builtin, from_dataset
 from anima.gesture.face import fit_speech_face, talking_face
 from anima.gesture.features import N_STEP, audio_features
 from anima.gesture.keywords import keyword_masks, parse_keyword, union
@@ -26,6 +26,7 @@ from anima.gesture.knn import search
 from anima.gesture.post import finish_knn, joins_of, one_skeleton
 from anima.io.mapped import cache_key, file_stamp, mapped_arrays
 from anima.io.outdir import OutputFolder, check_out_dir
+from anima.library import builtin
 
 
 def synthesize(
@@ -171,8 +172,8 @@ def run(
     keywords = [parse_keyword(k) for k in cfg.keyword]
     if generator and (cfg.control or refiner or cfg.keyword):
         raise InputError("--control, --refiner and --keyword apply to the k-NN search (--db), not to --generator")
-    if not generator and not db:
-        raise InputError("give --db DATASET (k-NN search) or --generator CHECKPOINT")
+    if generator and db:
+        raise InputError("give --db DATASET (k-NN search) or --generator CHECKPOINT, not both")
     kw_folders = {}
     for spec in cfg.keyword_db:
         word, sep, folder = spec.partition("=")
@@ -196,7 +197,7 @@ def run(
                     from anima.gesture.refine import load_refiner  # lazy: torch
 
                     ref = load_refiner(refiner)
-                match_db = from_dataset(db, None if cfg.all_splits else "train")
+                match_db = from_dataset(db, None if cfg.all_splits else "train") if db else from_builtin()
                 kw_dbs = {w: from_dataset(f, None) for w, f in kw_folders.items()}
             J, info = synthesize(
                 speech,
@@ -214,8 +215,13 @@ def run(
                 sw=sw,
             )
             with sw("face"):
-                face, face_note = talking_face_of(db, info.pop("speech_features"), info["fps"], cfg.seed)
+                S = info.pop("speech_features")
+                if db:
+                    face, face_note = talking_face_of(db, S, info["fps"], cfg.seed)
+                else:
+                    face, face_note = talking_face(S, info["fps"], builtin.load().speech_face, cfg.seed), None
             info = {k: v for k, v in info.items() if k != "picks"} | {"database_windows": match_db.M}
+            info["database"] = str(db) if db else builtin.summary()
             info["notes"] = info.get("notes", []) + ([face_note] if face_note else [])
             info["face"] = FACE_NOTE
         seq = generated_sequence(

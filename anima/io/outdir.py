@@ -304,6 +304,12 @@ class OutputFolder:
             self.files.append(name)
         return self.path / name
 
+    def journal(self, files: dict[str, str]) -> None:
+        """Files written while the run goes on (``name -> sha256``, e.g. a live take's parts) are listed in
+        anima's marker now, beside the previous run's files: a run killed before it finishes leaves a folder
+        that is still anima's, whose partial files anima may use or remove."""
+        write_marker(self.path, self.kind, self._previous | files)
+
     def add(self, path: str | os.PathLike) -> Path:
         p = Path(path)
         return self.file(str(p.relative_to(self.path)) if p.is_absolute() else str(p))

@@ -12,10 +12,13 @@ collapse onto a few codebook entries. This method works on minutes and improves 
    EMFACS: Friesen & Ekman 1983; the channel sets of the issue).
 3. A segment contributes its offsets from its own clip's rest face (``Library.rest``: the 20th percentile
    of each expression weight, the median head rotation), only on the channels of its event (``CHANNELS``),
-   faded in and out with a raised cosine over its margins, added to a neutral base (the median rest face of
-   the library). Held events (a smile "for a while", an emotion) stretch the middle of their segment; talk
-   is tiled from several talk segments; counted events repeat with different segments.
-4. The result is checked with the same detectors; an event they do not find is made stronger (x1.35, at
+   faded in and out with a raised cosine over its margins, added to the face model's neutral (every weight
+   0, the head straight: a rest face that is neutral and symmetric). Held events (a smile "for a while", an
+   emotion) stretch the middle of their segment; talk is tiled from several talk segments; counted events
+   repeat with different segments.
+4. Actions no detector labels (gaze, eye rolls, cheek puff, pout, lip press, ...) and the one-sided versions
+   of blinks (winks), raised brows and smiles are keyframed on their channels (:mod:`anima.text2face.poses`).
+5. The result is checked with the same detectors; an event they do not find is made stronger (x1.35, at
    most 4 times, clipped to the weights' range), so "slightly" is the weakest version that still reads.
 
 Pure: the library is built from arrays (``Library.from_clips``); reading a dataset is ``from_dataset``.
@@ -33,6 +36,8 @@ from anima.dataset.attributes import ATTRIBUTES, detect
 from anima.dataset.windows import read_clips
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
+from anima.library import builtin
+from anima.text2face.poses import POSES, natural_frames, pose_track
 from anima.text2face.prompt import Plan
 
 _IX = {n: i for i, n in enumerate(EXPR_NAMES)}
@@ -119,9 +124,8 @@ class Library:
     neutral: np.ndarray = field(default=None)  # type: ignore[assignment]
 
     def __post_init__(self):
-        if self.neutral is None:
-            self.neutral = np.median(self.rest, 0) if len(self.rest) else np.zeros(FACE_DIM, np.float32)
-            self.neutral[N_EXPR:] = 0.0
+        if self.neutral is None:  # the face model's own neutral: every weight 0, the head straight
+            self.neutral = np.zeros(FACE_DIM, np.float32)
 
     @property
     def counts(self) -> dict[str, int]:
@@ -161,6 +165,12 @@ class Library:
         return cls.from_clips(
             [c.motion for c in clips], [c.events for c in clips], [f"{c.clip_id}" for c in clips], clips[0].fps
         )
+
+    @classmethod
+    def from_builtin(cls) -> Library:
+        """The built-in motion library's clips (:mod:`anima.library.builtin`)."""
+        b = builtin.load()
+        return cls.from_clips(b.face_motion, b.face_events, b.face_clip, b.face_fps)
 
 
 def _rest(m: np.ndarray) -> np.ndarray:
@@ -268,6 +278,24 @@ class Placed:
     gain: float
     pieces: list[tuple[Segment, int, int]]  # (segment, output start, output length)
     side: str | None = None
+    pose: str | None = None  # a keyframed event (anima.text2face.poses)
+    count: int = 1
+    level: float = 1.0  # the stated intensity (a captured event's peak is brought into its range)
+
+
+def pose_of(e) -> str | None:
+    """The keyframed pose that makes event ``e``, if any: the actions no detector labels, and the one-sided
+    versions of blink (a wink), raised brows and smile, made at full strength on the named side."""
+    if e.attribute in POSES:
+        return e.attribute
+    if e.side in ("left", "right"):
+        return {"blink": "wink", "raise eyebrows": "brow raise", "smile": "half smile"}.get(e.attribute)
+    return None
+
+
+def _holds(e) -> bool:
+    """A keyframed event that stretches to its slot (held), rather than one that happens and is over."""
+    return bool(pose_of(e)) and pose_of(e) != "wink" and e.count == 1
 
 
 def _choose(lib: Library, attr: str, rng: np.random.Generator, k: int, avoid: frozenset = frozenset()) -> list[Segment]:
@@ -319,6 +347,9 @@ def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0, avoid: f
             if e.attribute in ("talk", "neutral"):
                 row.append((e, [], int(NATURAL_S[e.attribute] * fps)))
                 continue
+            if pose_of(e):
+                row.append((e, [], natural_frames(pose_of(e), e.count, fps)))
+                continue
             segs = _choose(lib, "blink" if e.attribute == "close eyes" else e.attribute, rng, e.count, avoid)
             if e.attribute == "close eyes":
                 row.append((e, segs[:1], int(NATURAL_S["close eyes"] * fps)))
@@ -340,7 +371,9 @@ def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0, avoid: f
             need,
         )
     slack = n_frames - need
-    holdable = [any(e.attribute in HOLDABLE or e.attribute in ("talk", "neutral") for e, _, _ in r) for r in chosen]
+    holdable = [
+        any(e.attribute in HOLDABLE or e.attribute in ("talk", "neutral") or _holds(e) for e, _, _ in r) for r in chosen
+    ]
     grow = int(slack * 0.6) // max(1, sum(holdable)) if any(holdable) else 0
     cap = [
         min([int((MAX_HOLD_S[e.attribute] + 2 * MARGIN_S) * fps) for e, _, _ in r if e.attribute in MAX_HOLD_S])
@@ -360,13 +393,21 @@ def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0, avoid: f
     for row, L in zip(chosen, slot_len):
         for e, segs, _ in row:
             gain = float(e.intensity)
+            level = gain
+            if e.attribute not in HEAD_AXIS and e.attribute != "talk" and not pose_of(e):
+                gain = 1.0  # the stated intensity picks the peak's range (STRENGTH); gain boosts a missed event
             if e.attribute == "neutral":
                 continue
             if e.attribute == "talk":
                 placed.append(Placed("talk", t, t + L, gain, []))
                 continue
+            if pose_of(e):  # a keyframed event: its natural length, or the slot when it is held
+                n = L if _holds(e) else min(L, natural_frames(pose_of(e), e.count, fps))
+                a = t + (L - n) // 2
+                placed.append(Placed(e.attribute, a, a + n, gain, [], e.side, pose_of(e), e.count))
+                continue
             if e.attribute == "close eyes" or (e.attribute in HOLDABLE and len(segs) == 1):
-                placed.append(Placed(e.attribute, t, t + L, gain, [(segs[0], t, L)], e.side))
+                placed.append(Placed(e.attribute, t, t + L, gain, [(segs[0], t, L)], e.side, level=level))
                 continue
             # counted or short events: copies spread over the slot, each at its natural length
             lens = [s.b - s.a for s in segs]
@@ -377,7 +418,7 @@ def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0, avoid: f
             for s, n in zip(segs, lens):
                 pieces.append((s, p, n))
                 p += n - 2 * s.margin + gap
-            placed.append(Placed(e.attribute, t, t + L, gain, pieces, e.side))
+            placed.append(Placed(e.attribute, t, t + L, gain, pieces, e.side, level=level))
         t += L + between
     return placed
 
@@ -418,6 +459,15 @@ def render(
         if p.attribute == "talk":
             add(p.gain * _talk_track(lib, p.end - p.start, rng), p.start, p.end)
             continue
+        if p.pose:
+            o = np.zeros((p.end - p.start, FACE_DIM), np.float32)
+            o[:, :N_EXPR] = pose_track(p.pose, p.side, p.end - p.start, p.count, p.gain, lib.fps)
+            add(o, p.start, p.end)
+            continue
+        if p.attribute == "turn" and p.side in ("left", "right") and p.pieces:  # the eyes lead the head
+            o = np.zeros((p.end - p.start, FACE_DIM), np.float32)
+            o[:, :N_EXPR] = pose_track("gaze", p.side, p.end - p.start, 1, 0.6, lib.fps)
+            add(o, p.start, p.end)
         for seg, t0, L in p.pieces:
             o = _offset(lib, seg, p.side, lip_smooth_s)
             if p.attribute == "close eyes":  # the blink's closed middle, held
@@ -426,6 +476,8 @@ def render(
                 o[mid] = np.maximum(o[mid], o[mid].max(0, keepdims=True) * 0.95)
             elif len(o) != L:
                 o = _stretch(o, L, seg.margin)
+            if p.attribute in CHANNELS and p.attribute not in {*HEAD_AXIS, "talk"}:  # emotions: as captured
+                o[:, :N_EXPR] *= _strength(o, p.attribute, p.level)
             o = p.gain * o
             if p.attribute == "shake head":  # made stronger or not, a wider shake reads as a turn
                 o[:, N_EXPR:] *= min(1.0, SHAKE_MAX_RAD / max(float(np.abs(o[:, N_EXPR:]).max()), 1e-9))
@@ -436,6 +488,34 @@ def render(
     out[:, N_EXPR:] += head
     out[:, :N_EXPR] = np.clip(out[:, :N_EXPR], 0.0, 1.0)
     return out
+
+
+STRENGTH = {0.6: (0.3, 0.6), 1.0: (0.6, 0.9), 1.4: (0.85, 1.0)}
+"""The peak of a captured event's main channels by stated intensity ("slightly" 0.6, plain 1, "very" 1.4): a
+segment whose peak falls outside the range is scaled into it (captured faces differ in how far they move;
+a prompt's "smiles" should not depend on whose smile was drawn). Blinks and closed eyes close the eye."""
+STRENGTH_OF = {
+    "blink": {0.6: (0.5, 0.6), 1.0: (0.9, 0.95), 1.4: (0.95, 1.0)},
+    "close eyes": {0.6: (0.5, 0.6), 1.0: (0.9, 0.95), 1.4: (0.95, 1.0)},
+    # an open mouth is jawOpen 0.3 (the detector) up to a yawn's 0.45 held a second
+    "mouth open": {0.6: (0.32, 0.36), 1.0: (0.36, 0.44), 1.4: (0.44, 0.6)},
+    "yawn": {0.6: (0.5, 0.6), 1.0: (0.6, 0.8), 1.4: (0.8, 1.0)},
+}
+MAIN = {"mouth open": ["jawOpen"], "yawn": ["jawOpen"], "surprise": _both("browInnerUp", "browOuterUp")}
+"""The channels whose peak is measured (default: every channel of the event)."""
+
+
+def _strength(o: np.ndarray, attr: str, level: float) -> float:
+    """The factor that brings segment offsets ``o``'s peak on ``attr``'s main channels into its range."""
+    idx = [_IX[c] for c in MAIN[attr]] if attr in MAIN else _channel_idx(attr)[0]
+    if not idx:
+        return 1.0
+    peak = float(o[:, idx].max())
+    if peak <= 1e-6:
+        return 1.0
+    table = STRENGTH_OF.get(attr, STRENGTH)
+    lo, hi = table[min(table, key=lambda k: abs(k - level))]
+    return float(np.clip(peak, lo, hi) / peak)
 
 
 def detect_motion(motion: np.ndarray, fps: float = TEXT_FPS, pad_s: float = 1.0) -> list[tuple[str, float, float]]:

@@ -54,6 +54,9 @@ class PromptConfig:
     seed: int = 0
     """Random seed: other seeds give other motions."""
     method: str = field(default="auto", metadata={"choices": ("auto", "timeline", "model")})
-    """timeline: the prompt's events (smile, blink, nod, emotions, ... with "then", counts, "slightly") made
-    from the dataset's captured segments (needs --db; follows prompts: docs/text2face.md); model: the seed's
-    cVQ-VAE + FaceFormer checkpoint; auto: timeline when --db is given, else model."""
+    """timeline: the prompt's events (smile, blink, nod, emotions, gaze, ... with "then", counts, "slightly",
+    "without") made from captured segments: the built-in motion library's, or --db's (docs/text2face.md);
+    model: the seed's cVQ-VAE + FaceFormer checkpoint; auto: the model when --checkpoint is given, else
+    timeline."""
+    with_builtin: bool = False
+    """With --db: the built-in library's clips as well as the dataset's (default: --db replaces them)."""

@@ -29,6 +29,7 @@ EMOTIONS = ("happy", "sad", "angry", "disgusted", "fearful", "surprised", "conte
 
 # event -> regular expressions (word-boundary anchored, matched on the lower-cased clause)
 _OBJ = r"(?:(?:the|her|his|their|its|one|an?)\s+)?"
+_DIR = r"(?:left|right|up|upwards?|down|downwards?)"
 LEXICON: dict[str, list[str]] = {
     "blink": [r"blink\w*", r"bats?\s+" + _OBJ + r"(?:eye)?lash\w*", r"wink\w*", r"flutter\w*\s+" + _OBJ + r"eyes?"],
     "smile": [r"smil\w*", r"grin\w*", r"beam\w*", r"smirk\w*"],
@@ -125,6 +126,74 @@ LEXICON: dict[str, list[str]] = {
         r"eyes\s+(?:are\s+|stay\s+|kept\s+)?(?:closed|shut)",
         r"shut\w*\s+" + _OBJ + r"eyes",
     ],
+    # keyframed events (anima.text2face.poses): no detector labels them, so they are made, not copied
+    "gaze": [
+        r"eyes?\s+(?:\w+\s+)?(?:dart\w*|shift\w*|mov\w*|flick\w*|drift\w*|go(?:es)?|turn\w*|slid\w*|wander\w*)\s+"
+        r"(?:to\s+(?:the\s+)?)?" + _DIR,
+        r"gaz\w*\s+(?:\w+\s+)?(?:to\s+(?:the\s+)?)?" + _DIR,
+        r"(?:shifts?|shifting|moves?|moving|drops?|dropping|lowers?|lowering|raises?|raising|averts?|averting)\s+"
+        + _OBJ
+        + r"(?:gaze|eyes)(?:\s+(?:to\s+(?:the\s+)?)?"
+        + _DIR
+        + r")?",
+        r"(?:looks?|looking|glanc\w*|peers?|peering|peeks?|peeking|stares?|staring)\s+(?:straight\s+)?(?:up|down)"
+        r"(?:wards?)?",
+        r"looks?\s+(?:to\s+(?:the\s+)?)?(?:left|right)\s+with\s+" + _OBJ + r"eyes",
+        r"looks?\s+(?:down\s+|up\s+)?at\s+(?:the\s+)?(?:floor|ground|sky|ceiling|(?:her|his|their)\s+(?:feet|hands|lap))",
+        r"side[- ]?eye\w*",
+    ],
+    "roll eyes": [r"roll\w*\s+" + _OBJ + r"eyes", r"eye[- ]?roll\w*"],
+    "puff cheeks": [
+        r"puff\w*\s+(?:up\s+|out\s+)?" + _OBJ + r"(?:left\s+|right\s+)?cheeks?(?:\s+out)?",
+        r"cheeks?\s+(?:are\s+)?puff\w*(?:\s+out)?",
+        r"blow\w*\s+(?:out\s+|up\s+)?" + _OBJ + r"cheeks(?:\s+out)?",
+        r"puff\w*\s+(?:up|out)",
+    ],
+    "pout": [r"pout\w*", r"sulk\w*", r"push\w*\s+(?:out\s+)?" + _OBJ + r"(?:lower\s+)?lip(?:\s+out)?"],
+    "pucker": [r"pucker\w*", r"purs\w*\s+" + _OBJ + r"lips", r"(?:blows?|blowing)\s+a\s+kiss", r"kiss\w*"],
+    "press lips": [
+        r"press\w*\s+" + _OBJ + r"lips(?:\s+together)?",
+        r"tighten\w*\s+" + _OBJ + r"(?:lips|mouth)",
+        r"lips\s+(?:are\s+)?(?:pressed|tight\w*|thin\w*)(?:\s+together)?",
+        r"compress\w*\s+" + _OBJ + r"lips",
+        r"(?:thin|tight)\s+lips",
+    ],
+    "roll lips": [
+        r"(?:rolls?|rolling|sucks?|sucking|tucks?|tucking|pulls?|pulling)\s+(?:in\s+)?" + _OBJ + r"lips(?:\s+in)?",
+        r"bit\w*\s+" + _OBJ + r"(?:lower\s+|upper\s+)?lip",
+    ],
+    "shrug": [r"shrug\w*"],
+    "grimace": [r"grimac\w*", r"stretch\w*\s+" + _OBJ + r"lips", r"cring\w*", r"clench\w*\s+" + _OBJ + r"teeth"],
+    "funnel": [r"funnel\w*", r"o[- ]shape\w*", r"whistl\w*", r"(?:mouths?|forms?|makes?)\s+an?\s+[\"']?oh?\b[\"']?"],
+    "bare teeth": [r"bar\w*\s+" + _OBJ + r"teeth", r"shows?\s+" + _OBJ + r"teeth", r"snarl\w*"],
+    "wrinkle nose": [
+        r"wrinkl\w*\s+" + _OBJ + r"nose",
+        r"nose\s+wrinkl\w*",
+        r"scrunch\w*\s+(?:up\s+)?" + _OBJ + r"(?:nose|face)(?:\s+up)?",
+    ],
+    "widen eyes": [
+        r"widen\w*\s+" + _OBJ + r"eyes",
+        r"eyes\s+(?:go\s+|are\s+|grow\s+)?wide",
+        r"wide[- ]eyed",
+        r"opens?\s+" + _OBJ + r"eyes\s+wide",
+    ],
+    "jaw forward": [
+        r"(?:juts?|jutting|thrusts?|pushes|pushing|sticks?)\s+(?:out\s+)?"
+        + _OBJ
+        + r"(?:jaw|chin)(?:\s+(?:forward|out))?"
+    ],
+    "jaw side": [
+        r"(?:moves?|shifts?|slides?|pushes)\s+" + _OBJ + r"jaw\s+(?:to\s+(?:the\s+)?)?(?:left|right|sideways)"
+    ],
+    "mouth side": [
+        r"(?:moves?|shifts?|pulls?|twists?|purses?)\s+"
+        + _OBJ
+        + r"mouth\s+(?:to\s+(?:the\s+|one\s+)?)?(?:left|right|side)",
+        r"twist\w*\s+" + _OBJ + r"mouth",
+    ],
+    "tongue": [
+        r"(?:sticks?\s+(?:out\s+)?" + _OBJ + r")?tongue\w*(?:\s+out)?"
+    ],  # reported: the face model has no tongue
     "neutral": [
         r"neutral(?:\s+face|\s+expression)?",
         r"calm\w*",
@@ -136,7 +205,14 @@ LEXICON: dict[str, list[str]] = {
         r"poker\s+face",
     ],
 }
-EVENTS = tuple(k for k in LEXICON if k not in ("surprised",))
+EVENTS = tuple(k for k in LEXICON if k not in ("surprised", "tongue"))
+SIDED = {"blink", "raise eyebrows", "smile", "squint", "turn", "puff cheeks", "press lips", "bare teeth",
+         "wrinkle nose", "jaw side", "mouth side"}  # fmt: skip
+ONE_SIDED = {  # words that make an event one-sided when no side is named (the left, by convention)
+    "smile": r"\b(?:smirk\w*|half[- ]smil\w*|lopsided|crooked|one[- ]sided|half\s+of)\b",
+    "raise eyebrows": r"\b(?:one|an|a\s+single|single)\s+(?:eye)?brow\b",
+}
+UNPLACED = {"tongue": "tongue: the face model has no tongue (ICT-FaceKit's 53 expressions), not made"}
 # One prototype sentence per event, for paraphrases the lexicon does not hold (sentence-encoder match).
 PROTOTYPES = {
     "blink": "a person blinks their eyes",
@@ -159,6 +235,14 @@ PROTOTYPES = {
     "contempt": "a person looks at someone with contempt",
     "close eyes": "a person closes their eyes",
     "neutral": "a person keeps a neutral face",
+    "gaze": "a person looks up with their eyes",
+    "roll eyes": "a person rolls their eyes",
+    "puff cheeks": "a person puffs out their cheeks",
+    "pout": "a person pouts",
+    "press lips": "a person presses their lips together",
+    "grimace": "a person grimaces",
+    "wrinkle nose": "a person wrinkles their nose",
+    "widen eyes": "a person widens their eyes",
 }
 # events that cannot happen at the same moment: the second is moved to follow the first (with a note)
 CONFLICTS = [
@@ -223,7 +307,8 @@ GRAMMAR = set(
     both once twice thrice times time few several couple repeatedly again first begins starts start starting
     by up down out towards toward into from camera speaker actor actress presenter gently softly quite rather
     some something somewhat moderately over around just now after before finally next later afterwards lastly
-    end last followed two three four five him them us me give gives giving side quick slow""".split()
+    end last followed two three four five him them us me give gives giving side quick slow s throughout whole
+    clip begin beginning meanwhile lastly""".split()
 )
 SIDE = r"\b(left|right)\b"
 
@@ -248,6 +333,7 @@ class Plan:
     text: str
     events: list[Event] = field(default_factory=list)
     excluded: list[str] = field(default_factory=list)
+    unplaced: list[str] = field(default_factory=list)
     unknown: list[str] = field(default_factory=list)
     paraphrased: list[dict] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
@@ -261,6 +347,7 @@ class Plan:
             "text": self.text,
             "events": [asdict(e) for e in self.events],
             "excluded": self.excluded,
+            "unplaced": self.unplaced,
             "unknown": self.unknown,
             "paraphrased": self.paraphrased,
             "notes": self.notes,
@@ -303,6 +390,19 @@ def _clauses(text: str) -> list[tuple[str, bool]]:
                 conc = True
             out.append((c, conc))
     return out
+
+
+def _direction(words: str, clause: str) -> str:
+    """Where a gaze goes: the direction its words name, else what it looks at, else the clause's side."""
+    m = re.search(r"\b(left|right|up|down)", words)
+    if m:
+        return m.group(1)
+    if re.search(r"\b(?:floor|ground|feet|hands|lap|lower\w*|drop\w*|avert\w*)\b", words):
+        return "down"
+    if re.search(r"\b(?:sky|ceiling|rais\w*)\b", words):
+        return "up"
+    m = re.search(SIDE, clause)
+    return m.group(1) if m else "left"
 
 
 def _lexicon_matches(clause: str) -> list[tuple[int, str, tuple[int, int]]]:
@@ -382,9 +482,17 @@ def parse(prompt: str, encoder=None) -> Plan:
                 nxt = hits[k + 1][0] if k + 1 < len(hits) else len(clause) + 1
                 if a <= cm < nxt or (len(hits) == 1):
                     c = count
-            sd = side.group(1) if side and ev in ("blink", "raise eyebrows", "smile", "squint", "turn") else None
+            if ev in UNPLACED:
+                plan.notes.append(UNPLACED[ev])
+                plan.unplaced.append(clause[a:b])
+                continue
+            sd = side.group(1) if side and ev in SIDED else None
             if ev == "blink" and "wink" in clause[a:b] and sd is None:
                 sd = "left"
+            if ev in ONE_SIDED and sd is None and re.search(ONE_SIDED[ev], clause):
+                sd = "left"
+            if ev == "gaze":
+                sd = _direction(clause[a:b], clause)
             plan.events.append(Event(ev, max(1, c), inten, sd, clause_i, clause[a:b]))
     by_clause: dict[int, list[Event]] = {}
     for e in plan.events:

@@ -11,10 +11,12 @@ from pathlib import Path
 
 from anima.core.contract import TEXT_FPS
 from anima.dataset.storage import check_dataset
+from anima.dataset.windows import read_clips
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
 from anima.export.motion import write_motion_outputs
 from anima.io.outdir import OutputFolder
+from anima.library import builtin
 from anima.text2face.compose import DEFAULT_FRAMES, Library, compose
 from anima.text2face.config import PromptConfig
 from anima.text2face.encoders import clean_prompt, get_encoder, require_prompt
@@ -41,13 +43,15 @@ def run(
     parse(prompt)  # a prompt the planner refuses (an event 10^12 times) is refused by both methods
     method = cfg.method
     if method == "auto":
-        method = "timeline" if db else "model"
+        method = "model" if checkpoint else "timeline"
     if method == "timeline":
-        if not db:
-            raise InputError("--method timeline needs --db (a dataset folder from `anima dataset build`)")
         if checkpoint:
             raise InputError("--checkpoint is for --method model; the timeline method reads --db")
+        if cfg.with_builtin and not db:
+            raise InputError("--with-builtin adds the built-in library to --db's clips: give --db too")
         return _timeline(prompt, out, cfg, db, video, progress, command, preset)
+    if db:
+        raise InputError("--db is for the timeline method; --method model reads --checkpoint")
     from anima.text2face.generate import Generator  # lazy: torch
 
     with OutputFolder(out, kind="text2face", command=command) as od:
@@ -75,15 +79,43 @@ def run(
     return info | {"written": [str(p) for p in files.values()]}
 
 
+MAX_TIMELINE_FRAMES = 18_000  # 10 min at the text rate
+
+
+def _library(db, with_builtin: bool) -> Library:
+    """The timeline method's clips: ``--db``'s (all its splits: the user's own clips), the built-in library's
+    when there is no ``--db`` or ``--with-builtin`` asks for both."""
+    motions, events, sources = [], [], []
+    if db:
+        clips = read_clips(db)
+        if clips and abs(clips[0].fps - TEXT_FPS) > 1e-6:
+            raise InputError(f"{db}: clips at {clips[0].fps} fps; the timeline method works at {TEXT_FPS}")
+        motions += [c.motion for c in clips]
+        events += [c.events for c in clips]
+        sources += [c.clip_id for c in clips]
+    if not db or with_builtin:
+        b = builtin.load()
+        motions += b.face_motion
+        events += b.face_events
+        sources += [f"built-in:{c}" for c in b.face_clip]
+    return Library.from_clips(motions, events, sources, TEXT_FPS)
+
+
 def _timeline(prompt, out, cfg: PromptConfig, db, video: bool, progress: bool, command, preset: str = "anima") -> dict:
     """The timeline method (:mod:`anima.text2face.compose`): the prompt's events from the dataset's captured
     segments. ``info.json`` records how the prompt was read, what was not understood, and where every event's
     motion comes from."""
-    check_dataset(db)
+    if db:
+        check_dataset(db)
     fps = TEXT_FPS
     n = int(round(cfg.seconds * fps)) if cfg.seconds else cfg.length
+    if n is not None and n > MAX_TIMELINE_FRAMES:
+        raise InputError(
+            f"{n} frames asked: the timeline method makes at most {MAX_TIMELINE_FRAMES} "
+            f"({MAX_TIMELINE_FRAMES / fps / 60:.0f} min)"
+        )
     with OutputFolder(out, kind="text2face", command=command) as od:
-        lib = Library.from_dataset(db, splits=("train", "val", "test"))  # the user's own clips, all of them
+        lib = _library(db, cfg.with_builtin)
         t = time.perf_counter()
         plan = parse(prompt)
         if not plan.events and plan.unknown:  # words the lexicon lacks: try the sentence encoder
@@ -95,7 +127,8 @@ def _timeline(prompt, out, cfg: PromptConfig, db, video: bool, progress: bool, c
             "fps": fps,
             "seed": cfg.seed,
             "method": "timeline",
-            "dataset": str(db),
+            "dataset": str(db) if db else None,
+            "library": ("--db and " if db else "") + builtin.summary() if (not db or cfg.with_builtin) else str(db),
             "understood": [
                 {k: v for k, v in vars(e).items() if k != "words"} | {"from_words": e.words} for e in plan.events
             ],

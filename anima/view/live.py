@@ -21,7 +21,6 @@ import tempfile
 import threading
 import time
 import webbrowser
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +38,7 @@ from anima.errors import InputError
 from anima.export.framing import generated_sequence
 from anima.export.livelink import Sender, livelink_rows, parse_target
 from anima.export.motion import write_motion_outputs
+from anima.export.retarget import LiveRetarget
 from anima.export.vrm import write_character_avatar
 from anima.facemodel.character import load_character
 from anima.facemodel.correspondence import load_correspondence
@@ -46,23 +46,14 @@ from anima.facemodel.ict import load_face_model
 from anima.io.atomic import copy_file, write_text
 from anima.io.live_source import PacedReader, check_live_source
 from anima.io.outdir import OutputFolder, check_out_dir
+from anima.io.validate import input_file
 from anima.view.export import _js, viewer_files
 from anima.view.serve import open_server, page_url
+from anima.view.take import Journal, LiveFrame, part_names, read_parts, remove_parts
 from anima.view.ws import Broadcaster
 
 WARM = 10
 MIN_CONF = 0.5  # a body joint below this visibility is unseen (the capture's threshold)
-
-
-@dataclass
-class LiveFrame:
-    index: int
-    t_capture: float  # time.time() of the frame's arrival, seconds
-    face: bool
-    expression: np.ndarray  # [53] (0 without a face)
-    rotation: np.ndarray  # [3] head axis-angle
-    body: np.ndarray | None  # [55, 3] metres, pelvis-relative, NaN unseen
-    local: np.ndarray  # [65, 3, 3] the rig's local rotations
 
 
 TRACKERS = 2
@@ -188,30 +179,39 @@ def tracked(reader: PacedReader, tracker: LiveTracker, deadline: float | None, m
                 t.join(0.01)
 
 
-def message(f: LiveFrame) -> str:
+def message(f: LiveFrame, avatar: LiveRetarget | None = None) -> str:
     """The page's message for one frame (JSON: ``i``, ``t_cap`` ms, ``t_sent`` ms, ``face``, ``q`` [65 x
-    (x, y, z, w)], ``w`` [53])."""
+    (x, y, z, w)], ``w`` [53]; with ``--avatar``, ``a``: the avatar's own node rotations, hips and morph
+    weights (:meth:`anima.export.retarget.LiveRetarget.frame`))."""
     q = np.round(matrix_to_quat(f.local), 4)
-    return json.dumps(
-        {
-            "i": f.index,
-            "t_cap": round(f.t_capture * 1e3, 1),
-            "t_sent": round(time.time() * 1e3, 1),
-            "face": f.face,
-            "body": f.body is not None,
-            "q": q.tolist(),
-            "w": np.round(f.expression, 3).tolist(),
-        },
-        separators=(",", ":"),
-    )
+    m = {
+        "i": f.index,
+        "t_cap": round(f.t_capture * 1e3, 1),
+        "face": f.face,
+        "body": f.body is not None,
+        "q": q.tolist(),
+        "w": np.round(f.expression, 3).tolist(),
+    }
+    if avatar is not None:
+        m["a"] = avatar.frame(f.local, f.expression, f.face)
+    m["t_sent"] = round(time.time() * 1e3, 1)
+    return json.dumps(m, separators=(",", ":"))
 
 
-def _page(root: Path, title: str, fps: float) -> None:
+def _page(root: Path, title: str, fps: float, avatar: str | None = None) -> None:
     data = {
         "schema": "anima.view", "version": 1, "kind": "live", "live": True, "title": title, "fps": fps,
         "frames": 1, "videos": [], "audio": None, "curves": {}, "marks": [], "ranges": [], "joints": {},
         "summary": {}, "notes": [], "rig": list(rig.NAMES), "expr": list(EXPR_NAMES),
     }  # fmt: skip
+    if avatar is not None:  # the user's file as it is: the page moves its own bones (LiveRetarget)
+        vrm = Path(avatar).suffix.lower() == ".vrm"
+        data["avatar"] = {"avatar": Path(avatar).name, "as": "retargeted live, frame by frame", "vrm": vrm}
+        write_text(root / "view-data.js", _js("ANIMA_VIEW", data))
+        write_text(root / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(Path(avatar).read_bytes()).decode()))
+        for f in viewer_files():
+            copy_file(f, root / f.name)
+        return
     write_text(root / "view-data.js", _js("ANIMA_VIEW", data))
     with tempfile.TemporaryDirectory(prefix="anima-live-") as tmp:
         glb = write_character_avatar(Path(tmp) / "character.glb", preset="anima")
@@ -243,6 +243,7 @@ def run(
     max_frames: int | None = None,
     trackers: int = TRACKERS,
     loop: bool = False,
+    avatar: str | None = None,
 ) -> dict:
     """``anima live`` (see the module docstring); returns the take's numbers when it ends (the source ends,
     ``max_seconds``, Ctrl-C or SIGTERM)."""
@@ -250,10 +251,16 @@ def run(
     target = parse_target(livelink) if livelink else None
     if record is not None:
         check_out_dir(record, "--record")
+        if part_names(record):
+            raise InputError(
+                f"--record {record}: it holds an unfinished take (a killed `anima live`): "
+                f"`anima live --recover {record}` writes it; or record into another folder"
+            )
     if max_seconds is not None and not 0 < max_seconds <= 86_400:
         raise InputError("--max-seconds: more than 0, at most a day")
     if not 1 <= trackers <= 4:
         raise InputError("--trackers: 1 to 4")
+    retarget = LiveRetarget(input_file(avatar, "--avatar"), load_character().joints) if avatar is not None else None
     tracker = LiveTracker(face_only, trackers)  # the models load before the first frame is offered
     reader = PacedReader(src, realtime=realtime or not Path(src).exists(), loop=loop)
     root = Path(tempfile.mkdtemp(prefix="anima-live-"))
@@ -264,8 +271,10 @@ def run(
     lat, sent_at, rss = [], [], []
     t0 = time.perf_counter()
     stop = False
+    od = OutputFolder(record, kind="capture", command=command).__enter__() if record is not None else None
+    journal = Journal(od, reader.fps) if od is not None else None
     try:
-        _page(root, f"live: {Path(src).name if Path(src).exists() else src}", reader.fps)
+        _page(root, f"live: {Path(src).name if Path(src).exists() else src}", reader.fps, avatar)
         server, note = open_server(root, port, live=hub)
         threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.2}, daemon=True).start()
         url = page_url(server)
@@ -283,7 +292,9 @@ def run(
             t_cap = time.time() - (time.perf_counter() - t_perf)  # the frame's arrival on the epoch clock
             f = tracker.frame(lm, body, size, i, t_cap)
             frames.append(f)  # counted before it is sent: an interrupt between the two loses no count
-            hub.send(message(f))
+            if journal is not None:
+                journal.add(f)
+            hub.send(message(f, retarget))
             if sender is not None:
                 try:
                     sender.send(
@@ -298,6 +309,10 @@ def run(
                 last_rss = time.perf_counter()
     except KeyboardInterrupt:
         stop = True
+    except BaseException:
+        if od is not None:  # the parts flushed so far stay, for --recover
+            od.__exit__(*sys.exc_info())
+        raise
     finally:
         offered = reader.read
         reader.close()
@@ -329,9 +344,23 @@ def run(
         "seconds": round(wall, 2),
         "interrupted": stop,
     }
-    if record is not None:
-        out["record"] = write_take(frames, reader.fps, record, out, command)
+    if od is not None:
+        try:
+            out["record"] = write_take(frames, reader.fps, od, out, journal)
+        except BaseException:
+            od.__exit__(*sys.exc_info())
+            raise
+        od.__exit__(None, None, None)
     return out
+
+
+def recover(folder: str, command: str | None = None) -> dict:
+    """``anima live --recover DIR``: the result folder from the parts of a take that was killed."""
+    check_out_dir(folder, "--recover")
+    frames, fps = read_parts(folder)
+    stats = {"recovered": True, "frames_tracked": len(frames), "source_fps": fps}
+    with OutputFolder(folder, kind="capture", command=command) as od:
+        return {"record": write_take(frames, fps, od, stats, None)}
 
 
 def take_sequence(frames: list[LiveFrame], fps: float):
@@ -361,14 +390,17 @@ def take_sequence(frames: list[LiveFrame], fps: float):
     ) else None  # fmt: skip
 
 
-def write_take(frames: list[LiveFrame], fps: float, folder: str, stats: dict, command: str | None) -> dict:
+def write_take(frames: list[LiveFrame], fps: float, od: OutputFolder, stats: dict, journal: Journal | None) -> dict:
     """``--record DIR``: the take as a result folder (``capture.npz``, ``avatar.glb``, ``body.bvh``,
-    ``arkit.csv``, ``info.json``, manifest last), written when the take ends."""
+    ``arkit.csv``, ``info.json``; the manifest last, when ``od`` closes), written when the take ends; the
+    journal's parts (:mod:`anima.view.take`) go once the result is written."""
     seq = take_sequence(frames, fps)
     if seq is None:
         raise InputError("the take never saw a face or a body: nothing to record")
     info = {"live": {k: v for k, v in stats.items() if k != "rss_mb"}, "frames": seq.n_frames, "fps": fps}
-    with OutputFolder(folder, kind="capture", command=command) as od:
-        od.info = info
-        files = write_motion_outputs(seq, od, "capture.npz", render=False, info=info, progress=False)
-    return {"folder": str(folder), "frames": seq.n_frames, "files": sorted(Path(p).name for p in files.values())}
+    od.info = info
+    files = write_motion_outputs(seq, od, "capture.npz", render=False, info=info, progress=False)
+    if journal is not None:
+        journal.discard()
+    remove_parts(od.path, part_names(od.path))  # a recovered take's parts: the result now holds them
+    return {"folder": str(od.path), "frames": seq.n_frames, "files": sorted(Path(p).name for p in files.values())}

@@ -96,3 +96,32 @@ def test_emotion_clips_are_named_by_their_emotion():
     assert emotion_from_path(asset("styletalk-samples/samples/source_video/video/Obama_clip1.mp4")) is None
     segs = segment_timeline([("sad", 0.0, 3.0), ("blink", 1.0, 1.2)], duration=3.0)
     assert "looks sad" in describe_many(segs, 1, 0)[0]
+
+
+def test_a_busy_clip_gets_ten_readable_descriptions_in_varied_templates():
+    """Issue 37: a busy 8-s clip (talk throughout, five blinks, a smile, a nod, raised brows) gets 10 distinct
+    descriptions, each within the encoder's window, none repeating a phrase, in several templates (events in
+    order, a summary, timed events), and each read back by the prompt parser as the clip's events in order."""
+    from anima.dataset.describe import fits_encoder, fitting_descriptions
+    from anima.text2face.prompt import parse
+
+    ev = [("talk", 0.0, 8.0), ("blink", 0.5, 0.7), ("blink", 1.5, 1.7), ("smile", 2.0, 3.0), ("blink", 3.5, 3.7),
+          ("nod", 4.0, 5.0), ("blink", 5.5, 5.7), ("raise eyebrows", 6.0, 6.5), ("blink", 7.0, 7.2)]  # fmt: skip
+    segs = segment_timeline(ev, 8.0)
+    texts, dropped = fitting_descriptions(segs, 10, 0, "female")
+    assert len(texts) == len(set(texts)) == 10 and dropped == 0
+    assert texts == fitting_descriptions(segs, 10, 0, "female")[0]  # deterministic
+    assert all(fits_encoder(t) for t in texts)
+    assert not any("briefly" in t and t.count("briefly") > 2 for t in texts)
+    assert any(t.startswith("At ") or "; at " in t for t in texts)  # timed
+    assert any(t.startswith("While ") for t in texts)  # ordered, talking said once
+    want = ["talk", "blink", "smile", "nod", "raise eyebrows"]
+    for t in texts:
+        plan = parse(t)
+        got = [e.attribute for e in plan.events]
+        assert set(got) == set(want), (t, got)
+        assert not plan.unknown, (t, plan.unknown)
+        firsts = [got.index(a) for a in ("smile", "nod", "raise eyebrows")]
+        assert firsts == sorted(firsts), t  # timeline-correct: the events come in the clip's order
+    still, _ = fitting_descriptions(segment_timeline([], 5.0), 10, 0, None)
+    assert len(set(still)) == 10 and all([e.attribute for e in parse(t).events] == ["neutral"] for t in still)

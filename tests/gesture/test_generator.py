@@ -244,7 +244,7 @@ def test_generator_commands(ds, wav, tmp_path, cli):
         "gesture", str(wav), "--generator", str(ck), "--out", str(tmp_path / "h"), "--control", "left_wrist_height>=p85"
     )
     assert r.returncode == 2 and "k-NN search" in r.stderr
-    r = cli("gesture", str(wav), "--out", str(tmp_path / "i"))
-    assert r.returncode == 2 and "--generator" in r.stderr
+    r = cli("gesture", str(wav), "--db", str(ds), "--generator", str(ck), "--out", str(tmp_path / "i"))
+    assert r.returncode == 2 and "not both" in r.stderr
     r = cli("gesture", str(wav), "--db", str(ds), "--out", str(tmp_path / "j"), "--keyword", "yes@1-2s")
     assert r.returncode == 2 and "keyword-db" in r.stderr and "Traceback" not in r.stderr

@@ -333,7 +333,9 @@ def test_text2face_command_writes_its_files_and_refuses_bad_input(tmp_path, cli)
     from anima.io.sequence import read_sequence
 
     out = tmp_path / "gen"
-    r = cli("text2face", "a woman smiles, then blinks", "--out", str(out), "--length", "45", "--json")
+    r = cli(
+        "text2face", "a woman smiles, then blinks", "--out", str(out), "--length", "45", "--method", "model", "--json"
+    )
     assert r.returncode == 0, r.stderr[-2000:]
     info = json.loads(r.stdout)
     for f in ("motion.npz", "face.mp4", "arkit.csv", "face.glb", "info.json"):
@@ -343,7 +345,7 @@ def test_text2face_command_writes_its_files_and_refuses_bad_input(tmp_path, cli)
     assert len((out / "arkit.csv").read_text().splitlines()) == 46
     for args, code, msg in [
         (("",), 2, "empty"),
-        (("a person smiles", "--length", "5000"), 2, "trained range"),
+        (("a person smiles", "--method", "model", "--length", "5000"), 2, "trained range"),
         (("a person smiles", "--checkpoint", str(tmp_path / "none.pt")), 2, "not found"),
     ]:
         r = cli("text2face", *args, "--out", str(tmp_path / "bad"), "--no-video")
@@ -471,7 +473,9 @@ def test_text2face_timeline_command_and_its_refusals(ds, tmp_path, cli):
     r = cli("text2face", "qwerty", "--db", ds, "--out", tmp_path / "q", "--no-video")
     assert r.returncode == 0 and "not understood: qwerty" in r.stderr
     for args, msg in [
-        (("a person smiles", "--method", "timeline"), "needs --db"),
+        (("a person smiles", "--with-builtin"), "give --db too"),
+        (("a person smiles", "--method", "model", "--db", str(ds)), "--db is for the timeline"),
+        (("a person smiles", "--length", "20000"), "at most 18000"),
         (("a person nods five times", "--db", str(ds), "--length", "30"), "at least"),
         (("a person smiles", "--db", str(tmp_path / "nods")), "no dataset"),
     ]:

@@ -106,6 +106,11 @@ def test_bad_sources_and_options_are_refused(cli, tmp_path):
         ([str(asset(D0)), "--livelink", "nohost"], 2, "HOST:PORT"),
         ([str(asset(D0)), "--trackers", "9"], 2, "--trackers"),
         (["7"], 3, "no camera 7"),  # no camera on this machine (CI has none)
+        ([], 2, "SOURCE"),
+        ([str(asset(D0)), "--avatar", str(tmp_path / "none.vrm")], 2, "not found"),
+        ([str(asset(D0)), "--avatar", str(asset(D0))], 2, "expected a .vrm"),
+        (["--recover", str(tmp_path / "none")], 2, "no unfinished take"),
+        ([str(asset(D0)), "--recover", str(tmp_path / "none")], 2, "takes no SOURCE"),
     ):
         r = cli("live", *args, "--no-browser")
         assert r.returncode == code and words in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
@@ -114,3 +119,55 @@ def test_bad_sources_and_options_are_refused(cli, tmp_path):
     (user / "notes.txt").write_text("mine")
     r = cli("live", asset(D0), "--no-browser", "--record", user)
     assert r.returncode == 2 and (user / "notes.txt").read_text() == "mine"
+
+
+def test_a_killed_take_keeps_its_parts_and_is_recovered(tmp_path):
+    """SIGKILL mid-take: the parts flushed every 2 s stay, listed in anima's marker (the folder is still anima's,
+    without a manifest: partial); a new --record into it is refused with the way out; --recover writes the
+    result from the parts (at most the last 2 s lost) and removes them."""
+    from anima.io.outdir import check_complete, read_marker
+
+    rec = tmp_path / "take"
+    p = _live(asset(D6), "--face-only", "--realtime", "--record", rec)
+    deadline = time.time() + 60
+    while time.time() < deadline and len(list((rec / "take").glob("part-*.npz"))) < 3:
+        time.sleep(0.2)
+    p.send_signal(signal.SIGKILL)
+    p.communicate(timeout=30)
+    parts = sorted((rec / "take").glob("part-*.npz"))
+    assert len(parts) >= 3 and not (rec / "manifest.json").exists()
+    assert {f"take/{q.name}" for q in parts} <= set(read_marker(rec)["files"])
+    r = subprocess.run([sys.executable, "-m", "anima", "live", str(asset(D0)), "--record", str(rec), "--no-browser"],
+                       capture_output=True, text=True)  # fmt: skip
+    assert r.returncode == 2 and "--recover" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    n_parts = sum(len(np.load(q)["index"]) for q in parts)
+    r = subprocess.run([sys.executable, "-m", "anima", "live", "--recover", str(rec), "--json"],
+                       capture_output=True, text=True)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-2000:]
+    check_complete(rec)
+    take = read_sequence(rec / "capture.npz")
+    assert take.n_frames >= n_parts and np.isfinite(take.expression).all() and take.expression.std(0).max() > 0.02
+    assert not (rec / "take").exists() and not any(n.startswith("take/") for n in read_marker(rec)["files"])
+
+
+def test_a_users_vrm_follows_the_camera_live(tmp_path):
+    """--avatar: the page loads the user's VRM as it is (three-vrm) and each message poses its own bones (the
+    retargeting of `anima retarget`, one frame at a time): its hands move with the tracked person's."""
+    assert have_browser() is None, have_browser()
+    vrm = asset("avatars/VRMC_materials_mtoon_UV_Animation_Test.vrm")
+    p = _live(asset("gesture-video/pats-crops/oliver1_gt.mp4"), "--realtime", "--trackers", "1", "--avatar", vrm,
+              "--max-seconds", "30")  # fmt: skip
+    url = re.search(r"(http://127\.0\.0\.1:\d+/\S+/index\.html)", p.stdout.readline()).group(1)
+    with chromium() as b:
+        b.get(url)
+        samples = []
+        for _ in range(8):
+            time.sleep(0.6)
+            samples.append(b.execute_script("return [anima.live, anima.state(), anima.error || null]"))
+    p.send_signal(signal.SIGINT)
+    _result(p)
+    live, state, err = samples[-1]
+    assert err is None and live and live["received"] > 10, (err, live and live["received"])
+    assert state["humanoid"] and "leftHand" in state["humanoid"], state["humanoid"]
+    hands = np.array([s["humanoid"]["leftHand"] + s["humanoid"]["rightHand"] for _, s, _ in samples[2:]])
+    assert np.isfinite(hands).all() and np.ptp(hands, 0).max() > 0.01  # the avatar's own hands move

@@ -124,12 +124,24 @@ function parseGltf(b64, plugin) {
   if (plugin) loader.register(plugin);
   return new Promise((resolve, reject) => loader.parse(b64ToBuffer(b64), "", resolve, reject));
 }
+// the avatar's objects by glTF node index: `anima live --avatar` sends each frame as node rotations and weights
+const nodeByIndex = [];
+function indexNodes(gltf) {
+  gltf.scene.traverse((o) => {
+    const a = gltf.parser.associations.get(o);
+    if (a && a.nodes !== undefined && !nodeByIndex[a.nodes]) nodeByIndex[a.nodes] = o;
+  });
+}
 async function loadVrm() {
   const gltf = await parseGltf(window.ANIMA_GLB, (p) => new VRMLoaderPlugin(p));
   vrm = gltf.userData.vrm;
   if (!vrm) throw new Error("the avatar is not a VRM 1.0 three-vrm can read");
+  indexNodes(gltf);
   let clip;
-  if (window.ANIMA_VRMA) {
+  if (V.live) {
+    // posed by the stream, frame by frame, on the avatar's own bones (anima.export.retarget.LiveRetarget)
+    vrm.humanoid.autoUpdateHumanBones = false;
+  } else if (window.ANIMA_VRMA) {
     const anim = await parseGltf(window.ANIMA_VRMA, (p) => new VRMAnimationLoaderPlugin(p));
     clip = createVRMAnimationClip(anim.userData.vrmAnimations[0], vrm);
     vrmUpdate = true;
@@ -143,8 +155,10 @@ async function loadVrm() {
     if (o.isMesh) o.frustumCulled = false;
     if (o.isBone) bones[o.name] = o;
   });
-  mixer = new THREE.AnimationMixer(vrm.scene);
-  mixer.clipAction(clip).play();
+  if (clip) {
+    mixer = new THREE.AnimationMixer(vrm.scene);
+    mixer.clipAction(clip).play();
+  }
   resize();
 }
 
@@ -162,6 +176,7 @@ function load3d() {
       (gltf) => {
         const root = gltf.scene;
         scene.add(root);
+        if (V.avatar) indexNodes(gltf);
         const own = !V.avatar; // a user's avatar keeps its materials and draws its morphs on the GPU
         root.traverse((o) => {
           if (o.isMesh) {
@@ -493,7 +508,9 @@ api.state = () => {
       if (node) humanoid[name] = node.getWorldPosition(new THREE.Vector3()).toArray();
     }
     expressions = {};
-    for (const e of vrm.expressionManager.expressions) expressions[e.expressionName] = e.weight;
+    for (const e of vrm.expressionManager ? vrm.expressionManager.expressions : []) {
+      expressions[e.expressionName] = e.weight;
+    }
   }
   return {
     frame: api.frame,
@@ -554,11 +571,27 @@ function connectLive() {
     if (m.face) L.faces += 1;
     if (L.latencies.length > 5000) L.latencies.splice(0, 1000);
     if (L.frames.length > 5000) L.frames.splice(0, 1000);
-    V.rig.forEach((name, j) => {
-      const b = bones[name];
-      if (b) b.quaternion.set(m.q[j][0], m.q[j][1], m.q[j][2], m.q[j][3]);
-    });
-    if (morphMesh) {
+    if (m.a) {
+      // a user's avatar: its own nodes, retargeted by anima
+      for (const r of m.a.r) if (nodeByIndex[r[0]]) nodeByIndex[r[0]].quaternion.set(r[1], r[2], r[3], r[4]);
+      const hips = nodeByIndex[m.a.h[0]];
+      if (hips) hips.position.set(m.a.h[1], m.a.h[2], m.a.h[3]);
+      for (const [node, w] of m.a.m) {
+        const o = nodeByIndex[node];
+        if (!o) continue;
+        const meshes = o.isMesh ? [o] : o.children.filter((c) => c.isMesh);
+        for (const mesh of meshes) {
+          const inf = mesh.morphTargetInfluences;
+          if (inf) for (let k = 0; k < Math.min(inf.length, w.length); k++) inf[k] = w[k];
+        }
+      }
+    } else {
+      V.rig.forEach((name, j) => {
+        const b = bones[name];
+        if (b) b.quaternion.set(m.q[j][0], m.q[j][1], m.q[j][2], m.q[j][3]);
+      });
+    }
+    if (morphMesh && !m.a) {
       const d = morphMesh.morphTargetDictionary;
       V.expr.forEach((name, k) => {
         if (name in d) morphMesh.morphTargetInfluences[d[name]] = m.w[k];

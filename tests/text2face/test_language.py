@@ -1,0 +1,126 @@
+"""Issue 37: the timeline method follows plain words on the built-in library (real captured clips): every ARKit
+channel is reachable by some phrasing, winks close one eye at full strength, the rest face is neutral and
+symmetric, negation and quantities are read, gaze goes where it is told, and what cannot be made is said."""
+
+import numpy as np
+import pytest
+
+from anima.core.contract import EXPR_NAMES, TEXT_FPS
+from anima.text2face.compose import Library, compose
+from anima.text2face.prompt import parse
+
+IX = {n: i for i, n in enumerate(EXPR_NAMES)}
+# a phrasing for every channel (each phrase's motion must move its channels above 0.3)
+PHRASES = {
+    "she frowns": ["browDown_L", "browDown_R"],
+    "he raises his eyebrows": ["browOuterUp_L", "browOuterUp_R"],
+    "she raises one eyebrow": ["browInnerUp_L", "browOuterUp_L"],
+    "he raises his right eyebrow": ["browInnerUp_R", "browOuterUp_R"],
+    "she puffs out her cheeks": ["cheekPuff_L", "cheekPuff_R"],
+    "he smiles broadly": ["mouthSmile_L", "mouthSmile_R"],
+    "she blinks": ["eyeBlink_L", "eyeBlink_R"],
+    "he looks down at the floor": ["eyeLookDown_L", "eyeLookDown_R"],
+    "her eyes dart to the left": ["eyeLookOut_L", "eyeLookIn_R"],
+    "his eyes dart to the right": ["eyeLookIn_L", "eyeLookOut_R"],
+    "she looks up": ["eyeLookUp_L", "eyeLookUp_R"],
+    "he squints": ["eyeSquint_L", "eyeSquint_R"],
+    "she widens her eyes": ["eyeWide_L", "eyeWide_R"],
+    "he juts his jaw forward": ["jawForward"],
+    "she moves her jaw to the left": ["jawLeft"],
+    "she moves her jaw to the right": ["jawRight"],
+    "he opens his mouth wide": ["jawOpen"],
+    "she smirks": ["mouthSmile_L"],
+    "he pouts": ["mouthPucker", "mouthShrugLower", "mouthFrown_L", "mouthFrown_R"],
+    "she shrugs": ["mouthShrugUpper"],
+    "he makes an o shape": ["mouthFunnel"],
+    "she shifts her mouth to the left": ["mouthLeft"],
+    "she shifts her mouth to the right": ["mouthRight"],
+    "he bares his teeth": ["mouthUpperUp_L", "mouthUpperUp_R", "mouthLowerDown_L", "mouthLowerDown_R"],
+    "she presses her lips together": ["mouthPress_L", "mouthPress_R"],
+    "he rolls his lips in": ["mouthRollLower", "mouthRollUpper"],
+    "she grimaces": ["mouthStretch_L", "mouthStretch_R"],
+    "he wrinkles his nose": ["noseSneer_L", "noseSneer_R"],
+    "she purses her lips": ["mouthPucker"],
+}
+# channels reached only alongside a main action (the smile's cheeks and dimples, the puff's closed lips)
+SECONDARY = {"cheekSquint_L", "cheekSquint_R", "mouthDimple_L", "mouthDimple_R", "mouthClose"}
+
+
+@pytest.fixture(scope="module")
+def lib():
+    return Library.from_builtin()
+
+
+def _make(prompt, lib, n=None, seed=0):
+    return compose(parse(prompt), lib, n, seed)[0]
+
+
+def test_every_expression_channel_is_reachable_by_some_phrasing(lib):
+    reached = {}
+    for prompt, chans in PHRASES.items():
+        m = _make(prompt, lib)
+        for c in chans:
+            assert m[:, IX[c]].max() > 0.3, (prompt, c, float(m[:, IX[c]].max()))
+        for k, n in enumerate(EXPR_NAMES):
+            reached[n] = max(reached.get(n, 0.0), float(m[:, k].max()))
+    low = {n: v for n, v in reached.items() if v <= (0.05 if n in SECONDARY else 0.3)}
+    assert not low, low
+
+
+def test_a_wink_closes_one_eye_at_full_strength(lib):
+    for prompt, side, other in (("she winks", "L", "R"), ("he winks his right eye", "R", "L")):
+        m = _make(prompt, lib)
+        shut = m[:, IX[f"eyeBlink_{side}"]] >= 0.8
+        assert shut.sum() / TEXT_FPS >= 0.12, prompt
+        assert m[:, IX[f"eyeBlink_{other}"]].max() < 0.2, prompt
+
+
+def test_the_rest_face_is_neutral_and_symmetric(lib):
+    m = _make("a neutral face", lib)
+    assert np.abs(m).max() == 0.0
+    m = _make("she smiles", lib)  # before and after the smile: the rest
+    for edge in (m[0], m[-1]):
+        assert np.abs(edge[: len(EXPR_NAMES)]).max() < 0.1
+        for k, n in enumerate(EXPR_NAMES):
+            if n.endswith("_L"):
+                assert abs(edge[k] - edge[IX[n[:-2] + "_R"]]) < 0.05, n
+
+
+def test_negation_quantities_holds_and_what_cannot_be_made(lib):
+    plan = parse("He talks without smiling")
+    assert [e.attribute for e in plan.events] == ["talk"] and plan.excluded
+    m = _make("He talks without smiling", lib)
+    assert m[:, IX["mouthSmile_L"]].max() < 0.3
+    plan = parse("she doesn't blink at all")
+    assert not plan.events and "blink" in plan.excluded[0]
+    for prompt, attr, n in (
+        ("a couple of quick blinks", "blink", 2),
+        ("he gives a few nods", "nod", 3),
+        ("several blinks", "blink", 4),
+        ("she winks twice", "blink", 2),
+    ):
+        ev = parse(prompt).events
+        assert ev and ev[0].attribute == attr and ev[0].count == n, (prompt, ev)
+    plan = parse("she keeps her eyes shut")
+    assert [e.attribute for e in plan.events] == ["close eyes"]
+    plan = parse("he sticks his tongue out")
+    assert not plan.events and plan.unplaced and any("tongue" in n for n in plan.notes)
+    assert parse("furious").events[0].attribute != parse("rolls her eyes, annoyed").events[0].attribute
+
+
+def test_gaze_goes_where_the_words_say(lib):
+    for prompt, side in (("she looks up", "up"), ("he looks down", "down"), ("her gaze shifts to the left", "left"),
+                         ("his eyes dart right", "right"), ("she lowers her eyes", "down")):  # fmt: skip
+        ev = parse(prompt).events
+        assert ev and ev[0].attribute == "gaze" and ev[0].side == side, (prompt, ev)
+    roll = _make("she rolls her eyes", lib)
+    up = roll[:, IX["eyeLookUp_L"]]
+    left, right = roll[:, IX["eyeLookOut_L"]], roll[:, IX["eyeLookIn_L"]]
+    assert up.max() > 0.6 and np.argmax(left) < np.argmax(right)  # across the top, from one side to the other
+    turn = _make("he looks to the left", lib)  # a head turn: the eyes lead it the same way
+    assert turn[:, IX["eyeLookOut_L"]].max() > 0.3 and turn[:, IX["eyeLookIn_L"]].max() == 0.0
+
+
+def test_the_length_grows_to_fit_the_events(lib):
+    m = _make("He nods twice, then smiles, then shakes his head three times.", lib)
+    assert len(m) > 90

@@ -1,0 +1,146 @@
+"""Bake anima's built-in motion library (``anima/library/data/builtin.npz`` + ``builtin.json``) from the shared
+data: what ``anima text2face PROMPT`` and ``anima gesture SPEECH`` use when no ``--db`` is given.
+
+    .venv/bin/python tools/bake_library.py                  # builds a dataset of the chosen videos (~10 min)
+    .venv/bin/python tools/bake_library.py --dataset DS     # or reads one already built from exactly them
+
+The videos: every video under the data root whose repository's licence lets derived data ship with an MIT
+project (``anima.library.sources.SOURCES``: PATS, TANGO, CREMA-D, MEAD and the pose data stay out) and whose
+video falls in the training split (``anima.dataset.build.split_of``), so no validation or test video of an
+evaluation is in the library. Only motion parameters and speech features are kept (no pixels, no audio, no
+identity shape).
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from anima.dataset.build import expand_videos, split_of, video_id  # noqa: E402
+from anima.io.assets import data_root  # noqa: E402
+from anima.library.builtin import LIBRARY, write_library  # noqa: E402
+from anima.library.sources import SOURCES, licence_of  # noqa: E402
+
+
+def chosen_videos(root: Path) -> tuple[list[Path], dict[str, int]]:
+    """The library's videos under ``root``, and how many of each left-out kind were skipped."""
+    keep, skipped = [], {}
+    for v in expand_videos([str(root)]):
+        rel = v.resolve().relative_to(root).as_posix()
+        lic, ok = licence_of(rel)
+        if not ok:
+            skipped[lic] = skipped.get(lic, 0) + 1
+        elif split_of(video_id(v)) != "train":
+            skipped["validation or test split"] = skipped.get("validation or test split", 0) + 1
+        else:
+            keep.append(v)
+    return keep, skipped
+
+
+def sha256(p: Path) -> str:
+    h = hashlib.sha256()
+    with open(p, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", default=None, help="data root (default: the project's asset lookup)")
+    ap.add_argument("--dataset", default=None, help="a dataset already built from exactly the chosen videos")
+    ap.add_argument("--out", default=str(LIBRARY))
+    args = ap.parse_args(argv)
+    root = Path(args.data or data_root()).resolve()
+    videos, skipped = chosen_videos(root)
+    if not videos:
+        print(f"bake_library: no video to bake under {root}", file=sys.stderr)
+        return 2
+    with tempfile.TemporaryDirectory() as tmp:
+        ds = Path(args.dataset) if args.dataset else Path(tmp) / "ds"
+        if not args.dataset:
+            cmd = [sys.executable, "-m", "anima", "dataset", "build", *map(str, videos), "--out", str(ds)]
+            subprocess.run(cmd, check=True)
+        return bake(ds, videos, skipped, root, Path(args.out))
+
+
+def bake(ds: Path, videos: list[Path], skipped: dict, root: Path, out: Path) -> int:
+    import numpy as np
+
+    from anima.dataset.windows import read_clips, read_windows
+    from anima.gesture.database import from_dataset
+    from anima.gesture.face import fit_speech_face
+
+    clips = read_clips(ds)
+    by_path = {str(v.resolve()): v for v in videos}
+    unknown = sorted({c.source for c in clips if str(Path(c.source).resolve()) not in by_path})
+    if unknown:
+        print(f"bake_library: {ds} holds videos that are not the chosen ones: {unknown[:3]}", file=sys.stderr)
+        return 2
+    db = from_dataset(ds, None)
+    w = read_windows(ds)
+    rel = {str(v.resolve()): v.resolve().relative_to(root).as_posix() for v in videos}
+    face_clip = [f"{rel[str(Path(c.source).resolve())]}@{c.start_s:.2f}s" for c in clips]
+    gesture_source = [(rel.get(str(Path(s).resolve()), Path(s).name), float(t)) for s, t in db.source]
+    manifest = json.loads((ds / "manifest.json").read_text())
+    commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True).stdout
+    provenance = {
+        "what": "motion parameters only: ARKit-named expression weights + head rotation per frame (text2face), "
+        "55-joint upper body + hands and 28 speech features per frame (gesture); no pixels, audio or identity",
+        "videos": len(videos),
+        "face_clips": len(clips),
+        "face_seconds": round(sum(len(c.motion) for c in clips) / clips[0].fps, 1),
+        "gesture_windows": int(db.M),
+        "gesture_seconds_distinct": round(_distinct_s(db), 1),
+        "split_rule": "anima.dataset.build.split_of(video_id): training videos only",
+        "sources": [
+            {"path": rel[str(v.resolve())], "licence": licence_of(rel[str(v.resolve())])[0], "sha256": sha256(v)}
+            for v in videos
+        ],
+        "left_out": skipped,
+        "licence_table": [{"prefix": p, "licence": lic, "included": ok} for p, lic, ok in SOURCES],
+        "dataset_version": manifest.get("version"),
+        "baked_with": f"tools/bake_library.py at commit {commit.strip()[:12]}",
+    }
+    npz, meta = write_library(
+        out,
+        [c.motion for c in clips],
+        [c.events for c in clips],
+        face_clip,
+        clips[0].fps,
+        {"F": db.F, "P": db.P, "G": db.G, "S": db.S if db.S is not None else np.zeros((0,))},
+        gesture_source,
+        db.fps,
+        fit_speech_face(w.face),
+        provenance,
+    )
+    print(f"{npz} ({npz.stat().st_size / 1e6:.1f} MB), {meta}")
+    return 0
+
+
+def _distinct_s(db) -> float:
+    """Seconds of distinct gesture motion (windows overlap)."""
+    per = {}
+    for s, t in db.source:
+        per.setdefault(s, []).append(t)
+    T = db.G.shape[1] / db.fps
+    total = 0.0
+    for ts in per.values():
+        ts = sorted(ts)
+        end = -1e9
+        for t in ts:
+            total += min(T, t + T - max(end, t)) if t + T > end else 0.0
+            end = max(end, t + T)
+    return total
+
+
+if __name__ == "__main__":
+    sys.exit(main())
