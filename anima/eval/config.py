@@ -111,6 +111,10 @@ class Text2FaceEval:
     motions (about 1 min on 2 cores)."""
     seeds: int = field(default=3, metadata={"range": (1, 100)})
     """With --prompts: seeds per prompt."""
+    judge: bool = False
+    """With --prompts: also score every method's seed-0 motion with the independent judge (rendered, tracked
+    with MediaPipe, events from landmark geometry: anima/eval/judge.py; about 2 s a prompt and method), and
+    list where the two judges disagree."""
 
 
 @dataclass

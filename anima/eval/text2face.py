@@ -481,7 +481,9 @@ def run(cfg: Text2FaceEval, progress: bool = False) -> dict:
     """``anima eval text2face``: the tables, or with ``cfg.prompts`` the prompt suite
     (:mod:`anima.eval.text2face_prompts`). The raw generated samples are for scoring only: not in the result."""
     if cfg.prompts is not None:
-        return evaluate_prompts(cfg.dataset, cfg.prompts or None, cfg.seeds, cfg.checkpoint, progress=progress)
+        return evaluate_prompts(
+            cfg.dataset, cfg.prompts or None, cfg.seeds, cfg.checkpoint, progress=progress, judge=cfg.judge
+        )
     r = evaluate(
         cfg.dataset,
         Path(cfg.work),

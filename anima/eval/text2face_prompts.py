@@ -133,10 +133,13 @@ def _channel(m: np.ndarray, stem: str) -> np.ndarray:
     return m[:, idx].mean(1)
 
 
-def score_runs(rows: list[dict], runs: dict[int, list[np.ndarray]], captured_max: dict) -> dict:
-    """``runs[i]``: the motions of prompt i (one per seed)."""
+def score_runs(rows: list[dict], runs: dict[int, list[np.ndarray]], captured_max: dict, detector=None) -> dict:
+    """``runs[i]``: the motions of prompt i (one per seed). ``detector``: motion -> events (default: the
+    dataset's detectors, :func:`anima.text2face.compose.detect_motion`; the independent judge with
+    ``--judge``)."""
     scored = [i for i, r in enumerate(rows) if r["kind"] not in ("emotion", "side")]
-    events = {i: [detect_motion(m) for m in runs[i]] for i in runs}
+    detector = detector or detect_motion
+    events = {i: [detector(m) for m in runs[i]] for i in runs}
     per_attr = {}
     for a in ATTRIBUTES:
         pos = [i for i in scored if a in expected(rows[i])]
@@ -254,7 +257,12 @@ def captured_maxima(lib: Library) -> dict:
 
 
 def evaluate_prompts(
-    dataset, suite: str | Path | None = None, seeds: int = 3, checkpoint: str | None = None, progress: bool = True
+    dataset,
+    suite: str | Path | None = None,
+    seeds: int = 3,
+    checkpoint: str | None = None,
+    progress: bool = True,
+    judge: bool = False,
 ) -> dict:
     from anima.text2face.generate import Generator
 
@@ -301,6 +309,7 @@ def evaluate_prompts(
     for name, rr in runs.items():
         methods[name] = score_runs(rows, rr, p99)
     t90 = [s for n, s in compose_s if n == 90]
+    judged = judge_runs(rows, runs, p99, progress) if judge else None
     return {
         "protocol": {
             "suite": str(Path(suite) if suite else SUITE.name),
@@ -323,7 +332,38 @@ def evaluate_prompts(
         "parsed": {rows[i]["prompt"]: plans[i] for i in plans},
         "notes": notes,
         "timeline_refused": refused,
-    }
+    } | ({"judge": judged} if judged else {})
+
+
+def judge_runs(rows: list[dict], runs: dict, captured_max: dict, progress: bool = True) -> dict:
+    """Every method's seed-0 motions scored by the independent judge (:mod:`anima.eval.judge`) and by the
+    dataset's detectors under the same definitions, and the prompts where the two disagree on whether the
+    expected events were all found."""
+    from anima.eval.judge import JudgeConfig, judge_motion
+
+    cfg = JudgeConfig()
+    out = {"what": "seed 0 of every prompt; render -> MediaPipe Face Mesh -> landmark geometry (anima/eval/judge.py)",
+           "config": vars(cfg), "methods": {}, "detectors_on_seed_0": {}, "disagree": {}}  # fmt: skip
+    for name, rr in runs.items():
+        first = {i: rr[i][:1] for i in rr}
+        cache = {}
+        with tqdm(total=len(first), desc=f"judge {name}", disable=not progress) as bar:
+            for ms in first.values():
+                cache[id(ms[0])] = judge_motion(ms[0], TEXT_FPS, cfg)
+                bar.update()
+        out["methods"][name] = score_runs(rows, first, captured_max, detector=lambda m: cache[id(m)])
+        out["detectors_on_seed_0"][name] = score_runs(rows, first, captured_max)
+        diff = []
+        for i, r in enumerate(rows):
+            want = expected(r)
+            if not want or r["kind"] in ("emotion", "side"):
+                continue
+            by_judge = want <= {a for a, _, _ in cache[id(first[i][0])]}
+            by_detectors = want <= {a for a, _, _ in detect_motion(first[i][0])}
+            if by_judge != by_detectors:
+                diff.append({"prompt": r["prompt"], "judge_finds_all": by_judge, "detectors_find_all": by_detectors})
+        out["disagree"][name] = diff
+    return out
 
 
 def prompts_summary(r: dict) -> list[str]:
@@ -334,5 +374,11 @@ def prompts_summary(r: dict) -> list[str]:
             f"order {m['order']['accuracy']}, count {m['count']['accuracy']}, emotion checks "
             f"{m['emotion_checks']['holds']}/{m['emotion_checks']['of']}, same-motion pairs "
             f"{m['distinct']['same_motion_pairs']} of {m['distinct']['pairs']}."
+        )
+    for name, m in (r.get("judge") or {}).get("methods", {}).items():
+        out.append(
+            f"judge, {name} (seed 0): lowest event recall {m['min_recall']}, highest false alarm "
+            f"{m['max_false_alarm']}, order {m['order']['accuracy']}, count {m['count']['accuracy']}; "
+            f"disagrees with the detectors on {len(r['judge']['disagree'][name])} prompts."
         )
     return out

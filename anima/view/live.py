@@ -21,6 +21,7 @@ import tempfile
 import threading
 import time
 import webbrowser
+from array import array
 from pathlib import Path
 
 import numpy as np
@@ -267,8 +268,12 @@ def run(
     server = None
     sender = None
     hub = Broadcaster()
-    frames: list[LiveFrame] = []
-    lat, sent_at, rss = [], [], []
+    # the take's counts only: frames go to the journal (on disk) when recording, nowhere otherwise, so memory
+    # stays flat however long the take runs
+    n = n_face = n_body = 0
+    lat = array("f")  # per frame, 4 bytes
+    first_sent = last_sent = 0.0
+    rss = []
     t0 = time.perf_counter()
     stop = False
     od = OutputFolder(record, kind="capture", command=command).__enter__() if record is not None else None
@@ -291,7 +296,7 @@ def run(
         for i, t_perf, size, lm, body in tracked(reader, tracker, deadline, max_frames):
             t_cap = time.time() - (time.perf_counter() - t_perf)  # the frame's arrival on the epoch clock
             f = tracker.frame(lm, body, size, i, t_cap)
-            frames.append(f)  # counted before it is sent: an interrupt between the two loses no count
+            n, n_face, n_body = n + 1, n_face + f.face, n_body + (f.body is not None)  # counted before it is sent
             if journal is not None:
                 journal.add(f)
             hub.send(message(f, retarget))
@@ -303,7 +308,8 @@ def run(
                 except OSError:
                     pass
             lat.append(1e3 * (time.time() - t_cap))
-            sent_at.append(time.perf_counter())
+            last_sent = time.perf_counter()
+            first_sent = first_sent or last_sent
             if time.perf_counter() - last_rss >= 1.0:
                 rss.append(round(_rss_mb(), 1))
                 last_rss = time.perf_counter()
@@ -325,9 +331,8 @@ def run(
             server.server_close()
         shutil.rmtree(root, ignore_errors=True)
     wall = time.perf_counter() - t0
-    n = len(frames)
-    L = np.asarray(lat) if lat else np.zeros(1)
-    span = (sent_at[-1] - sent_at[0]) if n > 1 else 0.0
+    L = np.asarray(lat, np.float64) if len(lat) else np.zeros(1)
+    span = (last_sent - first_sent) if n > 1 else 0.0
     out = {
         "source": src,
         "mode": "face" if face_only else "face + body + hands",
@@ -336,8 +341,8 @@ def run(
         "frames_tracked": n,
         "frames_dropped": int(max(0, offered - n)),
         "tracked_fraction": round(n / max(offered, 1), 4),
-        "frames_with_face": int(sum(f.face for f in frames)),
-        "frames_with_body": int(sum(f.body is not None for f in frames)),
+        "frames_with_face": int(n_face),
+        "frames_with_body": int(n_body),
         "fps": round((n - 1) / span, 2) if span > 0 else 0.0,
         "latency_ms": {"median": round(float(np.median(L)), 1), "p95": round(float(np.percentile(L, 95)), 1)},
         "rss_mb": rss,
@@ -346,6 +351,8 @@ def run(
     }
     if od is not None:
         try:
+            journal.flush()  # the last frames too: the take is read back from its parts
+            frames = read_parts(od.path)[0] if journal.parts else []
             out["record"] = write_take(frames, reader.fps, od, out, journal)
         except BaseException:
             od.__exit__(*sys.exc_info())

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import re
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -52,7 +52,7 @@ class Journal:
         self.last = clock()
 
     def add(self, frame) -> None:
-        self.buffer.append(frame)
+        self.buffer.append(replace(frame, local=None))  # the rig's rotations are not part of the take
         if self.clock() - self.last >= self.chunk_s:
             self.flush()
 
