@@ -133,15 +133,19 @@ def _channel(m: np.ndarray, stem: str) -> np.ndarray:
     return m[:, idx].mean(1)
 
 
-def score_runs(rows: list[dict], runs: dict[int, list[np.ndarray]], captured_max: dict, detector=None) -> dict:
+def score_runs(
+    rows: list[dict], runs: dict[int, list[np.ndarray]], captured_max: dict, detector=None, attributes=None
+) -> dict:
     """``runs[i]``: the motions of prompt i (one per seed). ``detector``: motion -> events (default: the
     dataset's detectors, :func:`anima.text2face.compose.detect_motion`; the independent judge with
-    ``--judge``)."""
+    ``--judge``), reading ``attributes`` (default: the detectors'); order and count are scored on the prompts
+    whose events it reads."""
+    attributes = tuple(attributes or ATTRIBUTES)
     scored = [i for i, r in enumerate(rows) if r["kind"] not in ("emotion", "side")]
     detector = detector or detect_motion
     events = {i: [detector(m) for m in runs[i]] for i in runs}
     per_attr = {}
-    for a in ATTRIBUTES:
+    for a in attributes:
         pos = [i for i in scored if a in expected(rows[i])]
         neg = [i for i in scored if a not in allowed(rows[i])]
         hit = [any(e[0] == a for e in ev) for i in pos for ev in events[i]]
@@ -155,6 +159,7 @@ def score_runs(rows: list[dict], runs: dict[int, list[np.ndarray]], captured_max
     order, count, side = [], [], []
     for i, r in enumerate(rows):
         cl = r.get("clauses", [])
+        readable = expected(r) <= set(attributes)
         for ev, m in zip(events[i], runs[i]):
             if r["kind"] == "side":
                 e = cl[0][0]
@@ -162,6 +167,8 @@ def score_runs(rows: list[dict], runs: dict[int, list[np.ndarray]], captured_max
                 me, other = ("_L", "_R") if e["side"] == "left" else ("_R", "_L")
                 a, b = m[:, EXPR_NAMES.index(stem + me)].max(), m[:, EXPR_NAMES.index(stem + other)].max()
                 side.append(bool(a > 0.3 and a >= 2 * b))
+                continue
+            if not readable:
                 continue
             if len(cl) >= 2:
                 onsets = []
@@ -339,11 +346,13 @@ def judge_runs(rows: list[dict], runs: dict, captured_max: dict, progress: bool 
     """Every method's seed-0 motions scored by the independent judge (:mod:`anima.eval.judge`) and by the
     dataset's detectors under the same definitions, and the prompts where the two disagree on whether the
     expected events were all found."""
+    from anima.eval.judge import ATTRIBUTES as READS
     from anima.eval.judge import JudgeConfig, judge_motion
 
     cfg = JudgeConfig()
     out = {"what": "seed 0 of every prompt; render -> MediaPipe Face Mesh -> landmark geometry (anima/eval/judge.py)",
-           "config": vars(cfg), "methods": {}, "detectors_on_seed_0": {}, "disagree": {}}  # fmt: skip
+           "reads": list(READS), "config": vars(cfg), "methods": {}, "detectors_on_seed_0": {},
+           "disagree": {}}  # fmt: skip
     for name, rr in runs.items():
         first = {i: rr[i][:1] for i in rr}
         cache = {}
@@ -351,18 +360,21 @@ def judge_runs(rows: list[dict], runs: dict, captured_max: dict, progress: bool 
             for ms in first.values():
                 cache[id(ms[0])] = judge_motion(ms[0], TEXT_FPS, cfg)
                 bar.update()
-        out["methods"][name] = score_runs(rows, first, captured_max, detector=lambda m: cache[id(m)])
-        out["detectors_on_seed_0"][name] = score_runs(rows, first, captured_max)
+        out["methods"][name] = score_runs(rows, first, captured_max, lambda m: cache[id(m)], READS)
+        out["detectors_on_seed_0"][name] = score_runs(rows, first, captured_max, attributes=READS)
         diff = []
         for i, r in enumerate(rows):
             want = expected(r)
-            if not want or r["kind"] in ("emotion", "side"):
+            if not want or r["kind"] in ("emotion", "side") or not want <= set(READS):
                 continue
             by_judge = want <= {a for a, _, _ in cache[id(first[i][0])]}
             by_detectors = want <= {a for a, _, _ in detect_motion(first[i][0])}
             if by_judge != by_detectors:
                 diff.append({"prompt": r["prompt"], "judge_finds_all": by_judge, "detectors_find_all": by_detectors})
         out["disagree"][name] = diff
+        out.setdefault("events", {})[name] = {
+            rows[i]["prompt"]: [[a, round(t0, 2), round(t1, 2)] for a, t0, t1 in cache[id(first[i][0])]] for i in first
+        }
     return out
 
 
