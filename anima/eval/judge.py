@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.export.framing import generated_sequence
 from anima.render.face import compose, raster_mesh
 from anima.render.videos import SequenceMesh
@@ -157,8 +158,6 @@ def events(m: dict[str, np.ndarray], fps: float, cfg: JudgeConfig | None = None)
 
 def track_frames(frames) -> np.ndarray:
     """MediaPipe Face Mesh landmarks ``[F, 478, 2]`` (pixels; NaN where no face) of RGB frames, in order."""
-    from anima.capture.mediapipe_face import FaceMeshTracker  # lazy: mediapipe
-
     tr = FaceMeshTracker(static_image_mode=False)
     out = []
     try:

@@ -44,6 +44,8 @@ from anima.core.contract import TEXT_FPS
 from anima.dataset.attributes import ATTRIBUTES
 from anima.dataset.windows import read_clips
 from anima.errors import InputError
+from anima.eval.judge import ATTRIBUTES as READS
+from anima.eval.judge import JudgeConfig, judge_motion
 from anima.io.validate import read_json
 from anima.text2face.compose import EXPR_NAMES, Library, compose, detect_motion
 from anima.text2face.encoders import encode_cached
@@ -346,9 +348,6 @@ def judge_runs(rows: list[dict], runs: dict, captured_max: dict, progress: bool 
     """Every method's seed-0 motions scored by the independent judge (:mod:`anima.eval.judge`) and by the
     dataset's detectors under the same definitions, and the prompts where the two disagree on whether the
     expected events were all found."""
-    from anima.eval.judge import ATTRIBUTES as READS
-    from anima.eval.judge import JudgeConfig, judge_motion
-
     cfg = JudgeConfig()
     out = {"what": "seed 0 of every prompt; render -> MediaPipe Face Mesh -> landmark geometry (anima/eval/judge.py)",
            "reads": list(READS), "config": vars(cfg), "methods": {}, "detectors_on_seed_0": {},

@@ -727,7 +727,8 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
         ("--keyword-db", f"yes={d / 'nope'}"),
     ):
         add(f"gesture {opt} {v}", "gesture", speech, "--db", ds["corrupt_shard"], opt, v, "--out", out / "go")
-    add("gesture neither --db nor --generator", "gesture", speech, "--out", out / "gn")
+    add("gesture both --db and --generator", "gesture", speech, "--db", ds["corrupt_shard"], "--generator", speech,
+        "--out", out / "gn")  # fmt: skip
     add(
         "gesture --generator with --control",
         "gesture",

@@ -154,7 +154,7 @@ def _command(kind: str, inp: dict, out: Path) -> list:
         "capture": ["capture", asset(D0), "--out", out, "--max-frames", "20", "--quiet"],
         "export": ["export", "glb", inp["seq"], "--out", out / "face.glb"],
         # (videos are killed mid-encode by capture and reenact; text2face's are the same writer)
-        "text2face": ["text2face", "a woman smiles, then blinks", "--out", out, "--length", "30", "--no-video"],
+        "text2face": ["text2face", "a woman smiles, then blinks", "--out", out, "--no-video"],
         "gesture": ["gesture", asset(SPEECH), "--db", inp["ds"], "--all-splits", "--out", out],
         "reenact": [
             "reenact",

@@ -60,7 +60,7 @@ def results(tmp_path_factory, cli, gesture_ds):
     assert r.returncode == 0, r.stderr
     r = cli("gesture", asset(SPEECH), "--db", gesture_ds, "--all-splits", "--out", d / "gesture", "--no-render")
     assert r.returncode == 0, r.stderr
-    r = cli("text2face", "a woman smiles, then blinks", "--out", d / "t2f", "--length", "60", "--no-video")
+    r = cli("text2face", "a woman smiles, then blinks", "--out", d / "t2f", "--length", "80", "--no-video")
     assert r.returncode == 0, r.stderr
     return d
 

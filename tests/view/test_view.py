@@ -42,7 +42,7 @@ def results(tmp_path_factory, cli):
     clip = asset("gesture-video/pats-crops/oliver1_gt.mp4")  # body, hands, face and speech
     r = cli("capture", clip, "--out", d / "capture", "--max-frames", "75", "--quiet")
     assert r.returncode == 0, r.stderr
-    r = cli("text2face", "a man smiles, then he opens his mouth", "--out", d / "t2f", "--length", "60")
+    r = cli("text2face", "a man smiles, then he opens his mouth", "--out", d / "t2f", "--length", "80")
     assert r.returncode == 0, r.stderr
     return d
 
