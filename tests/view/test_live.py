@@ -41,7 +41,7 @@ def _result(p, timeout=120):
 def test_a_clip_fed_as_a_camera_moves_the_character_in_the_browser(tmp_path):
     assert have_browser() is None, have_browser()
     rx = LiveLinkParser(idle_s=4).__enter__()
-    p = _live(asset(D6), "--face-only", "--realtime", "--max-seconds", "90", "--livelink",
+    p = _live(asset(D6), "--face-only", "--realtime", "--loop", "--max-seconds", "90", "--livelink",
               f"127.0.0.1:{rx.port}")  # fmt: skip
     url = re.search(r"(http://127\.0\.0\.1:\d+/\S+/index\.html)", p.stdout.readline()).group(1)
     with chromium() as b:
