@@ -41,7 +41,8 @@ def run(mode: str, seconds: float) -> dict:
     clip, extra = CLIPS[mode]
     cmd = [sys.executable, "-m", "anima", "live", str(asset(clip)), "--realtime", "--loop", "--no-browser",
            "--json", "--max-seconds", str(seconds + 30), *extra]  # fmt: skip
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # fmt: skip
     url = re.search(r"(http://\S+/index\.html)", p.stdout.readline()).group(1)
     with chromium() as b:
         b.get(url)

@@ -23,12 +23,19 @@ D0 = "liveportrait-examples/assets/examples/driving/d0.mp4"  # a face: a smile a
 D6 = "liveportrait-examples/assets/examples/driving/d6.mp4"  # a face turning, 30 fps
 
 
+def _ctrl_c_works() -> None:
+    """A runner started in the background (``cmd &``) ignores SIGINT and its children inherit that: the child
+    gets Ctrl-C back, as it has in a terminal."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _live(*args):
     return subprocess.Popen(
         [sys.executable, "-m", "anima", "live", *map(str, args), "--no-browser", "--json"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=_ctrl_c_works,
     )
 
 
