@@ -6,7 +6,7 @@ data: what ``anima text2face PROMPT`` and ``anima gesture SPEECH`` use when no `
 
 The videos: every video under the data root whose repository's licence lets derived data ship with an MIT
 project (``anima.library.sources.SOURCES``: PATS, TANGO, CREMA-D, MEAD and the pose data stay out) and whose
-video falls in the training split (``anima.dataset.build.split_of``), so no validation or test video of an
+video's source falls in the training split (``anima.dataset.splits``), so no validation or test video of an
 evaluation is in the library. Only motion parameters and speech features are kept (no pixels, no audio, no
 identity shape).
 """
@@ -24,7 +24,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from anima.dataset.build import expand_videos, split_of, video_id  # noqa: E402
+from anima.dataset import splits  # noqa: E402
+from anima.dataset.build import expand_videos  # noqa: E402
 from anima.io.assets import data_root  # noqa: E402
 from anima.library.builtin import LIBRARY, write_library  # noqa: E402
 from anima.library.sources import SOURCES, licence_of  # noqa: E402
@@ -33,12 +34,14 @@ from anima.library.sources import SOURCES, licence_of  # noqa: E402
 def chosen_videos(root: Path) -> tuple[list[Path], dict[str, int]]:
     """The library's videos under ``root``, and how many of each left-out kind were skipped."""
     keep, skipped = [], {}
-    for v in expand_videos([str(root)]):
+    everything = expand_videos([str(root)])
+    table = splits.table(everything, root)  # grouped over all the shared data, as a full build groups them
+    for v in everything:
         rel = v.resolve().relative_to(root).as_posix()
         lic, ok = licence_of(rel)
         if not ok:
             skipped[lic] = skipped.get(lic, 0) + 1
-        elif split_of(video_id(v)) != "train":
+        elif table[str(v.resolve())]["split"] != "train":
             skipped["validation or test split"] = skipped.get("validation or test split", 0) + 1
         else:
             keep.append(v)
@@ -100,7 +103,8 @@ def bake(ds: Path, videos: list[Path], skipped: dict, root: Path, out: Path) -> 
         "face_seconds": round(sum(len(c.motion) for c in clips) / clips[0].fps, 1),
         "gesture_windows": int(db.M),
         "gesture_seconds_distinct": round(_distinct_s(db), 1),
-        "split_rule": "anima.dataset.build.split_of(video_id): training videos only",
+        "split_rule": "anima.dataset.splits (by source, key path relative to the data root): training videos only",
+        "split_rule_version": splits.rule(),
         "sources": [
             {"path": rel[str(v.resolve())], "licence": licence_of(rel[str(v.resolve())])[0], "sha256": sha256(v)}
             for v in videos

@@ -37,7 +37,7 @@ from anima.audio.features import NoAudio, read_audio, speech_features
 from anima.capture.config import CaptureConfig
 from anima.capture.pipeline import Tracked, capture_video, join_chunks, track_holistic_range
 from anima.core.contract import BODY_DIM, FACE_DIM, GESTURE_FPS, SPEECH_DIM, TEXT_FPS
-from anima.dataset import ray_guard
+from anima.dataset import ray_guard, splits
 from anima.dataset.annotations import emotion_from_path
 from anima.dataset.attributes import detect
 from anima.dataset.config import RULES, BuildConfig
@@ -58,11 +58,6 @@ RETRIES = 3  # times Ray runs a task again whose worker or node was lost
 def video_id(path: str | Path) -> str:
     p = Path(path).resolve()
     return f"{p.stem}-{hashlib.sha1(str(p).encode()).hexdigest()[:8]}"
-
-
-def split_of(vid: str, val: float = 0.05, test: float = 0.05) -> str:
-    h = int(hashlib.sha1(vid.encode()).hexdigest()[:8], 16) / 0xFFFFFFFF
-    return "test" if h < test else ("val" if h < test + val else "train")
 
 
 def expand_videos(inputs: list[str]) -> list[Path]:
@@ -154,12 +149,14 @@ def video_payload(
     tracked: Tracked | None = None,
     started_at: float | None = None,
     chunk_seconds: float = 0.0,
+    split: str | None = None,
 ) -> dict:
     """Everything for one video, nothing written: ``{"result": ..., "text_motion": rows, "audio_motion":
     windows}`` (a task returns it through Ray, so a worker needs no access to the output folder).
     ``on_progress(1)`` after each tracked frame. ``tracked``: the video's chunks, tracked by other tasks and
     joined (:func:`~anima.capture.pipeline.join_chunks`), ``started_at`` when the first of them started and
-    ``chunk_seconds`` the time they took together."""
+    ``chunk_seconds`` the time they took together; ``split``: the video's split from the build's split table
+    (:func:`anima.dataset.splits.table`), else its source's split without grouping."""
     vid = video_id(path)
     t0 = time.perf_counter()
     started_at = started_at or time.time()
@@ -178,7 +175,7 @@ def video_payload(
     if emotion:  # an emotion clip: the emotion its file name states holds over the whole clip
         events = sorted(auto + [(emotion, 0.0, seq.n_frames / seq.fps)], key=lambda e: e[1])
     gender = annotation.get("gender") if annotation else None
-    split = split_of(vid)
+    split = split or splits.split_for(path)
     prov = json.dumps(
         {
             "tracker": seq.meta.get("tracker"),
@@ -207,7 +204,8 @@ def video_payload(
             continue
         t0c, t1c = a / seq.fps, b / seq.fps
         rel = [(n, max(s, t0c) - t0c, min(e, t1c) - t0c) for n, s, e in events if s < t1c and e > t0c]
-        seed = int(hashlib.sha1(f"{vid}/{k}/{cfg.seed}".encode()).hexdigest()[:8], 16)
+        # seeded by the key path, not the absolute path: the same data elsewhere gets the same descriptions
+        seed = int(hashlib.sha1(f"{splits.key_path(path)}/{k}/{cfg.seed}".encode()).hexdigest()[:8], 16)
         segs = segment_timeline(rel, duration=t1c - t0c)
         texts, dropped = fitting_descriptions(segs, cfg.n_descriptions, seed, gender)
         n_dropped += dropped
@@ -318,11 +316,11 @@ class _Batched:
             self.n = 0
 
 
-def _task(path: str, cfg: BuildConfig, annotation: dict | None, counter=None) -> dict:
+def _task(path: str, cfg: BuildConfig, annotation: dict | None, counter=None, split: str | None = None) -> dict:
     """Ray task body: the video's payload (the driver stores it); never raises: a failure is the payload."""
     try:
         cb = _Batched(counter, video_id(path)) if counter is not None else None
-        return video_payload(path, cfg, annotation, on_progress=cb)
+        return video_payload(path, cfg, annotation, on_progress=cb, split=split)
     except Exception as e:
         return _error(path, e, traceback.format_exc(limit=4))
 
@@ -345,7 +343,7 @@ def _chunk_task(info: VideoInfo, a: int, b: int, warmup: int, times, counter=Non
         }
 
 
-def _assemble_task(path: str, cfg: BuildConfig, annotation, plan, warmup: int, *chunks) -> dict:
+def _assemble_task(path: str, cfg: BuildConfig, annotation, split, plan, warmup: int, *chunks) -> dict:
     """Ray task body: join a video's tracked chunks and do everything after tracking; never raises."""
     try:
         failed = [c for c in chunks if "error" in c]
@@ -359,6 +357,7 @@ def _assemble_task(path: str, cfg: BuildConfig, annotation, plan, warmup: int, *
             tracked=tracked,
             started_at=min(c["started_at"] for c in chunks),
             chunk_seconds=sum(c["seconds"] for c in chunks),
+            split=split,
         )
     except Exception as e:
         return _error(path, e, traceback.format_exc(limit=4))
@@ -492,7 +491,8 @@ def build_summary(m: dict) -> dict:
 
 def build_videos(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_workers, progress, command) -> dict:
     todo = [p for p in videos if not (out / "videos" / f"{video_id(p)}.json").exists()]
-    _write_json(out / "manifest.json", _manifest(out, videos, cfg, status="building"))
+    table = splits.table(videos)  # by source and content, before any task: a task gets its video's split
+    _write_json(out / "manifest.json", _manifest(out, videos, cfg, "building", table))
     t0 = time.perf_counter()
     pending = []
     for p in todo:  # unreadable videos are recorded here, before any worker starts
@@ -527,12 +527,14 @@ def build_videos(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_wo
             for n, p, plan, warm, info in pending:
                 times = frame_times(p) if plan is not None else None
                 if plan is None or len(times) < n:  # (no timestamps to seek by: one task)
-                    futs[task.remote(str(p), cfg_ref, ann.get(p.stem), counter)] = (n, p)
+                    split = table[str(p.resolve())]["split"]
+                    futs[task.remote(str(p), cfg_ref, ann.get(p.stem), counter, split)] = (n, p)
                     continue
                 times = ray.put(times)
                 info_ref = ray.put(info)
                 parts = [chunk_task.remote(info_ref, a, b, warm, times, counter) for a, b in plan]
-                futs[assemble_task.remote(str(p), cfg_ref, ann.get(p.stem), plan, warm, *parts)] = (n, p)
+                split = table[str(p.resolve())]["split"]
+                futs[assemble_task.remote(str(p), cfg_ref, ann.get(p.stem), split, plan, warm, *parts)] = (n, p)
             nodes = _follow(ray, futs, counter, progress, out)
         finally:
             if started:  # our own local instance: shut it down on success, error or interrupt
@@ -541,7 +543,7 @@ def build_videos(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_wo
     wall = time.perf_counter() - t0
     stats = compute_stats(out)
     _write_json(out / "stats.json", stats)
-    manifest = _manifest(out, videos, cfg, status="complete")
+    manifest = _manifest(out, videos, cfg, "complete", table)
     manifest["last_run"] = {
         "videos_processed": len(todo),
         "wall_s": round(wall, 2),
@@ -557,7 +559,10 @@ def build_videos(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_wo
     return manifest
 
 
-def _manifest(out: Path, videos: list[Path], cfg: BuildConfig, status: str) -> dict:
+def _manifest(out: Path, videos: list[Path], cfg: BuildConfig, status: str, table: dict) -> dict:
+    """The dataset's manifest. ``splits`` lists the videos of each split as their rows carry it; ``split_table``
+    says why (key path, source, group; :mod:`anima.dataset.splits`); a video whose rows were made under
+    another rule (a build resumed after the rule changed) is listed in ``split_stale``."""
     results, errors = [], []
     for p in videos:
         vid = video_id(p)
@@ -582,12 +587,21 @@ def _manifest(out: Path, videos: list[Path], cfg: BuildConfig, status: str) -> d
         "removed_by_rule": removed,
         "windows": sum(r["windows"] for r in results),
         "splits": {s: sorted(r["video_id"] for r in results if r["split"] == s) for s in ("train", "val", "test")},
+        "split_rule": splits.rule(),
+        "split_table": {video_id(p): table[str(p.resolve())] for p in videos},
+        "split_stale": sorted(r["video_id"] for r in results if r["split"] != split_of_result(r, table)),
         "frames": sum(r["frames"] for r in results),
         "seconds_of_video": round(sum(r["duration_s"] for r in results), 2),
         "compute_s": round(sum(r["seconds"] for r in results), 2),
         "emotion_clips": {r["video_id"]: r.get("emotion") for r in results if r.get("emotion")},
         "descriptions_dropped_too_long": sum(r.get("descriptions_dropped_too_long", 0) for r in results),
     }
+
+
+def split_of_result(result: dict, table: dict) -> str | None:
+    """The split the table gives a stored video result (None: the video is not in the table)."""
+    row = table.get(str(Path(result["source"]).resolve()))
+    return row["split"] if row else None
 
 
 def compute_stats(out: Path) -> dict:

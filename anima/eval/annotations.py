@@ -97,7 +97,7 @@ def summarize(acc: dict) -> dict:
             "clips": a["clips"],
             "labelled_events": a["lab"],
             "detections": a["det"],
-            "precision": a["tp_det"] / a["det"] if a["det"] else (1.0 if a["lab"] == 0 else 0.0),
+            "precision": a["tp_det"] / a["det"] if a["det"] else None,  # no detection: undefined, not 1
             "recall": a["hit_lab"] / a["lab"] if a["lab"] else None,
             "frame_precision": a["tp_f"] / a["det_f"] if a["det_f"] else None,
             "frame_recall": a["tp_f"] / a["lab_f"] if a["lab_f"] else None,
@@ -127,7 +127,26 @@ KNOBS = {
     "shake head": "shake_deg",
     "turn": "turn_deg",
 }
-FACTORS = (0.6, 0.75, 0.9, 1.0, 1.15, 1.3, 1.5)  # candidate thresholds: the shipped value times these
+def _grid(lo: float, hi: float, step: float) -> tuple[float, ...]:
+    return tuple(round(lo + k * step, 4) for k in range(int(round((hi - lo) / step)) + 1))
+
+
+# candidate thresholds per knob, declared in the detector's own units over the range a detector could sensibly
+# use, NOT around the shipped value (issue 38: a grid anchored on the in-sample values, with ties going to them,
+# let the shipped calibration leak into the out-of-sample score)
+GRIDS = {
+    "blink_on": _grid(0.05, 0.6, 0.05),  # eyeBlink above its running median
+    "smile_on": _grid(0.1, 0.7, 0.05),  # blendshape weights
+    "frown_on": _grid(0.1, 0.7, 0.05),
+    "squint_on": _grid(0.1, 0.7, 0.05),
+    "brow_on": _grid(0.1, 0.7, 0.05),
+    "mouth_open_on": _grid(0.1, 0.7, 0.05),
+    "yawn_jaw": _grid(0.25, 0.8, 0.05),
+    "talk_motion": _grid(0.2, 1.4, 0.1),
+    "nod_deg": _grid(1.0, 12.0, 1.0),  # degrees
+    "shake_deg": _grid(2.0, 16.0, 1.0),
+    "turn_deg": _grid(8.0, 38.0, 3.0),
+}
 
 
 def _f1(a: dict) -> float:
@@ -137,23 +156,27 @@ def _f1(a: dict) -> float:
 
 
 def choose_thresholds(pairs, base: DetectorConfig) -> dict:
-    """Per attribute, the threshold (``base`` times one of :data:`FACTORS`) with the best event-level F1 pooled
-    over ``pairs``; ties go to the factor nearest 1 (the shipped value). Attributes with no labelled event in
-    ``pairs`` keep the shipped value."""
+    """Per attribute, the threshold among :data:`GRIDS` (its knob's declared grid) with the best event-level
+    F1 pooled over ``pairs``; ties go to the median of the tied thresholds (never to the shipped value).
+    Attributes with no labelled event in ``pairs`` keep the shipped value (nothing to choose on; counted in
+    ``kept_shipped``)."""
     chosen = {}
-    by_factor = {}
-    for f in FACTORS:
+    n = max(len(g) for g in GRIDS.values())
+    by_step = []
+    for k in range(n):  # step k sets every knob to its k-th candidate (the last one where its grid is shorter)
+        cfg = dataclasses.replace(base, **{kn: g[min(k, len(g) - 1)] for kn, g in GRIDS.items()})
         total: dict = {}
         for seq, lab in pairs:
-            cfg = dataclasses.replace(base, **{k: getattr(base, k) * f for k in KNOBS.values()})
             _add(total, counts(seq, lab, cfg))
-        by_factor[f] = total
+        by_step.append(total)
     for attr, knob in KNOBS.items():
-        if not by_factor[1.0].get(attr, {}).get("lab", 0):
+        if not by_step[0].get(attr, {}).get("lab", 0):
             chosen[knob] = getattr(base, knob)
             continue
-        best = max(FACTORS, key=lambda f: (round(_f1(by_factor[f][attr]), 9), -abs(np.log(f))))
-        chosen[knob] = getattr(base, knob) * best
+        grid = GRIDS[knob]
+        f1 = [round(_f1(by_step[k][attr]), 9) for k in range(len(grid))]
+        tied = [grid[k] for k in range(len(grid)) if f1[k] == max(f1)]
+        chosen[knob] = float(tied[(len(tied) - 1) // 2])
     return chosen
 
 
@@ -283,11 +306,13 @@ def evaluate_annotations(cfg: DetectorConfig | None = None) -> dict:
     return {
         "protocol": "leave-one-clip-out",
         "protocol_detail": "each clip's detections use thresholds chosen on the other clips (per attribute, the "
-        f"shipped threshold times one of {list(FACTORS)}, best event-level F1; ties to the shipped value); "
+        "best event-level F1 over a declared grid in the detector's units, not centred on the shipped value; "
+        "ties to the median of the tied thresholds); "
         + __doc__.split("Protocol, per attribute pooled over clips:")[1].strip(),
         "clips": [lab["name"] for lab in labs],
         "per_attribute": loco,
         "folds": folds,
+        "grids": {k: list(v) for k, v in GRIDS.items()},
         "in_sample": {
             "note": "the shipped thresholds, calibrated on these labels (the first 9 clips; the blink rule "
             "on all but uncrop_obama): optimistic",

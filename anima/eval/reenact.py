@@ -39,7 +39,7 @@ from anima.reenact.config import ReenactConfig
 from anima.reenact.database import INTERIOR, build_database, sample_colors
 from anima.reenact.pipeline import Reenactor, Smoother
 from anima.reenact.run import pingpong
-from anima.reenact.synth import expression_mapping
+from anima.reenact.synth import expression_mapping, skin_stats
 
 OBAMA = [f"styletalk-samples/samples/source_video/video/Obama_clip{i}.mp4" for i in (1, 2, 3)]
 CHILD = ["liveportrait-examples/assets/examples/driving/d11.mp4"]
@@ -113,16 +113,29 @@ def video_metrics(out: list[np.ndarray], gt: list[np.ndarray], box) -> dict:
     }
 
 
-def _render(rx, db, seq, gt, cfg, n=None, true_colors=False):
+def video_skin(rx, db, video: int = 0):
+    """The target video's skin as the database holds it: the mean skin statistics of its database frames
+    (which exclude the actor / truth frames). What self-re-enactment moves colours to under the seed's
+    protocol (§4.2.1: no knowledge of the true frame)."""
+    mu, sd = skin_stats(db.colors[db.video == video], rx.skin)
+    return mu.mean(0), sd.mean(0)
+
+
+def _render(rx, db, seq, gt, cfg, n=None, true_colors=False, truth_skin=False):
+    """Self-re-enactment of ``gt``. Colours: the weighted median moved to the target video's database skin
+    (:func:`video_skin`); ``truth_skin``: moved to each truth frame's own skin ring instead (anima's rows
+    before issue 38: reads the truth frame); ``true_colors``: the truth frame's own vertex colours (base
+    loss)."""
     sm = Smoother(cfg.smooth)
     out, boxes = [], []
+    skin = video_skin(rx, db) if cfg.color_transfer and not truth_skin else None
     for i, g in enumerate(gt):
         x = seq.expression[i]
         uvz = rx.geometry(x, db.identity[0], seq.scale[i], seq.rotation[i], seq.translation[i])
         col = (
             sample_colors(g, uvz[:, :2]).astype(np.float32)
             if true_colors
-            else rx.texture(x, n, skin=rx.target_skin(gt, seq, i, db.identity[0]))
+            else rx.texture(x, n, skin=rx.target_skin(gt, seq, i, db.identity[0]) if truth_skin else skin)
         )
         boxes.append(np.r_[uvz[:, :2].min(0), uvz[:, :2].max(0)])
         for u, c, j in sm.push(uvz, col, i):
@@ -152,9 +165,17 @@ def self_reenactment(
     outs = {}
     for name, T in (("method1", 0), ("method2", 5)):
         cfg = dataclasses.replace(cfg1, smooth=T)
-        out, _ = _render(Reenactor(db, cfg), db, seq, gt, cfg)
+        rxt = Reenactor(db, cfg)
+        out, _ = _render(rxt, db, seq, gt, cfg)
         outs[name] = out
         res[name] = video_metrics(out, list(gt), box)
+        # anima's rows before issue 38: colours moved to each truth frame's skin ring (not the seed's protocol)
+        old, _ = _render(rxt, db, seq, gt, cfg, truth_skin=True)
+        res[f"{name}_truth_frame_skin"] = video_metrics(old, list(gt), box)
+    res["colour_target"] = (
+        "method rows: the target video's skin from its database frames (no truth frame read; seed 001 §4.2.1); "
+        "*_truth_frame_skin rows: each truth frame's own skin ring (anima before issue 38, shown for comparison)"
+    )
     res["ssim_vs_n"] = {}
     for n in ns:
         if n > db.n:
@@ -412,10 +433,16 @@ def run(cfg: ReenactEval, progress: bool = False) -> dict:
 def summary(r: dict) -> list[str]:
     out = ["| run | SSIM | LPIPS | lip NME | tOF (L2, px) | tLP |", "|---|---|---|---|---|---|"]
     for clip in ("adult_obama", "child_d11"):
-        for m in ("base_true_colors", "method1", "method2"):
-            v = r[clip][m]
+        for m in ("base_true_colors", "method1", "method2", "method1_truth_frame_skin", "method2_truth_frame_skin"):
+            v = r[clip].get(m)
+            if v is None:
+                continue
             out.append(
                 f"| {clip} {m} | {v['ssim']:.4f} | {v['lpips']:.4f} | {pct(v['nme_lips'])} | "
                 f"{v['tof']:.3f} | {v['tlp']:.4f} |"
             )
-    return out + ["", "One video per row: no interval over videos."]
+    return out + [
+        "",
+        "One video per row: no interval over videos. method rows: colours moved to the target video's skin from "
+        "its database frames (seed §4.2.1); *_truth_frame_skin: to each truth frame's skin (before issue 38).",
+    ]

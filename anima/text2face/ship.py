@@ -58,6 +58,8 @@ def ship(checkpoint: str | Path, dest: str | Path, evaluate: Callable[[Path], di
         "data_fingerprint": info.get("data_fingerprint"),
         "dataset": info.get("dataset"),
         "train_clips": info.get("train_clips"),
+        "train_videos": info.get("train_videos"),
+        "split_rule": info.get("split_rule"),
         "train_crops": info.get("train_items"),
         "steps": ck["step"],
         "train_wall_s": round(info.get("wall_s", 0.0), 1),

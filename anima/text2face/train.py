@@ -26,6 +26,7 @@ import torch
 from tqdm import tqdm
 
 from anima.core.contract import N_EXPR, TEXT_FPS
+from anima.dataset import splits
 from anima.errors import InputError, SchemaError
 from anima.io.checkpoint import load_checkpoint as load_checkpoint_file
 from anima.io.checkpoint import load_state, rebuild, rebuilding
@@ -201,6 +202,9 @@ def train(
             "wall_s": wall0 + time.time() - t0,
             "train_items": len(pool),
             "train_clips": sum(c.split == "train" for c in clips),
+            # what the model saw, checkable against any copy of the data (key paths, anima.dataset.splits)
+            "train_videos": sorted({splits.key_path(c.source) for c in clips if c.split == "train"}),
+            "split_rule": splits.rule(),
             "torch": str(torch.__version__),
         }
 

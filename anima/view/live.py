@@ -34,6 +34,7 @@ from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.core import rig
 from anima.core.camera import mediapipe_to_camera
 from anima.core.contract import EXPR_NAMES, FACE_DIM, N_EXPR, N_JOINTS
+from anima.core.filters import gaussian_smooth
 from anima.core.rotations import matrix_to_quat, matrix_to_rotvec
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
@@ -370,9 +371,13 @@ def recover(folder: str, command: str | None = None) -> dict:
         return {"record": write_take(frames, fps, od, stats, None)}
 
 
-def take_sequence(frames: list[LiveFrame], fps: float):
+def take_sequence(frames: list[LiveFrame], fps: float, cfg: CaptureConfig | None = None):
     """The take on the source's frame grid (frames the loop dropped are interpolated from their neighbours;
-    frames before the first face hold its first values)."""
+    frames before the first face hold its first values), smoothed as ``anima capture`` smooths when it is
+    written: the take is whole by then, so the zero-phase filters cost the stream nothing (the live messages
+    stay unsmoothed, no look-ahead): expression weights and head rotation (axis-angle) by a Gaussian of
+    ``cfg.smooth_sigma`` frames, joints by one of ``cfg.body_sigma``."""
+    cfg = cfg or CaptureConfig()
     if not frames:
         raise InputError("the take has no frame: nothing to record")
     idx = np.array([f.index for f in frames])
@@ -383,6 +388,8 @@ def take_sequence(frames: list[LiveFrame], fps: float):
     if ok.any():
         for c in range(FACE_DIM):
             F[:, c] = np.interp(grid, idx[ok], face[ok, c])
+        F[:, :N_EXPR] = np.clip(gaussian_smooth(F[:, :N_EXPR], cfg.smooth_sigma), 0, 1)
+        F[:, N_EXPR:] = gaussian_smooth(F[:, N_EXPR:], cfg.smooth_sigma)
     body = None
     if any(f.body is not None for f in frames):
         B = np.stack([f.body if f.body is not None else np.full((N_JOINTS, 3), np.nan) for f in frames])
@@ -392,6 +399,10 @@ def take_sequence(frames: list[LiveFrame], fps: float):
             if seen.sum() >= 2:
                 for c in range(3):
                     body[:, j, c] = np.interp(grid, idx[seen], B[seen, j, c])
+        seen = np.isfinite(body).all(-1)
+        flat = np.where(seen[..., None], body, 0).reshape(len(grid), -1)
+        body = np.where(seen[..., None], gaussian_smooth(flat, cfg.body_sigma).reshape(body.shape), np.nan)
+        body = body.astype(np.float32)
     return generated_sequence(fps, face=F if ok.any() else None, body=body, meta={"recorded_by": "anima live"}) if (
         ok.any() or body is not None
     ) else None  # fmt: skip

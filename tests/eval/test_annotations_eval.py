@@ -7,6 +7,7 @@ def test_detectors_find_the_labelled_smile_and_blink_of_d0():
     assert r["smile"]["recall"] == 1.0 and r["smile"]["precision"] == 1.0
     assert r["blink"]["recall"] == 1.0
     assert r["yawn"]["detections"] == 0 and r["talk"]["detections"] == 0
+    assert r["yawn"]["precision"] is None  # nothing detected: precision undefined (was shown as 1)
 
 
 def test_labels_are_well_formed():
@@ -43,6 +44,12 @@ def test_eval_annotations_is_out_of_sample():
     pairs = [(capture_labelled(labs[n]), labs[n]) for n in ("d0", "tpsmm_driving")]
     chosen = choose_thresholds(pairs[1:], DetectorConfig())  # d0's smile is not among these labels
     assert chosen["smile_on"] == DetectorConfig().smile_on
+    # chosen from declared grids, not around the shipped values (issue 38)
+    from anima.eval.annotations import GRIDS
+
+    for f in r["folds"]:
+        for k, v in f["thresholds"].items():
+            assert v in GRIDS[k] or v == getattr(DetectorConfig(), k), (k, v)
     assert r["folds"][r["clips"].index("d0")]["thresholds"]["blink_on"] > 0
     talk = r["talk_on_speech"]  # voice + lip motion vs voice-gated lip motion
     assert len(talk["clips"]) == 4 and talk["recall_shipped"] >= talk["recall_before"] and talk["recall_shipped"] > 0.9

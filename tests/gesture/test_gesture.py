@@ -220,6 +220,9 @@ def test_eval_gesture_leave_one_video_out(ds):
     assert r["knn"]["l1_cm"] > 0 and r["knn"]["diversity_cm"] > 0
     cg = r["knn_cgan"]  # the refiner rows judge the same windows, each refined by a model that never saw its video
     assert len(cg["folds"]) == 3 and sum(f["test_windows"] for f in cg["folds"]) == r["windows"]
+    # clean folds: no k-NN synthesis a fold's refiner trains on or refines drew from that fold's videos
+    assert all(f["held_out_videos"] >= 1 and f["held_out_videos_in_inputs"] == 0 for f in cg["folds"])
+    assert set(cg["knn_fold_inputs"]) >= {"l1_cm", "jerk"} and "clean folds" in cg["protocol"]
     assert cg["metrics"]["l1_cm"] > 0 and np.isfinite(cg["metrics"]["jerk"])
     assert set(cg["control_adherence"]) == set(ca)
     gen = r["generator"]  # the §4.4 generator and its baselines on the same windows, with FGD and lip error
@@ -235,6 +238,9 @@ def test_eval_gesture_leave_one_video_out(ds):
         assert choice["value"] == min(choice["grid"], key=lambda a: choice["validation"][str(a)]["fgd_frames"])
     assert "chosen per fold" in gen["protocol"]
     assert set(gen["fgd"]) >= {"knn", "knn_cgan", "adversarial", "captured_half_vs_half"}
+    # FGD per fold: each fold's feature network saw only the other folds' windows
+    assert len(gen["fgd_folds"]) == 3
+    assert all(x["train_windows"] + x["windows"] == r["windows"] for x in gen["fgd_folds"])
     fg = gen["facegood_lip_sync"]
     assert fg["recordings"] == 7 and set(fg["rows"]) == set(gen["rows"])
     sync = r["sync_classifier"]

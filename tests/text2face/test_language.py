@@ -30,6 +30,7 @@ PHRASES = {
     "she moves her jaw to the right": ["jawRight"],
     "he opens his mouth wide": ["jawOpen"],
     "she smirks": ["mouthSmile_L"],
+    "he smiles with the right side of his mouth": ["mouthSmile_R"],
     "he pouts": ["mouthPucker", "mouthShrugLower", "mouthFrown_L", "mouthFrown_R"],
     "she shrugs": ["mouthShrugUpper"],
     "he makes an o shape": ["mouthFunnel"],

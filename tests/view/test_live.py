@@ -103,7 +103,7 @@ def test_a_recorded_take_matches_an_offline_capture(d0_capture, captures, tmp_pa
     d = np.linalg.norm(take.body_joints - off.body_joints, axis=-1)
     print(f"full take: {len(rs)} moving channels, r min {min(rs):.3f} median {np.median(rs):.3f}; "
           f"joints median {np.nanmedian(d) * 100:.1f} cm")  # fmt: skip
-    assert np.median(rs) >= 0.9 and np.nanmedian(d) <= 0.02
+    assert min(rs) >= 0.9 and np.nanmedian(d) <= 0.02  # every moving channel (the take smoothed as capture is)
 
 
 def test_bad_sources_and_options_are_refused(cli, tmp_path):

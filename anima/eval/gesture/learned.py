@@ -28,21 +28,75 @@ from anima.eval.gesture.metrics import (
     wrist_motion,
 )
 from anima.facemodel.ict import load_face_model
-from anima.gesture.control import control_features
+from anima.gesture.control import control_features, parse_control, speed_steps, step_masks
+from anima.gesture.features import N_STEP
 from anima.gesture.generator import KINDS, GeneratorConfig, GeneratorTrainConfig, train_generator
-from anima.gesture.post import one_skeleton
-from anima.gesture.refine import RefinerTrainConfig, train_refiner
+from anima.gesture.knn import search
+from anima.gesture.post import finish_knn, one_skeleton
+from anima.gesture.refine import RefinerTrainConfig, pair_draws, train_refiner
 from anima.gesture.sync import accuracy, train_sync
+
+
+def fold_inputs(db, test_videos: set, ks, controls, cfg: RefinerTrainConfig, rng, no_repeat: int, blend: bool) -> dict:
+    """Everything one refiner fold reads, from databases without that fold's videos (issue 38): the training
+    pairs (each training window's k-NN syntheses searched in the fold's training videos less the window's own
+    video), the judged inputs (each held-out window's k = ``ks`` outputs and controlled outputs searched in the
+    fold's training videos) and the bone lengths every output is re-posed on (measured on the training videos)."""
+    T, fps = db.G.shape[1], db.fps
+    train = [i for i, (s, _) in enumerate(db.source) if s not in test_videos]
+    tr_db = db.subset(train)
+    lengths = tr_db.bone_lengths
+    by_video = defaultdict(list)
+    for i in train:
+        by_video[db.source[i][0]].append(i)
+    S, K, R, W = [], [], [], []
+    used = set()  # the videos every synthesis drew its windows from
+    for v, idx in by_video.items():
+        sub = db.subset([i for i in train if db.source[i][0] != v])
+        if not sub.M:
+            continue
+        for i in idx:
+            if cfg.k_sampling == "ks":
+                p0 = sub.P.reshape(-1, sub.P.shape[-1]).mean(0)
+                draws = [(min(k, sub.M - 1), p0) for k in ks]
+            else:
+                draws = [(min(k, sub.M - 1), p) for k, p in pair_draws(sub, cfg, rng)]
+            for k, p in draws:
+                G, picks = search(sub, db.F[i], k, p, no_repeat_steps=no_repeat)
+                used |= {sub.source[m][0] for m, _ in picks}
+                S.append(db.S[i])
+                K.append(finish_knn(G, picks, lengths, N_STEP))
+                R.append(db.G[i].reshape(T, -1, 3))
+                W.append(i)
+    p0 = tr_db.P.reshape(-1, tr_db.P.shape[-1]).mean(0)
+    test = [i for i, (s, _) in enumerate(db.source) if s in test_videos]
+    outs, ctrl = {}, defaultdict(dict)
+    masks = {}
+    for c in controls:
+        m, rep = step_masks(tr_db, [parse_control(c)], T // N_STEP, N_STEP / fps, every_frame=True)
+        masks[c] = (m, rep[0]["relaxed_to"] if rep[0]["relaxed_to"] is not None else rep[0]["threshold"])
+    for i in test:
+        found = [search(tr_db, db.F[i], min(k, tr_db.M - 1), p0, no_repeat_steps=no_repeat) for k in ks]
+        outs[i] = [finish_knn(G, picks, lengths, N_STEP, blend) for G, picks in found]
+        used |= {tr_db.source[m][0] for _, picks in found for m, _ in picks}
+        for c, (m, thr) in masks.items():
+            G, picks = search(tr_db, db.F[i], 0, p0, m, no_repeat_steps=no_repeat)
+            used |= {tr_db.source[m][0] for m, _ in picks}
+            raw = speed_steps([parse_control(c)], T // N_STEP, N_STEP / fps)
+            ctrl[c][i] = (finish_knn(G, picks, lengths, N_STEP, blend, raw_steps=raw), thr)
+    pairs = (np.stack(S), np.stack(K), np.stack(R), np.array(W)) if S else None
+    return {"pairs": pairs, "outs": outs, "ctrl": ctrl, "lengths": lengths, "test": test, "used_videos": used}
 
 
 def refiner_rows(
     db, kept: dict, ks, folds: int, steps: int | None, progress: bool, cfg: RefinerTrainConfig | None = None
 ) -> dict:
     """k-NN + cGAN, cross-validated by video: the videos are split into ``folds`` groups; each group's windows
-    are refined by a refiner trained on the other groups' (k-NN, captured) pairs. Training pairs follow
-    ``cfg.k_sampling`` (default the seed's draws, ``kept["seed_pairs"]``; ``"ks"``: the k = 0..4 outputs);
-    the judged k-NN outputs are those of the leave-one-video-out search, so both rows judge the same
-    windows."""
+    are refined by a refiner trained on the other groups' (k-NN, captured) pairs. Clean folds
+    (:func:`fold_inputs`): no window, bone length or k-NN synthesis of a held-out video enters the refiner's
+    training or its inputs; the judged inputs are k-NN outputs searched in the fold's training videos (their
+    own row, ``knn_fold_inputs``, beside the refined one). Training pairs follow ``cfg.k_sampling`` (default
+    the seed's draws; ``"ks"``: the k = ``ks`` outputs from the mean pose)."""
     T, fps = db.G.shape[1], db.fps
     cfg = cfg or RefinerTrainConfig()
     if steps is not None:
@@ -51,27 +105,26 @@ def refiner_rows(
     videos = sorted({db.source[i][0] for i in windows})
     folds = max(2, min(folds, len(videos)))
     fold_of = {v: n % folds for n, v in enumerate(videos)}
-    train_outs = kept["outs"] if cfg.k_sampling == "ks" else kept["seed_pairs"]
-    S = np.stack([db.S[i] for i in windows for _ in train_outs[i]])
-    K = np.stack([o for i in windows for o in train_outs[i]])
-    R = np.stack([db.G[i].reshape(T, -1, 3) for i in windows for _ in train_outs[i]])
-    W = np.array([i for i in windows for _ in train_outs[i]])
-    res = defaultdict(list)
+    res, base = defaultdict(list), defaultdict(list)
     adherence = {c: {"values": []} for c in ["none"] + list(kept["ctrl"])}
     judged_videos = []
     logs = []
+    rng = np.random.default_rng(0)
     for f in range(folds):
-        test = [i for i in windows if fold_of[db.source[i][0]] == f]
-        tr = np.array([fold_of[db.source[w][0]] != f for w in W])
-        if not test or not tr.any():
+        held = {v for v in videos if fold_of[v] == f}
+        inp = fold_inputs(db, held, ks, list(kept["ctrl"]), cfg, rng, kept["no_repeat"], kept["blend"])
+        test = [i for i in inp["test"] if i in kept["outs"]]
+        if not test or inp["pairs"] is None:
             continue
         bar = tqdm(total=cfg.steps, desc=f"refiner fold {f + 1}/{folds}", disable=not progress, leave=False)
-        ref, info = train_refiner(None, cfg, progress=lambda s: bar.update(1), pairs=(S[tr], K[tr], R[tr], W[tr]))
+        ref, info = train_refiner(None, cfg, progress=lambda s: bar.update(1), pairs=inp["pairs"])
         bar.close()
         logs.append(
             {
                 "fold": f,
-                "train_pairs": int(tr.sum()),
+                "held_out_videos": len(held),
+                "held_out_videos_in_inputs": len(held & inp["used_videos"]),  # 0: clean
+                "train_pairs": int(len(inp["pairs"][0])),
                 "test_windows": len(test),
                 "wall_s": info["wall_s"],
                 "critic_last": float(np.mean(info["log"]["critic"][-50:])),
@@ -79,23 +132,29 @@ def refiner_rows(
         )
         for i in test:
             gt = db.G[i].reshape(T, -1, 3)
-            outs = [one_skeleton(ref.refine(db.S[i], o), db.bone_lengths) for o in kept["outs"][i]]
+            knn = inp["outs"][i]
+            outs = [one_skeleton(ref.refine(db.S[i], o), inp["lengths"]) for o in knn]
             g = outs[0]
             if cfg.k_sampling == "seed":
                 kept.setdefault("refined", {})[i] = g
             judged_videos.append(db.source[i][0])
             res["l1_cm"].append(l1_cm(g, gt))
-            res["l1_to_knn_cm"].append(l1_cm(g, kept["outs"][i][0]))
+            res["l1_to_knn_cm"].append(l1_cm(g, knn[0]))
             res["diversity_cm"].append(diversity_cm(outs))
             res["jerk"].append(jerk(g, fps))
-            res["jerk_knn"].append(jerk(kept["outs"][i][0], fps))
+            res["jerk_knn"].append(jerk(knn[0], fps))
             res["wrist_motion_cm"].append(wrist_motion(g))
             res["jerk_captured"].append(jerk(gt, fps))
             res["beat_consistency"].append(beat_consistency(g, kept["onsets"][i], fps))
+            base["l1_cm"].append(l1_cm(knn[0], gt))
+            base["diversity_cm"].append(diversity_cm(knn))
+            base["jerk"].append(jerk(knn[0], fps))
+            base["wrist_motion_cm"].append(wrist_motion(knn[0]))
+            base["beat_consistency"].append(beat_consistency(knn[0], kept["onsets"][i], fps))
             adherence["none"]["values"].append(control_features(g.reshape(1, T, -1), fps))
-            for c, per in kept["ctrl"].items():
+            for c, per in inp["ctrl"].items():
                 out, thr = per[i]
-                refined = one_skeleton(ref.refine(db.S[i], out), db.bone_lengths)
+                refined = one_skeleton(ref.refine(db.S[i], out), inp["lengths"])
                 adherence[c]["values"].append(control_features(refined.reshape(1, T, -1), fps))
                 adherence[c].setdefault("thresholds", []).append(thr)
                 adherence[c].setdefault("videos", []).append(db.source[i][0])
@@ -107,9 +166,11 @@ def refiner_rows(
             "the seed's k (1 for half, 2..15) from random initial poses"
             if cfg.k_sampling == "seed"
             else f"k in {list(cfg.ks)} from the mean pose"
-        ),
+        )
+        + "; clean folds: training pairs, judged k-NN inputs and bone lengths from the other folds' videos only",
         "train_config": {k: v for k, v in dataclasses.asdict(cfg).items() if k != "model"},
         "metrics": {k: float(np.nanmean(v)) for k, v in res.items()},
+        "knn_fold_inputs": {k: float(np.nanmean(v)) for k, v in base.items()},
         "metrics_ci95_over_videos": {
             k: bootstrap_over_groups(np.asarray(v, float), np.array(judged_videos))
             for k, v in res.items()
@@ -296,21 +357,31 @@ def generator_rows(
             res[kind]["jerk"].append(jerk(g, fps))
             res[kind]["wrist_motion_cm"].append(wrist_motion(g))
             res[kind]["beat_consistency"].append(beat_consistency(g, kept["onsets"][i], fps))
-    train_rows = [i for i, (s, st) in enumerate(knn_db.source) if w.split[key[(s, round(st, 3))]] == "train"]
-    fgd = train_fgd(knn_db.G[train_rows].reshape(len(train_rows), T, -1), steps=fgd_steps)
-    real = np.stack([knn_db.G[i].reshape(T, -1) for i, _ in judged])
-    fgd_rows = {
-        kind: fgd.distance(real, np.stack([gen_windows[kind][n].reshape(T, -1) for _, n in judged])) for kind in kinds
-    }
-    fgd_rows["knn"] = fgd.distance(real, np.stack([kept["outs"][i][0].reshape(T, -1) for i, _ in judged]))
-    if refined_outs:
-        fgd_rows["knn_cgan"] = fgd.distance(real, np.stack([refined_outs[i].reshape(T, -1) for i, _ in judged]))
-    # two random halves of the captured windows against each other: what sampling noise alone gives
-    half = len(real) // 2
-    perm = np.random.default_rng(0).permutation(len(real))
-    fgd_rows["captured_half_vs_half"] = (
-        fgd.distance(real[perm[:half]], real[perm[half : 2 * half]]) if half >= 2 else float("nan")
-    )
+    # FGD per fold (issue 38): each fold's feature network is trained on the other folds' videos only and
+    # measures that fold's judged windows; the rows are the window-weighted mean over folds
+    fgd_rows, fgd_folds = defaultdict(float), []
+    perm_rng = np.random.default_rng(0)
+    for f in sorted({int(fold[n]) for _, n in judged}):
+        jf = [(i, n) for i, n in judged if fold[n] == f]
+        tr_rows = [i for i, (s, _) in enumerate(knn_db.source) if fold_of[s] != f]
+        net = train_fgd(knn_db.G[tr_rows].reshape(len(tr_rows), T, -1), steps=fgd_steps)
+        real = np.stack([knn_db.G[i].reshape(T, -1) for i, _ in jf])
+        one = {k: net.distance(real, np.stack([gen_windows[k][n].reshape(T, -1) for _, n in jf])) for k in kinds}
+        one["knn"] = net.distance(real, np.stack([kept["outs"][i][0].reshape(T, -1) for i, _ in jf]))
+        if refined_outs:
+            one["knn_cgan"] = net.distance(real, np.stack([refined_outs[i].reshape(T, -1) for i, _ in jf]))
+        # two random halves of the fold's captured windows against each other: what sampling noise alone gives
+        half = len(real) // 2
+        perm = perm_rng.permutation(len(real))
+        one["captured_half_vs_half"] = (
+            net.distance(real[perm[:half]], real[perm[half : 2 * half]]) if half >= 2 else float("nan")
+        )
+        fgd_folds.append({"fold": f, "windows": len(jf), "train_windows": len(tr_rows), **one})
+    total = sum(x["windows"] for x in fgd_folds)
+    for x in fgd_folds:
+        for k, v in x.items():
+            if k not in ("fold", "windows", "train_windows"):
+                fgd_rows[k] += v * x["windows"] / total
     rows = {
         kind: {
             "diversity_cm": 0.0,
@@ -344,7 +415,10 @@ def generator_rows(
         "lip_error_mm_random_other_video": float(np.mean(lip_random)),
         "face_only_windows_per_speaker": {k: sum(len(x) for x in v.values()) for k, v in sorted(face_only.items())},
         "face_only_minutes_per_speaker": {k: minutes_covered(v.items(), T / fps) for k, v in sorted(face_only.items())},
-        "fgd": fgd_rows,
-        "fgd_autoencoder": fgd.info,
+        "fgd": dict(fgd_rows),
+        "fgd_protocol": "per fold: the feature network trained on the other folds' videos, distances on the "
+        "fold's judged windows; window-weighted mean over folds",
+        "fgd_folds": fgd_folds,
+        "fgd_autoencoder": net.info,
         "facegood_lip_sync": facegood_sync(gens, fps, seconds=facegood_seconds),
     }

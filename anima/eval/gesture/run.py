@@ -47,7 +47,7 @@ from anima.gesture.database import from_dataset
 from anima.gesture.features import N_STEP
 from anima.gesture.knn import search
 from anima.gesture.post import finish_knn
-from anima.gesture.refine import RefinerTrainConfig, pair_draws
+from anima.gesture.refine import RefinerTrainConfig
 
 NO_REPEAT_S = GestureConfig().no_repeat_s
 CONTROLS = ["left_wrist_height>=p85", "left_wrist_height<=p15", "left_wrist_speed>=p85", "left_wrist_speed<=p15"]
@@ -67,8 +67,7 @@ def knn_rows(db, ks, blend: bool = True, seed_rule: bool = True) -> tuple[dict, 
     adherence = {c: {"values": []} for c in ["none"] + CONTROLS}
     seed_adherence = {c: {"values": []} for c in CONTROLS}
     rules = [("command", True)] + ([("seed", False)] if seed_rule else [])
-    kept = {"outs": {}, "ctrl": defaultdict(dict), "onsets": {}, "videos": [], "seed_pairs": {}}
-    rng = np.random.default_rng(0)
+    kept = {"outs": {}, "ctrl": defaultdict(dict), "onsets": {}, "videos": [], "no_repeat": no_repeat, "blend": blend}
     distinct = defaultdict(list)  # database windows used per synthesis (variety), uncontrolled and per control
     for idx in by_video.values():
         own = set(idx)
@@ -94,9 +93,6 @@ def knn_rows(db, ks, blend: bool = True, seed_rule: bool = True) -> tuple[dict, 
             res["wrist_motion_cm"].append(wrist_motion(g))
             res["wrist_motion_cm_captured"].append(wrist_motion(gt))
             kept["outs"][i], kept["onsets"][i] = outs, on
-            draws = pair_draws(sub, RefinerTrainConfig(), rng)  # the refiner's training syntheses (seed's k)
-            found = [search(sub, F_in, min(k, sub.M - 1), p, no_repeat_steps=no_repeat) for k, p in draws]
-            kept["seed_pairs"][i] = [finish_knn(G, picks, sub.bone_lengths, N_STEP) for G, picks in found]
             kept["videos"].append(db.source[i][0])  # the video of each row of the metrics, in their order
             res["beat_consistency"].append(beat_consistency(g, on, fps))
             res["beat_consistency_captured"].append(beat_consistency(gt, on, fps))

@@ -1,0 +1,81 @@
+"""Splits by source, independent of where the data sits (issue 38): the same videos under two folders get the
+same splits; on the shared data no source or recording sits on two sides, and the test side is large enough."""
+
+import collections
+import shutil
+
+from anima.dataset import splits
+from anima.dataset.build import expand_videos
+from anima.io.assets import asset, data_root
+
+SOME = [
+    "emotion-clips/crema-d/1001_DFA_ANG_XX.flv",
+    "emotion-clips/crema-d/1001_DFA_HAP_XX.flv",
+    "styletalk-samples/samples/source_video/video/Obama_clip1.mp4",
+    "styletalk-samples/samples/style_clips/video/Obama_clip3.mp4",
+    "videoretalking-examples/examples/face/3.mp4",
+    "liveportrait-examples/assets/examples/driving/d19.mp4",
+]
+
+
+def _copy(dst_root, rels):
+    for r in rels:
+        d = dst_root / r
+        d.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(asset(r), d)
+    return [dst_root / r for r in rels]
+
+
+def test_the_same_videos_under_two_folders_get_the_same_splits(tmp_path):
+    a = _copy(tmp_path / "one" / "data", SOME)
+    b = _copy(tmp_path / "elsewhere" / "deeper" / "copy", SOME)
+    ta = splits.table(a, tmp_path / "one" / "data")
+    tb = splits.table(b, tmp_path / "elsewhere" / "deeper" / "copy")
+    ref = splits.table([asset(r) for r in SOME])
+    strip = lambda t: [(r["key_path"], r["source"], r["group"], r["split"]) for r in t.values()]
+    assert strip(ta) == strip(tb) == strip(ref)
+    # outside any data root the key is <folder>/<file>: moving the folder changes nothing either
+    c = _copy(tmp_path / "x", ["videoretalking-examples/examples/face/3.mp4"])
+    d = _copy(tmp_path / "y" / "z", ["videoretalking-examples/examples/face/3.mp4"])
+    assert strip(splits.table(c, tmp_path / "nowhere")) == strip(splits.table(d, tmp_path / "nowhere2"))
+    assert splits.key_path(c[0], tmp_path / "nowhere") == "face/3.mp4"
+    # one actor's clips share a source; a byte-identical copy joins its original's group whatever its name
+    assert len({r["source"] for r in ta.values() if "crema-d" in r["key_path"]}) == 1
+    e = tmp_path / "copies" / "renamed_take.mp4"
+    e.parent.mkdir()
+    shutil.copyfile(asset(SOME[4]), e)
+    t = splits.table([asset(SOME[4]), e])
+    assert len({r["group"] for r in t.values()}) == 1 and len({r["source"] for r in t.values()}) == 2
+
+
+def test_no_source_or_recording_on_two_sides_of_the_shared_data_and_a_test_side_worth_reporting():
+    videos = expand_videos([str(data_root())])
+    t = splits.table(videos)
+    sides = collections.defaultdict(set)
+    for r in t.values():
+        sides[r["source"]].add(r["split"])
+        sides["group " + r["group"]].add(r["split"])
+    assert all(len(s) == 1 for s in sides.values()), {k: v for k, v in sides.items() if len(v) > 1}
+    n = collections.Counter(r["split"] for r in t.values())
+    test_groups = {r["group"] for r in t.values() if r["split"] == "test"}
+    assert n["test"] >= 0.15 * len(videos) and len(test_groups) >= 6, (n, test_groups)
+    assert n["val"] >= 5 and n["train"] >= 0.6 * len(videos), n
+    # the declared source table is complete: content and thumbnail grouping merge nothing beyond it, so a build
+    # of any subset of the shared data gives each video the split the full build gives it
+    assert all(r["group"] == r["source"] for r in t.values()), [r for r in t.values() if r["group"] != r["source"]]
+    assert all(splits.split_for(p) == r["split"] for p, r in t.items())
+    # the cases an audit found on two sides: one CREMA-D actor, Obama in two corpora, one StyleTalk recording
+    by = {r["key_path"]: r for r in t.values()}
+    for group in (
+        ["emotion-clips/crema-d/1001_DFA_ANG_XX.flv", "emotion-clips/crema-d/1001_DFA_SAD_XX.flv"],
+        ["talking-heads-extra/uncrop_Obama.mp4", "styletalk-samples/samples/source_video/video/Obama_clip1.mp4"],
+        [
+            "styletalk-samples/samples/style_clips/video/furious_talk2_clip1.mp4",
+            "styletalk-samples/samples/style_clips/video/furious_talk2_clip7.mp4",
+        ],
+        [
+            "talking-heads-extra/expression_source.mp4",
+            "styletalk-samples/samples/style_clips/video/happyenglish_clip1.mp4",
+        ],
+    ):
+        assert len({by[k]["source"] for k in group}) == 1, group
