@@ -127,6 +127,8 @@ KNOBS = {
     "shake head": "shake_deg",
     "turn": "turn_deg",
 }
+
+
 def _grid(lo: float, hi: float, step: float) -> tuple[float, ...]:
     return tuple(round(lo + k * step, 4) for k in range(int(round((hi - lo) / step)) + 1))
 
