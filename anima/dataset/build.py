@@ -11,8 +11,9 @@ exactly as in one task. Only tracking is split: it is ~97 % of a video's time (t
 Rerunning a build skips done videos, so a killed build resumes without recomputation and without duplicate
 rows (one shard per video, replaced atomically; a video's tracked chunks live only in Ray's object store, so an
 unfinished video is tracked again). A failing video is recorded in ``errors/<id>.json`` (and retried on the
-next run) and does not stop the build. Splits are 90/5/5 by source video, from a hash of the video id (stable
-when videos are added). Normalisation statistics come from the training split only.
+next run) and does not stop the build. Splits are by source (speaker, actor, recording) and key path, never by
+absolute path (:mod:`anima.dataset.splits`; the table is in the manifest). Normalisation statistics come from
+the training split only.
 """
 
 from __future__ import annotations

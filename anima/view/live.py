@@ -76,6 +76,8 @@ class LiveTracker:
             [FaceMeshTracker(static_image_mode=False)] if face_only else [HolisticTracker() for _ in range(trackers)]
         )
         self.warm: list[np.ndarray] = []
+        self.warm_frames: list[tuple] = []  # (index, t_capture, body) of each warm-up face
+        self.backfill: list[LiveFrame] = []  # the warm-up frames fitted once the identity is known
         self.identity = None
         self.rest = load_character().joints
         self.idle = rig.idle_body(1, self.rest, 30.0)[0]  # contract: not (one still frame)
@@ -103,10 +105,17 @@ class LiveTracker:
             P = mediapipe_to_camera(lm[self.basis.index][None], W, H)
             if self.identity is None:
                 self.warm.append(P[0])
+                self.warm_frames.append((index, t_capture, body))
                 if len(self.warm) >= WARM:
                     Pw = np.stack(self.warm)
                     key = choose_keyframes(Pw, self.basis, min(self.fcfg.n_keyframes, len(Pw)))
                     self.identity = fit_identity(Pw[key], self.basis, self.fcfg)
+                    # the warm-up faces streamed without a fit: fitted now for the recorded take
+                    back = fit_frames(Pw[:-1], self.basis, self.identity, self.fcfg)
+                    self.backfill = [
+                        LiveFrame(i, t, True, np.clip(back.expr[k], 0.0, 1.0), matrix_to_rotvec(back.R[k]), b, None)
+                        for k, (i, t, b) in enumerate(self.warm_frames[:-1])
+                    ]
             if self.identity is not None:
                 fit = fit_frames(P, self.basis, self.identity, self.fcfg)
                 expr, R, face = np.clip(fit.expr[0], 0.0, 1.0), fit.R[0], True
@@ -298,6 +307,10 @@ def run(
             t_cap = time.time() - (time.perf_counter() - t_perf)  # the frame's arrival on the epoch clock
             f = tracker.frame(lm, body, size, i, t_cap)
             n, n_face, n_body = n + 1, n_face + f.face, n_body + (f.body is not None)  # counted before it is sent
+            if tracker.backfill:  # the warm-up frames fitted: they replace their first versions in the take
+                for b in tracker.backfill if journal is not None else ():
+                    journal.add(b)
+                tracker.backfill = []
             if journal is not None:
                 journal.add(f)
             hub.send(message(f, retarget))
@@ -380,6 +393,8 @@ def take_sequence(frames: list[LiveFrame], fps: float, cfg: CaptureConfig | None
     cfg = cfg or CaptureConfig()
     if not frames:
         raise InputError("the take has no frame: nothing to record")
+    last = {f.index: f for f in frames}  # a frame written again (a warm-up frame fitted later): the last one
+    frames = [last[k] for k in sorted(last)]
     idx = np.array([f.index for f in frames])
     grid = np.arange(idx[0], idx[-1] + 1)
     face = np.stack([np.concatenate([f.expression, f.rotation]) for f in frames])

@@ -54,6 +54,22 @@ def test_smoothing_removes_jitter_without_costing_accuracy():
     assert r["error_ratio_smoothed_vs_unsmoothed"] <= 1.10
 
 
+def test_the_smoothing_sigma_is_chosen_on_validation_clips_and_reported_on_test_clips():
+    from anima.dataset import splits
+    from anima.eval.stability import DEFAULT_CLIPS, VALIDATION_CLIPS, choose_sigma
+
+    assert {splits.split_for(asset(c)) for c in VALIDATION_CLIPS} == {"val"}
+    assert {splits.split_for(asset(c)) for c in DEFAULT_CLIPS} == {"test"}
+
+    def row(**per):
+        return {"per_sigma": {k: {"acc_reduction": a, "error_ratio": e} for k, (a, e) in per.items()}}
+
+    rows = [row(**{"0.5": (0.3, 1.0), "1.0": (0.45, 1.05), "2.0": (0.6, 1.2)})] * 2
+    assert choose_sigma(rows)["chosen"] == 1.0  # the smallest meeting both targets
+    rows = [row(**{"0.5": (0.3, 1.0), "1.0": (0.35, 1.05), "2.0": (0.6, 1.2)})]
+    assert choose_sigma(rows)["chosen"] == 1.0  # none meets both: the best reduction within the error target
+
+
 def test_bootstrap_over_videos_resamples_whole_videos():
     from anima.eval.gesture.metrics import bootstrap_over_groups
 

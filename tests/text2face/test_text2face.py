@@ -169,6 +169,20 @@ def test_shipped_checkpoint_is_small_and_carries_its_manifest(shipped):
     assert hashlib.sha256(p.read_bytes()).hexdigest() == man["sha256"]
 
 
+def test_the_shipped_checkpoint_never_saw_a_validation_or_test_video(shipped):
+    """Its manifest lists the videos it trained on by key path (issue 38), checkable on any copy of the data:
+    every one is in the training split of the current rule, and the rule it was trained under is this one."""
+    from anima.dataset import splits
+    from anima.dataset.build import expand_videos
+    from anima.io.assets import data_root
+
+    man = json.loads(shipped.path.with_suffix(".json").read_text())
+    assert man["split_rule"] == splits.rule() and len(man["train_videos"]) > 20
+    table = {r["key_path"]: r["split"] for r in splits.table(expand_videos([str(data_root())])).values()}
+    seen = [v for v in man["train_videos"] if table[v] != "train"]
+    assert not seen, seen
+
+
 def test_shipped_model_generates_seeded_valid_motion(shipped):
     a = shipped.generate(["a woman smiles, then blinks"], 90, seed=0)
     b = shipped.generate(["a woman smiles, then blinks"], 90, seed=0)
@@ -372,6 +386,32 @@ def test_held_out_errors_get_intervals_over_videos_per_split():
     assert lo < r["test"]["mean"] < hi and lo < 1.6 and hi > 3.3  # the spread between videos, not within
     one = over_videos(np.array(x[:4]), items[:4])["val"]
     assert one["ci95_over_videos"][0] == one["ci95_over_videos"][1] == pytest.approx(one["mean"], abs=1e-4)
+
+
+def test_headline_metrics_are_on_the_test_windows_and_validation_is_apart():
+    """Issue 38: MAE, RMSE and Diversity in the headline come from the test windows only; the validation
+    windows (which chose the steps) are reported apart. A method exact on test and off on validation shows it."""
+    from anima.eval.text2face import EVAL_LEN, Method, score
+    from anima.text2face.data import FaceGeometry, Item
+
+    rng = np.random.default_rng(0)
+    items = []
+    for k in range(8):
+        m = np.zeros((EVAL_LEN, 56), np.float32)
+        m[:, :53] = rng.uniform(0, 0.5, 53)
+        items.append(Item(m, "", [], f"v{k % 4}", [], f"v{k % 4}", "test" if k % 4 < 2 else "val"))
+    real = np.stack([it.motion for it in items])
+    test = np.array([it.split == "test" for it in items])
+
+    def exact_on_test(E, n, seed):
+        out = real.copy()
+        out[~test, :, :53] = 0.0
+        return out
+
+    r = score(Method("probe", exact_on_test), items, np.zeros((8, 1, 4)), FaceGeometry(), 2, False)
+    assert r["mae_mm"]["mean"] == 0 and r["rmse_mm"]["mean"] == 0
+    assert r["validation"]["mae_mm"]["mean"] > 0.1
+    assert r["mae_mm_over_videos"]["test"]["mean"] == 0 and r["mae_mm_over_videos"]["val"]["mean"] > 0.1
 
 
 # ---- the timeline method (issue 19): prompts read as events, made from captured segments ------------------
