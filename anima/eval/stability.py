@@ -148,10 +148,24 @@ def run(cfg: StabilityEval, progress: bool = False) -> dict:
 
 
 def summary(r: dict) -> list[str]:
-    out = [f"jitter reduction {100 * r['mean_acc_reduction']:.1f} %, error ratio {r['mean_error_ratio']:.3f}."]
+    out = ["| clip | jitter reduction | error ratio (smoothed / unsmoothed) |", "|---|---|---|"]
+    for c in r["clips"]:
+        ratio = c["error_ratio_smoothed_vs_unsmoothed"]
+        out.append(f"| {c['clip']} | {100 * c['acc_reduction']:.1f} % | {ratio:.3f} |")
+    out.append(
+        f"| **mean ({r.get('split', 'given clips')}, sigma {r['filter'].split('=')[1].split()[0]})** | "
+        f"**{100 * r['mean_acc_reduction']:.1f} %** | **{r['mean_error_ratio']:.3f}** |"
+    )
     if r.get("sigma_selection"):
         s = r["sigma_selection"]
-        out.append(f"sigma chosen on {len(s['clips'])} validation clips: {s['chosen']} (default {s['default']}).")
+        per = ", ".join(
+            f"{k}: {100 * v['acc_reduction']:.0f} % / {v['error_ratio']:.3f}" for k, v in s["per_sigma"].items()
+        )
+        out += [
+            "",
+            f"Sigma chosen on {len(s['clips'])} validation clips ({', '.join(s['clips'])}; {s['rule']}): "
+            f"**{s['chosen']}** (the default: {s['default']}). Validation means per sigma (reduction / ratio): {per}.",
+        ]
     return out
 
 

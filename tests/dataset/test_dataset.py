@@ -214,6 +214,10 @@ def test_a_long_video_is_tracked_in_chunks_and_cut_as_one(tmp_path, cli):
     assert re.search(rf"frames: 100%.*\b{m['frames']}/{m['frames']}\b", r.stderr), r.stderr[-500:]
     res = json.loads((chunked / "videos" / f"{video_id(clip)}.json").read_text())
     assert res["tracking_chunks"] == 3 and res["frames"] == 240
+    # the split table: by source, keyed on the path under the data root; the rows carry the table's split
+    row = m["split_table"][video_id(clip)]
+    assert row["key_path"] == "gesture-video/pats-crops/oliver1_gt.mp4" and row["source"] == "person:oliver"
+    assert res["split"] == row["split"] and m["split_stale"] == [] and m["split_rule"]["salt"]
     # the reference: the same video in one task (no Ray)
     cfg = BuildConfig(chunk_s=0.0)
     cfg.filters = dataclasses.replace(cfg.filters, min_s=2.0, max_s=4.0)

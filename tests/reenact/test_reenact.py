@@ -209,7 +209,7 @@ def test_lighting_change_between_target_videos(obama_db):
     frames, _ = read_video(asset(OBAMA1), max_frames=60)
     errs = {}
     for on in (False, True):
-        rx = Reenactor(db2, ReenactConfig(color_transfer=on))
+        rx = Reenactor(db2, ReenactConfig(color_transfer=on, n=100))  # the seed's n: neighbours from both halves
         assert rx.skin.sum() > 300
         e = []
         for f in range(5, 60, 9):
@@ -247,7 +247,7 @@ def test_reenact_command_end_to_end(obama_db, tmp_path, cli):
     # the run's record beside the video, which `anima view` reads (the video or its folder)
     rec = json.loads(out.with_suffix(".json").read_text())
     assert rec["schema"] == "anima.reenact_run" and rec["result"]["frames"] == info.n_frames
-    assert rec["side_by_side"] and rec["config"]["n"] == 100
+    assert rec["side_by_side"] and rec["config"]["n"] == 50
     r = cli("view", out, "--static", tmp_path / "page")
     assert r.returncode == 0, r.stderr
     assert "reenact page written" in r.stdout and (tmp_path / "page" / "reenact.mp4").is_file()

@@ -1,0 +1,39 @@
+"""Doc tables are generated from result JSON (issue 38): every ``<!-- results: ... -->`` block in docs/ and the
+README equals what ``tools/doc_tables.py`` renders from its JSON file, and the tool notices a hand edit."""
+
+import importlib.util
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _tool():
+    spec = importlib.util.spec_from_file_location("doc_tables", ROOT / "tools" / "doc_tables.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_every_generated_doc_table_matches_its_result_json(tmp_path):
+    tool = _tool()
+    docs = [d for d in tool.documents() if tool.blocks(d.read_text())]
+    assert len(docs) >= 3, docs
+    n = 0
+    for d in docs:
+        text, changed = tool.refresh(d)
+        assert not changed, changed
+        n += len(tool.blocks(text))
+    assert n >= 4
+    # a number typed over a generated one is caught
+    doc = docs[0]
+    m = tool.blocks(doc.read_text())[0]
+    body = m.group(4)
+    digit = next(i for i, c in enumerate(body) if c.isdigit())
+    edited = body[:digit] + str((int(body[digit]) + 1) % 10) + body[digit + 1 :]
+    fake = tmp_path / "docs" / "x.md"
+    fake.parent.mkdir()
+    (tmp_path / m.group(3)).parent.mkdir(parents=True, exist_ok=True)
+    (tmp_path / m.group(3)).write_bytes((ROOT / m.group(3)).read_bytes())
+    fake.write_text(m.group(1) + edited + m.group(5) + "\n")
+    _, changed = tool.refresh(fake, tmp_path)
+    assert changed
