@@ -498,14 +498,17 @@ def quick_metrics(dataset, checkpoint, reps: int = 5) -> dict:
         return {"eval_windows": 0, "note": "no held-out window in this dataset (too few videos for a test split)"}
     item_E = encode_cached(enc, [t for it in items for t in it.texts]).reshape(len(items), len(items[0].texts), -1)
     s = score(model_method("ours", checkpoint), items, item_E, FaceGeometry(), reps, progress=False)
-    real = np.stack([it.motion for it in items])
+    name, head = headline_split(items)
+    real = np.stack([items[i].motion for i in head])
     return {
         "eval_windows": len(items),
+        "headline_windows": f"{name}: {len(head)} windows of {len({items[i].video for i in head})} videos",
         "reps": reps,
         "mae_mm": s["mae_mm"],
         "rmse_mm": s["rmse_mm"],
         "diversity_mm": s["diversity_mm"],
         "real_diversity_mm": ci([diversity(real, FaceGeometry(), np.random.default_rng(r)) for r in range(reps)]),
+        **({"validation": s["validation"]} if "validation" in s else {}),
     }
 
 

@@ -32,6 +32,7 @@ from anima.io.checkpoint import load_checkpoint as load_checkpoint_file
 from anima.io.checkpoint import load_state, rebuild, rebuilding
 from anima.io.checkpoint import save_checkpoint as save_checkpoint_file
 from anima.io.outdir import claim_folder
+from anima.io.validate import read_json
 from anima.text2face.config import TrainConfig
 from anima.text2face.data import FaceGeometry, crop_pool, load_clips, motion_stats, split_clips
 from anima.text2face.diffusion import MDM, SMF, MDMConfig, SMFConfig
@@ -155,6 +156,14 @@ def prepare(dataset: str | Path, cfg: TrainConfig):
     return clips, pool, E, stats, gram, enc
 
 
+def training_videos(dataset: str | Path, clips) -> list[str]:
+    """The training clips' videos by key path (the dataset manifest's split table, :mod:`anima.dataset.splits`),
+    so what a model saw can be checked on any copy of the data; a dataset built before the table: video ids."""
+    man = Path(dataset) / "manifest.json"
+    table = read_json(man, "dataset manifest").get("split_table", {}) if man.is_file() else {}
+    return sorted({table.get(c.video_id, {}).get("key_path", c.video_id) for c in clips if c.split == "train"})
+
+
 def train(
     dataset: str | Path, out: str | Path, cfg: TrainConfig, progress: bool = True, command: str = "", prepared=None
 ) -> dict:
@@ -203,7 +212,7 @@ def train(
             "train_items": len(pool),
             "train_clips": sum(c.split == "train" for c in clips),
             # what the model saw, checkable against any copy of the data (key paths, anima.dataset.splits)
-            "train_videos": sorted({splits.key_path(c.source) for c in clips if c.split == "train"}),
+            "train_videos": training_videos(dataset, clips),
             "split_rule": splits.rule(),
             "torch": str(torch.__version__),
         }

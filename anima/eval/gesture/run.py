@@ -225,8 +225,21 @@ def summary(r: dict) -> list[str]:
     if "knn_cgan" in r:
         m = r["knn_cgan"]["metrics"]
         out.append(
-            f"k-NN + cGAN: L1 {m['l1_cm']:.2f} cm, jerk {m['jerk']:.1f}, "
-            f"moved {m['l1_to_knn_cm']:.2f} cm from the k-NN."
+            f"k-NN + cGAN (clean folds): L1 {m['l1_cm']:.2f} cm, jerk {m['jerk']:.1f}, "
+            f"moved {m['l1_to_knn_cm']:.2f} cm from its k-NN input."
+        )
+        b = r["knn_cgan"].get("knn_fold_inputs")
+        if b:
+            out.append(
+                f"Its k-NN input (searched in the fold's training videos only): L1 {b['l1_cm']:.2f} cm, "
+                f"jerk {b['jerk']:.1f}."
+            )
+    fgd = r.get("generator", {}).get("fgd", {})
+    if fgd:
+        out.append(
+            "FGD per fold (feature network trained on the other folds' videos): "
+            + ", ".join(f"{k} {v:.2f}" for k, v in fgd.items())
+            + "."
         )
     if "generator" in r:
         out += [
