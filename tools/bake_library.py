@@ -14,7 +14,6 @@ identity shape).
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import subprocess
 import sys
@@ -27,6 +26,7 @@ sys.path.insert(0, str(ROOT))
 from anima.dataset import splits  # noqa: E402
 from anima.dataset.build import expand_videos  # noqa: E402
 from anima.io.assets import data_root  # noqa: E402
+from anima.io.outdir import sha256  # noqa: E402
 from anima.library.builtin import LIBRARY, write_library  # noqa: E402
 from anima.library.sources import SOURCES, licence_of  # noqa: E402
 
@@ -46,14 +46,6 @@ def chosen_videos(root: Path) -> tuple[list[Path], dict[str, int]]:
         else:
             keep.append(v)
     return keep, skipped
-
-
-def sha256(p: Path) -> str:
-    h = hashlib.sha256()
-    with open(p, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def main(argv=None) -> int:

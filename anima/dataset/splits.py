@@ -25,6 +25,7 @@ import re
 from pathlib import Path
 
 from anima.io.assets import data_root
+from anima.io.outdir import sha256
 
 TEST = 0.2  # fraction of source groups on the test side (by hash of the group's name)
 VAL = 0.2  # and on the validation side
@@ -99,10 +100,7 @@ def fingerprint(path: str | Path) -> tuple[str, int | None]:
     import cv2
     import numpy as np
 
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
+    digest = sha256(path)
     cap = cv2.VideoCapture(str(path))
     try:
         n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
@@ -115,10 +113,10 @@ def fingerprint(path: str | Path) -> tuple[str, int | None]:
     finally:
         cap.release()
     if frame is None:
-        return h.hexdigest(), None
+        return digest, None
     g = cv2.resize(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), (9, 8), interpolation=cv2.INTER_AREA).astype(np.int16)
     bits = (g[:, 1:] > g[:, :-1]).ravel()
-    return h.hexdigest(), int(sum(int(b) << i for i, b in enumerate(bits)))
+    return digest, int(sum(int(b) << i for i, b in enumerate(bits)))
 
 
 def table(videos: list[str | Path], root: Path | None = None, fingerprints: dict | None = None) -> dict[str, dict]:
