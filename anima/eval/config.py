@@ -129,3 +129,6 @@ class AllEval:
     """Only these evaluations (rows)."""
     quick: bool = False
     """Learned models with a few steps: checks that everything runs, not results."""
+    jobs: int = field(default=1, metadata={"range": (1, 64)})
+    """Rows run side by side in this many processes, the machine's cores shared between them (each row's torch
+    threads: cores // jobs); 1: one after another, every core to each row."""

@@ -109,7 +109,8 @@ def test_eval_all_writes_one_results_file_with_provenance(gesture_ds, cli, tmp_p
     import json
 
     out = tmp_path / "all"
-    r = cli("eval", "all", "--db", gesture_ds, "--out", out, "--only", "landmarks", "pose", "--json")
+    # side by side in two processes (--jobs 2): the rows keep their order and the run records its jobs
+    r = cli("eval", "all", "--db", gesture_ds, "--out", out, "--only", "landmarks", "pose", "--jobs", "2", "--json")
     assert r.returncode == 0, r.stderr[-1000:]
     res = json.loads((out / "results.json").read_text())
     assert list(res["rows"]) == ["landmarks", "pose"]
@@ -118,6 +119,7 @@ def test_eval_all_writes_one_results_file_with_provenance(gesture_ds, cli, tmp_p
     p = res["provenance"]
     assert len(p["data"]["sha256"]) == 64 and p["data"]["files"] > 100 and p["dataset"]["manifest_sha256"]
     assert p["commit"] is None or len(p["commit"].split("-")[0]) == 40
+    assert p["jobs"] == 2 and res["rows"]["landmarks"]["wall_s"] > 0
     summary = (out / "summary.md").read_text()
     assert "ict_original" in summary and "| pose |" in summary
     assert set(json.loads((out / "manifest.json").read_text())["files"]) == {"results.json", "summary.md"}

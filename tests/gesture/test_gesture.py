@@ -222,6 +222,8 @@ def test_eval_gesture_leave_one_video_out(ds):
     assert len(cg["folds"]) == 3 and sum(f["test_windows"] for f in cg["folds"]) == r["windows"]
     # clean folds: no k-NN synthesis a fold's refiner trains on or refines drew from that fold's videos
     assert all(f["held_out_videos"] >= 1 and f["held_out_videos_in_inputs"] == 0 for f in cg["folds"])
+    for f in cg["folds"]:  # the correction smoothing is chosen on the fold's own training videos, or the default
+        assert f["correction_sigma"]["value"] in f["correction_sigma"]["grid"] and f["correction_sigma"]["chosen_on"]
     assert set(cg["knn_fold_inputs"]) >= {"l1_cm", "jerk"} and "clean folds" in cg["protocol"]
     assert cg["metrics"]["l1_cm"] > 0 and np.isfinite(cg["metrics"]["jerk"])
     assert set(cg["control_adherence"]) == set(ca)
@@ -246,6 +248,14 @@ def test_eval_gesture_leave_one_video_out(ds):
     sync = r["sync_classifier"]
     assert set(sync) == {"16_frames", "32_frames", "64_frames"}
     assert all(0 <= v["accuracy"] <= 1 and sum(v["test_windows"]) == r["windows"] for v in sync.values())
+
+
+def test_correction_smoothing_rule_is_closest_jerk_ties_to_smaller():
+    from anima.eval.gesture.learned import pick_sigma
+
+    scores = {0.0: {"jerk": 30.0}, 0.75: {"jerk": 21.0}, 1.5: {"jerk": 19.0}, 3.0: {"jerk": 9.0}}
+    assert pick_sigma(scores, 20.0) == 0.75  # 1 away each: the smaller sigma
+    assert pick_sigma(scores, 10.0) == 3.0 and pick_sigma(scores, 40.0) == 0.0
 
 
 def test_parent_relative_representation_roundtrips(db):

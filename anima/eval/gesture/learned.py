@@ -33,7 +33,7 @@ from anima.gesture.features import N_STEP
 from anima.gesture.generator import KINDS, GeneratorConfig, GeneratorTrainConfig, train_generator
 from anima.gesture.knn import search
 from anima.gesture.post import finish_knn, one_skeleton
-from anima.gesture.refine import RefinerTrainConfig, pair_draws, train_refiner
+from anima.gesture.refine import CORRECTION_SIGMA, RefinerTrainConfig, pair_draws, train_refiner
 from anima.gesture.sync import accuracy, train_sync
 
 
@@ -88,6 +88,49 @@ def fold_inputs(db, test_videos: set, ks, controls, cfg: RefinerTrainConfig, rng
     return {"pairs": pairs, "outs": outs, "ctrl": ctrl, "lengths": lengths, "test": test, "used_videos": used}
 
 
+SIGMA_GRID = (0.0, 0.75, 1.5, 3.0)  # frames: the refiner's correction smoothing tried on inner validation
+
+
+def pick_sigma(scores: dict, captured_jerk: float) -> float:
+    """The rule fixed before any run (issue 38): the correction smoothing whose refined wrist jerk is closest
+    to the captured jerk of the same validation windows; a tie goes to the smaller sigma."""
+    return min(sorted(scores), key=lambda s: abs(scores[s]["jerk"] - captured_jerk))
+
+
+def choose_correction_sigma(db, held: set, videos: list, cfg: RefinerTrainConfig, no_repeat: int, blend: bool) -> dict:
+    """The refiner's correction smoothing chosen on one outer fold's training videos only: every third of them
+    is the inner validation; a refiner trained on the rest (clean inputs, :func:`fold_inputs`) refines the
+    validation windows' k-NN outputs with each sigma of :data:`SIGMA_GRID`, and :func:`pick_sigma` chooses."""
+    train_videos = sorted(v for v in videos if v not in held)
+    val = set(train_videos[::3])
+    T, fps = db.G.shape[1], db.fps
+    inp = fold_inputs(db, held | val, (0,), [], cfg, np.random.default_rng(cfg.seed + 1), no_repeat, blend)
+    val_windows = [i for i in inp["test"] if db.source[i][0] in val]
+    if not val_windows or inp["pairs"] is None or len(val) == len(train_videos):
+        default = "no inner validation split: the default"
+        return {"value": CORRECTION_SIGMA, "grid": list(SIGMA_GRID), "chosen_on": default}
+    ref, _ = train_refiner(None, cfg, pairs=inp["pairs"])
+    captured = float(np.mean([jerk(db.G[i].reshape(T, -1, 3), fps) for i in val_windows]))
+    scores = {}
+    for s in SIGMA_GRID:
+        ref.correction_sigma = s
+        outs = [(i, one_skeleton(ref.refine(db.S[i], inp["outs"][i][0]), inp["lengths"])) for i in val_windows]
+        scores[s] = {
+            "jerk": round(float(np.mean([jerk(g, fps) for _, g in outs])), 4),
+            "l1_cm": round(float(np.mean([l1_cm(g, db.G[i].reshape(T, -1, 3)) for i, g in outs])), 4),
+        }
+    return {
+        "value": pick_sigma(scores, captured),
+        "grid": list(SIGMA_GRID),
+        "validation": {str(s): v for s, v in scores.items()},
+        "validation_captured_jerk": round(captured, 4),
+        "validation_videos": len(val),
+        "validation_windows": len(val_windows),
+        "chosen_on": "the inner validation videos of this fold's training videos (every third); the refined "
+        "wrist jerk closest to the captured jerk of those windows, ties to the smaller sigma",
+    }
+
+
 def refiner_rows(
     db, kept: dict, ks, folds: int, steps: int | None, progress: bool, cfg: RefinerTrainConfig | None = None
 ) -> dict:
@@ -119,6 +162,8 @@ def refiner_rows(
         bar = tqdm(total=cfg.steps, desc=f"refiner fold {f + 1}/{folds}", disable=not progress, leave=False)
         ref, info = train_refiner(None, cfg, progress=lambda s: bar.update(1), pairs=inp["pairs"])
         bar.close()
+        sigma = choose_correction_sigma(db, held, videos, cfg, kept["no_repeat"], kept["blend"])
+        ref.correction_sigma = sigma["value"]
         logs.append(
             {
                 "fold": f,
@@ -128,6 +173,7 @@ def refiner_rows(
                 "test_windows": len(test),
                 "wall_s": info["wall_s"],
                 "critic_last": float(np.mean(info["log"]["critic"][-50:])),
+                "correction_sigma": sigma,
             }
         )
         for i in test:
@@ -167,7 +213,8 @@ def refiner_rows(
             if cfg.k_sampling == "seed"
             else f"k in {list(cfg.ks)} from the mean pose"
         )
-        + "; clean folds: training pairs, judged k-NN inputs and bone lengths from the other folds' videos only",
+        + "; clean folds: training pairs, judged k-NN inputs and bone lengths from the other folds' videos only; "
+        "the correction smoothing chosen per fold on its own training videos (each fold's 'correction_sigma')",
         "train_config": {k: v for k, v in dataclasses.asdict(cfg).items() if k != "model"},
         "metrics": {k: float(np.nanmean(v)) for k, v in res.items()},
         "knn_fold_inputs": {k: float(np.nanmean(v)) for k, v in base.items()},
