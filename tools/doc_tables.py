@@ -8,7 +8,8 @@ A block in any markdown file under ``docs/`` or in ``README.md``::
 
 is replaced by ``summary(result)`` of evaluation ``EVAL`` (``anima.eval.registry``: the same lines ``anima
 eval all`` writes into its ``summary.md``) on that JSON file (an ``anima eval EVAL --json`` output, or the row
-``EVAL`` of an ``anima eval all`` ``results.json``).
+``EVAL`` of an ``anima eval all`` ``results.json``). ``EVAL`` = ``all``: the run's provenance and the minutes of
+each row (the head of its ``summary.md``).
 
     .venv/bin/python tools/doc_tables.py           # rewrite every block
     .venv/bin/python tools/doc_tables.py --check   # exit 1 when a block differs from its JSON (a test runs it)
@@ -48,9 +49,13 @@ def result_of(name: str, path: Path) -> dict:
 
 
 def render(name: str, path: Path) -> str:
+    from anima.eval.all import timing_lines
     from anima.eval.registry import BY_NAME
 
-    lines = BY_NAME[name].runner().summary(result_of(name, path))
+    if name == "all":
+        lines = timing_lines(json.loads(path.read_text()))
+    else:
+        lines = BY_NAME[name].runner().summary(result_of(name, path))
     return "\n".join(lines) + "\n"
 
 

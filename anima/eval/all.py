@@ -145,11 +145,10 @@ def provenance(db: str | os.PathLike, jobs: int = 1) -> dict:
     }
 
 
-def summary_markdown(results: dict, rows: list[tuple[Evaluation, str, object]]) -> str:
+def timing_lines(results: dict) -> list[str]:
+    """What a run stands on and how long each row took (the head of ``summary.md``; docs render it too)."""
     p = results["provenance"]
     lines = [
-        "# anima eval all",
-        "",
         f"commit `{p['commit']}`, anima {p['anima_version']}, shared data sha256 `{p['data']['sha256'][:16]}` "
         f"({p['data']['files']} files), dataset manifest sha256 `{(p['dataset']['manifest_sha256'] or '-')[:16]}`, "
         f"{p['machine']['cores']} cores, {p.get('jobs', 1)} job(s); total {results['wall_s'] / 60:.1f} min.",
@@ -157,10 +156,15 @@ def summary_markdown(results: dict, rows: list[tuple[Evaluation, str, object]]) 
         "| evaluation | status | minutes | command |",
         "|---|---|---|---|",
     ]
-    for _, name, _ in rows:
-        e = results["rows"][name]
+    for name, e in results["rows"].items():
         minutes = "-" if e["wall_s"] is None else f"{e['wall_s'] / 60:.1f}"
-        lines.append(f"| {name} | {e['status']} | {minutes} | `{e['command']}` |")
+        status = e["status"] if len(e["status"]) <= 90 else e["status"][:87] + "..."
+        lines.append(f"| {name} | {status} | {minutes} | `{e['command']}` |")
+    return lines
+
+
+def summary_markdown(results: dict, rows: list[tuple[Evaluation, str, object]]) -> str:
+    lines = ["# anima eval all", "", *timing_lines(results)]
     for ev, name, _ in rows:
         e = results["rows"][name]
         if e["status"] != "ok":

@@ -103,8 +103,12 @@ def _text2face_rows(c: Context) -> list[tuple[str, object]]:
     q = dict(reps=2, ablations=False, steps=20) if c.quick else {}
     return [
         ("text2face", Text2FaceEval(dataset=c.db, work=str(c.work), **q)),
-        ("text2face_prompts", Text2FaceEval(dataset=c.db, prompts="", seeds=seeds)),
-        ("text2face_prompts_heldout", Text2FaceEval(dataset=c.db, prompts=str(HELDOUT_PROMPTS), seeds=seeds)),
+        # both judges on both suites (issue 38): the dataset's detectors and the independent one
+        ("text2face_prompts", Text2FaceEval(dataset=c.db, prompts="", seeds=seeds, judge=not c.quick)),
+        (
+            "text2face_prompts_heldout",
+            Text2FaceEval(dataset=c.db, prompts=str(HELDOUT_PROMPTS), seeds=seeds, judge=not c.quick),
+        ),
     ]
 
 

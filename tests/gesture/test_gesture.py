@@ -248,6 +248,10 @@ def test_eval_gesture_leave_one_video_out(ds):
     sync = r["sync_classifier"]
     assert set(sync) == {"16_frames", "32_frames", "64_frames"}
     assert all(0 <= v["accuracy"] <= 1 and sum(v["test_windows"]) == r["windows"] for v in sync.values())
+    from anima.eval.gesture.run import summary  # the docs' generated tables render from this result
+
+    text = "\n".join(summary(r))
+    assert "| k-NN + cGAN refiner (clean folds) |" in text and "| moglow |" in text and "Sync classifier" in text
 
 
 def test_correction_smoothing_rule_is_closest_jerk_ties_to_smaller():

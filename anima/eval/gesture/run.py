@@ -212,49 +212,109 @@ def run(cfg: GestureEval, progress: bool = False) -> dict:
     )
 
 
+def _f(x, fmt: str = ".2f") -> str:
+    return "-" if x is None or (isinstance(x, float) and not np.isfinite(x)) else format(x, fmt)
+
+
+def _iv(ci: dict, name: str, fmt: str = ".2f") -> str:
+    return f" [{ci[name][0]:{fmt}}, {ci[name][1]:{fmt}}]" if name in ci else ""
+
+
 def summary(r: dict) -> list[str]:
+    """The markdown of ``eval all`` and of the docs' generated blocks (tools/doc_tables.py)."""
     k, ci = r["knn"], r.get("knn_ci95_over_videos", {})
-    iv = lambda n: f" [{ci[n][0]:.2f}, {ci[n][1]:.2f}]" if n in ci else ""
+    gen = r.get("generator", {})
+    fgd = gen.get("fgd", {})
     out = [
-        f"{r['windows']} full-body windows from {r['videos']} videos ({r['minutes_of_audio_motion']:.2f} min); "
-        "intervals: 95 % over test videos.",
+        f"{r['windows']} full-body windows from {r['videos']} videos ({r['minutes_of_audio_motion']:.2f} min of "
+        f"(audio, motion), {r['fps']} fps); joins: {r['joins']}. Intervals: 95 % over test videos "
+        "(whole videos resampled).",
         "",
-        f"k-NN: L1 {k['l1_cm']:.2f} cm{iv('l1_cm')}, wrist jerk {k['jerk']:.1f}{iv('jerk')} (captured "
-        f"{k['jerk_captured']:.1f}), beat consistency {k['beat_consistency']:.3f}{iv('beat_consistency')}.",
+        "| method | L1 cm | FGD | wrist motion cm | jerk m/s^3 | beat consistency | diversity cm | lip error mm |",
+        "|---|---|---|---|---|---|---|---|",
+        f"| captured | - | {_f(fgd.get('captured_half_vs_half'))} (random halves) | "
+        f"{k['wrist_motion_cm_captured']:.2f} | {k['jerk_captured']:.1f} | {k['beat_consistency_captured']:.3f} | "
+        f"- | {_f(gen.get('lip_error_mm_random_other_video'))} (another video's face) |",
+        f"| k-NN, leave one video out | {k['l1_cm']:.2f}{_iv(ci, 'l1_cm')} | {_f(fgd.get('knn'))} | "
+        f"{k['wrist_motion_cm']:.2f} | {k['jerk']:.1f}{_iv(ci, 'jerk', '.1f')} | "
+        f"{k['beat_consistency']:.3f}{_iv(ci, 'beat_consistency', '.3f')} | {k['diversity_cm']:.2f} | - |",
     ]
     if "knn_cgan" in r:
-        m = r["knn_cgan"]["metrics"]
-        out.append(
-            f"k-NN + cGAN (clean folds): L1 {m['l1_cm']:.2f} cm, jerk {m['jerk']:.1f}, "
-            f"moved {m['l1_to_knn_cm']:.2f} cm from its k-NN input."
-        )
-        b = r["knn_cgan"].get("knn_fold_inputs")
+        c = r["knn_cgan"]
+        b, m, mci = c.get("knn_fold_inputs", {}), c["metrics"], c.get("metrics_ci95_over_videos", {})
         if b:
             out.append(
-                f"Its k-NN input (searched in the fold's training videos only): L1 {b['l1_cm']:.2f} cm, "
-                f"jerk {b['jerk']:.1f}."
+                f"| k-NN searched in the fold's training videos (the refiner's input) | {b['l1_cm']:.2f} | - | "
+                f"{b['wrist_motion_cm']:.2f} | {b['jerk']:.1f} | {b['beat_consistency']:.3f} | "
+                f"{b['diversity_cm']:.2f} | - |"
             )
-    fgd = r.get("generator", {}).get("fgd", {})
-    if fgd:
         out.append(
-            "FGD per fold (feature network trained on the other folds' videos): "
-            + ", ".join(f"{k} {v:.2f}" for k, v in fgd.items())
-            + "."
+            f"| k-NN + cGAN refiner (clean folds) | {m['l1_cm']:.2f}{_iv(mci, 'l1_cm')} | {_f(fgd.get('knn_cgan'))} | "
+            f"{m['wrist_motion_cm']:.2f} | {m['jerk']:.1f}{_iv(mci, 'jerk', '.1f')} | {m['beat_consistency']:.3f} | "
+            f"{m['diversity_cm']:.2f} | - |"
         )
-    if "generator" in r:
+    for name, g in gen.get("rows", {}).items():
+        out.append(
+            f"| {name} | {g['l1_cm']:.2f} | {_f(g['fgd'])} | {g['wrist_motion_cm']:.2f} | {g['jerk']:.1f} | "
+            f"{g['beat_consistency']:.3f} | {g['diversity_cm']:.2f} | {g['lip_error_mm']:.2f} |"
+        )
+    if "knn_cgan" in r:
+        folds = r["knn_cgan"]["folds"]
         out += [
             "",
-            "| generator row | L1 cm | FGD | wrist motion cm | jerk | lip error mm |",
-            "|---|---|---|---|---|---|",
-        ]
-        for name, g in r["generator"]["rows"].items():
-            out.append(
-                f"| {name} | {g['l1_cm']:.2f} | {g['fgd']:.2f} | {g['wrist_motion_cm']:.2f} | {g['jerk']:.1f} | "
-                f"{g['lip_error_mm']:.2f} |"
+            f"Refiner: {r['knn_cgan']['protocol']}. Per fold (held-out videos / training pairs / test windows; "
+            "held-out videos in its inputs; correction smoothing chosen on the fold's inner validation): "
+            + "; ".join(
+                f"{f['held_out_videos']} / {f['train_pairs']} / {f['test_windows']}; {f['held_out_videos_in_inputs']}; "
+                f"sigma {f['correction_sigma']['value']}"
+                + ("" if "validation" in f["correction_sigma"] else " (default)")
+                for f in folds
+                if "correction_sigma" in f
             )
-    out += ["", "| control | satisfied [95 % over videos] |", "|---|---|"]
+            + f". Moved {r['knn_cgan']['metrics']['l1_to_knn_cm']:.2f} cm from its k-NN input.",
+        ]
+    if gen:
+        adv = [f.get("adv_weight", {}).get("value") for f in gen["rows"].get("adversarial", {}).get("folds", [])]
+        out += [
+            "",
+            f"Generators: {gen['protocol']}. Adversarial weight per fold: {', '.join(map(str, adv)) or '-'}. "
+            f"Lip error over {gen['lip_windows']} windows; FGD per fold ({gen['fgd_protocol']}): "
+            + ", ".join(f"fold {x['fold']} {x['windows']} windows" for x in gen.get("fgd_folds", []))
+            + ". The generator rows have one number per fold, no interval over videos: not ranked.",
+        ]
+        fg = gen.get("facegood_lip_sync")
+        if fg and fg.get("rows"):
+            out += [
+                "",
+                f"Lip sync on FaceGood's {fg['recordings']} recordings ({fg['minutes']} min, Mandarin): correlation "
+                "of the predicted mouth opening with the jaw curve at lag 0 / best lag (another recording's "
+                "speech at lag 0: "
+                + ", ".join(
+                    f"{n} {v['r_lag0']:.2f} / {v['r_best']:.2f} ({v['r_other_speech']:.2f})"
+                    for n, v in fg["rows"].items()
+                )
+                + ").",
+            ]
+    if "sync_classifier" in r:
+        out += [
+            "",
+            "Sync classifier (table 4.4), held-out accuracy (chance 0.5): "
+            + ", ".join(f"{n.replace('_', ' ')} {v['accuracy']:.3f}" for n, v in r["sync_classifier"].items())
+            + ".",
+        ]
+    out += ["", "| control (table 5.3) | mean | threshold | satisfied [95 % over videos] |", "|---|---|---|---|"]
     for c, v in r["control_adherence"].items():
         if "satisfied_fraction" in v:
             lo, hi = v["satisfied_fraction_ci95_over_videos"]
-            out.append(f"| {c} | {100 * v['satisfied_fraction']:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] |")
+            out.append(
+                f"| {c} | {v['mean']:.3f} | {v['threshold']:.3f} | {100 * v['satisfied_fraction']:.1f} % "
+                f"[{100 * lo:.1f}, {100 * hi:.1f}] |"
+            )
+    if r.get("minutes_per_speaker"):
+        out += [
+            "",
+            "Minutes of full-body (audio, motion) per speaker: "
+            + ", ".join(f"{s} {m:.2f}" for s, m in r["minutes_per_speaker"].items())
+            + ".",
+        ]
     return out
