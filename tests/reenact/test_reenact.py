@@ -159,6 +159,26 @@ def test_database_on_a_real_clip(obama_db, tmp_path):
         read_database(tmp_path / "v9.npz")
 
 
+def test_self_reenactment_colours_never_read_the_truth_frames(obama_db):
+    """Issue 38 / seed 001 §4.2.1: in self-re-enactment the truth frames are kept out of the database, and the
+    colour target (the target video's skin) is computed from the database's frames alone."""
+    from anima.eval.reenact import video_skin
+    from anima.reenact.database import build_database
+    from anima.reenact.pipeline import Reenactor
+    from anima.reenact.synth import skin_stats
+
+    full, seq, _ = obama_db
+    db, _ = build_database([str(asset(OBAMA1))], seqs=[seq], exclude={0: (0, 60)}, progress=False)
+    assert db.n < full.n and db.frame.min() >= 60  # no truth frame in the database
+    rx = Reenactor(db, ReenactConfig())
+    mu, sd = video_skin(rx, db)
+    want_mu, want_sd = skin_stats(full.colors[full.frame >= 60], rx.skin)
+    np.testing.assert_allclose(mu, want_mu.mean(0), atol=1e-4)
+    np.testing.assert_allclose(sd, want_sd.mean(0), atol=1e-4)
+    with_truth, _ = skin_stats(full.colors, rx.skin)  # what reading the truth frames would have given
+    assert not np.allclose(mu, with_truth.mean(0), atol=1e-4)
+
+
 def test_colour_transfer_maths():
     from anima.reenact.synth import color_transfer, normalized_colors, skin_stats
 
