@@ -2,6 +2,8 @@
 
 * :func:`gaussian_smooth` - offline, zero-phase (no lag), sigma = 1.5 frames by default as in seed 004
   §4.3.1. Used by ``anima capture``: a symmetric kernel removes jitter without shifting events in time.
+* :func:`prominent_peaks` - scipy's ``find_peaks(x, prominence=p)`` without importing ``scipy.signal``
+  (which brings ``scipy.stats``: a quarter of a second of a cold ``anima text2face``).
 * :class:`OneEuroFilter` - causal, adaptive cutoff (Casiez et al. 2012) for live use, where future frames
   are not available: low cutoff when the signal is still (kills jitter), high when it moves (little lag).
 """
@@ -16,6 +18,35 @@ def valid_runs(valid: np.ndarray) -> list[tuple[int, int]]:
     v = np.concatenate([[False], np.asarray(valid, bool), [False]])
     d = np.diff(v.astype(np.int8))
     return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
+
+
+def prominent_peaks(x: np.ndarray, prominence: float) -> np.ndarray:
+    """Indices of the local maxima of ``x`` whose topographic prominence is at least ``prominence``: the
+    same as ``scipy.signal.find_peaks(x, prominence=prominence)[0]`` (a flat peak is reported at the middle
+    of its plateau, rounded down; the ends are never peaks; a peak's prominence is its height above the
+    higher of the lowest points between it and the nearest higher sample on either side, or the ends)."""
+    x = np.asarray(x, dtype=np.float64)
+    n = len(x)
+    peaks = []
+    i = 1
+    while i < n - 1:
+        if x[i - 1] < x[i]:
+            ahead = i + 1
+            while ahead < n - 1 and x[ahead] == x[i]:
+                ahead += 1
+            if x[ahead] < x[i]:
+                peaks.append((i + ahead - 1) // 2)
+                i = ahead
+        i += 1
+    keep = []
+    for p in peaks:
+        higher_left = np.flatnonzero(x[:p] > x[p])
+        higher_right = np.flatnonzero(x[p + 1 :] > x[p])
+        lo = higher_left[-1] + 1 if len(higher_left) else 0
+        hi = p + 1 + higher_right[0] if len(higher_right) else n
+        if x[p] - max(x[lo : p + 1].min(), x[p:hi].min()) >= prominence:
+            keep.append(p)
+    return np.asarray(keep, dtype=np.intp)
 
 
 def gaussian_smooth(x: np.ndarray, sigma: float = 1.5, valid: np.ndarray | None = None) -> np.ndarray:

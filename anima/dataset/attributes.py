@@ -11,9 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.ndimage import median_filter, uniform_filter1d
-from scipy.signal import find_peaks
 
-from anima.core.filters import valid_runs
+from anima.core.filters import prominent_peaks, valid_runs
 from anima.core.rotations import matrix_to_euler, rotvec_to_matrix
 from anima.dataset.config import DetectorConfig
 
@@ -80,8 +79,8 @@ def _oscillation_events(
     """Runs of alternating peaks/troughs (detrended signal) with the given prominence."""
     trend = uniform_filter1d(sig, size=max(3, int(1.5 * fps)), mode="nearest")
     d = sig - trend
-    pk, _ = find_peaks(d, prominence=prominence)
-    tr, _ = find_peaks(-d, prominence=prominence)
+    pk = prominent_peaks(d, prominence)
+    tr = prominent_peaks(-d, prominence)
     ext = sorted([(i, 1) for i in pk] + [(i, -1) for i in tr])
     events = []
     cur = []

@@ -79,3 +79,26 @@ def test_one_euro_reduces_jitter_and_follows_motion():
     fixed = OneEuroFilter(30, min_cutoff=1.0, beta=0.0)
     yf = np.array([fixed(v) for v in step])
     assert ys[33] > 4.0 and yf[33] < 3.0
+
+
+def test_prominent_peaks_equals_scipy_find_peaks():
+    """The detectors' peak finder (no scipy.signal on the cold path) agrees with scipy's find_peaks on rounded
+    random walks (plateaus, ties, peaks at the ends) and on real captured head and mouth curves."""
+    from scipy.signal import find_peaks
+
+    from anima.core.contract import FACE_DIM
+    from anima.core.filters import prominent_peaks
+    from anima.library.builtin import load
+
+    rng = np.random.default_rng(0)
+    signals = [np.round(np.cumsum(rng.normal(size=rng.integers(2, 300))), 1) for _ in range(300)]
+    lib = load()
+    signals += [m[:, c].astype(np.float64) for m in lib.face_motion[:20] for c in (FACE_DIM - 3, FACE_DIM - 2, 20)]
+    checked = 0
+    for x in signals:
+        for prom in (0.0, 0.05, 0.5, 2.0):
+            want = find_peaks(x, prominence=prom)[0]
+            np.testing.assert_array_equal(prominent_peaks(x, prom), want)
+            checked += len(want)
+    assert checked > 1000
+    assert prominent_peaks(np.array([0.0, 1, 1, 1, 0]), 0.5).tolist() == [2]  # a plateau: its middle
