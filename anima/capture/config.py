@@ -30,10 +30,11 @@ class FitConfig:
 
 @dataclass
 class CaptureConfig:
-    smooth_sigma: float = field(default=1.0, metadata={"flag": "--sigma", "range": (0.0, 100.0)})
+    smooth_sigma: float = field(default=0.75, metadata={"flag": "--sigma", "range": (0.0, 100.0)})
     """Gaussian temporal smoothing of the fitted parameters, in frames (0 = off). Zero-phase, so no lag.
-    1.0 frame (33-40 ms at 25-30 fps) removes ~2/3 of MediaPipe's landmark jitter while the landmark
-    error grows < 10 % (``anima eval stability``); seed 004 used 1.5 frames on 15 fps gesture data."""
+    The value ``anima eval stability`` chooses on its validation clips (the smallest sigma that removes at
+    least 40 % of MediaPipe's landmark jitter while the landmark error grows at most 10 %; the test clips'
+    figures are in its result); seed 004 used 1.5 frames on 15 fps gesture data."""
     max_frames: int | None = field(default=None, metadata={"range": (1, None)})
     """Only the first N frames (default: the whole video)."""
     low_conf_nme: float = 0.05

@@ -32,7 +32,7 @@ from anima.eval.registry import EVALUATIONS, Context, Evaluation
 from anima.eval.registry import rows as registry_rows
 from anima.io.assets import data_root
 from anima.io.atomic import write_json, write_text
-from anima.io.outdir import OutputFolder
+from anima.io.outdir import OutputFolder, sha256
 
 
 def commit() -> str | None:
@@ -102,17 +102,23 @@ LONG_ROWS = ("text2face", "gesture")
 
 
 def run_rows(
-    rows: list[tuple[Evaluation, str, object]], progress: Callable[[str], None] | None = None, jobs: int = 1
+    rows: list[tuple[Evaluation, str, object]],
+    progress: Callable[[str], None] | None = None,
+    jobs: int = 1,
+    on_row: Callable[[dict], None] | None = None,
 ) -> dict:
     """Run each row (evaluation, name, config) as its command does; a refusal is recorded as skipped, a
     failure as failed, and neither stops the others. ``jobs`` > 1: rows side by side in fresh processes, each
-    with ``cores // jobs`` threads, the long rows started first; the result keeps the rows' order."""
+    with ``cores // jobs`` threads, the long rows started first; the result keeps the rows' order.
+    ``on_row(rows so far)`` after each row ends (the caller saves them: a run stopped later keeps them)."""
     if jobs <= 1 or len(rows) <= 1:
         out = {}
         for ev, name, cfg in rows:
             if progress:
                 progress(f"{name}: {ev.command(cfg)}")
             out[name] = run_row(ev, name, cfg)
+            if on_row:
+                on_row(dict(out))
         return out
     threads = max(1, (os.cpu_count() or 1) // jobs)
     order = sorted(rows, key=lambda r: (r[1] not in LONG_ROWS, LONG_ROWS.index(r[1]) if r[1] in LONG_ROWS else 0))
@@ -131,6 +137,8 @@ def run_rows(
                 done[name]["result"] = None
             if progress:
                 progress(f"{name}: {done[name]['status'].split(':')[0]} in {(done[name]['wall_s'] or 0) / 60:.1f} min")
+            if on_row:
+                on_row({n: done[n] for _, n, _ in rows if n in done})
     return {name: done[name] for _, name, _ in rows}
 
 
@@ -202,7 +210,16 @@ def run_all(
         rows = [r for r in rows if r[1] in only]
     with OutputFolder(out, kind="eval_all", command=command) as od:
         t0 = time.perf_counter()
-        results = {"provenance": provenance(db, jobs), "quick": quick, "rows": run_rows(rows, progress, jobs)}
+        prov = provenance(db, jobs)
+
+        def save_partial(done: dict) -> None:  # rows so far, marked incomplete (no manifest until the end)
+            partial = {"provenance": prov, "quick": quick, "complete": False, "rows": done}
+            partial["wall_s"] = round(time.perf_counter() - t0, 1)
+            write_json(od.file("results.json"), partial)
+            od.journal({"results.json": sha256(od.path / "results.json")})
+
+        results = {"provenance": prov, "quick": quick, "complete": True}
+        results["rows"] = run_rows(rows, progress, jobs, save_partial)
         results["wall_s"] = round(time.perf_counter() - t0, 1)
         results["failed"] = [n for n, e in results["rows"].items() if e["status"].startswith("failed")]
         write_json(od.file("results.json"), results)

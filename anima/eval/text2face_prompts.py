@@ -322,7 +322,7 @@ def evaluate_prompts(
     judged = judge_runs(rows, runs, p99, progress) if judge else None
     return {
         "protocol": {
-            "suite": str(Path(suite) if suite else SUITE.name),
+            "suite": _suite_name(suite),
             "prompts": len(rows),
             "kinds": {k: sum(r["kind"] == k for r in rows) for k in dict.fromkeys(r["kind"] for r in rows)},
             "seeds": seeds,
@@ -343,6 +343,15 @@ def evaluate_prompts(
         "notes": notes,
         "timeline_refused": refused,
     } | ({"judge": judged} if judged else {})
+
+
+def _suite_name(suite: str | Path | None) -> str:
+    """How a result names its suite: a shipped suite by its file name (not where anima is installed), a
+    user's file as given."""
+    if not suite:
+        return SUITE.name
+    p = Path(suite)
+    return p.name if p.resolve().parent == SUITE.parent.resolve() else str(suite)
 
 
 def judge_runs(rows: list[dict], runs: dict, captured_max: dict, progress: bool = True) -> dict:

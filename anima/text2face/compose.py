@@ -37,7 +37,7 @@ from anima.dataset.windows import read_clips
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
 from anima.library import builtin
-from anima.text2face.poses import POSES, natural_frames, pose_track
+from anima.text2face.poses import POSES, natural_frames, pose_track, shake_track
 from anima.text2face.prompt import Plan
 
 _IX = {n: i for i, n in enumerate(EXPR_NAMES)}
@@ -90,6 +90,10 @@ HOLDABLE = {"smile", "frown", "squint", "raise eyebrows", "surprise", "mouth ope
 )
 HEAD_AXIS = {"nod": 0, "shake head": 1, "turn": 1}  # rotation-vector component (x: pitch, y: yaw)
 SHAKE_MAX_RAD = 0.3  # 17 degrees either way (the turn detector fires at 20 degrees from the clip's median)
+SHAKE_RAD = {0.6: 0.15, 1.0: 0.25, 1.4: 0.3}
+"""A head shake's peak yaw (radians) by stated intensity: a plain shake swings 14 degrees either way. Shakes
+are keyframed (:func:`anima.text2face.poses.shake_track`): the captured ones of the shared data (6 in the
+training videos) are slow, one-sided wanders of the head that a viewer does not read as "no" (issue 37)."""
 # Longer holds read as other events to the detectors, which measure against the clip's own rest: an open
 # mouth held over 1 s is a yawn, a raise or a turn held over a quarter of the clip shifts the rest.
 MAX_HOLD_S = {"mouth open": 0.6, "surprise": 0.6, "turn": 0.8, "raise eyebrows": 0.7}
@@ -288,6 +292,8 @@ def pose_of(e) -> str | None:
     versions of blink (a wink), raised brows and smile, made at full strength on the named side."""
     if e.attribute in POSES:
         return e.attribute
+    if e.attribute == "shake head":
+        return "shake"
     if e.side in ("left", "right"):
         return {"blink": "wink", "raise eyebrows": "brow raise", "smile": "half smile"}.get(e.attribute)
     return None
@@ -295,7 +301,7 @@ def pose_of(e) -> str | None:
 
 def _holds(e) -> bool:
     """A keyframed event that stretches to its slot (held), rather than one that happens and is over."""
-    return bool(pose_of(e)) and pose_of(e) != "wink" and e.count == 1
+    return bool(pose_of(e)) and pose_of(e) not in ("wink", "shake") and e.count == 1
 
 
 def _choose(lib: Library, attr: str, rng: np.random.Generator, k: int, avoid: frozenset = frozenset()) -> list[Segment]:
@@ -459,6 +465,12 @@ def render(
         if p.attribute == "talk":
             add(p.gain * _talk_track(lib, p.end - p.start, rng), p.start, p.end)
             continue
+        if p.pose == "shake":
+            o = np.zeros((p.end - p.start, FACE_DIM), np.float32)
+            peak = min(SHAKE_MAX_RAD, p.gain * SHAKE_RAD[min(SHAKE_RAD, key=lambda k: abs(k - p.level))])
+            o[:, N_EXPR + HEAD_AXIS["shake head"]] = shake_track(p.end - p.start, p.count, peak, lib.fps)
+            add(o, p.start, p.end)
+            continue
         if p.pose:
             o = np.zeros((p.end - p.start, FACE_DIM), np.float32)
             o[:, :N_EXPR] = pose_track(p.pose, p.side, p.end - p.start, p.count, p.gain, lib.fps)
@@ -478,6 +490,9 @@ def render(
                 o = _stretch(o, L, seg.margin)
             if p.attribute in CHANNELS and p.attribute not in {*HEAD_AXIS, "talk"}:  # emotions: as captured
                 o[:, :N_EXPR] *= _strength(o, p.attribute, p.level)
+            if p.attribute == "frown":  # brows drawn down and together wrinkle the nose's root (AU4)
+                for d, n in zip(_both("browDown"), _both("noseSneer")):
+                    o[:, _IX[n]] = np.maximum(o[:, _IX[n]], FROWN_SNEER * o[:, _IX[d]])
             o = p.gain * o
             if p.attribute == "shake head":  # made stronger or not, a wider shake reads as a turn
                 o[:, N_EXPR:] *= min(1.0, SHAKE_MAX_RAD / max(float(np.abs(o[:, N_EXPR:]).max()), 1e-9))
@@ -500,8 +515,21 @@ STRENGTH_OF = {
     # an open mouth is jawOpen 0.3 (the detector) up to a yawn's 0.45 held a second
     "mouth open": {0.6: (0.32, 0.36), 1.0: (0.36, 0.44), 1.4: (0.44, 0.6)},
     "yawn": {0.6: (0.5, 0.6), 1.0: (0.6, 0.8), 1.4: (0.8, 1.0)},
+    # a smile and a frown at full strength on their own channel (issue 37): mouthSmile 0.6 alone, or browDown
+    # 0.6 alone, barely changes the face a viewer sees (corners, brows)
+    "smile": {0.6: (0.45, 0.6), 1.0: (0.7, 0.9), 1.4: (0.9, 1.0)},
+    "frown": {0.6: (0.6, 0.75), 1.0: (0.9, 1.0), 1.4: (1.0, 1.0)},
 }
-MAIN = {"mouth open": ["jawOpen"], "yawn": ["jawOpen"], "surprise": _both("browInnerUp", "browOuterUp")}
+FROWN_SNEER = 0.35
+"""A frown's noseSneer at least this fraction of its browDown: the face model's browDown alone lowers the
+brows by less than a tracker sees in a captured frown (issue 37; chosen on the development suite)."""
+MAIN = {
+    "mouth open": ["jawOpen"],
+    "yawn": ["jawOpen"],
+    "surprise": _both("browInnerUp", "browOuterUp"),
+    "smile": _both("mouthSmile"),
+    "frown": _both("browDown"),
+}
 """The channels whose peak is measured (default: every channel of the event)."""
 
 

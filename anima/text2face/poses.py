@@ -74,6 +74,8 @@ POSES: dict[str, Pose] = {
                        0.15, 0.8, 0.25, True, "left"),
     "half smile": Pose({"mouthSmile_L": 0.7, "mouthSmile_R": 0.7, "mouthDimple_L": 0.3, "mouthDimple_R": 0.3,
                         "cheekSquint_L": 0.2, "cheekSquint_R": 0.2}, 0.2, 0.9, 0.3, True, "left"),
+    # a head shake: no expression channel, the head's yaw (shake_track); its timing here
+    "shake": Pose({}, 0.12, 0.9, 0.15, gap_s=0.4),
 }  # fmt: skip
 _SIDE_CHANNELS = {"jawLeft": "left", "jawRight": "right", "mouthLeft": "left", "mouthRight": "right"}
 INTENSITY_RANGE = {0.6: (0.3, 0.6), 1.0: (0.6, 0.9), 1.4: (0.85, 1.0)}
@@ -110,6 +112,28 @@ def envelope(n: int, attack: int, release: int) -> np.ndarray:
     if release > 0:
         e[n - release :] = 0.5 + 0.5 * np.cos(np.linspace(0, np.pi, release + 1)[1:])
     return e
+
+
+SHAKE_HALF_SWINGS = 3  # one shake: right, left, right (a second pair would read as a second shake)
+
+
+def shake_track(n: int, count: int, peak: float, fps: float) -> np.ndarray:
+    """Head yaw offsets ``[n]`` (radians): ``count`` shakes spread over ``n`` frames, each
+    :data:`SHAKE_HALF_SWINGS` equal swings of ``peak`` about facing forward, eased in and out."""
+    p = POSES["shake"]
+    out = np.zeros(n, np.float32)
+    gap = int(round(p.gap_s * fps))
+    each = max(2, (n - gap * (count - 1)) // count)
+    att, rel = int(round(p.attack_s * fps)), int(round(p.release_s * fps))
+    t = 0
+    for _ in range(count):
+        k = min(each, n - t)
+        if k <= 0:
+            break
+        swing = np.sin(np.linspace(0.0, SHAKE_HALF_SWINGS * np.pi, k))
+        out[t : t + k] = peak * envelope(k, att, rel) * swing / max(float(np.abs(swing).max()), 1e-9)
+        t += k + gap
+    return out
 
 
 def pose_track(name: str, side: str | None, n: int, count: int, gain: float, fps: float) -> np.ndarray:

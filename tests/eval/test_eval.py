@@ -141,3 +141,17 @@ def test_eval_all_writes_one_results_file_with_provenance(gesture_ds, cli, tmp_p
     summary = (out / "summary.md").read_text()
     assert "ict_original" in summary and "| pose |" in summary
     assert set(json.loads((out / "manifest.json").read_text())["files"]) == {"results.json", "summary.md"}
+    assert res["complete"] is True
+
+
+def test_eval_all_saves_each_row_as_it_ends(gesture_ds, tmp_path):
+    """A long run stopped half way keeps the rows that finished: run_rows hands the rows so far to the caller
+    after each row (run_all writes them as an incomplete results.json), in the rows' order."""
+    from anima.eval.all import run_rows
+    from anima.eval.registry import Context
+    from anima.eval.registry import rows as registry_rows
+
+    rows = [r for r in registry_rows(Context(str(gesture_ds), tmp_path, tmp_path / "w", True)) if r[1] == "pose"]
+    seen = []
+    out = run_rows(rows, on_row=lambda done: seen.append(dict(done)))
+    assert seen == [out] and out["pose"]["status"].startswith(("ok", "skipped"))

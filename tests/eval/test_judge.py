@@ -29,6 +29,16 @@ def test_the_round_trip_reads_what_the_face_does():
     assert "raise eyebrows" in [a for a, _, _ in judge.judge_motion(m, 30.0)]
 
 
+def test_smiles_frowns_and_shakes_are_seen_on_the_rendered_head():
+    """Issue 37 item 4: events at full strength, as a face tracker sees them on the rendered head (these three
+    were read 0.61 / 0.00 / 0.25 by the judge before their strengths and the keyframed shake)."""
+    lib = Library.from_builtin()
+    for prompt, event in (("she smiles", "smile"), ("he frowns", "frown"), ("he shakes his head", "shake head")):
+        m, _ = compose(parse(prompt), lib, None, 0)
+        got = [a for a, _, _ in judge.judge_motion(m, 30.0)]
+        assert event in got, (prompt, got)
+
+
 def test_events_from_measures_follow_their_thresholds():
     n = 60
     m = {k: np.zeros(n) for k in ("width", "lift", "gap", "brow", "yaw", "pitch")}

@@ -76,6 +76,25 @@ def test_a_wink_closes_one_eye_at_full_strength(lib):
         assert m[:, IX[f"eyeBlink_{other}"]].max() < 0.2, prompt
 
 
+def test_smiles_frowns_and_shakes_at_full_strength(lib):
+    """Issue 37 item 4: a plain smile and frown peak in their declared ranges on their own channel, and a
+    shake swings equally both ways by the declared angle, once per shake asked for."""
+    from anima.text2face.compose import FROWN_SNEER, N_EXPR, SHAKE_RAD, STRENGTH_OF
+
+    for prompt, stem, level in (("she smiles", "mouthSmile", 1.0), ("he frowns deeply", "browDown", 1.4)):
+        lo, hi = STRENGTH_OF[stem.replace("mouthSmile", "smile").replace("browDown", "frown")][level]
+        peak = _make(prompt, lib)[:, [IX[f"{stem}_L"], IX[f"{stem}_R"]]].max()
+        assert lo - 1e-6 <= peak <= hi + 1e-6, (prompt, peak)
+    m = _make("he frowns", lib)
+    for s in "LR":
+        assert (m[:, IX[f"noseSneer_{s}"]] >= FROWN_SNEER * m[:, IX[f"browDown_{s}"]] - 1e-6).all()
+    for prompt, n in (("he shakes his head", 1), ("she shakes her head twice", 2)):
+        yaw = _make(prompt, lib)[:, N_EXPR + 1]
+        assert yaw.max() == pytest.approx(SHAKE_RAD[1.0], rel=0.05) and yaw.min() <= -0.8 * SHAKE_RAD[1.0]
+        crossings = np.flatnonzero(np.diff(np.sign(yaw[np.abs(yaw) > 0.05 * SHAKE_RAD[1.0]])) != 0)
+        assert len(crossings) == 2 * n, (prompt, len(crossings))  # right-left-right per shake
+
+
 def test_the_rest_face_is_neutral_and_symmetric(lib):
     m = _make("a neutral face", lib)
     assert np.abs(m).max() == 0.0
