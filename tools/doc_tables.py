@@ -9,7 +9,16 @@ A block in any markdown file under ``docs/`` or in ``README.md``::
 is replaced by ``summary(result)`` of evaluation ``EVAL`` (``anima.eval.registry``: the same lines ``anima
 eval all`` writes into its ``summary.md``) on that JSON file (an ``anima eval EVAL --json`` output, or the row
 ``EVAL`` of an ``anima eval all`` ``results.json``). ``EVAL`` = ``all``: the run's provenance and the minutes of
-each row (the head of its ``summary.md``).
+each row (the head of its ``summary.md``); ``EVAL:SECTION``: one part of the result, rendered by the
+evaluation module's ``SECTION_summary`` (e.g. ``annotations:capture_emotions``); ``table:POINTER[:COLS]``: the
+list of records at that JSON pointer of any result file (a benchmark's rows) as a table.
+
+A number in the prose is generated the same way, inline::
+
+    ... the neutral clip reads mouthSmile <!--v FILE POINTER FORMAT-->0.072<!--/v--> ...
+
+where ``POINTER`` is a JSON pointer into ``FILE`` (``/rows/annotations/result/capture_emotions/neutral_mouth_smile``;
+``%20`` for a space in a key) and ``FORMAT`` a Python format spec (``.3f``, ``.0%``, ``,d``; default ``g``).
 
     .venv/bin/python tools/doc_tables.py           # rewrite every block
     .venv/bin/python tools/doc_tables.py --check   # exit 1 when a block differs from its JSON (a test runs it)
@@ -22,6 +31,7 @@ import json
 import re
 import sys
 from pathlib import Path
+from urllib.parse import unquote
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -29,6 +39,7 @@ sys.path.insert(0, str(ROOT))
 from anima.io.atomic import write_text  # noqa: E402
 
 BLOCK = re.compile(r"(<!-- results: (\S+) (\S+) -->\n)(.*?)(<!-- /results -->)", re.S)
+VALUE = re.compile(r"(<!--v (\S+) (\S+?)(?: (\S+?))?-->)(.*?)(<!--/v-->)")
 
 
 def documents(root: Path = ROOT) -> list[Path]:
@@ -54,6 +65,13 @@ def render(name: str, path: Path) -> str:
 
     if name == "all":
         lines = timing_lines(json.loads(path.read_text()))
+    elif name.startswith("table:"):  # table:POINTER[:COL,COL...]: a list of records as a table
+        pointer, _, cols = name[len("table:") :].partition(":")
+        lines = table_lines(lookup(json.loads(path.read_text()), pointer), cols.split(",") if cols else None)
+    elif ":" in name:  # EVAL:SECTION, one part of a result: the evaluation module's SECTION_summary
+        row, section = name.split(":", 1)
+        ev = BY_NAME.get(row) or next(BY_NAME[e] for e in BY_NAME if row.startswith(e + "_"))
+        lines = getattr(ev.runner(), f"{section}_summary")(result_of(row, path))
     else:
         # a row of eval all is named after its evaluation (text2face_prompts: a row of text2face)
         ev = BY_NAME.get(name) or next(BY_NAME[e] for e in BY_NAME if name.startswith(e + "_"))
@@ -61,8 +79,33 @@ def render(name: str, path: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+def lookup(node, pointer: str):
+    """The node at JSON ``pointer`` (``/a/0/b``; ``%20`` for a space in a key)."""
+    for key in filter(None, pointer.strip("/").split("/")):
+        key = unquote(key)
+        node = node[int(key)] if isinstance(node, list) else node[key]
+    return node
+
+
+def value(path: Path, pointer: str, fmt: str | None) -> str:
+    """The number (or text) at JSON ``pointer`` of ``path``, formatted."""
+    node = lookup(json.loads(path.read_text()), pointer)
+    return format(node, fmt or ("g" if isinstance(node, float) else ""))
+
+
+def table_lines(records: list[dict], cols: list[str] | None = None) -> list[str]:
+    """A markdown table of ``records`` (a benchmark's rows), the columns named by their keys."""
+    cols = cols or list(records[0])
+
+    def cell(v):
+        return "-" if v is None else format(v, "g") if isinstance(v, float) else str(v).replace("|", "\\|")
+
+    out = ["| " + " | ".join(c.replace("_", " ") for c in cols) + " |", "|---" * len(cols) + "|"]
+    return out + ["| " + " | ".join(cell(r.get(c)) for c in cols) + " |" for r in records]
+
+
 def blocks(text: str):
-    return list(BLOCK.finditer(text))
+    return list(BLOCK.finditer(text)) + list(VALUE.finditer(text))
 
 
 def refresh(doc: Path, root: Path = ROOT) -> tuple[str, list[str]]:
@@ -76,7 +119,13 @@ def refresh(doc: Path, root: Path = ROOT) -> tuple[str, list[str]]:
             changed.append(f"{doc.relative_to(root)}: {m.group(2)} ({m.group(3)})")
         return m.group(1) + new + m.group(5)
 
-    return BLOCK.sub(sub, text), changed
+    def sub_value(m):
+        new = value(root / m.group(2), m.group(3), m.group(4))
+        if new != m.group(5):
+            changed.append(f"{doc.relative_to(root)}: {m.group(3)} ({m.group(2)}): {m.group(5)} -> {new}")
+        return m.group(1) + new + m.group(6)
+
+    return VALUE.sub(sub_value, BLOCK.sub(sub, text)), changed
 
 
 def main(argv=None) -> int:

@@ -343,6 +343,22 @@ def summary(r: dict) -> list[str]:
     return out
 
 
+def capture_emotions_summary(r: dict) -> list[str]:
+    """The capture checks on the emotion clips (``r["capture_emotions"]``) as the docs show them."""
+    ce = r["capture_emotions"]
+    out = [
+        f"{ce['clips']}: each emotion clip against the same speaker's neutral clip (clip means); "
+        f"{ce['holds']} of {ce['of']} checks hold; the neutral clip's mouthSmile {ce['neutral_mouth_smile']:.3f}.",
+        "",
+        "| emotion | weight | emotion clip | neutral clip | holds |",
+        "|---|---|---|---|---|",
+    ]
+    for c in ce["checks"]:
+        holds = "yes" if c["holds"] else "no"
+        out.append(f"| {c['emotion']} | {c['weight']} | {c['clip']:.3f} | {c['neutral']:.3f} | {holds} |")
+    return out
+
+
 def text(r: dict) -> str:
     def f(x):
         return "  -  " if x is None else f"{x:5.2f}"

@@ -430,6 +430,17 @@ def run(cfg: ReenactEval, progress: bool = False) -> dict:
     return evaluate(out, progress=progress)
 
 
+def ssim_vs_n_summary(r: dict) -> list[str]:
+    """SSIM of method 1 against the number of candidate frames n (the seed's fig. 4.6), per clip."""
+    clips = [c for c in ("adult_obama", "child_d11") if r.get(c, {}).get("ssim_vs_n")]
+    ns = sorted({int(n) for c in clips for n in r[c]["ssim_vs_n"]})
+    out = ["| n | " + " | ".join(clips) + " |", "|---" * (len(clips) + 1) + "|"]
+    for n in ns:
+        cells = [r[c]["ssim_vs_n"].get(str(n)) for c in clips]
+        out.append(f"| {n} | " + " | ".join("-" if x is None else f"{x:.4f}" for x in cells) + " |")
+    return out
+
+
 def summary(r: dict) -> list[str]:
     out = ["| run | SSIM | LPIPS | lip NME | tOF (L2, px) | tLP |", "|---|---|---|---|---|---|"]
     for clip in ("adult_obama", "child_d11"):

@@ -82,8 +82,19 @@ def command_line(name: str, cfg) -> str:
         elif v == md.get("const", object()):
             parts.append(flag)
         else:
-            parts += [flag, str(v)]
+            parts += [flag, _shown(v)]
     return shlex.join(parts + ["--json"])
+
+
+def _shown(v) -> str:
+    """An option's value as a command line shows it: a file shipped inside anima by its path from the
+    project's root (where it is, not where this copy is installed)."""
+    s = str(v)
+    root = Path(__file__).resolve().parents[2]
+    p = Path(s)
+    if p.is_absolute() and p.resolve().is_relative_to(root / "anima"):
+        return str(p.resolve().relative_to(root))
+    return s
 
 
 def _check_gesture(cfg: GestureEval) -> None:

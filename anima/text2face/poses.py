@@ -75,7 +75,7 @@ POSES: dict[str, Pose] = {
     "half smile": Pose({"mouthSmile_L": 0.7, "mouthSmile_R": 0.7, "mouthDimple_L": 0.3, "mouthDimple_R": 0.3,
                         "cheekSquint_L": 0.2, "cheekSquint_R": 0.2}, 0.2, 0.9, 0.3, True, "left"),
     # a head shake: no expression channel, the head's yaw (shake_track); its timing here
-    "shake": Pose({}, 0.12, 0.9, 0.15, gap_s=0.4),
+    "shake": Pose({}, 0.12, 0.9, 0.15, gap_s=0.9),  # repeats further apart than one shake's swings
 }  # fmt: skip
 _SIDE_CHANNELS = {"jawLeft": "left", "jawRight": "right", "mouthLeft": "left", "mouthRight": "right"}
 INTENSITY_RANGE = {0.6: (0.3, 0.6), 1.0: (0.6, 0.9), 1.4: (0.85, 1.0)}
@@ -114,7 +114,7 @@ def envelope(n: int, attack: int, release: int) -> np.ndarray:
     return e
 
 
-SHAKE_HALF_SWINGS = 3  # one shake: right, left, right (a second pair would read as a second shake)
+SHAKE_HALF_SWINGS = 4  # one shake ("no"): right, left, right, left, two cycles
 
 
 def shake_track(n: int, count: int, peak: float, fps: float) -> np.ndarray:

@@ -155,3 +155,14 @@ def test_eval_all_saves_each_row_as_it_ends(gesture_ds, tmp_path):
     seen = []
     out = run_rows(rows, on_row=lambda done: seen.append(dict(done)))
     assert seen == [out] and out["pose"]["status"].startswith(("ok", "skipped"))
+
+
+def test_a_row_names_a_shipped_suite_by_its_project_path():
+    """eval all's rows record their command; a suite shipped inside anima is named from the project's root,
+    not by where this copy sits (issue 38: results that hold on another machine)."""
+    from anima.eval.config import HELDOUT_PROMPTS, Text2FaceEval
+    from anima.eval.registry import command_line
+
+    cmd = command_line("text2face", Text2FaceEval(dataset="ds", prompts=str(HELDOUT_PROMPTS)))
+    assert "--prompts anima/eval/prompts/text2face_heldout.json" in cmd, cmd
+    assert str(HELDOUT_PROMPTS.parents[3]) not in cmd

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from anima.core.contract import EXPR_NAMES, TEXT_FPS
-from anima.text2face.compose import Library, compose
+from anima.text2face.compose import Library, compose, detect_motion
 from anima.text2face.prompt import parse
 
 IX = {n: i for i, n in enumerate(EXPR_NAMES)}
@@ -78,8 +78,10 @@ def test_a_wink_closes_one_eye_at_full_strength(lib):
 
 def test_smiles_frowns_and_shakes_at_full_strength(lib):
     """Issue 37 item 4: a plain smile and frown peak in their declared ranges on their own channel, and a
-    shake swings equally both ways by the declared angle, once per shake asked for."""
+    shake swings equally both ways by the declared angle, once per shake asked for (the detectors count
+    each: the shakes are further apart than one shake's swings)."""
     from anima.text2face.compose import FROWN_SNEER, N_EXPR, SHAKE_RAD, STRENGTH_OF
+    from anima.text2face.poses import SHAKE_HALF_SWINGS
 
     for prompt, stem, level in (("she smiles", "mouthSmile", 1.0), ("he frowns deeply", "browDown", 1.4)):
         lo, hi = STRENGTH_OF[stem.replace("mouthSmile", "smile").replace("browDown", "frown")][level]
@@ -91,8 +93,9 @@ def test_smiles_frowns_and_shakes_at_full_strength(lib):
     for prompt, n in (("he shakes his head", 1), ("she shakes her head twice", 2)):
         yaw = _make(prompt, lib)[:, N_EXPR + 1]
         assert yaw.max() == pytest.approx(SHAKE_RAD[1.0], rel=0.05) and yaw.min() <= -0.8 * SHAKE_RAD[1.0]
+        assert [a for a, _, _ in detect_motion(_make(prompt, lib))].count("shake head") == n
         crossings = np.flatnonzero(np.diff(np.sign(yaw[np.abs(yaw) > 0.05 * SHAKE_RAD[1.0]])) != 0)
-        assert len(crossings) == 2 * n, (prompt, len(crossings))  # right-left-right per shake
+        assert len(crossings) == SHAKE_HALF_SWINGS * n - 1, (prompt, len(crossings))  # right-left-right-left
 
 
 def test_the_rest_face_is_neutral_and_symmetric(lib):

@@ -1,0 +1,60 @@
+"""A dataset build's figures as a result file, for the docs (issue 38: numbers generated, not typed): videos,
+clips and what removed them, windows, the split by source, frames, seconds and the build's wall time, read
+from the build's manifest (no paths of the machine that built it).
+
+    python benchmarks/dataset_summary.py ds [--out benchmarks/results/dataset_build.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections import Counter
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from anima.dataset.storage import check_dataset  # noqa: E402
+from anima.io.atomic import write_json  # noqa: E402
+
+
+def summary(manifest: dict) -> dict:
+    table = manifest.get("split_table") or {}
+    sides = Counter(r["split"] for r in table.values())
+    sources = {s: len({r["source"] for r in table.values() if r["split"] == s}) for s in sides}
+    run = manifest.get("last_run") or {}
+    return {
+        "command": "anima dataset build ../shared/data --out ds",
+        "anima_version": manifest.get("anima_version"),
+        "videos": manifest["videos"],
+        "videos_failed": len(manifest.get("videos_failed") or []),
+        "clips_cut": manifest["clips_total"],
+        "clips_kept": manifest["clips_kept"],
+        "removed_by_rule": manifest["removed_by_rule"],
+        "windows": manifest["windows"],
+        "emotion_clips": len(manifest.get("emotion_clips") or {}),
+        "frames": manifest["frames"],
+        "seconds_of_video": manifest["seconds_of_video"],
+        "split_videos": {s: sides.get(s, 0) for s in ("train", "val", "test")},
+        "split_sources": {s: sources.get(s, 0) for s in ("train", "val", "test")},
+        "test_fraction": round(sides.get("test", 0) / max(1, sum(sides.values())), 3),
+        "split_rule": manifest.get("split_rule"),
+        "wall_s": run.get("wall_s"),
+        "workers": run.get("workers"),
+        "summed_task_s": manifest.get("compute_s"),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("dataset")
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "dataset_build.json"))
+    a = ap.parse_args()
+    out = summary(check_dataset(a.dataset))
+    write_json(a.out, out)
+    print(out)
+
+
+if __name__ == "__main__":
+    main()
