@@ -44,7 +44,8 @@ def test_a_number_in_the_prose_is_generated_from_its_json_pointer(tmp_path):
     (tmp_path / "r.json").write_text('{"rows": {"a b": {"x": [0.5, 0.0721]}}}')
     doc = tmp_path / "docs" / "x.md"
     doc.parent.mkdir()
-    line = "reads <!--v r.json /rows/a%20b/x/1 .3f-->{}<!--/v--> on <!--v r.json /rows/a%20b/x/0-->{}<!--/v-->\n"
+    line = "reads <!--v r.json /rows/a%20b/x/1 .3f-->{}<!--/v--> on <!--v r.json /rows/a%20b/x/0-->{}<!--/v-->"
+    line += " of <!--v r.json /rows/a%20b/x len-->2<!--/v-->\n"
     doc.write_text(line.format("0.072", "0.5"))
     assert tool.refresh(doc, tmp_path) == (doc.read_text(), [])
     doc.write_text(line.format("0.07", "0.5"))  # typed over, or the JSON changed since

@@ -18,7 +18,8 @@ A number in the prose is generated the same way, inline::
     ... the neutral clip reads mouthSmile <!--v FILE POINTER FORMAT-->0.072<!--/v--> ...
 
 where ``POINTER`` is a JSON pointer into ``FILE`` (``/rows/annotations/result/capture_emotions/neutral_mouth_smile``;
-``%20`` for a space in a key) and ``FORMAT`` a Python format spec (``.3f``, ``.0%``, ``,d``; default ``g``).
+``%20`` for a space in a key) and ``FORMAT`` a Python format spec (``.3f``, ``.0%``, ``,d``; default ``g``)
+or ``len`` (how many items a list holds).
 
     .venv/bin/python tools/doc_tables.py           # rewrite every block
     .venv/bin/python tools/doc_tables.py --check   # exit 1 when a block differs from its JSON (a test runs it)
@@ -90,6 +91,8 @@ def lookup(node, pointer: str):
 def value(path: Path, pointer: str, fmt: str | None) -> str:
     """The number (or text) at JSON ``pointer`` of ``path``, formatted."""
     node = lookup(json.loads(path.read_text()), pointer)
+    if fmt == "len":  # how many items a list (or keys a record) holds
+        return str(len(node))
     return format(node, fmt or ("g" if isinstance(node, float) else ""))
 
 

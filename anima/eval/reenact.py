@@ -430,6 +430,45 @@ def run(cfg: ReenactEval, progress: bool = False) -> dict:
     return evaluate(out, progress=progress)
 
 
+def colour_lighting_summary(r: dict) -> list[str]:
+    """Delta E per output frame across target videos (``r["colour_lighting"]``), without and with the
+    colour transfer, on each vertex set."""
+    c = r["colour_lighting"]
+    names = {
+        "skin_ring": "skin ring",
+        "lips_and_near": "lips and near",
+        "lips_own_geometry": "lips at each image's own geometry",
+    }
+    out = [
+        f"| Delta E per frame ({c['actor_frames']} frames) | mean | median | p95 | max | frames > {c['limit']:g} |",
+        "|---|---|---|---|---|---|",
+    ]
+    for key, name in names.items():
+        for mode in ("without_transfer", "with_transfer"):
+            v = c[mode][key]
+            above = f"{v['frames_above_limit']} ({v['fraction_above_limit']:.1%})" if v["frames_above_limit"] else "0"
+            out.append(
+                f"| {name}, {mode.replace('_', ' ')} | {v['mean']:.2f} | {v['median']:.2f} | {v['p95']:.2f} | "
+                f"{v['max']:.2f} | {above} |"
+            )
+    return out + ["", "With transfer: the default settings (the mouth detail included)."]
+
+
+def sharpness_summary(r: dict) -> list[str]:
+    """The (n, detail) grid on the validation clip and the seed's and the chosen setting on the test clip
+    (:func:`sharpness_ablation`'s result)."""
+    out = ["| clip | n | detail | SSIM | LPIPS | tOF (L2) | tLP | sharpness |", "|---|---|---|---|---|---|---|---|"]
+    for side in ("validation", "test"):
+        clip = f"{side} ({Path(r[side]['clips'][0]).stem})"
+        for v in r[side]["rows"].values():
+            out.append(
+                f"| {clip} | {v['n']} | {v['detail']:g} | {v['ssim']:.4f} | {v['lpips']:.4f} | {v['tof']:.3f} | "
+                f"{v['tlp']:.4f} | {v['sharpness_ratio']:.2f} |"
+            )
+    c = r["chosen"]
+    return out + ["", f"Chosen on validation: n {c['n']}, detail {c['detail']:g}."]
+
+
 def ssim_vs_n_summary(r: dict) -> list[str]:
     """SSIM of method 1 against the number of candidate frames n (the seed's fig. 4.6), per clip."""
     clips = [c for c in ("adult_obama", "child_d11") if r.get(c, {}).get("ssim_vs_n")]

@@ -488,6 +488,9 @@ def render(
                 o[mid] = np.maximum(o[mid], o[mid].max(0, keepdims=True) * 0.95)
             elif len(o) != L:
                 o = _stretch(o, L, seg.margin)
+            if p.attribute in SYMMETRIC and p.side is None:  # both sides alike (captured ones lean to one)
+                for a, b in _PAIRS[p.attribute]:
+                    o[:, a] = o[:, b] = (o[:, a] + o[:, b]) / 2
             if p.attribute in CHANNELS and p.attribute not in {*HEAD_AXIS, "talk"}:  # emotions: as captured
                 o[:, :N_EXPR] *= _strength(o, p.attribute, p.level)
             if p.attribute == "frown":  # brows drawn down and together wrinkle the nose's root (AU4)
@@ -517,12 +520,24 @@ STRENGTH_OF = {
     "yawn": {0.6: (0.5, 0.6), 1.0: (0.6, 0.8), 1.4: (0.8, 1.0)},
     # a smile and a frown at full strength on their own channel (issue 37): mouthSmile 0.6 alone, or browDown
     # 0.6 alone, barely changes the face a viewer sees (corners, brows)
-    "smile": {0.6: (0.45, 0.6), 1.0: (0.7, 0.9), 1.4: (0.9, 1.0)},
-    "frown": {0.6: (0.6, 0.75), 1.0: (0.9, 1.0), 1.4: (1.0, 1.0)},
+    # (the face model's brows move little: even a slight frown needs browDown 0.8 to be seen)
+    "smile": {0.6: (0.55, 0.65), 1.0: (0.7, 0.9), 1.4: (0.9, 1.0)},
+    "frown": {0.6: (0.8, 0.9), 1.0: (0.9, 1.0), 1.4: (1.0, 1.0)},
+    "raise eyebrows": {0.6: (0.5, 0.65), 1.0: (0.7, 0.9), 1.4: (0.9, 1.0)},  # the inner and outer brows' mean
+}
+SYMMETRIC = ("blink", "close eyes", "smile", "frown", "squint", "raise eyebrows")
+"""Events made alike on both sides when no side is named: a captured segment's left-right difference is
+mostly the fit's (head pose) and leaves one brow or one corner weak (issue 37: a frown at full strength)."""
+_PAIRS = {
+    a: [(_IX[c], _IX[c[:-2] + "_R"]) for c in CHANNELS[a] if c.endswith("_L") and c[:-2] + "_R" in _IX]
+    for a in SYMMETRIC
 }
 FROWN_SNEER = 0.35
 """A frown's noseSneer at least this fraction of its browDown: the face model's browDown alone lowers the
 brows by less than a tracker sees in a captured frown (issue 37; chosen on the development suite)."""
+PEAK_OF_MEAN = {"raise eyebrows"}
+"""Events whose peak is taken on the mean of their main channels, not the largest: a captured raise lifts
+the inner brows well above the outer ones, and the face model's brows rise visibly only with both."""
 MAIN = {
     "mouth open": ["jawOpen"],
     "yawn": ["jawOpen"],
@@ -538,7 +553,7 @@ def _strength(o: np.ndarray, attr: str, level: float) -> float:
     idx = [_IX[c] for c in MAIN[attr]] if attr in MAIN else _channel_idx(attr)[0]
     if not idx:
         return 1.0
-    peak = float(o[:, idx].max())
+    peak = float(o[:, idx].mean(1).max() if attr in PEAK_OF_MEAN else o[:, idx].max())
     if peak <= 1e-6:
         return 1.0
     table = STRENGTH_OF.get(attr, STRENGTH)

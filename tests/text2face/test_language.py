@@ -88,6 +88,8 @@ def test_smiles_frowns_and_shakes_at_full_strength(lib):
         peak = _make(prompt, lib)[:, [IX[f"{stem}_L"], IX[f"{stem}_R"]]].max()
         assert lo - 1e-6 <= peak <= hi + 1e-6, (prompt, peak)
     m = _make("he frowns", lib)
+    for stem in ("browDown", "noseSneer"):  # alike on both sides when no side is named
+        np.testing.assert_allclose(m[:, IX[f"{stem}_L"]], m[:, IX[f"{stem}_R"]], atol=1e-6)
     for s in "LR":
         assert (m[:, IX[f"noseSneer_{s}"]] >= FROWN_SNEER * m[:, IX[f"browDown_{s}"]] - 1e-6).all()
     for prompt, n in (("he shakes his head", 1), ("she shakes her head twice", 2)):
