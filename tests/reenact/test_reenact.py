@@ -271,7 +271,7 @@ def test_reenact_command_end_to_end(obama_db, tmp_path, cli):
     # the run's record beside the video, which `anima view` reads (the video or its folder)
     rec = json.loads(out.with_suffix(".json").read_text())
     assert rec["schema"] == "anima.reenact_run" and rec["result"]["frames"] == info.n_frames
-    assert rec["side_by_side"] and rec["config"]["n"] == 50
+    assert rec["side_by_side"] and rec["config"]["n"] == ReenactConfig().n
     r = cli("view", out, "--static", tmp_path / "page")
     assert r.returncode == 0, r.stderr
     assert "reenact page written" in r.stdout and (tmp_path / "page" / "reenact.mp4").is_file()
