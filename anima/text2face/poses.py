@@ -114,45 +114,43 @@ def envelope(n: int, attack: int, release: int) -> np.ndarray:
     return e
 
 
+def _repeats(name: str, n: int, count: int, fps: float):
+    """``(start, frames, envelope)`` of each of ``count`` repeats of pose ``name`` spread over ``n`` frames,
+    its gap between them."""
+    p = POSES[name]
+    gap = int(round(p.gap_s * fps))
+    each = max(2, (n - gap * (count - 1)) // count)
+    att, rel = int(round(p.attack_s * fps)), int(round(p.release_s * fps))
+    t = 0
+    for _ in range(count):
+        k = min(each, n - t)
+        if k <= 0:
+            return
+        yield t, k, envelope(k, att, rel)
+        t += k + gap
+
+
 SHAKE_HALF_SWINGS = 4  # one shake ("no"): right, left, right, left, two cycles
 
 
 def shake_track(n: int, count: int, peak: float, fps: float) -> np.ndarray:
     """Head yaw offsets ``[n]`` (radians): ``count`` shakes spread over ``n`` frames, each
     :data:`SHAKE_HALF_SWINGS` equal swings of ``peak`` about facing forward, eased in and out."""
-    p = POSES["shake"]
     out = np.zeros(n, np.float32)
-    gap = int(round(p.gap_s * fps))
-    each = max(2, (n - gap * (count - 1)) // count)
-    att, rel = int(round(p.attack_s * fps)), int(round(p.release_s * fps))
-    t = 0
-    for _ in range(count):
-        k = min(each, n - t)
-        if k <= 0:
-            break
+    for t, k, env in _repeats("shake", n, count, fps):
         swing = np.sin(np.linspace(0.0, SHAKE_HALF_SWINGS * np.pi, k))
-        out[t : t + k] = peak * envelope(k, att, rel) * swing / max(float(np.abs(swing).max()), 1e-9)
-        t += k + gap
+        out[t : t + k] = peak * env * swing / max(float(np.abs(swing).max()), 1e-9)
     return out
 
 
 def pose_track(name: str, side: str | None, n: int, count: int, gain: float, fps: float) -> np.ndarray:
     """Expression offsets ``[n, 53]``: ``count`` repeats of the pose spread over ``n`` frames."""
-    p = POSES[name]
     out = np.zeros((n, N_EXPR), np.float32)
     w = weights(name, side)
     vec = np.zeros(N_EXPR, np.float32)
     for k, v in w.items():
         vec[_IX[k]] = v
-    gap = int(round(p.gap_s * fps))
-    each = max(2, (n - gap * (count - 1)) // count)
-    att, rel = int(round(p.attack_s * fps)), int(round(p.release_s * fps))
-    t = 0
-    for _ in range(count):
-        k = min(each, n - t)
-        if k <= 0:
-            break
-        env = envelope(k, att, rel)
+    for t, k, env in _repeats(name, n, count, fps):
         if name == "roll eyes":  # the eyes sweep across the top: up-left, up, up-right
             lateral = np.sin(np.linspace(-np.pi / 2, np.pi / 2, k))
             track = env[:, None] * vec[None]
@@ -161,5 +159,4 @@ def pose_track(name: str, side: str | None, n: int, count: int, gain: float, fps
             out[t : t + k] = np.maximum(out[t : t + k], track)
         else:
             out[t : t + k] = np.maximum(out[t : t + k], env[:, None] * vec[None])
-        t += k + gap
     return np.clip(out * gain, 0.0, 1.0)
