@@ -30,7 +30,7 @@ from anima import __version__
 from anima.errors import AnimaError, InputError
 from anima.eval.registry import EVALUATIONS, Context, Evaluation
 from anima.eval.registry import rows as registry_rows
-from anima.io.assets import data_root
+from anima.io.assets import data_root, shown_path
 from anima.io.atomic import write_json, write_text
 from anima.io.outdir import OutputFolder, sha256
 
@@ -60,7 +60,7 @@ def data_fingerprint(root: Path | None = None) -> dict:
                 h.update(block)
                 size += len(block)
         n += 1
-    return {"root": str(root), "files": n, "bytes": size, "sha256": h.hexdigest()}
+    return {"root": shown_path(root), "files": n, "bytes": size, "sha256": h.hexdigest()}
 
 
 def dataset_fingerprint(folder: str | os.PathLike) -> dict:

@@ -28,6 +28,7 @@ from anima.eval.config import (
     StabilityEval,
     Text2FaceEval,
 )
+from anima.io.assets import shown_path
 
 
 @dataclass(frozen=True)
@@ -87,14 +88,10 @@ def command_line(name: str, cfg) -> str:
 
 
 def _shown(v) -> str:
-    """An option's value as a command line shows it: a file shipped inside anima by its path from the
-    project's root (where it is, not where this copy is installed)."""
-    s = str(v)
-    root = Path(__file__).resolve().parents[2]
-    p = Path(s)
-    if p.is_absolute() and p.resolve().is_relative_to(root / "anima"):
-        return str(p.resolve().relative_to(root))
-    return s
+    """An option's value as a command line shows it: a file inside the project by its path from the
+    project's root (where it is, not where this copy is installed); others as given."""
+    s = shown_path(v)
+    return str(v) if s.startswith("$") else s
 
 
 def _check_gesture(cfg: GestureEval) -> None:

@@ -35,6 +35,7 @@ from anima.eval.config import Text2FaceEval
 from anima.eval.text2face_evaluator import load_evaluator, r_precision, save_evaluator, train_evaluator
 from anima.eval.text2face_prompts import evaluate_prompts, prompts_summary
 from anima.export.framing import generated_sequence
+from anima.io.assets import shown_path
 from anima.io.atomic import copy_file, write_json
 from anima.io.outdir import claim_folder
 from anima.text2face.data import EVAL_LEN, FaceGeometry, eval_items, split_clips
@@ -150,7 +151,7 @@ def mean_method(mean) -> Method:
 def model_method(name, ckpt_path) -> Method:
     g = Generator(ckpt_path)
     info = {
-        "checkpoint": str(ckpt_path),
+        "checkpoint": shown_path(ckpt_path),
         "kind": g.kind,
         "params": sum(p.numel() for p in g.model.parameters()),
         "model_config": g.cfg.to_dict(),

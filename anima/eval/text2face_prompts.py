@@ -47,6 +47,7 @@ from anima.dataset.windows import read_clips
 from anima.errors import InputError
 from anima.eval.judge import ATTRIBUTES as READS
 from anima.eval.judge import JudgeConfig, judge_motion
+from anima.io.assets import shown_path
 from anima.io.validate import read_json
 from anima.text2face.compose import EXPR_NAMES, Library, compose, detect_motion
 from anima.text2face.encoders import encode_cached
@@ -329,7 +330,7 @@ def evaluate_prompts(
             "detectors": "the dataset's (anima.dataset.attributes), first/last frame held 1 s either side",
             "library": f"{len(lib.motion)} (text, motion) clips of the training videos, "
             f"{sum(len(m) for m in lib.motion) / TEXT_FPS / 60:.1f} min; segments per event {lib.counts}",
-            "seed_model": str(gen.path),
+            "seed_model": shown_path(gen.path),
             "retrieval": f"nearest of {len(pool_texts)} training descriptions (sentence encoder {enc.name})",
             "implied": {k: sorted(v) for k, v in IMPLIED.items()},
         },

@@ -60,3 +60,21 @@ def user_dir(*parts: str) -> Path:
     caches of detections): ``$ANIMA_HOME`` or ``~/.cache/anima``."""
     root = Path(os.environ.get("ANIMA_HOME") or Path.home() / ".cache" / "anima").expanduser()
     return root.joinpath(*parts)
+
+
+def shown_path(p: str | os.PathLike) -> str:
+    """A path as results and commands record it, the same wherever the checkout, the data and the user's
+    folder sit: inside the project by its path from the repository root (``anima/...``), under the data root
+    as ``$ANIMA_DATA/...``, under the user folder as ``$ANIMA_HOME/...``; any other path as it is."""
+    s = str(p)
+    q = Path(s).expanduser()
+    if not q.is_absolute():
+        return s
+    q = q.resolve()
+    for root, name in ((REPO_ROOT, None), (data_root(), "$ANIMA_DATA"), (user_dir().resolve(), "$ANIMA_HOME")):
+        if q == root or q.is_relative_to(root):
+            rel = q.relative_to(root).as_posix()
+            if name is None:
+                return rel or "."
+            return name if rel == "." else f"{name}/{rel}"
+    return s

@@ -165,3 +165,18 @@ def test_a_frame_range_refuses_a_variable_frame_rate_video(videos):
 
     with pytest.raises(ValueError, match="constant-frame-rate"):
         list(iter_frame_range(probe_video(videos["vfr"]), 0, 5))
+
+
+def test_results_name_paths_the_same_wherever_the_folders_sit(tmp_path, monkeypatch):
+    """shown_path: a project file by its path from the repository root, data and user files by their
+    folder's variable; anything else unchanged (results must not record where this copy happens to sit)."""
+    from anima.io.assets import REPO_ROOT, shown_path
+
+    monkeypatch.setenv("ANIMA_DATA", str(tmp_path / "data"))
+    monkeypatch.setenv("ANIMA_HOME", str(tmp_path / "home"))
+    assert shown_path(REPO_ROOT / "anima" / "eval" / "prompts" / "x.json") == "anima/eval/prompts/x.json"
+    assert shown_path(tmp_path / "data" / "ict-facekit" / "a.npz") == "$ANIMA_DATA/ict-facekit/a.npz"
+    assert shown_path(tmp_path / "data") == "$ANIMA_DATA"
+    assert shown_path(tmp_path / "home" / "models" / "pose_lifter.pt") == "$ANIMA_HOME/models/pose_lifter.pt"
+    assert shown_path(tmp_path / "elsewhere.pt") == str(tmp_path / "elsewhere.pt")
+    assert shown_path("ds") == "ds"
