@@ -51,3 +51,14 @@ def test_a_number_in_the_prose_is_generated_from_its_json_pointer(tmp_path):
     doc.write_text(line.format("0.07", "0.5"))  # typed over, or the JSON changed since
     text, changed = tool.refresh(doc, tmp_path)
     assert text == line.format("0.072", "0.5") and len(changed) == 1
+
+
+def test_a_range_in_the_prose_is_reduced_from_every_row_of_a_result(tmp_path):
+    """``*`` takes every row; min/max/median before the format reduce them (a range over an ablation's rows)."""
+    tool = _tool()
+    f = tmp_path / "r.json"
+    f.write_text('{"rows": [{"v": {"n": 0.0374}}, {"v": {"n": 0.0385}}, {"v": {"n": 0.0380}}], "a": {"x": 1}}')
+    assert tool.lookup({"a": {"x": 1, "y": 2}}, "/a/*") == [1, 2]
+    assert tool.lookup({"a": {"x": {"l": [1, 2]}, "y": {"l": [3]}}}, "/a/*/l/*") == [1, 2, 3]
+    got = [tool.value(f, "/rows/*/v/n", fmt) for fmt in ("min.2%", "max.2%", "median.4f", "len")]
+    assert got == ["3.74%", "3.85%", "0.0380", "3"]

@@ -19,7 +19,8 @@ A number in the prose is generated the same way, inline::
 
 where ``POINTER`` is a JSON pointer into ``FILE`` (``/rows/annotations/result/capture_emotions/neutral_mouth_smile``;
 ``%20`` for a space in a key) and ``FORMAT`` a Python format spec (``.3f``, ``.0%``, ``,d``; default ``g``)
-or ``len`` (how many items a list holds).
+or ``len`` (how many items a list holds); ``*`` in the pointer takes every item of a list, and ``min``,
+``max`` or ``median`` before the spec (``min.2%``) reduce them to one number.
 
     .venv/bin/python tools/doc_tables.py           # rewrite every block
     .venv/bin/python tools/doc_tables.py --check   # exit 1 when a block differs from its JSON (a test runs it)
@@ -81,18 +82,31 @@ def render(name: str, path: Path) -> str:
 
 
 def lookup(node, pointer: str):
-    """The node at JSON ``pointer`` (``/a/0/b``; ``%20`` for a space in a key)."""
-    for key in filter(None, pointer.strip("/").split("/")):
-        key = unquote(key)
+    """The node at JSON ``pointer`` (``/a/0/b``; ``%20`` for a space in a key; ``*`` for every item of a list
+    or every value of a record, which makes the result a list)."""
+    keys = [unquote(k) for k in filter(None, pointer.strip("/").split("/"))]
+    for i, key in enumerate(keys):
+        if key == "*":
+            items = node if isinstance(node, list) else list(node.values())
+            rest = "/".join(keys[i + 1 :]).replace(" ", "%20")
+            got = [lookup(x, rest) for x in items]
+            return [y for g in got for y in g] if "*" in rest else got  # one flat list for several stars
         node = node[int(key)] if isinstance(node, list) else node[key]
     return node
 
 
+REDUCE = {"min": min, "max": max, "median": lambda xs: sorted(xs)[len(xs) // 2]}
+
+
 def value(path: Path, pointer: str, fmt: str | None) -> str:
-    """The number (or text) at JSON ``pointer`` of ``path``, formatted."""
+    """The number (or text) at JSON ``pointer`` of ``path``, formatted; ``len`` counts a list's items, and
+    ``min``/``max``/``median`` followed by a format spec (``min.2%``) reduce a list (a ``*`` pointer) first."""
     node = lookup(json.loads(path.read_text()), pointer)
     if fmt == "len":  # how many items a list (or keys a record) holds
         return str(len(node))
+    for name, f in REDUCE.items():
+        if fmt and fmt.startswith(name):
+            node, fmt = f(node), fmt[len(name) :]
     return format(node, fmt or ("g" if isinstance(node, float) else ""))
 
 

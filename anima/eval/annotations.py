@@ -25,6 +25,7 @@ from anima.capture.config import CaptureConfig
 from anima.capture.pipeline import capture_video
 from anima.dataset.attributes import ATTRIBUTES, detect, frame_mask
 from anima.dataset.config import DetectorConfig
+from anima.dataset.splits import split_for
 from anima.eval.config import AnnotationsEval
 from anima.io.assets import asset
 
@@ -42,11 +43,13 @@ def _ranges_mask(ranges, n):
     return m
 
 
-def capture_labelled(lab: dict):
-
-    return capture_video(
-        str(asset(lab["clip"])), CaptureConfig(face_only=True, max_frames=lab.get("frames")), progress=False
-    )
+def capture_labelled(lab: dict, sigma: float | None = None):
+    """A labelled clip captured as the dataset captures it (face only; ``sigma``: the smoothing, default the
+    capture's)."""
+    cfg = CaptureConfig(face_only=True, max_frames=lab.get("frames"))
+    if sigma is not None:
+        cfg = dataclasses.replace(cfg, smooth_sigma=sigma)
+    return capture_video(str(asset(lab["clip"])), cfg, progress=False)
 
 
 def counts(seq, lab: dict, cfg: DetectorConfig | None = None) -> dict:
@@ -191,6 +194,22 @@ def leave_one_clip_out(pairs, base: DetectorConfig) -> tuple[dict, list[dict]]:
         _add(total, counts(seq, lab, dataclasses.replace(base, **chosen)))
         folds.append({"held_out": lab["name"], "thresholds": {k: round(v, 4) for k, v in chosen.items()}})
     return summarize(total), folds
+
+
+def detectors_by_smoothing(sigmas, sides=("train", "val"), cfg: DetectorConfig | None = None) -> dict:
+    """The shipped detectors (``cfg``) on the labelled clips of the split sides ``sides`` (never test), each
+    captured with every smoothing sigma: per sigma, event-level F1 per attribute with labelled events there,
+    pooled over those clips, and their mean (``mean_f1``). For choosing the capture's smoothing together with
+    the detectors (:func:`anima.eval.stability.choose_sigma`)."""
+    labs = [lab for lab in load_labels() if split_for(asset(lab["clip"])) in sides]
+    per = {}
+    for s in sigmas:
+        total: dict = {}
+        for lab in labs:
+            _add(total, counts(capture_labelled(lab, s), lab, cfg))
+        f1 = {a: round(_f1(v), 4) for a, v in total.items() if v["lab"]}
+        per[str(s)] = {"f1": f1, "mean_f1": float(np.mean(list(f1.values())))}
+    return {"clips": [lab["name"] for lab in labs], "sides": list(sides), "per_sigma": per}
 
 
 # Monologues with their own speech (StyleTalk's source clips and WAVs), none of them used to set a threshold:
@@ -356,6 +375,24 @@ def capture_emotions_summary(r: dict) -> list[str]:
     for c in ce["checks"]:
         holds = "yes" if c["holds"] else "no"
         out.append(f"| {c['emotion']} | {c['weight']} | {c['clip']:.3f} | {c['neutral']:.3f} | {holds} |")
+    return out
+
+
+def talk_on_speech_summary(r: dict) -> list[str]:
+    """Talk against the clip's own voice (``r["talk_on_speech"]``): the share of voiced frames inside a talk
+    event, with the shipped rule and with the voice only gating lip motion (before issue 19)."""
+    ts = r["talk_on_speech"]
+    names = [Path(c["clip"]).stem for c in ts["clips"]]
+    voiced = sum(c["voiced_s"] for c in ts["clips"])
+    out = [
+        f"Reference: {ts['reference']}.",
+        "",
+        "| | " + " | ".join(names) + f" | all ({voiced:.1f} voiced s) |",
+        "|---|" + "---|" * (len(names) + 1),
+    ]
+    for label, key in (("voiced frames inside a talk event, before", "before"), ("now", "shipped")):
+        cells = [f"{c['recall_' + key]:.2f}" for c in ts["clips"]] + [f"{ts['recall_' + key]:.2f}"]
+        out.append(f"| {label} | " + " | ".join(cells) + " |")
     return out
 
 

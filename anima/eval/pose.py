@@ -12,7 +12,7 @@ from pathlib import Path
 
 from anima.errors import InputError
 from anima.eval.config import PoseEval
-from anima.eval.pose_metrics import pose_metrics
+from anima.eval.pose_metrics import PROTOCOLS, pose_metrics
 from anima.io.outdir import claim_folder
 from anima.pose3d.config import TrainConfig, default_cache, default_checkpoint
 from anima.pose3d.data import humaneva_validation, s9_image_evidence
@@ -158,4 +158,28 @@ def run(cfg: PoseEval, progress: bool = False) -> dict:
 
 
 def summary(r: dict) -> list[str]:
-    return ["See results.json."]
+    """The table the docs show: S9 cells MPJPE (mm) / PCK@150 (%) / AUC (%) under each protocol, HumanEva's
+    Procrustes MPJPE; MediaPipe's own 3D, the lifter checkpoint and the ablation rows where present."""
+    s9 = r["s9_images"]
+
+    def cells(m: dict) -> str:
+        return " | ".join(f"{m[p]['mpjpe']:.1f} / {m[p]['pck150']:.1f} / {m[p]['auc']:.1f}" for p in PROTOCOLS)
+
+    def he(m: dict | None) -> str:
+        return "-" if m is None else f"{m['procrustes']['mpjpe']:.1f}"
+
+    rows = [("MediaPipe `pose_world_landmarks` (peer baseline)", s9["mediapipe_world_landmarks"], None)]
+    if "lifter" in s9:
+        rows.append(("lifter checkpoint", s9["lifter"], r["humaneva_validation"].get("lifter")))
+    for name, a in (r.get("ablation") or {}).items():
+        rows.append((f"lifter: {name}", a["h36m_s9_images"], a["humaneva_validation_gt2d"]))
+    steps = {a["steps"] for a in (r.get("ablation") or {}).values()}
+    out = [
+        f"S9 images: {s9['person_found']} of {s9['frames']} frames with a person found by MediaPipe (the others are "
+        "reported, not scored). Cells: MPJPE (mm) / 3D PCK@150 (%) / AUC (%)"
+        + (f"; ablation rows trained {', '.join(map(str, sorted(steps)))} steps each." if steps else "."),
+        "",
+        "| model | S9 unscaled | S9 glob. scaled | S9 Procrustes | HumanEva PA-MPJPE |",
+        "|---|---|---|---|---|",
+    ]
+    return out + [f"| {name} | {cells(m)} | {he(h)} |" for name, m, h in rows]

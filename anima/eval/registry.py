@@ -34,7 +34,8 @@ from anima.io.assets import shown_path
 @dataclass(frozen=True)
 class Context:
     """What ``anima eval all`` gives every evaluation: the dataset, the result folder, the text2face work
-    folder, and whether this is a quick run (a few training steps: a check that everything runs)."""
+    folder (also where the pose ablation trains), and whether this is a quick run (a few training steps: a
+    check that everything runs)."""
 
     db: str
     out: Path
@@ -169,7 +170,9 @@ EVALUATIONS = (
         "rows of seed table 3.6.",
         PoseEval,
         "anima.eval.pose",
-        lambda c: [("pose", PoseEval())],
+        lambda c: [  # the ablation's lifters are trained in the run (no lifter ships: Human3.6M's terms)
+            ("pose", PoseEval(ablation=str(c.work / "pose_ablation"), ablation_steps=20 if c.quick else 8000))
+        ],
     ),
     Evaluation(
         "reenact",
