@@ -207,8 +207,8 @@ def detectors_by_smoothing(sigmas, sides=("train", "val"), cfg: DetectorConfig |
         total: dict = {}
         for lab in labs:
             _add(total, counts(capture_labelled(lab, s), lab, cfg))
-        f1 = {a: round(_f1(v), 4) for a, v in total.items() if v["lab"]}
-        per[str(s)] = {"f1": f1, "mean_f1": float(np.mean(list(f1.values())))}
+        f1 = {a: _f1(v) for a, v in total.items() if v["lab"]}
+        per[str(s)] = {"f1": {a: round(v, 4) for a, v in f1.items()}, "mean_f1": float(np.mean(list(f1.values())))}
     return {"clips": [lab["name"] for lab in labs], "sides": list(sides), "per_sigma": per}
 
 
