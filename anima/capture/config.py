@@ -32,11 +32,11 @@ class FitConfig:
 class CaptureConfig:
     smooth_sigma: float = field(default=1.0, metadata={"flag": "--sigma", "range": (0.0, 100.0)})
     """Gaussian temporal smoothing of the fitted parameters, in frames (0 = off). Zero-phase, so no lag.
-    ``anima eval stability`` chooses 0.75 on its validation clips by jitter alone (the smallest sigma that
-    removes at least 40 % of MediaPipe's landmark jitter while the landmark error grows at most 10 %; 1.0
-    passes too). The default stays 1.0 because the dataset's detector thresholds were calibrated on captures
-    smoothed at 1.0: at 0.75 the shipped talk detector fires on a labelled clip with no speech (tests/eval/
-    test_annotations_eval.py), so the two must be chosen together. Seed 004 used 1.5 frames on 15 fps."""
+    ``anima eval stability`` chooses it on its validation clips together with the dataset's detectors: by
+    jitter alone 0.75 would do (at least 40 % of MediaPipe's landmark jitter removed, the landmark error at
+    most 10 % worse; 1.0 passes too), but the detectors' thresholds were calibrated at 1.0 and their F1 on
+    the labelled non-test clips is not higher at 0.75 (at 0.75 the talk detector fires on a labelled clip
+    with no speech). Seed 004 used 1.5 frames on 15 fps."""
     max_frames: int | None = field(default=None, metadata={"range": (1, None)})
     """Only the first N frames (default: the whole video)."""
     low_conf_nme: float = 0.05

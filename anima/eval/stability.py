@@ -194,6 +194,7 @@ def summary(r: dict) -> list[str]:
         if s.get("detectors"):
             d = s["detectors"]
             f1 = ", ".join(f"{k}: {v['mean_f1']:.3f}" for k, v in d["per_sigma"].items())
+            out.append("")
             out.append(
                 f"Shipped detectors' mean event F1 per sigma on the {len(d['clips'])} labelled clips outside the "
                 f"test split ({', '.join(d['clips'])}): {f1}."
