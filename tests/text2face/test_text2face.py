@@ -472,6 +472,23 @@ def test_expression_names_of_the_contract_are_the_face_models(face_model):
     assert list(EXPR_NAMES) == list(face_model.expr_names)
 
 
+def test_the_timeline_library_holds_only_training_videos(ds):
+    """The prompt suites' timeline method and retrieval draw on the dataset's training clips only (issue 38: no
+    statistic of a held-out video enters a method it is judged by): by default the library is the training
+    split, and asking for a split with no clip is refused."""
+    from anima.dataset.windows import read_clips
+    from anima.errors import InputError
+    from anima.text2face.compose import Library
+
+    clips = read_clips(ds)
+    train = [c.clip_id for c in clips if c.split == "train"]
+    assert train and Library.from_dataset(ds).sources == train
+    empty = {"train", "val", "test"} - {c.split for c in clips}
+    for side in empty:
+        with pytest.raises(InputError):
+            Library.from_dataset(ds, splits=(side,))
+
+
 def test_timeline_method_on_real_clips_follows_order_and_counts(ds):
     """Segments from the captured d0/d6 clips: "smiles, then blinks twice" reads back with the detectors as a
     smile followed by two blinks; other prompts and other seeds give other motion; a prompt too long for the
