@@ -31,10 +31,10 @@ def register(sub) -> None:
         help="every evaluation in one run: one results file and a markdown summary",
         description=f"Runs {', '.join(names)} as their own commands do, and writes OUT/results.json (per row: "
         "command, status, minutes, result; the commit, the shared data's and the dataset's fingerprints, the "
-        "machine) and OUT/summary.md. A row that cannot run (e.g. pose without a trained lifter) is recorded as "
-        "skipped; exit 3 when one failed. --jobs 2 runs the rows side by side in two processes (the two long "
-        "rows, gesture and text2face, first); the last measured run and its minutes per row are in "
-        "docs/architecture.md (pose runs only with a trained lifter).",
+        "machine) and OUT/summary.md. A row that cannot run (e.g. missing data) is recorded as skipped; "
+        "exit 3 when one failed. The pose row trains the ablation's lifters in the work folder (no lifter "
+        "ships). --jobs 2 runs the rows side by side in two processes (the two long rows, gesture and "
+        "text2face, first); the measured runs and their minutes per row are in docs/architecture.md.",
     )
     add_options(eall, AllEval, _fields(AllEval))
     eall.add_argument("--json", action="store_true")

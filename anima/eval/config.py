@@ -124,7 +124,8 @@ class AllEval:
     out: str = field(default="", metadata={"required": True, "metavar": "DIR"})
     """Result folder."""
     work: str | None = None
-    """text2face models (reused when there; default OUT/text2face_work)."""
+    """Trained models of the run: text2face's and the pose ablation's lifters (reused when there; default
+    OUT/text2face_work)."""
     only: list = field(default_factory=list, metadata={"nargs": "+", "metavar": "NAME"})
     """Only these evaluations (rows)."""
     quick: bool = False
