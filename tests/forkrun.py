@@ -9,6 +9,7 @@ Each input line: ``{"id": ..., "argv": [...], "env": {...}, "timeout": s}``; eac
 "stdout", "stderr", "seconds"}`` (rc -9 when the case ran past its timeout and was killed).
 """
 
+import faulthandler
 import json
 import os
 import signal
@@ -43,6 +44,7 @@ def run_case(case: dict) -> dict:
             os.dup2(err.fileno(), 2)
             sys.stdout = os.fdopen(1, "w", buffering=1)
             sys.stderr = os.fdopen(2, "w", buffering=1)
+            faulthandler.enable(sys.stderr)  # a crash (SIGABRT, SIGSEGV) leaves its Python trace in stderr
             os.environ.update(case.get("env", {}))
             try:
                 code = main(case["argv"])
