@@ -112,6 +112,18 @@ def _terminate(signum, frame):
     raise KeyboardInterrupt
 
 
+def _interrupted(e: BaseException) -> bool:
+    """Whether ``e`` was caused by a KeyboardInterrupt (Ctrl-C or SIGTERM): a C function that returns while the
+    signal's exception is pending (numba's dispatcher) raises SystemError with the KeyboardInterrupt as cause."""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return True
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return False
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     command = _command_of(argv)
@@ -145,6 +157,9 @@ def main(argv: list[str] | None = None) -> int:
         print("anima: error: out of memory (the input is too large for this machine)", file=sys.stderr)
         return 2
     except Exception as e:
+        if _interrupted(e):  # Ctrl-C inside a compiled kernel's call surfaces as a SystemError caused by it
+            print("anima: interrupted", file=sys.stderr)
+            return 130
         if a.debug:
             raise
         print(

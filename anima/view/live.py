@@ -16,12 +16,14 @@ import base64
 import json
 import os
 import shutil
+import signal
 import sys
 import tempfile
 import threading
 import time
 import webbrowser
 from array import array
+from contextlib import closing
 from pathlib import Path
 
 import numpy as np
@@ -131,6 +133,32 @@ class LiveTracker:
     def close(self) -> None:
         for t in self.trackers:
             t.close()
+
+
+class StopOnSignal:
+    """Ctrl-C or SIGTERM during a take sets ``requested``, which the loop reads after each frame, instead of
+    raising KeyboardInterrupt wherever the main thread happens to be: raised inside a numba kernel's call (the
+    per-frame fit) it comes out as a SystemError, and the take would end as an internal error. A second signal
+    raises at once (a source that delivers no frame). Installed only in the main thread."""
+
+    def __init__(self):
+        self.requested = False
+        self._old: dict = {}
+
+    def __enter__(self) -> StopOnSignal:
+        if threading.current_thread() is threading.main_thread():
+            for s in (signal.SIGINT, signal.SIGTERM):
+                self._old[s] = signal.signal(s, self._handle)
+        return self
+
+    def _handle(self, signum, frame) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def __exit__(self, *exc) -> None:
+        for s, h in self._old.items():
+            signal.signal(s, h)
 
 
 def tracked(reader: PacedReader, tracker: LiveTracker, deadline: float | None, max_frames: int | None = None):
@@ -303,30 +331,34 @@ def run(
         sender = Sender(target) if target else None
         last_rss = 0.0
         deadline = t0 + max_seconds if max_seconds else None
-        for i, t_perf, size, lm, body in tracked(reader, tracker, deadline, max_frames):
-            t_cap = time.time() - (time.perf_counter() - t_perf)  # the frame's arrival on the epoch clock
-            f = tracker.frame(lm, body, size, i, t_cap)
-            n, n_face, n_body = n + 1, n_face + f.face, n_body + (f.body is not None)  # counted before it is sent
-            if tracker.backfill:  # the warm-up frames fitted: they replace their first versions in the take
-                for b in tracker.backfill if journal is not None else ():
-                    journal.add(b)
-                tracker.backfill = []
-            if journal is not None:
-                journal.add(f)
-            hub.send(message(f, retarget))
-            if sender is not None:
-                try:
-                    sender.send(
-                        i, reader.fps, livelink_rows(f.expression[None], EXPR_NAMES, f.rotation[None], [f.face])[0]
-                    )
-                except OSError:
-                    pass
-            lat.append(1e3 * (time.time() - t_cap))
-            last_sent = time.perf_counter()
-            first_sent = first_sent or last_sent
-            if time.perf_counter() - last_rss >= 1.0:
-                rss.append(round(_rss_mb(), 1))
-                last_rss = time.perf_counter()
+        with StopOnSignal() as signalled, closing(tracked(reader, tracker, deadline, max_frames)) as stream:
+            for i, t_perf, size, lm, body in stream:
+                if signalled.requested:
+                    stop = True
+                    break
+                t_cap = time.time() - (time.perf_counter() - t_perf)  # the frame's arrival on the epoch clock
+                f = tracker.frame(lm, body, size, i, t_cap)
+                n, n_face, n_body = n + 1, n_face + f.face, n_body + (f.body is not None)  # counted before it is sent
+                if tracker.backfill:  # the warm-up frames fitted: they replace their first versions in the take
+                    for b in tracker.backfill if journal is not None else ():
+                        journal.add(b)
+                    tracker.backfill = []
+                if journal is not None:
+                    journal.add(f)
+                hub.send(message(f, retarget))
+                if sender is not None:
+                    try:
+                        sender.send(
+                            i, reader.fps, livelink_rows(f.expression[None], EXPR_NAMES, f.rotation[None], [f.face])[0]
+                        )
+                    except OSError:
+                        pass
+                lat.append(1e3 * (time.time() - t_cap))
+                last_sent = time.perf_counter()
+                first_sent = first_sent or last_sent
+                if time.perf_counter() - last_rss >= 1.0:
+                    rss.append(round(_rss_mb(), 1))
+                    last_rss = time.perf_counter()
     except KeyboardInterrupt:
         stop = True
     except BaseException:
