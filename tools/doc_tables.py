@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import statistics
 import sys
 from pathlib import Path
 from urllib.parse import unquote
@@ -83,19 +84,21 @@ def render(name: str, path: Path) -> str:
 
 def lookup(node, pointer: str):
     """The node at JSON ``pointer`` (``/a/0/b``; ``%20`` for a space in a key; ``*`` for every item of a list
-    or every value of a record, which makes the result a list)."""
-    keys = [unquote(k) for k in filter(None, pointer.strip("/").split("/"))]
+    or every value of a record, which makes the result a list, one flat list for several stars)."""
+    return _walk(node, [unquote(k) for k in filter(None, pointer.strip("/").split("/"))])
+
+
+def _walk(node, keys: list[str]):
     for i, key in enumerate(keys):
         if key == "*":
             items = node if isinstance(node, list) else list(node.values())
-            rest = "/".join(keys[i + 1 :]).replace(" ", "%20")
-            got = [lookup(x, rest) for x in items]
-            return [y for g in got for y in g] if "*" in rest else got  # one flat list for several stars
+            got = [_walk(x, keys[i + 1 :]) for x in items]
+            return [y for g in got for y in g] if "*" in keys[i + 1 :] else got
         node = node[int(key)] if isinstance(node, list) else node[key]
     return node
 
 
-REDUCE = {"min": min, "max": max, "median": lambda xs: sorted(xs)[len(xs) // 2]}
+REDUCE = {"min": min, "max": max, "median": statistics.median_high}
 
 
 def value(path: Path, pointer: str, fmt: str | None) -> str:
