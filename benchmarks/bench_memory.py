@@ -187,6 +187,20 @@ def main() -> None:
         ["dataset", "build", d0, "--out", d / "ds", "--annotations", big],
         "300 MB annotation file (refused by size)",
     )
+    # avatar bombs (issue 45): node counts bounded, walks linear, the retarget's work on the humanoid's nodes only
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    import hostile_avatars
+
+    av = hostile_avatars.make(d / "hostile")
+    row("retarget --avatar", ["retarget", seq_big, "--avatar", asset(hostile_avatars.BASE), "--out", d / "a0.vrm"],
+        "the 61 KB humanoid VRM (58 nodes), 160 frames")  # fmt: skip
+    for name in ("19k flat nodes", "300k-node bomb", "100k-node chain", "19k-node chain"):
+        p = av[name]
+        ok = name == "19k flat nodes"
+        row("retarget --avatar", ["retarget", seq_big, "--avatar", p, "--out", d / "a1.vrm"],
+            f"{p.stat().st_size / 1e6:.1f} MB VRM: {name}{'' if ok else ' (refused)'}, 160 frames")  # fmt: skip
+    row("view --avatar", ["view", d / "c160", "--avatar", av["300k-node bomb"], "--static", d / "v1"],
+        f"{av['300k-node bomb'].stat().st_size / 1e6:.1f} MB VRM: 300k-node bomb (refused)")  # fmt: skip
     write_json(a.out, {"rows": rows, "note": "peak resident memory of the command and its waited-for children"})
 
 

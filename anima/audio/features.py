@@ -26,6 +26,7 @@ from anima.core.contract import N_MFCC
 from anima.errors import InputError
 from anima.io.atomic import write_npz
 from anima.io.outdir import check_out_file
+from anima.io.owned import npz
 from anima.io.video import FFMPEG
 
 SR = 16000
@@ -37,6 +38,9 @@ SILENCE_DBFS = -60.0
 FEATURE_NAMES = (
     [f"mfcc{i}" for i in range(N_MFCC)] + ["log_energy"] + [f"d_mfcc{i}" for i in range(N_MFCC)] + ["d_log_energy"]
 )
+
+
+SPEECH_NPZ = npz("features", "valid", "fps", "names")  # what `anima audio features` writes
 
 
 class NoAudio(InputError):
@@ -215,7 +219,7 @@ def write_speech_features(
     """``anima audio features``: the features of ``path`` written to ``out`` (default ``<path>.speech.npz``:
     ``features [F, 28]``, ``valid [F]``, ``fps``, ``names``). Returns a summary."""
     dest = Path(out) if out else Path(path).with_suffix(".speech.npz")
-    check_out_file(dest, inputs=[path])
+    check_out_file(dest, inputs=[path], suffixes=(".npz",), ours=SPEECH_NPZ, what="a speech-features file")
     x = read_audio(path)
     longest = 2 * int(np.ceil(len(x) / SR * fps)) + 1
     if n_frames is not None and not 1 <= n_frames <= longest:

@@ -20,7 +20,7 @@ from anima.facemodel.ict import load_face_model
 from anima.facemodel.landmarks68 import FILENAME, calibrate
 from anima.io.assets import package_data
 from anima.io.atomic import write_text
-from anima.io.outdir import check_out_file, check_replaceable
+from anima.io.outdir import check_out_file
 
 
 def calibrate_ibug68(radius_cm: float = 1.2) -> dict:
@@ -55,8 +55,10 @@ def calibrate_ibug68(radius_cm: float = 1.2) -> dict:
 
 def write_ibug68(radius_cm: float = 1.2, out: str | Path | None = None) -> dict:
     """Calibrate and write the vertex file (default: the packaged one); returns its summary."""
-    dest = check_out_file(Path(out) if out else package_data(FILENAME), suffixes=(".json",))
-    check_replaceable(dest, "--out", lambda q: "vertices" in json.loads(q.read_text()), "an iBUG-68 vertex file")
+    dest = check_out_file(
+        Path(out) if out else package_data(FILENAME), suffixes=(".json",),
+        ours=lambda q: "vertices" in json.loads(q.read_text()), what="an iBUG-68 vertex file",
+    )  # fmt: skip
     r = calibrate_ibug68(radius_cm)
     write_text(dest, json.dumps(r, indent=1))
     return {k: v for k, v in r.items() if k not in ("vertices", "samples")} | {

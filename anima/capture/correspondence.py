@@ -20,7 +20,7 @@ from anima.facemodel.correspondence import (
 )
 from anima.facemodel.ict import load_face_model
 from anima.io.assets import asset, package_data
-from anima.io.outdir import check_out_file, check_replaceable
+from anima.io.outdir import check_out_file
 from anima.io.validate import npz_headers
 
 
@@ -45,10 +45,10 @@ def read_rgb(path: str | Path) -> np.ndarray:
 def rebuild_correspondence(images: list[str] | None = None, out: str | Path | None = None) -> dict:
     """Rebuild and save the correspondence (default: the packaged file from the documented portraits)."""
     dest = Path(out) if out else package_data(FILENAME)
-    check_out_file(dest, inputs=images or (), suffixes=(".npz",))
-    check_replaceable(
-        dest, "--out", lambda q: {"vertex_ids", "bary", "meta"} <= set(npz_headers(q)), "a correspondence"
-    )
+    check_out_file(
+        dest, inputs=images or (), suffixes=(".npz",), what="a correspondence",
+        ours=lambda q: {"vertex_ids", "bary", "meta"} <= set(npz_headers(q)),
+    )  # fmt: skip
     paths = images or [str(asset(p)) for p in DEFAULT_TEMPLATE_IMAGES]
     ims = [read_rgb(p) for p in paths]
     c = build_correspondence(mediapipe_template(ims), load_face_model())

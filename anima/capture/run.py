@@ -51,7 +51,7 @@ def run(
     """Capture ``video`` into ``out``; returns the sequence summary with the capture speed, the total time,
     the files written and the warnings."""
     cfg = cfg or CaptureConfig()
-    od = OutputFolder(out, kind="capture", command=command)
+    od = OutputFolder(out, kind="capture", command=command, inputs=[video, audio, cfg.pose_model])
     check_capture_inputs(cfg, video, audio, audio_optional)
     sw = Stopwatch()
     with od:

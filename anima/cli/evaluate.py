@@ -60,7 +60,7 @@ def cmd_eval(ev: Evaluation, a) -> int:
 
 def cmd_all(a) -> int:
     cfg = config_from_args(AllEval, a, _fields(AllEval))
-    out = check_out_dir(cfg.out)
+    out = check_out_dir(cfg.out, inputs=[cfg.db])
     check_dataset(cfg.db)
     # the dataset read in full before an hour of work: a broken one is refused now, not when its row comes
     if not read_windows(cfg.db).n or not read_clips(cfg.db):

@@ -105,7 +105,7 @@ def cmd_pose(a) -> int:
 
 
 def cmd_text2face(a) -> int:
-    check_out_dir(a.out)  # a user's folder is refused first
+    check_out_dir(a.out, inputs=[a.dataset])  # a user's folder is refused first
     if a.ship:
         check_ship(a.ship, inputs=[a.dataset])  # before the training it would come after
     check_dataset(a.dataset)  # before torch loads
@@ -130,7 +130,7 @@ def cmd_text2face(a) -> int:
 
 
 def cmd_gesture(a) -> int:
-    check_out_file(a.out)  # a folder or a special file is refused first
+    check_out_file(a.out, inputs=[a.db], suffixes=(".pt",), what="a checkpoint")  # refused first
     check_dataset(a.db)  # before torch loads
     from anima.gesture.train import train_from_dataset  # lazy: torch
 

@@ -25,7 +25,7 @@ def run(
 ) -> dict:
 
     cfg = cfg or BuildConfig()
-    out = check_out_dir(out_dir)
+    out = check_out_dir(out_dir, inputs=inputs)
     if cfg.filters.min_s > cfg.filters.max_s:
         raise InputError(f"--min-len {cfg.filters.min_s} is longer than --max-len {cfg.filters.max_s}")
     videos = expand_videos(inputs)
@@ -39,7 +39,7 @@ def run(
     if (out / "manifest.json").exists():
         check_dataset(out)  # refuses a dataset folder of another schema version
     ann = load_annotations(annotations, [p.stem for p in videos]) if annotations else {}
-    claim_folder(out, "dataset")
+    claim_folder(out, "dataset", inputs=[*inputs, annotations])
     lock = lock_folder(out)
     try:
         return build_videos(videos, out, cfg, ann, address, num_workers, progress, command)

@@ -20,6 +20,7 @@ import pyarrow.compute  # for pa.compute
 from anima.core.contract import BODY_DIM, FACE_DIM, SPEECH_DIM
 from anima.dataset.storage import read_table
 from anima.errors import SchemaError
+from anima.io.validate import MAX_FPS, MIN_FPS
 
 
 @dataclass
@@ -67,8 +68,8 @@ def _one_rate(fps: list, folder, kind: str) -> float:
     rates = sorted({round(float(f), 6) for f in fps})
     if len(rates) > 1:
         raise SchemaError(f"{folder}: {kind} rows at several frame rates {rates}: rebuild the dataset")
-    if rates and not rates[0] > 0:
-        raise SchemaError(f"{folder}: {kind} rows with frame rate {rates[0]}")
+    if rates and not MIN_FPS <= rates[0] <= MAX_FPS:
+        raise SchemaError(f"{folder}: {kind} rows with frame rate {rates[0]} (expected {MIN_FPS:g} to {MAX_FPS:g})")
     return rates[0] if rates else 0.0
 
 

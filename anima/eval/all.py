@@ -208,7 +208,7 @@ def run_all(
             known = ", ".join(name for _, name, _ in rows)
             raise InputError(f"unknown evaluation {', '.join(unknown)}; known: {known}")
         rows = [r for r in rows if r[1] in only]
-    with OutputFolder(out, kind="eval_all", command=command) as od:
+    with OutputFolder(out, kind="eval_all", command=command, inputs=[db]) as od:
         t0 = time.perf_counter()
         prov = provenance(db, jobs)
 

@@ -295,7 +295,8 @@ def evaluate(
     """``steps``: every model's training steps; ``None`` (default): each of table 7.1's learned models gets the
     count of ``step_grid`` with the lowest validation MAE (:func:`choose_steps`) and the ablation rows get
     ours'. The tables report validation and test separately: only the test column is free of the choice."""
-    work = claim_folder(work, "text2face_work", "--work")  # a user's folder is refused before any work
+    # a user's folder (or one around the dataset) is refused before any work
+    work = claim_folder(work, "text2face_work", "--work", inputs=[dataset, checkpoint])
     if checkpoint:
         load_checkpoint(checkpoint)  # a bad checkpoint fails before any training
     base = TrainConfig(preset="small", steps=steps or max(step_grid))

@@ -20,6 +20,8 @@ from anima.io.sequence import TrackedSequence, read_sequence
 from anima.io.validate import MAX_FRAMES
 
 FORMATS = ("arkit", "glb", "avatar", "bvh", "vrma")
+SUFFIXES = {"arkit": (".csv",), "glb": (".glb",), "avatar": (".glb", ".vrm"), "bvh": (".bvh",), "vrma": (".vrma",)}
+"""The file names each format writes (``--out``): a file of that kind that anima wrote, or a new name."""
 
 
 def export_arkit_csv(seq: TrackedSequence, path: str | Path) -> Path:
@@ -104,7 +106,9 @@ def export_file(
 ) -> Path:
     """``anima export FORMAT FILE --out OUT``: read a tracked sequence and write one export (``preset``: the
     joint names of a BVH or an avatar)."""
-    check_out_file(out, inputs=[sequence_path])
+    if fmt not in SUFFIXES:
+        raise InputError(f"unknown export format {fmt!r}: {', '.join(FORMATS)}")
+    check_out_file(out, inputs=[sequence_path], suffixes=SUFFIXES[fmt])
     seq = read_sequence(sequence_path, landmarks=False)
     if fmt == "bvh":
         return export_bvh(seq, out, fps, preset)

@@ -5,8 +5,6 @@ pitch and roll in radians, the eyes 0)."""
 
 from __future__ import annotations
 
-import ipaddress
-import socket
 import time
 import uuid
 from pathlib import Path
@@ -18,6 +16,7 @@ from anima.errors import InputError
 from anima.io.arkit import HEAD_COLUMNS, LIVE_LINK_COLUMNS, ict_to_arkit
 from anima.io.livelink import pack
 from anima.io.sequence import TrackedSequence, read_sequence
+from anima.io.udp import parse_address, udp_socket
 
 
 def livelink_rows(expression: np.ndarray, expr_names, rotation: np.ndarray, tracked: np.ndarray) -> np.ndarray:
@@ -44,7 +43,7 @@ class Sender:
     def __init__(self, target: tuple[str, int], subject: str = "anima"):
         self.target, self.subject = target, subject
         self.device = str(uuid.uuid5(uuid.NAMESPACE_URL, f"anima:{subject}"))
-        self.sock = socket.socket(socket.AF_INET6 if ":" in target[0] else socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock = udp_socket(target[0])
 
     def send(self, index: int, fps: float, row: np.ndarray) -> None:
         """Frame ``index`` of a ``fps`` stream (the frame time in whole frames at the rounded rate)."""
@@ -56,20 +55,10 @@ class Sender:
         self.sock.close()
 
 
-def parse_target(to: str) -> tuple[str, int]:
-    """``HOST:PORT`` (an IPv4/IPv6 address or a host name; port 1-65535) -> (host, port); InputError else."""
-    host, sep, port = str(to).rpartition(":")
-    host = host.strip("[]")
-    if not sep or not host or not port.isdigit() or not 1 <= int(port) <= 65535:
-        raise InputError(f"--to {to!r}: expected HOST:PORT, e.g. 127.0.0.1:11111 (Live Link Face's port)")
-    try:
-        ipaddress.ip_address(host)
-    except ValueError:
-        try:
-            socket.getaddrinfo(host, int(port), type=socket.SOCK_DGRAM)
-        except OSError:
-            raise InputError(f"--to {to!r}: cannot resolve {host}") from None
-    return host, int(port)
+def parse_target(to: str, flag: str = "--to") -> tuple[str, int]:
+    """``HOST:PORT`` (an IPv4 address, ``[IPv6]`` or a host name; port 1-65535) -> (host, port); InputError else
+    (Live Link Face's port is 11111)."""
+    return parse_address(to, flag, "127.0.0.1:11111 (Live Link Face's port)")
 
 
 def send(

@@ -39,7 +39,7 @@ from anima.io.arkit import LIVE_LINK_COLUMNS, arkit_name
 from anima.io.atomic import write_json
 from anima.io.gltf import write_with_animation
 from anima.io.gltf_read import Gltf, _order, read_gltf
-from anima.io.outdir import check_out_file, check_replaceable
+from anima.io.outdir import check_out_file
 from anima.io.sequence import read_sequence
 from anima.io.validate import read_json
 
@@ -248,7 +248,8 @@ def retarget_rotations(
 def pose_avatar(g: Gltf, hum: Humanoid, src: dict) -> dict:
     """The avatar posed by the source rig motion ``src`` (``rest``, ``global``, ``positions``, ``root``, as
     :func:`anima.export.avatar.character_motion` gives them): ``{"local_rot": {node: [F, 4]}, "hips_t": [F, 3]
-    (the hips node's local translation), "world": [F, N, 4, 4], "A", "raised_m", "hip_ratio"}``."""
+    (the hips node's local translation), "world": {node: [F, 4, 4]} (the mapped nodes and their ancestors), "A",
+    "raised_m", "hip_ratio"}``."""
     W0 = g.world()
     pos_w = {n: W0[i, :3, 3] for n, i in hum.nodes.items()}
     A = facing(pos_w)
@@ -264,7 +265,7 @@ def pose_avatar(g: Gltf, hum: Humanoid, src: dict) -> dict:
     ratio = (pos_w["Hips"][1] - floor_t) / max(src["rest"][rig.HIPS, 1] - floor_s, 1e-6)
     hips_w = pos_w["Hips"] + (A @ ((src["root"] - src["rest"][rig.HIPS]) * ratio).T).T
     world = _fk(g, Wrot, hips, hips_w)
-    low = np.min([world[:, hum.nodes[n], 1, 3] for n in feet], 0)
+    low = np.min([world[hum.nodes[n]][:, 1, 3] for n in feet], 0)
     raise_m = np.maximum(floor_t - low, 0.0)
     if raise_m.max() > 0:
         hips_w = hips_w + raise_m[:, None] * [0.0, 1.0, 0.0]
@@ -272,8 +273,8 @@ def pose_avatar(g: Gltf, hum: Humanoid, src: dict) -> dict:
     par = g.parents
     local_rot, hips_t = {}, None
     for i in Wrot:
-        Pw = world[:, par[i]] if par[i] >= 0 else np.tile(np.eye(4), (F, 1, 1))
-        Lm = _affine_inverse(Pw) @ world[:, i]
+        Pw = world[par[i]] if par[i] >= 0 else np.tile(np.eye(4), (F, 1, 1))
+        Lm = _affine_inverse(Pw) @ world[i]
         local_rot[i] = _continuous(matrix_to_quat(_rotation_part(Lm[:, :3, :3])))
         if i == hips:
             hips_t = Lm[:, :3, 3]
@@ -304,19 +305,24 @@ def _continuous(q: np.ndarray) -> np.ndarray:
     return q
 
 
-def _fk(g: Gltf, Wrot: dict[int, np.ndarray], hips: int, hips_w: np.ndarray) -> np.ndarray:
-    """World transforms ``[F, N, 4, 4]``: mapped nodes at their world rotations ``Wrot`` (their own scale
-    kept), the hips at ``hips_w``, every other node at its rest local transform."""
+def _fk(g: Gltf, Wrot: dict[int, np.ndarray], hips: int, hips_w: np.ndarray) -> dict[int, np.ndarray]:
+    """World transforms ``{node: [F, 4, 4]}`` of the mapped nodes and their ancestors (no other node: the
+    work and memory do not grow with the rest of the file's nodes): mapped nodes at their world rotations
+    ``Wrot`` (their own scale kept), the hips at ``hips_w``, every other node at its rest local transform."""
     F = len(hips_w)
-    N = len(g.nodes)
-    W = np.zeros((F, N, 4, 4))
+    needed: set[int] = set()
+    for i in [*Wrot, hips]:
+        while i >= 0 and i not in needed:
+            needed.add(i)
+            i = int(g.parents[i])
+    W: dict[int, np.ndarray] = {}
     eye = np.tile(np.eye(4), (F, 1, 1))
-    for i in _order(g.parents):
+    for i in [i for i in _order(g.parents) if i in needed]:
         p = g.parents[i]
-        Pw = W[:, p] if p >= 0 else eye
+        Pw = W[p] if p >= 0 else eye
         L0 = g.local(i)
         if i not in Wrot and i != hips:
-            W[:, i] = Pw @ L0
+            W[i] = Pw @ L0
             continue
         scale = np.linalg.norm(L0[:3, :3], axis=0)
         L = np.tile(L0, (F, 1, 1))
@@ -325,7 +331,7 @@ def _fk(g: Gltf, Wrot: dict[int, np.ndarray], hips: int, hips_w: np.ndarray) -> 
             L[:, :3, :3] = Rl * scale[None, None, :]
         if i == hips:
             L[:, :3, 3] = np.linalg.solve(Pw, np.concatenate([hips_w, np.ones((F, 1))], 1)[..., None])[:, :3, 0]
-        W[:, i] = Pw @ L
+        W[i] = Pw @ L
     return W
 
 
@@ -429,7 +435,25 @@ def load_avatar(avatar: str | Path) -> tuple[Gltf, Humanoid]:
     g = read_gltf(avatar)
     if not g.doc.get("skins") and g.vrm is None:
         raise SchemaError(f"{avatar} has no skin: anima animates skinned characters (a glTF with a skin)")
-    return g, find_humanoid(g)
+    hum = find_humanoid(g)
+    check_rest(g, hum)
+    return g, hum
+
+
+def check_rest(g: Gltf, hum: Humanoid) -> None:
+    """Refuse an avatar whose humanoid bones (or a node above one) have no usable rest transform: a zero or
+    absurd scale, which no pose can be solved through."""
+    W = g.world()
+    seen: set[int] = set()
+    for name, i in hum.nodes.items():
+        while i >= 0 and i not in seen:
+            seen.add(i)
+            M = W[i, :3, :3]
+            det = abs(np.linalg.det(M)) if np.isfinite(M).all() else 0.0
+            if not 1e-12 < det < 1e12:
+                raise SchemaError(f"{g.path}: node {g.names[i]!r} (at or above the {name} bone) has a zero or "
+                                  "absurd scale: no pose can be solved through it")  # fmt: skip
+            i = int(g.parents[i])
 
 
 class LiveRetarget:
@@ -485,10 +509,11 @@ def run(result: str | Path, avatar: str | Path, out: str | Path, command: str | 
     its first animation, written to OUT (``.vrm`` from a ``.vrm`` avatar, or ``.glb``), and ``OUT.json``
     (what went where); returns that report."""
     seq_path = find_sequence(result)
-    out = check_out_file(out, inputs=[seq_path, avatar], suffixes=(".vrm", ".glb"))
-    info_path = check_out_file(out.with_suffix(".json"), "--out (its info)", inputs=[seq_path, avatar])
-    check_replaceable(out, "--out", _is_ours, "an avatar")
-    check_replaceable(info_path, "--out (its info)", _is_info, "a retarget info file")
+    inputs = [result, seq_path, avatar]
+    out = check_out_file(out, inputs=inputs, suffixes=(".vrm", ".glb"), ours=_is_ours, what="an avatar")
+    info_path = check_out_file(
+        out.with_suffix(".json"), "--out (its info)", inputs=inputs, ours=_is_info, what="a retarget info file"
+    )
     g, hum = load_avatar(avatar)
     if out.suffix.lower() == ".vrm" and g.vrm is None:
         raise InputError(f"--out {out}: a .vrm needs a VRM avatar; {avatar} is a plain glTF (write a .glb)")

@@ -25,6 +25,7 @@ from anima.io.atomic import write_npz
 from anima.io.mapped import cache_key, file_stamp, mapped_arrays
 from anima.io.obj import read_obj
 from anima.io.outdir import check_out_file
+from anima.io.owned import npz
 from anima.io.validate import parse_json
 
 N_ID = N_IDENTITY
@@ -265,7 +266,9 @@ def import_ict_obj(folder: str | Path, vertex_indices_json: str | Path | None = 
 def write_face_model(folder: str | Path, out: str | Path) -> dict:
     """``anima facemodel import``: the upstream OBJ folder -> an npz with the keys of ``ict_facekit_light.npz``
     (written atomically); returns a summary."""
-    check_out_file(out, inputs=[folder])
+    check_out_file(
+        out, inputs=[folder], suffixes=(".npz",), ours=npz("id_names", "expr_names", "faces"), what="a face model"
+    )
     d = import_ict_obj(folder)
     write_npz(out, **d)
     return {"out": str(out), "identity_shapes": len(d["id_names"]), "expression_shapes": len(d["expr_names"])}

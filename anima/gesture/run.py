@@ -165,7 +165,8 @@ def run(
     result folder. Returns the run's info (notes, controls, files written, and ``time_s``: seconds per stage,
     start-up included)."""
     sw = Stopwatch()
-    check_out_dir(out)  # a user's folder is refused before anything is read
+    inputs = [speech, db, generator, refiner, *(spec.partition("=")[2] for spec in cfg.keyword_db)]
+    check_out_dir(out, inputs=inputs)  # a user's folder is refused before anything is read
     if not Path(speech).is_file():
         raise InputError(f"speech file not found: {speech}")
     controls = [parse_control(c) for c in cfg.control]
@@ -182,7 +183,7 @@ def run(
         if not Path(folder).exists():
             raise InputError(f"--keyword-db {spec!r}: no dataset at {folder}")
         kw_folders[word.lower()] = folder
-    with OutputFolder(out, kind="gesture", command=command) as od:
+    with OutputFolder(out, kind="gesture", command=command, inputs=inputs) as od:
         if generator:
             from anima.gesture.generator import load_generator  # lazy: torch
 

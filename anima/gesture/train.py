@@ -25,7 +25,7 @@ from anima.gesture.features import N_STEP
 from anima.gesture.generator import GeneratorConfig, GeneratorTrainConfig, save_generator, train_generator
 from anima.gesture.refine import RefinerTrainConfig, knn_pairs, save_refiner, train_refiner
 from anima.io.checkpoint import looks_like_checkpoint
-from anima.io.outdir import check_out_file, check_replaceable
+from anima.io.outdir import check_out_file
 
 
 def train_from_dataset(
@@ -45,8 +45,7 @@ def train_from_dataset(
         raise InputError(f"unknown --model {model!r}: one of {', '.join(MODELS)}")
     if steps is not None and steps < 1:
         raise InputError("--steps must be >= 1")
-    check_out_file(out, suffixes=(".pt",))
-    check_replaceable(Path(out), "--out", looks_like_checkpoint, "a checkpoint")
+    check_out_file(out, inputs=[db], suffixes=(".pt",), ours=looks_like_checkpoint, what="a checkpoint")
     split = None if all_splits else "train"
     if model == "refiner":
         match_db = from_dataset(db, split)

@@ -83,6 +83,11 @@ HEAD_COLUMNS = [
 ]
 
 
+def header() -> list[str]:
+    """The CSV's header row, as anima writes it."""
+    return ["Timecode", "BlendShapeCount", *LIVE_LINK_COLUMNS, *HEAD_COLUMNS]
+
+
 def arkit_name(ict: str) -> str:
     base = ict[:-2] if ict.endswith(("_L", "_R")) else ict
     side = {"_L": "Left", "_R": "Right"}.get(ict[-2:], "")
@@ -127,7 +132,7 @@ def write_live_link_csv(
         head[:, :3] = head_ypr
     fh = io.StringIO(newline="")
     w = csv.writer(fh)
-    w.writerow(["Timecode", "BlendShapeCount", *LIVE_LINK_COLUMNS, *HEAD_COLUMNS])
+    w.writerow(header())
     n = len(LIVE_LINK_COLUMNS) + len(HEAD_COLUMNS)
     for i in range(F):
         w.writerow([timecode(i, fps), n, *(f"{v:.6f}" for v in ark[i]), *(f"{v:.6f}" for v in head[i])])

@@ -14,6 +14,7 @@ import numpy as np
 
 from anima.core.rotations import matrix_to_quat, quat_to_matrix
 from anima.errors import InputError, SchemaError
+from anima.io.gltf_check import check_document
 from anima.io.validate import input_file, parse_json
 
 MAX_BYTES = 200 * 2**20
@@ -143,19 +144,16 @@ class Gltf:
 
 
 def _order(parents: np.ndarray) -> list[int]:
-    """Node indices with every parent before its children."""
-    out, seen = [], set()
-
-    def visit(i):
-        if i in seen:
-            return
-        if parents[i] >= 0:
-            visit(parents[i])
-        seen.add(i)
-        out.append(i)
-
-    for i in range(len(parents)):
-        visit(i)
+    """Node indices with every parent before its children (breadth first from the roots: linear time, no
+    recursion; the hierarchy is a forest, checked when read)."""
+    kids: dict[int, list[int]] = {}
+    for i, p in enumerate(parents):
+        kids.setdefault(int(p), []).append(i)
+    out = list(kids.get(-1, []))
+    k = 0
+    while k < len(out):
+        out.extend(kids.get(out[k], []))
+        k += 1
     return out
 
 
@@ -178,6 +176,8 @@ def read_gltf(path: str | Path) -> Gltf:
     doc = parse_json(data[20 : 20 + js_len], str(p))
     if not isinstance(doc, dict):
         raise InputError(f"{p}: its JSON is not a glTF document")
+    if not isinstance(doc.get("extensions", {}), dict) or not isinstance(doc.get("buffers", []), list):
+        raise SchemaError(f"{p}: its extensions or buffers are not of glTF's types")
     rest = data[20 + js_len :]
     binary = b""
     if len(rest) >= 8:
@@ -185,25 +185,14 @@ def read_gltf(path: str | Path) -> Gltf:
         if b_type == _BIN:
             binary = rest[8 : 8 + b_len]
     for b in doc.get("buffers", [])[:1]:
+        if not isinstance(b, dict) or not isinstance(b.get("byteLength", 0), int):
+            raise SchemaError(f"{p}: its buffer is not a glTF buffer")
         if "uri" in b:
             raise SchemaError(f"{p}: its buffer is an external file or a data URI; anima reads embedded buffers only")
         if int(b.get("byteLength", 0)) > len(binary):
             raise SchemaError(f"{p}: its buffer declares more bytes than the file holds")
     if (doc.get("extensions") or {}).get("VRM") is not None and (doc.get("extensions") or {}).get("VRMC_vrm") is None:
         raise SchemaError(f"{p} is a VRM 0.x file: convert it to VRM 1.0 (e.g. with UniVRM or VRoid Studio)")
+    parents = np.asarray(check_document(doc, p, size), int)  # types, ranges, counts, a forest: or one line
     nodes = doc.get("nodes", [])
-    if not isinstance(nodes, list):
-        raise InputError(f"{p}: its nodes are not a list")
-    parents = np.full(len(nodes), -1, int)
-    for i, nd in enumerate(nodes):
-        for c in nd.get("children", []) if isinstance(nd, dict) else []:
-            if not isinstance(c, int) or not 0 <= c < len(nodes) or parents[c] >= 0 or c == i:
-                raise SchemaError(f"{p}: node {i} has a child that is not a node or already has a parent")
-            parents[c] = i
-    for i in range(len(nodes)):  # cycles
-        j, hops = i, 0
-        while j >= 0:
-            j, hops = parents[j], hops + 1
-            if hops > len(nodes):
-                raise SchemaError(f"{p}: its node graph has a cycle")
     return Gltf(p, doc, binary, [str(nd.get("name", f"node{i}")) for i, nd in enumerate(nodes)], parents)

@@ -22,8 +22,9 @@ folder, a user's folder) is refused at once, and:
   manifest whose files match it is complete; anything else is partial (:func:`check_complete`).
 
 Single output files (``--out FILE``) are checked by :func:`check_out_file`: never a folder, a special file
-(device, pipe, socket) or one of the command's own inputs; files that only anima's own artifact may replace
-(a packaged data file, a shipped model's manifest) also by :func:`check_replaceable`.
+(device, pipe, socket), a link, or a path that equals, holds or lies inside one of the command's inputs; the
+suffix must be the format's; an existing file is replaced only when its content shows anima wrote it
+(``anima.io.owned``). Output folders follow the same input rule (:func:`check_apart`).
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ from pathlib import Path
 
 from anima import __version__
 from anima.errors import InputError, SchemaError
+from anima.io import owned
 from anima.io.atomic import TMP_MARK, remove_stale_temps, write_json
 
 MANIFEST = "manifest.json"
@@ -111,13 +113,48 @@ def foreign_entries(folder: Path) -> list[str]:
     return user
 
 
-def check_out_dir(path: str | os.PathLike, flag: str = "--out") -> Path:
+def check_apart(path: str | os.PathLike, inputs=(), flag: str = "--out") -> None:
+    """Refuse an output that equals, contains or lies inside any of the command's ``inputs`` (links resolved;
+    inputs that are not paths on disk, such as a camera index or a stream URL, are skipped): a command never
+    writes over, into or around what it reads."""
+    try:
+        out = Path(os.path.realpath(path))
+    except (OSError, ValueError):
+        return
+    for x in inputs:
+        if x is None or not isinstance(x, (str, os.PathLike)) or not os.path.lexists(x):
+            continue
+        try:
+            src = Path(os.path.realpath(x))
+        except (OSError, ValueError):
+            continue
+        if out == src or same_file(path, x):
+            raise InputError(f"{flag} {path} is an input of this command ({x}); write the result elsewhere")
+        if src.is_relative_to(out):
+            raise InputError(f"{flag} {path} holds {x}, an input of this command; write the result elsewhere")
+        if out.is_relative_to(src):
+            raise InputError(f"{flag} {path} lies inside {x}, an input of this command; write the result elsewhere")
+
+
+def holds_nothing(folder: str | os.PathLike) -> bool:
+    """Whether ``folder`` holds nothing but anima's own lock, marker and temporary files (or does not exist)."""
+    try:
+        return all(_is_transient(n) for n in os.listdir(folder))
+    except FileNotFoundError:
+        return True
+    except OSError:
+        return False
+
+
+def check_out_dir(path: str | os.PathLike, flag: str = "--out", inputs=()) -> Path:
     """Refuse, before any work, an output folder that cannot be one: an existing file or special file, a place
-    where it cannot be created or written, or a folder that already holds files anima did not write."""
+    where it cannot be created or written, a folder that already holds files anima did not write, or one that
+    equals, holds or lies inside an input of the command (:func:`check_apart`)."""
     p = Path(path)
     if p.exists() and not p.is_dir():
         kind = "file" if p.is_file() else "special file (device, pipe or socket)"
         raise InputError(f"{flag} {p} is an existing {kind}, not a folder")
+    check_apart(p, inputs, flag)
     base = next((q for q in [p, *p.parents] if q.exists()), Path("."))
     if not base.is_dir() or not _can_create_in(base):
         raise InputError(f"{flag} {p}: cannot write in {base}")
@@ -132,10 +169,10 @@ def check_out_dir(path: str | os.PathLike, flag: str = "--out") -> Path:
     return p
 
 
-def claim_folder(path: str | os.PathLike, kind: str, flag: str = "--out") -> Path:
+def claim_folder(path: str | os.PathLike, kind: str, flag: str = "--out", inputs=()) -> Path:
     """Check ``path`` (:func:`check_out_dir`), create it and put anima's marker in it (kept when already
     there): from now on the folder is anima's."""
-    p = check_out_dir(path, flag)
+    p = check_out_dir(path, flag, inputs)
     try:
         p.mkdir(parents=True, exist_ok=True)
     except OSError as e:
@@ -226,12 +263,23 @@ def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
             return False
 
 
+_BY_SUFFIX = object()
+
+
 def check_out_file(
-    path: str | os.PathLike, flag: str = "--out", inputs=(), suffixes: tuple[str, ...] | None = None
+    path: str | os.PathLike,
+    flag: str = "--out",
+    inputs=(),
+    suffixes: tuple[str, ...] | None = None,
+    ours=_BY_SUFFIX,
+    what: str | None = None,
 ) -> Path:
-    """Refuse, before any work, an output file path that cannot be written or must not be: a folder, a special
-    file (device, pipe, socket: a rename would replace the node), one of the command's ``inputs``, a name
-    without one of ``suffixes`` (when given), or a place where the file cannot be created."""
+    """The one rule of a single-file output, checked before any work: refuse a folder, a special file (device,
+    pipe, socket: a rename would replace the node), a path that equals, holds or lies inside one of the
+    command's ``inputs``, a name without one of ``suffixes`` (when given), a place where the file cannot be
+    created, and an existing file that anima did not write. ``ours(path)`` says whether an existing file is one
+    of anima's of this kind, by its content (default: the check of its suffix, ``anima.io.owned.BY_SUFFIX``;
+    ``None``: no existing file may be replaced)."""
     p = Path(path)
     if p.is_dir():
         raise InputError(f"{flag} {p} is a folder: give a file path")
@@ -239,12 +287,17 @@ def check_out_file(
         raise InputError(f"{flag} {p} is a special file (device, pipe or socket), not a file anima may replace")
     if suffixes is not None and p.suffix.lower() not in suffixes:
         raise InputError(f"{flag} {p}: expected a {' or '.join(suffixes)} file")
-    for x in inputs:
-        if x is not None and same_file(p, x):
-            raise InputError(f"{flag} {p} is an input of this command; write the result to another file")
+    check_apart(p, inputs, flag)
     base = next((q for q in p.parents if q.exists()), Path("."))
     if not base.is_dir() or not _can_create_in(base):
         raise InputError(f"{flag} {p}: cannot write in {base}")
+    if ours is _BY_SUFFIX:
+        ours = owned.BY_SUFFIX.get(p.suffix.lower())
+    if p.exists() or p.is_symlink():
+        kind = what or (f"a {p.suffix.lower().lstrip('.')} file" if p.suffix else "a file")
+        if p.is_symlink():
+            raise InputError(f"{flag} {p} is a link; anima replaces only a file it wrote: choose another path")
+        check_replaceable(p, flag, ours or (lambda q: False), kind)
     return p
 
 
@@ -272,8 +325,12 @@ def sha256(path: str | os.PathLike) -> str:
 class OutputFolder:
     """``with OutputFolder(out, kind="capture", command=...) as od: write(od.file("capture.npz")) ...``"""
 
-    def __init__(self, path: str | os.PathLike, kind: str, command: str | None = None, info: dict | None = None):
-        self.path = check_out_dir(path)
+    def __init__(
+        self, path: str | os.PathLike, kind: str, command: str | None = None, info: dict | None = None, inputs=(),
+        flag: str = "--out",
+    ):  # fmt: skip
+        self.inputs, self.flag = [x for x in inputs if x is not None], flag
+        self.path = check_out_dir(path, flag, self.inputs)
         self.kind, self.command = kind, command
         self.info = dict(info or {})
         self.files: list[str] = []
@@ -282,7 +339,7 @@ class OutputFolder:
 
     def __enter__(self) -> OutputFolder:
         self._created = not self.path.exists()
-        check_out_dir(self.path)  # again: the folder may have changed since the command started
+        check_out_dir(self.path, self.flag, self.inputs)  # again: the folder may have changed since the start
         self._lock_fd = lock_folder(self.path)
         try:
             remove_stale_temps(self.path)

@@ -55,7 +55,7 @@ from anima.io.validate import (
     MAX_FRAMES,
     MAX_JSON_BYTES,
     check_expansion,
-    finite_number,
+    frame_rate,
     input_file,
     npz_headers,
     parse_json,
@@ -276,7 +276,7 @@ def _check_meta(path: Path, meta: dict) -> None:
         raise SchemaError(
             f"{path}: schema version {version} is newer than this anima (reads <= {VERSION}); upgrade anima"
         )
-    finite_number(meta.get("fps"), f"{path}: fps", 1e-3, 10_000)
+    frame_rate(meta.get("fps"), str(path))
     n = meta.get("n_frames")
     if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_FRAMES:
         raise InputError(f"{path}: n_frames is {n!r}: expected 1 to {MAX_FRAMES} frames")

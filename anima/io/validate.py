@@ -113,6 +113,22 @@ def check_expansion(path: Path, headers: dict, names) -> None:
         )
 
 
+MIN_FPS, MAX_FPS = 1.0, 1000.0
+
+
+def frame_rate(x, where: str) -> float:
+    """A frame rate read from a file: a finite number (an int, a float or a numpy number; never a bool or a
+    string) from :data:`MIN_FPS` to :data:`MAX_FPS`, else an :class:`InputError` naming ``where``."""
+    if isinstance(x, np.ndarray) and x.shape == ():
+        x = x.item()
+    if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, float, np.integer, np.floating)):
+        raise InputError(f"{where}: fps is {x!r}, not a number")
+    v = float(x)
+    if not math.isfinite(v) or not MIN_FPS <= v <= MAX_FPS:
+        raise InputError(f"{where}: fps {x!r} is not a frame rate ({MIN_FPS:g} to {MAX_FPS:g})")
+    return v
+
+
 def finite_number(x, what: str, low: float | None = None, high: float | None = None) -> float:
     try:
         v = float(x)

@@ -29,7 +29,7 @@ from anima.errors import CheckpointError
 from anima.io.checkpoint import load_checkpoint as load_checkpoint_file
 from anima.io.checkpoint import load_state, looks_like_checkpoint, rebuild
 from anima.io.checkpoint import save_checkpoint as save_checkpoint_file
-from anima.io.outdir import check_out_file, check_replaceable
+from anima.io.outdir import check_out_file
 from anima.pose3d.config import LifterConfig, TrainConfig
 from anima.pose3d.data import (
     TEST_SUBJECTS,
@@ -186,8 +186,7 @@ def train(
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     gamma = cfg.lr_decay ** (1.0 / max(cfg.steps, 1))
     start = 0
-    out = check_out_file(out, suffixes=(".pt",))
-    check_replaceable(Path(out), "--out", looks_like_checkpoint, "a checkpoint")
+    out = check_out_file(out, suffixes=(".pt",), ours=looks_like_checkpoint, what="a checkpoint")
     if resume and out.exists():
         _, ck = load_checkpoint(out)
         mine = json.loads(json.dumps(asdict(cfg)))

@@ -20,9 +20,11 @@ from anima.core.camera import mediapipe_to_camera
 from anima.errors import InputError
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
+from anima.io import owned
 from anima.io.atomic import write_json
 from anima.io.live_source import PacedReader, check_live_source
 from anima.io.outdir import check_out_file
+from anima.io.owned import record_of
 from anima.io.validate import input_file, read_json
 from anima.io.video import VideoWriter, iter_frames, probe_video
 from anima.reenact.config import ReenactConfig
@@ -35,6 +37,7 @@ MAX_TARGET_BYTES = 1 << 30
 
 VIDEO_SUFFIXES = (".mp4", ".mov", ".mkv", ".m4v")
 RECORD_SCHEMA = "anima.reenact_run"
+DB_NPZ = owned.npz("expression", "colors", "vertex_ids", "meta")  # a database `--db` may read or be written to
 
 
 def _is_record(path: Path) -> bool:
@@ -358,30 +361,29 @@ def run(
     if live is not None:
         live = check_live_source(live, allow_network)
     inputs = [*targets, actor, db_path] if actor else [*targets, db_path]
-    if out:
-        check_out_file(out, inputs=inputs, suffixes=VIDEO_SUFFIXES)
-    if out and actor:
-        record = Path(out).with_suffix(".json")
-        check_out_file(record, "--out (its record)", inputs=inputs)
-        if record.exists() and not _is_record(record):
-            raise InputError(
-                f"--out {out}: its record {record.name} would replace a file anima did not write; choose another --out"
-            )
-    if db_path:
-        check_out_file(db_path, "--db", inputs=[*targets, actor, out] if actor else targets)
+    if out:  # a video anima wrote (its record names its sha256) or a new name; the record likewise
+        check_out_file(out, inputs=inputs, suffixes=VIDEO_SUFFIXES, ours=owned.video, what="a video")
+        check_out_file(record_of(out), "--out (its record)", inputs=inputs, ours=_is_record, what="a record")
+    if db_path:  # read when it exists (an anima database), else written
+        check_out_file(db_path, "--db", inputs=[*targets, actor, out], suffixes=(".npz",), ours=DB_NPZ,
+                       what="a re-enactment database")  # fmt: skip
     if live is not None:
-        return reenact_live(live, targets, out, cfg, db_path, max_seconds, progress=progress)
-    r = reenact_video(actor, targets, out, cfg, sbs, db_path, progress=progress)
-    write_json(
-        Path(out).with_suffix(".json"),
-        {
-            "schema": RECORD_SCHEMA,
-            "version": 1,
-            "actor": str(actor),
-            "targets": [str(t) for t in targets],
-            "side_by_side": sbs,
-            "config": dataclasses.asdict(cfg),
-            "result": r,
-        },
-    )
+        r = reenact_live(live, targets, out, cfg, db_path, max_seconds, progress=progress)
+    else:
+        r = reenact_video(actor, targets, out, cfg, sbs, db_path, progress=progress)
+    if out and Path(out).is_file():
+        write_json(
+            record_of(out),
+            {
+                "schema": RECORD_SCHEMA,
+                "version": 1,
+                "actor": str(actor if actor else live),
+                "live": live is not None,
+                "targets": [str(t) for t in targets],
+                "side_by_side": sbs,
+                "config": dataclasses.asdict(cfg),
+                "result": r,
+                "video_sha256": owned.sha256(Path(out)),  # what lets a later run replace this video
+            },
+        )
     return r

@@ -54,7 +54,7 @@ def run(
         raise InputError("--db is for the timeline method; --method model reads --checkpoint")
     from anima.text2face.generate import Generator  # lazy: torch
 
-    with OutputFolder(out, kind="text2face", command=command) as od:
+    with OutputFolder(out, kind="text2face", command=command, inputs=[checkpoint]) as od:
         gen = Generator(checkpoint)
         n = gen.check_length(int(round(cfg.seconds * gen.fps)) if cfg.seconds else cfg.length or DEFAULT_FRAMES)
         with warnings.catch_warnings(record=True) as caught:
@@ -114,7 +114,7 @@ def _timeline(prompt, out, cfg: PromptConfig, db, video: bool, progress: bool, c
             f"{n} frames asked: the timeline method makes at most {MAX_TIMELINE_FRAMES} "
             f"({MAX_TIMELINE_FRAMES / fps / 60:.0f} min)"
         )
-    with OutputFolder(out, kind="text2face", command=command) as od:
+    with OutputFolder(out, kind="text2face", command=command, inputs=[db]) as od:
         lib = _library(db, cfg.with_builtin)
         t = time.perf_counter()
         plan = parse(prompt)

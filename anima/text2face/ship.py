@@ -14,17 +14,17 @@ import numpy as np
 
 from anima import __version__
 from anima.io.atomic import write_json
-from anima.io.outdir import check_out_file, check_replaceable
+from anima.io.outdir import check_out_file
 
 
 def check_ship(dest: str | Path, inputs=()) -> Path:
     """``--ship PATH``, refused before any training: a ``.pt`` file anima may write, whose manifest (the same
     name, ``.json``) is not a user's file."""
-    dest = check_out_file(dest, "--ship", inputs=inputs, suffixes=(".pt",))
-    man = check_out_file(dest.with_suffix(".json"), "--ship (its manifest)", inputs=inputs)
-    check_replaceable(
-        man, "--ship (its manifest)", lambda q: "heldout_metrics" in json.loads(q.read_text()), "a manifest"
-    )
+    dest = check_out_file(dest, "--ship", inputs=inputs, suffixes=(".pt",), what="a checkpoint")
+    check_out_file(
+        dest.with_suffix(".json"), "--ship (its manifest)", inputs=inputs,
+        ours=lambda q: "heldout_metrics" in json.loads(q.read_text()), what="a manifest",
+    )  # fmt: skip
     return dest
 
 

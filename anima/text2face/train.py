@@ -167,7 +167,7 @@ def training_videos(dataset: str | Path, clips) -> list[str]:
 def train(
     dataset: str | Path, out: str | Path, cfg: TrainConfig, progress: bool = True, command: str = "", prepared=None
 ) -> dict:
-    out = claim_folder(out, "text2face_run")  # a user's folder is refused before any work
+    out = claim_folder(out, "text2face_run", inputs=[dataset])  # a user's folder is refused before any work
     ck_path = out / "checkpoint.pt"
     torch.manual_seed(cfg.seed)
     if cfg.threads:

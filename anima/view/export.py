@@ -33,13 +33,13 @@ from anima.dataset.windows import read_clips
 from anima.errors import AssetNotFound, InputError, SchemaError
 from anima.export.formats import export_glb, export_vrma
 from anima.export.framing import generated_sequence
-from anima.export.retarget import find_humanoid, in_t_pose
+from anima.export.retarget import find_humanoid, in_t_pose, load_avatar
 from anima.export.retarget import run as retarget
 from anima.io.atomic import copy_file, write_text
 from anima.io.gltf_read import read_gltf
 from anima.io.outdir import MANIFEST, confined, read_manifest
 from anima.io.sequence import FLAG_LOW_CONFIDENCE, FLAG_NO_FACE, read_sequence
-from anima.io.validate import input_file, read_json
+from anima.io.validate import MAX_FPS, MIN_FPS, input_file, read_json
 from anima.io.video import probe_video
 
 SCHEMA = "anima.view"
@@ -312,7 +312,7 @@ def _record_fields(rec, where: Path) -> tuple[dict, str, str]:
         isinstance(result, dict)
         and isinstance(result.get("fps"), (int, float))
         and not isinstance(result.get("fps"), bool)
-        and 0 < result["fps"] <= 10_000
+        and MIN_FPS <= result["fps"] <= MAX_FPS
         and isinstance(result.get("frames"), int)
         and 0 <= result["frames"] <= 10_000_000
         and isinstance(rec.get("actor"), str)
@@ -378,6 +378,7 @@ def check_avatar(avatar: str | Path | None, kind: str, motion: str = "auto") -> 
         raise InputError(f"--avatar {p}: expected a .vrm (VRM 1.0) or a .glb (skinned glTF binary)")
     if kind not in SEQUENCES:
         raise InputError(f"--avatar plays a capture, gesture or text2face result on the avatar; {kind} has no motion")
+    load_avatar(p)  # read and checked in full (a humanoid, a usable rest) before the page is made
 
 
 MOTIONS = ("auto", "vrma", "retarget")

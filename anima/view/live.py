@@ -49,7 +49,7 @@ from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
 from anima.io.atomic import copy_file, write_text
 from anima.io.live_source import PacedReader, check_live_source
-from anima.io.outdir import OutputFolder, check_out_dir
+from anima.io.outdir import OutputFolder, check_out_dir, holds_nothing
 from anima.io.validate import input_file
 from anima.view.export import _js, viewer_files
 from anima.view.serve import open_server, page_url
@@ -287,14 +287,17 @@ def run(
     """``anima live`` (see the module docstring); returns the take's numbers when it ends (the source ends,
     ``max_seconds``, Ctrl-C or SIGTERM)."""
     src = check_live_source(source, allow_network)
-    target = parse_target(livelink) if livelink else None
+    target = parse_target(livelink, "--livelink") if livelink else None
     if record is not None:
-        check_out_dir(record, "--record")
+        check_out_dir(record, "--record", inputs=[source, avatar])
         if part_names(record):
             raise InputError(
                 f"--record {record}: it holds an unfinished take (a killed `anima live`): "
                 f"`anima live --recover {record}` writes it; or record into another folder"
             )
+        if not holds_nothing(record):  # a take never touches what it did not start: a result stays whole
+            raise InputError(f"--record {record} already holds files (a result?); a take records into a new or "
+                             "empty folder: give another folder")  # fmt: skip
     if max_seconds is not None and not 0 < max_seconds <= 86_400:
         raise InputError("--max-seconds: more than 0, at most a day")
     if not 1 <= trackers <= 4:
@@ -400,6 +403,10 @@ def run(
             journal.flush()  # the last frames too: the take is read back from its parts
             frames = read_parts(od.path)[0] if journal.parts else []
             out["record"] = write_take(frames, reader.fps, od, out, journal)
+        except InputError:  # nothing worth recovering (no face, no body): the take's own parts go, nothing else
+            journal.discard()
+            od.__exit__(*sys.exc_info())
+            raise
         except BaseException:
             od.__exit__(*sys.exc_info())
             raise

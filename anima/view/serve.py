@@ -9,8 +9,12 @@ server without them leaves videos unseekable). What it will and will not do:
   guess the address of ``view-data.js`` to include it as a script, and ``Cross-Origin-Resource-Policy:
   same-origin`` tells the browser not to hand it to another origin anyway;
 * it answers only ``Host: 127.0.0.1:PORT`` or ``localhost:PORT`` (a DNS-rebinding page names its own host);
-* a malformed request (a NUL, a bad escape, a Range of thousands of digits) is answered 400, never a
-  traceback; an idle connection is closed after :data:`IDLE_TIMEOUT_S`.
+* a malformed request (a NUL, a bad escape, a Range of thousands of digits, an absolute-form target such as
+  ``GET http://other.host/TOKEN/...``) is answered 400, never a traceback; an idle connection is closed after
+  :data:`IDLE_TIMEOUT_S`;
+* the live page's WebSocket takes at most :data:`anima.view.ws.MAX_CLIENTS` pages: one more is answered 503
+  before the upgrade, and a page that stops answering the server's pings loses its slot
+  (:data:`anima.view.ws.PING_S`).
 """
 
 from __future__ import annotations
@@ -94,9 +98,13 @@ class _Handler(BaseHTTPRequestHandler):
         return p, HTTPStatus.OK
 
     def do_HEAD(self):
+        if not self.path.startswith("/"):  # an absolute-form target (a proxy's request): not for this server
+            return self._refuse(HTTPStatus.BAD_REQUEST, head_only=True)
         self._serve(head_only=True)
 
     def do_GET(self):
+        if not self.path.startswith("/"):
+            return self._refuse(HTTPStatus.BAD_REQUEST)
         if self.live is not None and urlsplit(self.path).path == f"/{self.token}/live":
             return self._websocket()
         self._serve(head_only=False)
@@ -113,6 +121,8 @@ class _Handler(BaseHTTPRequestHandler):
             or len(key) > 64
         ):
             return self._refuse(HTTPStatus.FORBIDDEN)
+        if not self.live.reserve():  # every slot taken: refused now, not accepted and starved
+            return self._refuse(HTTPStatus.SERVICE_UNAVAILABLE)
         self.send_response(HTTPStatus.SWITCHING_PROTOCOLS)
         self.send_header("Upgrade", "websocket")
         self.send_header("Connection", "Upgrade")
@@ -219,8 +229,8 @@ def write_static(
     the result-folder rule (new, empty, or anima's own); only the page's own files are written and listed."""
     kind = detect(Path(folder))  # refuse a folder that holds no result before touching OUT
     check_avatar(avatar, kind, motion)
-    check_out_dir(out, "--static")
-    with OutputFolder(out, kind="view", command=command) as od:
+    check_out_dir(out, "--static", inputs=[folder, avatar])
+    with OutputFolder(out, kind="view", command=command, inputs=[folder, avatar], flag="--static") as od:
         data = build_view(folder, od.path, avatar, motion)
         for name in data["written"]:
             od.file(name)

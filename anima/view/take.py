@@ -22,6 +22,7 @@ from anima.core.contract import N_EXPR, N_JOINTS
 from anima.errors import InputError
 from anima.io.atomic import remove_stale_temps, write_npz
 from anima.io.outdir import OutputFolder, confined, read_marker, sha256
+from anima.io.validate import MAX_FRAMES, check_expansion, frame_rate, npz_headers
 
 TAKE = "take"
 CHUNK_S = 2.0
@@ -84,6 +85,7 @@ class Journal:
         """The take's result is written: the parts go."""
         remove_parts(self.od.path, list(self.parts))
         self.parts = {}
+        self.od.journal({})
 
 
 def remove_parts(folder: Path, names: list[str]) -> None:
@@ -120,6 +122,7 @@ def read_parts(folder: str | Path) -> tuple[list, float]:
         p = confined(folder, n)
         if p is None or not p.is_file() or sha256(p) != listed[n]:
             raise InputError(f"{folder}/{n}: a part of the take is missing or was changed")
+        check_part(p, MAX_FRAMES - len(frames))
         try:
             with np.load(p, allow_pickle=False) as z:
                 a = {k: z[k] for k in z.files}
@@ -128,7 +131,7 @@ def read_parts(folder: str | Path) -> tuple[list, float]:
                 raise ValueError("array shapes")
         except (OSError, ValueError, KeyError) as e:
             raise InputError(f"{folder}/{n}: unreadable part of the take ({e})") from None
-        fps = float(a["fps"])
+        fps = frame_rate(a["fps"], f"{folder}/{n}")
         for j in range(k):
             frames.append(
                 LiveFrame(
@@ -141,6 +144,26 @@ def read_parts(folder: str | Path) -> tuple[list, float]:
                     None,
                 )
             )
-    if not 0 < (fps or 0) <= 1000:  # contract: not (the source rates anima accepts)
-        raise InputError(f"{folder}: the take's frame rate {fps} is not usable")
     return frames, fps
+
+
+_PART_SHAPES = {
+    "index": (), "t_capture": (), "face": (), "expression": (N_EXPR,), "rotation": (3,), "body": (N_JOINTS, 3),
+    "has_body": (),
+}  # fmt: skip
+
+
+def check_part(path: Path, room: int) -> None:
+    """Refuse a part whose arrays are not the journal's (names, shapes, one frame count of at most ``room``), or
+    would take far more memory than the file holds, from its headers, before anything is read."""
+    h = npz_headers(path)
+    missing = sorted(set(_PART_SHAPES) - set(h)) + ([] if "fps" in h else ["fps"])
+    if missing:
+        raise InputError(f"{path}: not a part of an anima take (no {', '.join(missing)})")
+    k = h["index"][0][0] if len(h["index"][0]) == 1 else -1
+    bad = [n for n, tail in _PART_SHAPES.items() if h[n][0] != (k, *tail)] + (["fps"] if h["fps"][0] != () else [])
+    if k < 0 or bad:
+        raise InputError(f"{path}: a part of the take whose arrays do not match ({', '.join(bad) or 'index'})")
+    if k > room:
+        raise InputError(f"{path}: the take would exceed {MAX_FRAMES:,} frames")
+    check_expansion(path, h, [*_PART_SHAPES, "fps"])

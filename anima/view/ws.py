@@ -11,10 +11,15 @@ import hashlib
 import socket
 import struct
 import threading
+import time
 
 GUID = "258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
 QUEUE = 4
 MAX_CLIENTS = 8
+PING_S = 5.0
+"""The server pings every page this often; a page that sends nothing (browsers answer a ping with a pong) for
+:data:`IDLE_PINGS` pings, or does not read what it is sent for as long, is closed and its slot freed."""
+IDLE_PINGS = 4
 MAX_CLIENT_FRAME = 1 << 16  # what a page may send (it sends nothing but pings and a close)
 
 
@@ -23,17 +28,21 @@ def accept_key(key: str) -> str:
     return base64.b64encode(hashlib.sha1((key + GUID).encode("ascii")).digest()).decode("ascii")
 
 
-def text_frame(payload: str) -> bytes:
-    """One unmasked, final text frame (a server's frames are never masked)."""
+def text_frame(payload: str, opcode: int = 0x1) -> bytes:
+    """One unmasked, final frame (a server's frames are never masked): text, or with ``opcode`` 0x9 a ping."""
     data = payload.encode("utf-8")
     n = len(data)
+    b0 = 0x80 | opcode
     if n < 126:
-        head = struct.pack("!BB", 0x81, n)
+        head = struct.pack("!BB", b0, n)
     elif n < 1 << 16:
-        head = struct.pack("!BBH", 0x81, 126, n)
+        head = struct.pack("!BBH", b0, 126, n)
     else:
-        head = struct.pack("!BBQ", 0x81, 127, n)
+        head = struct.pack("!BBQ", b0, 127, n)
     return head + data
+
+
+PING = text_frame("", 0x9)
 
 
 def _read_exact(sock: socket.socket, n: int) -> bytes | None:
@@ -82,15 +91,19 @@ class _Client:
             self.ready.notify()
 
     def _write(self) -> None:
+        last_ping = time.monotonic()
         try:
             while self.alive:
                 with self.ready:
-                    while not self.queue and self.alive:
+                    while not self.queue and self.alive and time.monotonic() - last_ping < PING_S:
                         self.ready.wait(0.5)
                     frame = self.queue.popleft() if self.queue else None
+                if time.monotonic() - last_ping >= PING_S:
+                    last_ping = time.monotonic()
+                    self.sock.sendall(PING)
                 if frame is not None:
                     self.sock.sendall(frame)
-        except OSError:
+        except OSError:  # gone, or not reading for PING_S * IDLE_PINGS: the slot is freed
             pass
         self.close()
 
@@ -111,17 +124,26 @@ class Broadcaster:
         self.clients: set[_Client] = set()
         self.lock = threading.Lock()
         self.connections = 0
+        self.pending = 0
+
+    def reserve(self) -> bool:
+        """Hold a slot for a page about to be upgraded (before the 101 answer); False when all are taken."""
+        with self.lock:
+            if len(self.clients) + self.pending >= MAX_CLIENTS:
+                return False
+            self.pending += 1
+            return True
 
     def attach(self, sock: socket.socket) -> bool:
-        """Serve one upgraded connection until it closes (called on the server's request thread)."""
+        """Serve one upgraded connection (its slot reserved by :meth:`reserve`) until it closes or goes idle
+        (called on the server's request thread)."""
         with self.lock:
-            if len(self.clients) >= MAX_CLIENTS:
-                return False
+            self.pending = max(0, self.pending - 1)
             c = _Client(sock, self._gone)
             self.clients.add(c)
             self.connections += 1
         try:
-            sock.settimeout(None)
+            sock.settimeout(PING_S * IDLE_PINGS)  # reads (pongs) and writes alike: a silent page times out
             read_client_frames(sock)
         except OSError:
             pass

@@ -314,8 +314,8 @@ def _float_wav(path: Path, x: np.ndarray, sr: int = 16000) -> Path:
 # what the red team's ownership cases must refuse, by the reason they give (a refusal for another reason
 # would hide a command that skipped the check)
 OWNERSHIP = (
-    "did not write", "special file", "is an input of this command", "existing file", "expected a .",
-    "anima wrote; choose another path",
+    "did not write", "special file", "an input of this command", "existing file", "expected a .",
+    "anima wrote; choose another path", "already holds files", "is a link",
 )  # fmt: skip
 
 
@@ -554,7 +554,116 @@ def _red_team(d: Path, files: dict, npz: dict, base: Path, ck: dict, ds: dict) -
         "--out",
         d / "s.pt",
     )
+    c += _second_pass(d, base, user, inputs, clip, target)
     return c
+
+
+def _results(d: Path, base: Path) -> Path:
+    """A user's results made by anima (issue 45): a capture result holding a nested text2face result and a
+    dataset folder, each with anima's marker and manifest."""
+    from anima.export.formats import export_file
+    from anima.io.atomic import write_json
+    from anima.io.outdir import OutputFolder
+
+    res = d / "results"
+    with OutputFolder(res, kind="capture") as od:
+        _copy(base, od.file("capture.npz"))
+        export_file("glb", base, od.file("face.glb"))
+        export_file("arkit", base, od.file("arkit.csv"))
+        write_json(od.file("info.json"), {"frames": 20})
+    with OutputFolder(res / "t2f", kind="text2face") as od:
+        _copy(base, od.file("motion.npz"))
+    with OutputFolder(res / "ds", kind="dataset") as od:
+        write_json(od.file("notes.json"), {"clips": 0})
+    return res
+
+
+def _second_pass(d: Path, base: Path, user: Path, inputs: Path, clip: Path, target: str) -> list:
+    """Issue 45's reproducers: an output equal to, inside or around an input; single files of the user's (with
+    the format's suffix, or not); a take into an existing result; hostile avatars and node bombs; addresses and
+    frame rates of the wrong type; a crafted part of a take."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    import hostile_avatars
+
+    res = _results(d, base)
+    c = []
+
+    def add(name, *argv):
+        c.append((name, [str(a) for a in argv]))
+
+    add("own view RESULT --static RESULT", "view", res, "--static", res)
+    add("own view RESULT --static RESULT/t2f", "view", res, "--static", res / "t2f")
+    add("own view RESULT/t2f --static RESULT", "view", res / "t2f", "--static", res)
+    add("own view RESULT --static RESULT/ds", "view", res, "--static", res / "ds")
+    add("own train text2face --out inside its dataset", "train", "text2face", res / "ds", "--out", res / "ds" / "run")
+    add("own live --record an existing result", "live", clip, "--no-browser", "--record", res, "--max-frames", "2")
+    (user / "take.csv").write_text("Timecode,BlendShapeCount\n12:03:44:01.250,61\n")  # a phone's take
+    (user / "take.bvh").write_text("HIERARCHY\nROOT Hips\n{\n}\nMOTION\nFrames: 0\n")
+    (user / "my.glb").write_bytes(b"glTF my own model")
+    (user / "my_video.mp4").write_bytes(b"\x00\x00\x00\x18ftypmp42 my holiday")
+    (user / "my_video.json").write_text('{"schema": "anima.reenact_run", "video_sha256": "0"}')
+    for fmt, names in {
+        "arkit": ("notes.txt", "take.csv"), "bvh": ("notes.txt", "take.bvh"), "vrma": ("notes.json", "my.glb"),
+        "avatar": ("my.glb", "notes.txt"), "glb": ("my.glb", "index.html"),
+    }.items():  # fmt: skip
+        for name in names:
+            add(f"own export {fmt} --out user {name}", "export", fmt, base, "--out", user / name)
+    add("own reenact --out a user's video", "reenact", "--actor", clip, "--target", target, "--out",
+        user / "my_video.mp4")  # fmt: skip
+    add("own export arkit --out a link", "export", "arkit", base, "--out", _link(d, user / "take.csv"))
+
+    # hostile avatars: every one through retarget, a few through view --avatar and live --avatar
+    av = hostile_avatars.make(d / "hostile")
+    av.pop("19k flat nodes")  # accepted (retargeted in seconds): tests/export/test_retarget.py
+    for k, (name, path) in enumerate(av.items()):
+        add(f"avatar retarget {name}", "retarget", base, "--avatar", path, "--out", d / "ha" / f"{k}.vrm")
+    for name in ("children true", "300k-node bomb", "100k-node chain", "humanBones a list", "scale 0", "cycle"):
+        add(f"avatar view --avatar {name}", "view", res, "--avatar", av[name], "--static", d / "hv" / name[:8])
+        add(f"avatar live --avatar {name}", "live", clip, "--no-browser", "--avatar", av[name], "--max-frames", "2")
+
+    # addresses parsed by the standard library; frame rates of the wrong type
+    for to in ("127.0.0.1:\u0661\u0661\u0661", "127.0.0.1:" + "9" * 5000, "a" * 300 + ".example:9",
+               "[::1:9", "user@127.0.0.1:9", "127.0.0.1:9/x"):  # fmt: skip
+        add(f"address livelink --to {to[:20]!r}", "livelink", base, "--to", to)
+        add(f"address live --livelink {to[:20]!r}", "live", clip, "--no-browser", "--livelink", to)
+    for name, fps in (("true", True), ("text 25", "25"), ("0.5", 0.5), ("2000", 2000), ("list", [25])):
+        seq = _edit(_copy(base, d / f"fps_{name.replace(' ', '_')}.npz"), meta={"fps": fps})
+        add(f"fps {name} info", "info", seq, "--json")
+        add(f"fps {name} export bvh", "export", "bvh", seq, "--out", d / "fps.bvh")
+    add("mem live --recover a crafted part", "live", "--recover", _crafted_take(d, base))
+    return c
+
+
+def _link(d: Path, target: Path) -> Path:
+    link = d / "link.csv"
+    link.symlink_to(target)
+    return link
+
+
+def _crafted_take(d: Path, base: Path) -> Path:
+    """A killed take's folder whose one part declares 2.7 GB of body in a few KB (listed in anima's marker)."""
+    from anima.io.outdir import sha256, write_marker
+
+    folder = d / "take_bomb"
+    (folder / "take").mkdir(parents=True)
+    part = folder / "take" / "part-00001.npz"
+    with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
+        import io
+
+        for name, shape, dtype in (("index", (4_000_000,), "<i8"), ("t_capture", (4_000_000,), "<f8"),
+                                   ("face", (4_000_000,), "|b1"), ("expression", (4_000_000, 53), "<f4"),
+                                   ("rotation", (4_000_000, 3), "<f4"), ("body", (4_000_000, 55, 3), "<f4"),
+                                   ("has_body", (4_000_000,), "|b1"), ("fps", (), "<f8")):  # fmt: skip
+            head = io.BytesIO()
+            np.lib.format.write_array_header_1_0(head, {"descr": dtype, "fortran_order": False, "shape": shape})
+            with z.open(f"{name}.npy", "w", force_zip64=True) as fh:
+                fh.write(head.getvalue())
+                for _ in range(4):
+                    fh.write(bytes(1 << 20))
+    write_marker(folder, "capture", {"take/part-00001.npz": sha256(part)})
+    return folder
 
 
 NUM_BAD = ["0", "-1", "nan", "inf", "abc", "1e30"]
@@ -618,8 +727,8 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
         other = {"missing_file": files["missing"], "dir_file": files["dir"], "empty_file": files["empty"]}
         f = other.get(k, npz.get(k))
         add(f"info {k}", "info", f, "--json")
-        for fmt in ("arkit", "glb", "bvh", "vrma"):
-            add(f"export {fmt} {k}", "export", fmt, f, "--out", out / f"e_{k}.{fmt}")
+        for fmt, sfx in (("arkit", "csv"), ("glb", "glb"), ("bvh", "bvh"), ("vrma", "vrma")):
+            add(f"export {fmt} {k}", "export", fmt, f, "--out", out / f"e_{k}.{sfx}")
         add(f"retarget {k}", "retarget", f, "--avatar", asset(AVATAR), "--out", out / f"r_{k}.vrm")
         add(f"livelink {k}", "livelink", f, "--to", "127.0.0.1:9")
     add("livelink of a sequence with no face", "livelink", npz["no_face"], "--to", "127.0.0.1:9")
@@ -915,7 +1024,7 @@ def _snapshot(d: Path) -> dict:
     import stat
 
     snap = {}
-    for folder in (d / "user", d / "inputs"):
+    for folder in (d / "user", d / "inputs", d / "results"):
         for p in sorted(folder.rglob("*")):
             st = p.lstat()
             snap[str(p)] = (stat.S_IFMT(st.st_mode), hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "")

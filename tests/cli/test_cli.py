@@ -123,12 +123,16 @@ def test_audio_features_command(tmp_path, cli):
         assert z["features"].shape == (s["frames"], 28) and np.isfinite(z["features"]).all()
     r = cli("audio", "features", asset("liveportrait-examples/assets/examples/driving/d0.mp4"), "--out", out)
     assert r.returncode == 2 and "no audio track" in r.stderr
-    # any name for the output (numpy would add ".npz" and leave the temporary file behind: issue 32)
+    # the output's suffix is the format's (issue 45): another name is refused and nothing is written
     r = cli("audio", "features", asset("videoretalking-examples/examples/audio/1.wav"), "--out", tmp_path / "x.dat")
+    assert r.returncode == 2 and "expected a .npz file" in r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f.npz"]
+    # run again into its own file: replaced (anima's by its content); a user's .npz is not
+    r = cli("audio", "features", asset("videoretalking-examples/examples/audio/1.wav"), "--out", out)
     assert r.returncode == 0, r.stderr
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["f.npz", "x.dat"]
-    with np.load(tmp_path / "x.dat") as z:
-        assert z["features"].shape[1] == 28
+    np.savez(tmp_path / "mine.npz", x=np.zeros(3))
+    r = cli("audio", "features", asset("videoretalking-examples/examples/audio/1.wav"), "--out", tmp_path / "mine.npz")
+    assert r.returncode == 2 and "anima wrote" in r.stderr
 
 
 def test_capture_body_outputs_and_bvh_export(tmp_path, cli):
@@ -205,3 +209,29 @@ def test_bad_audio_keeps_motion(videos, tmp_path, d0_path, cli):
     sp = json.loads(r.stdout)["speech"]
     assert sp["present"] is False and "unreadable" in sp["reason"]
     assert read_sequence(tmp_path / "u" / "capture.npz").n_frames == 10
+
+
+def test_exports_replace_only_files_anima_wrote(tmp_path, cli):
+    """Each export format writes its own suffix; run twice into the same path, the second run replaces the
+    first's file (anima's, by its content); a user's file of that name and suffix is never replaced (issue 45;
+    the refusals are in the bad-input matrix)."""
+    import numpy as np
+
+    from anima.export.framing import generated_sequence
+    from anima.io import owned
+    from anima.io.sequence import write_sequence
+
+    rng = np.random.default_rng(0)
+    face = np.concatenate([rng.random((12, 53)) * 0.3, rng.normal(0, 0.05, (12, 3))], 1).astype(np.float32)
+    body = rng.normal(0, 0.2, (12, 55, 3)).astype(np.float32)
+    seq = write_sequence(generated_sequence(15.0, face=face, body=body), tmp_path / "take.npz")
+    for fmt, name in (("arkit", "t.csv"), ("bvh", "t.bvh"), ("glb", "t.glb"), ("vrma", "t.vrma"),
+                      ("avatar", "t.vrm"), ("avatar", "a.glb")):  # fmt: skip
+        for _ in range(2):
+            r = cli("export", fmt, seq, "--out", tmp_path / name)
+            assert r.returncode == 0, (fmt, r.stderr)
+        assert owned.BY_SUFFIX[(tmp_path / name).suffix](tmp_path / name), name
+        mine = tmp_path / f"mine{(tmp_path / name).suffix}"
+        mine.write_bytes(b"my own file")
+        r = cli("export", fmt, seq, "--out", mine)
+        assert r.returncode == 2 and "anima wrote" in r.stderr and mine.read_bytes() == b"my own file"

@@ -259,13 +259,14 @@ def test_cli_and_refusals(cli, avatars, captures, sources, tmp_path):
     del nohuman["extensions"], nohuman["extensionsUsed"]
     v0 = json.loads(json.dumps(src.doc))
     v0["extensions"] = {"VRM": {"exporterVersion": "UniVRM-0.99"}}
+    noskin = {k: v for k, v in nohuman.items() if k != "skins"}
+    noskin["nodes"] = [{k: v for k, v in nd.items() if k != "skin"} for nd in nohuman["nodes"]]
     big = tmp_path / "big.glb"
     with open(big, "wb") as fh:
         fh.truncate(201 * 2**20)
     cases = {
         "no humanoid": (_pack(tmp_path / "nohuman.glb", nohuman, src.bin), 4, "missing hips, spine, head"),
-        "no skin": (_pack(tmp_path / "noskin.glb", {k: v for k, v in nohuman.items() if k != "skins"}, src.bin), 4,
-                    "no skin"),
+        "no skin": (_pack(tmp_path / "noskin.glb", noskin, src.bin), 4, "no skin"),
         "VRM 0.x": (_pack(tmp_path / "v0.vrm", v0, src.bin), 4, "VRM 0.x"),
         "over 200 MB": (big, 2, "at most 200 MB"),
     }  # fmt: skip

@@ -272,6 +272,14 @@ def test_reenact_command_end_to_end(obama_db, tmp_path, cli):
     rec = json.loads(out.with_suffix(".json").read_text())
     assert rec["schema"] == "anima.reenact_run" and rec["result"]["frames"] == info.n_frames
     assert rec["side_by_side"] and rec["config"]["n"] == ReenactConfig().n
+    from anima.io import owned
+
+    # the record names the video's sha256: a later run may replace this video, only while it is anima's (issue 45)
+    assert owned.video(out)
+    mine = tmp_path / "mine.mp4"
+    mine.write_bytes(out.read_bytes() + b"\0")
+    (tmp_path / "mine.json").write_text(out.with_suffix(".json").read_text())
+    assert not owned.video(mine)
     r = cli("view", out, "--static", tmp_path / "page")
     assert r.returncode == 0, r.stderr
     assert "reenact page written" in r.stdout and (tmp_path / "page" / "reenact.mp4").is_file()

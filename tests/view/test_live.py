@@ -179,3 +179,26 @@ def test_a_users_vrm_follows_the_camera_live(tmp_path):
     assert state["humanoid"] and "leftHand" in state["humanoid"], state["humanoid"]
     hands = np.array([s["humanoid"]["leftHand"] + s["humanoid"]["rightHand"] for _, s, _ in samples[2:]])
     assert np.isfinite(hands).all() and np.ptp(hands, 0).max() > 0.01  # the avatar's own hands move
+
+
+def test_a_take_never_touches_what_it_did_not_start(cli, tmp_path):
+    """``--record`` into an existing result is refused up front and the result stays byte-identical; a take that
+    ends with nothing to record (no face, no body) removes its own parts and the folder it made, nothing else
+    (issue 45)."""
+    from anima.io.outdir import OutputFolder
+    from anima.io.video import FFMPEG
+
+    res = tmp_path / "result"
+    with OutputFolder(res, kind="capture") as od:
+        od.file("info.json").write_text('{"frames": 1}')
+    before = {p.name: p.read_bytes() for p in res.iterdir()}
+    r = cli("live", asset(D0), "--no-browser", "--record", res, "--max-frames", "3")
+    assert r.returncode == 2 and "already holds files" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert {p.name: p.read_bytes() for p in res.iterdir()} == before
+    blank = tmp_path / "blank.mp4"  # two seconds of a test card: no face, no body
+    subprocess.run([FFMPEG, "-v", "error", "-f", "lavfi", "-i", "testsrc=size=160x120:rate=25", "-t", "2",
+                    "-pix_fmt", "yuv420p", str(blank)], check=True)  # fmt: skip
+    take = tmp_path / "take"
+    r = cli("live", blank, "--no-browser", "--record", take)
+    assert r.returncode == 2 and "nothing to record" in r.stderr, r.stderr
+    assert not take.exists()

@@ -9,6 +9,7 @@ import shutil
 import socket
 import stat
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -113,3 +114,59 @@ def test_the_export_reads_only_regular_files_inside_the_result(tmp_path):
     (rec / "r.json").write_text(json.dumps(record))
     data = build_view(rec, tmp_path / "page2")
     assert data["videos"] == [] and any("not beside its record" in n for n in data["notes"])
+
+
+def test_absolute_form_targets_are_refused(server):
+    """``GET http://other.host/TOKEN/...`` (a proxy's form) is a 400, not the page's file (issue 45)."""
+    port, tok = server.server_address[1], server.token
+    assert _ask(port, f"http://evil.example/{tok}/index.html")[0] == 400
+    assert _ask(port, f"http://127.0.0.1:{port}/{tok}/index.html")[0] == 400
+    assert _ask(port, f"/{tok}/index.html")[0] == 200
+
+
+def _upgrade(port: int, tok: str) -> tuple[socket.socket, int]:
+    """A raw WebSocket handshake from the page's own origin: (the socket, the HTTP status)."""
+    s = socket.create_connection(("127.0.0.1", port), timeout=10)
+    s.sendall(
+        (f"GET /{tok}/live HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nOrigin: http://127.0.0.1:{port}\r\n"
+         "Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+         "Sec-WebSocket-Version: 13\r\n\r\n").encode()
+    )  # fmt: skip
+    head = b""
+    while b"\r\n\r\n" not in head:
+        chunk = s.recv(1)
+        if not chunk:
+            break
+        head += chunk
+    return s, int(head.split(b" ", 2)[1]) if head else 0
+
+
+def test_websocket_slots_are_refused_when_full_and_freed_when_idle(tmp_path, monkeypatch):
+    """A page beyond the limit is answered 503 before the upgrade (not accepted and starved); a page that
+    answers none of the server's pings loses its slot, so idle sockets cannot lock the page out (issue 45)."""
+    import anima.view.ws as ws
+
+    monkeypatch.setattr(ws, "PING_S", 0.3)
+    monkeypatch.setattr(ws, "MAX_CLIENTS", 3)
+    (tmp_path / "index.html").write_text("<p>live</p>")
+    hub = ws.Broadcaster()
+    srv, _ = open_server(tmp_path, None, live=hub)
+    threading.Thread(target=srv.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True).start()
+    port, tok = srv.server_address[1], srv.token
+    try:
+        held = [_upgrade(port, tok) for _ in range(3)]
+        assert [st for _, st in held] == [101] * 3
+        extra, status = _upgrade(port, tok)
+        assert status == 503
+        extra.close()
+        deadline = time.time() + 10  # the silent pages answer no ping: dropped after PING_S * IDLE_PINGS
+        while time.time() < deadline and hub.clients:
+            time.sleep(0.1)
+        assert not hub.clients
+        s, status = _upgrade(port, tok)
+        assert status == 101
+        for sock, _ in held + [(s, 0)]:
+            sock.close()
+    finally:
+        srv.shutdown()
+        srv.server_close()

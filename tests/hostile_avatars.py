@@ -1,0 +1,164 @@
+"""Hostile avatars for the bad-input matrix and the memory benchmark: a real VRM 1.0 (the shared data's humanoid
+test file) with one field broken at a time, node bombs (hundreds of thousands of nodes in a few MB, one long
+chain), cycles and self-parents. Every one must be refused in one line (exit 2 or 4) or retargeted, within
+seconds and bounded memory, by ``retarget``, ``view --avatar`` and ``live --avatar`` alike."""
+
+from __future__ import annotations
+
+import copy
+import json
+import struct
+from pathlib import Path
+
+from anima.io.assets import asset
+
+BASE = "avatars/VRMC_materials_mtoon_UV_Animation_Test.vrm"
+
+
+def read_glb(path: Path) -> tuple[dict, bytes]:
+    data = path.read_bytes()
+    n = struct.unpack("<I", data[12:16])[0]
+    doc = json.loads(data[20 : 20 + n])
+    rest = data[20 + n :]
+    binary = rest[8 : 8 + struct.unpack("<I", rest[:4])[0]] if len(rest) >= 8 else b""
+    return doc, binary
+
+
+def pack(path: Path, doc, binary: bytes, raw: str | None = None) -> Path:
+    """A GLB of ``doc`` (or of the JSON text ``raw``, for what ``json.dumps`` cannot write: 1e999, NaN)."""
+    js = (raw if raw is not None else json.dumps(doc, separators=(",", ":"))).encode()
+    js += b" " * ((4 - len(js) % 4) % 4)
+    b = binary + bytes((4 - len(binary) % 4) % 4)
+    total = 12 + 8 + len(js) + 8 + len(b)
+    path.write_bytes(
+        struct.pack("<III", 0x46546C67, 2, total) + struct.pack("<II", len(js), 0x4E4F534A) + js
+        + struct.pack("<II", len(b), 0x004E4942) + b
+    )  # fmt: skip
+    return path
+
+
+def _hips(doc: dict) -> int:
+    return doc["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"]["hips"]["node"]
+
+
+def _edits(doc: dict) -> dict:
+    """name -> a function that breaks one field of a copy of ``doc`` (returns the doc, or raw JSON text)."""
+    hips = _hips(doc)
+    kid = next(i for i, nd in enumerate(doc["nodes"]) if nd.get("children"))
+    ch = doc["nodes"][kid]["children"][0]
+    N = len(doc["nodes"])
+
+    def node(i, **kv):
+        def f(d):
+            d["nodes"][i].update(kv)
+            return d
+
+        return f
+
+    def set_(path, value):
+        def f(d):
+            x = d
+            for k in path[:-1]:
+                x = x[k]
+            x[path[-1]] = value
+            return d
+
+        return f
+
+    def raw(key, text):  # the hips' field written as raw JSON text
+        def f(d):
+            d["nodes"][hips][key] = "@RAW@"
+            return json.dumps(d, separators=(",", ":")).replace('"@RAW@"', text)
+
+        return f
+
+    bones = ["extensions", "VRMC_vrm", "humanoid", "humanBones"]
+    return {
+        "children true": node(kid, children=True),
+        "children of text": node(kid, children=["1"]),
+        "child out of range": node(kid, children=[N + 5]),
+        "child negative": node(kid, children=[-1]),
+        "self parent": node(kid, children=[kid]),
+        "two parents": node(next(i for i in range(N - 1, -1, -1) if i not in (kid, ch)), children=[ch]),
+        "cycle": node(ch, children=[*doc["nodes"][ch].get("children", []), kid]),
+        "node a number": lambda d: (d["nodes"].__setitem__(hips, 7), d)[1],
+        "node a list": lambda d: (d["nodes"].__setitem__(hips, [1, 2]), d)[1],
+        "nodes an object": set_(["nodes"], {"0": {}}),
+        "rotation text": node(hips, rotation="abcd"),
+        "rotation zero": node(hips, rotation=[0, 0, 0, 0]),
+        "rotation 3 numbers": node(hips, rotation=[0, 0, 1]),
+        "matrix 3 numbers": node(hips, matrix=[1, 0, 0]),
+        "matrix of text": node(hips, matrix=["a"] * 16),
+        "translation null": node(hips, translation=None),
+        "scale 0": node(hips, scale=[0, 0, 0]),
+        "scale 1e999": raw("scale", "[1e999,1,1]"),
+        "translation NaN": raw("translation", "[NaN,0,0]"),
+        "rotation -Infinity": raw("rotation", "[-Infinity,0,0,1]"),
+        "name a number": node(hips, name=12),
+        "mesh out of range": node(hips, mesh=10_000),
+        "skin negative": node(hips, skin=-1),
+        "mesh true": node(hips, mesh=True),
+        "humanBones a list": set_(bones, [{"node": hips}]),
+        "humanBones.hips a number": set_([*bones, "hips"], 5),
+        "humanBones.hips.node text": set_([*bones, "hips"], {"node": "0"}),
+        "humanBones.hips.node out of range": set_([*bones, "hips"], {"node": N + 100}),
+        "humanoid a string": set_(["extensions", "VRMC_vrm", "humanoid"], "hips"),
+        "VRMC_vrm a list": set_(["extensions", "VRMC_vrm"], [1]),
+        "extensions a list": set_(["extensions"], []),
+        "expressions preset a list": set_(["extensions", "VRMC_vrm", "expressions"], {"preset": [1]}),
+        "expression binds of text": set_(
+            ["extensions", "VRMC_vrm", "expressions"], {"preset": {"happy": {"morphTargetBinds": "x"}}}
+        ),
+        "expression bind index text": set_(
+            ["extensions", "VRMC_vrm", "expressions"],
+            {"preset": {"happy": {"morphTargetBinds": [{"node": hips, "index": "x", "weight": 1}]}}},
+        ),
+        "skins with joints out of range": set_(["skins"], [{"joints": [0, N + 7]}]),
+        "skins a dict": set_(["skins"], {"joints": [0]}),
+        "meshes primitives null": lambda d: (d["meshes"][0].__setitem__("primitives", None), d)[1],
+        "mesh targets text": lambda d: (d["meshes"][0]["primitives"][0].__setitem__("targets", "x"), d)[1],
+        "mesh weights text": lambda d: (d["meshes"][0].__setitem__("weights", ["a"]), d)[1],
+        "accessor count negative": lambda d: (d["accessors"][0].__setitem__("count", -1), d)[1],
+        "accessor type bogus": lambda d: (d["accessors"][0].__setitem__("type", "VEC9"), d)[1],
+        "bufferView offset huge": lambda d: (d["bufferViews"][0].__setitem__("byteOffset", 10**12), d)[1],
+        "animation path bogus": set_(
+            ["animations"],
+            [
+                {
+                    "samplers": [{"input": 0, "output": 0}],
+                    "channels": [{"sampler": 0, "target": {"node": hips, "path": "colour"}}],
+                }
+            ],  # fmt: skip
+        ),
+        "animation sampler out of range": set_(
+            ["animations"], [{"samplers": [], "channels": [{"sampler": 3, "target": {"node": 0, "path": "rotation"}}]}]
+        ),
+        "buffers byteLength text": lambda d: (d["buffers"][0].__setitem__("byteLength", "big"), d)[1],
+        "asset a list": set_(["asset"], []),
+    }
+
+
+def _bomb(doc: dict, binary: bytes, n: int, chain: bool) -> tuple[dict, bytes]:
+    """``doc`` with ``n`` extra nodes: under one parent (flat), or one chain ``n`` deep, hung under the hips."""
+    d = copy.deepcopy(doc)
+    first = len(d["nodes"])
+    d["nodes"] += [{"children": [first + k + 1]} if chain and k < n - 1 else {} for k in range(n)]
+    hips = _hips(d)
+    kids = [first] if chain else list(range(first, first + n))
+    d["nodes"][hips]["children"] = d["nodes"][hips].get("children", []) + kids
+    return d, binary
+
+
+def make(folder: Path) -> dict[str, Path]:
+    """Write every hostile avatar into ``folder``; ``{name: path}``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    doc, binary = read_glb(asset(BASE))
+    out = {}
+    for k, (name, edit) in enumerate(_edits(doc).items()):
+        r = edit(copy.deepcopy(doc))
+        out[name] = pack(folder / f"hostile_{k:02d}.vrm", r, binary, r if isinstance(r, str) else None)
+    for name, n, chain in (("300k-node bomb", 300_000, False), ("100k-node chain", 100_000, True),
+                           ("19k-node chain", 19_000, True), ("19k flat nodes", 19_000, False)):  # fmt: skip
+        d, b = _bomb(doc, binary, n, chain)
+        out[name] = pack(folder / f"bomb_{n}_{'chain' if chain else 'flat'}.vrm", d, b)
+    return out
