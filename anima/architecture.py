@@ -30,6 +30,7 @@ LAYERS: dict[str, int] = {
     "gesture": 7,
     "reenact": 7,
     "view": 7,  # features (independent of each other)
+    "live": 8,  # real time: a live source tracked into the page, Live Link, VMC, a take; live re-enactment
     "eval": 8,  # metrics and evaluation runners
     "cli": 9,
     "__main__": 10,  # the command line, and `python -m anima`

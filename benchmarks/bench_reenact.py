@@ -137,7 +137,7 @@ def main() -> None:
 
     def pipelined(db, cfg) -> dict:
         """Frames per second of the live engine: tracking one frame ahead on a worker thread."""
-        from anima.reenact.run import ActorTracker, ahead
+        from anima.live.reenact import ActorTracker, ahead
 
         rx = Reenactor(db, cfg)
         rx.texture(db.expression[0])  # compile

@@ -1,7 +1,8 @@
 """Run inside Blender (``blender -b --factory-startup --python tools/blender_inspect.py -- FILE OUT.json FPS
-[FRAME ...]``): import a BVH or glTF file the way a user does and write what Blender got as JSON: the
+[FRAME ...]``): import a BVH, glTF or FBX file the way a user does and write what Blender got as JSON: the
 armature's bones (names, parents, rest head/tail), the scene's frame range and rate, pose-bone world
-matrices at every frame (joint positions), and the mesh shape-key values at the given frames.
+matrices at every frame (joint positions), the meshes' skinned vertices, and the mesh shape-key values at the
+given frames.
 
 Blender 3.4 from Debian runs on Python 3.11 and numpy >= 1.24, where two of its bundled importers fail
 (``open(..., 'rU')`` in the BVH importer, ``numpy.bool`` in the glTF importer); the shims below make them run.
@@ -34,6 +35,8 @@ bpy.ops.wm.read_factory_settings(use_empty=True)
 bpy.context.scene.render.fps, bpy.context.scene.render.fps_base = round(fps), round(fps) / fps
 if path.lower().endswith(".bvh"):
     bpy.ops.import_anim.bvh(filepath=path, update_scene_fps=True, update_scene_duration=True, rotate_mode="NATIVE")
+elif path.lower().endswith(".fbx"):
+    bpy.ops.import_scene.fbx(filepath=path)
 else:
     bpy.ops.import_scene.gltf(filepath=path)
 scene = bpy.context.scene
@@ -61,6 +64,15 @@ if arms:
         scene.frame_set(f)
         heads.append([list(arm.matrix_world @ pb.head) for pb in arm.pose.bones])
     res["pose_heads"] = heads
+res["meshes"] = [
+    {
+        "name": m.name,
+        "vertices": len(m.data.vertices),
+        "skinned_vertices": sum(1 for v in m.data.vertices if any(g.weight > 0 for g in v.groups)),
+        "armature_modifier": any(md.type == "ARMATURE" and md.object is not None for md in m.modifiers),
+    }
+    for m in meshes
+]
 if meshes and meshes[0].data.shape_keys:
     m = meshes[0]
     keys = m.data.shape_keys.key_blocks

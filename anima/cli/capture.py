@@ -4,10 +4,12 @@ from __future__ import annotations
 
 from anima.capture import run as capture
 from anima.capture.config import CaptureConfig
-from anima.cli.common import add_json_quiet, add_rig, command_line, emit, time_split
+from anima.cli.common import add_json_quiet, add_rig, command_line, emit, notes, time_split
 from anima.cli.options import add_options, config_from_args, number
-from anima.export import livelink
-from anima.export.formats import FORMATS, export_file
+from anima.errors import InputError
+from anima.export import livelink, vmc
+from anima.export.fbx import UNITS
+from anima.export.formats import EXPORTS, FORMATS, export
 from anima.io.sequence import read_sequence
 
 CAPTURE_OPTIONS = ["max_frames", "smooth_sigma", "face_only", "max_gap", "fixed_bones", "body_3d", "pose_model"]
@@ -62,15 +64,18 @@ def register(sub) -> None:
         "a BVH of the character's skeleton (bvh: metres, T-pose rest, docs/rig.md) or a VRM Animation "
         "(vrma: plays on any VRM in three-vrm, UniVRM, VRoid apps; the face as VRM expression presets).",
     )
-    x.add_argument("format", choices=FORMATS)
+    x.add_argument("format", choices=FORMATS, help="; ".join(f"{k}: {v.help}" for k, v in EXPORTS.items()))
     x.add_argument("file")
-    x.add_argument("--out", required=True)
+    x.add_argument("--out", required=True, help="the file to write (" + ", ".join(
+        f"{k} {'/'.join(v.suffixes)}" for k, v in EXPORTS.items()) + ")")  # fmt: skip
     x.add_argument(
         "--fps",
         type=number(float, 1.0, 240.0),
         default=None,
         help="BVH only: resample to this rate (1-240), e.g. 15 for gesture work",
     )
+    x.add_argument("--units", choices=UNITS, default="m", help="FBX only: the file's unit, m (default: Unity 1:1, "
+                   "Unreal converts) or cm (Maya, MotionBuilder scenes)")  # fmt: skip
     add_rig(x)
     x.set_defaults(func=cmd_export)
 
@@ -88,6 +93,20 @@ def register(sub) -> None:
     ll.add_argument("--loops", type=number(int, 1, 10_000), default=1, help="play it this many times")
     add_json_quiet(ll)
     ll.set_defaults(func=cmd_livelink)
+
+    v = sub.add_parser(
+        "vmc",
+        help="play a result into a VTuber app over the VMC protocol (VSeeFace, Warudo, VNyan, VMagicMirror)",
+        description="Send RESULT (a capture, gesture or text2face folder, or its sequence file) to a VMC protocol "
+        "receiver at the sequence's own frame rate: every frame one OSC bundle of the humanoid bones (Unity "
+        "names, left-handed, relative to the T-pose), the 52 ARKit blend values (perfect sync names) and the VRM "
+        "presets. In VSeeFace: General settings > OSC/VMC receiver, port 39539 (docs/live.md).",
+    )
+    v.add_argument("result", help="result folder or sequence file (capture.npz, gesture.npz, motion.npz)")
+    v.add_argument("--to", required=True, help="HOST:PORT of the receiver (e.g. 127.0.0.1:39539)")
+    v.add_argument("--loop", action="store_true", help="play it again and again until Ctrl-C")
+    add_json_quiet(v)
+    v.set_defaults(func=cmd_vmc)
 
 
 def cmd_capture(a) -> int:
@@ -113,8 +132,17 @@ def cmd_info(a) -> int:
 
 
 def cmd_export(a) -> int:
-    print(f"wrote {export_file(a.format, a.file, a.out, a.fps, a.rig)}")
+    if a.units != "m" and a.format != "fbx":
+        raise InputError("--units applies to the FBX export only")
+    path, said = export(a.format, a.file, a.out, a.fps, a.rig, a.units)
+    notes(said)
+    print(f"wrote {path}")
     return 0
+
+
+def cmd_vmc(a) -> int:
+    loops = 1_000_000 if a.loop else 1
+    return emit(vmc.send(a.result, a.to, loops, progress=not a.quiet and not a.json), a.json)
 
 
 def cmd_livelink(a) -> int:

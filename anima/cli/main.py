@@ -25,6 +25,7 @@ COMMANDS = {
     "export": "capture",
     "retarget": "avatar",
     "livelink": "capture",
+    "vmc": "capture",
     "audio": "audio",
     "dataset": "dataset",
     "train": "train",
@@ -34,7 +35,7 @@ COMMANDS = {
     "eval": "evaluate",
     "facemodel": "facemodel",
     "view": "view",
-    "live": "view",
+    "live": "live",
 }
 """Each top-level command -> the module of ``anima/cli`` that registers it, in the order ``--help`` lists
 them. A command line names one command, so only its module (and what that module imports) is loaded: a

@@ -101,7 +101,8 @@ def add_options(parser: argparse.ArgumentParser, cls, names: list[str], help_ext
         kw: dict = {"dest": name}
         if md.get("positional"):
             is_list = base.startswith("list")
-            kw = {"nargs": "*" if is_list else None, "metavar": md.get("metavar", name.upper()), "help": help_}
+            nargs = md.get("nargs", "*" if is_list else None)
+            kw = {"nargs": nargs, "metavar": md.get("metavar", name.upper()), "help": help_}
             if is_list:
                 kw["default"] = []
             parser.add_argument(name, **{k: v for k, v in kw.items() if v is not None})

@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 from anima.cli.common import add_json_quiet, emit, notes
-from anima.cli.options import add_options, config_from_args, number
+from anima.cli.options import add_options, config_from_args
+from anima.errors import InputError
+from anima.live import reenact as live_reenact
+from anima.live.config import SourceConfig
 from anima.reenact import run as reenact
 from anima.reenact.config import ReenactConfig
 
 REENACT_OPTIONS = ["n", "a", "smooth", "detail", "map_expressions", "color_transfer"]
+SOURCE_OPTIONS = ["allow_network", "max_seconds"]
 
 
 def register(sub) -> None:
@@ -28,7 +32,6 @@ def register(sub) -> None:
         metavar="SOURCE",
         help="camera index, video file, or rtsp/rtmp/http(s) URL (with --allow-network)",
     )
-    re_.add_argument("--allow-network", action="store_true", help="let --live read a network stream")
     re_.add_argument(
         "--target", nargs="+", required=True, help="target video(s) of one person; the first is the background"
     )
@@ -36,26 +39,24 @@ def register(sub) -> None:
     re_.add_argument("--db", default=None, help="database file: read if it exists, else written after building")
     re_.add_argument("--side-by-side", action="store_true", help="actor | output")
     add_options(re_, ReenactConfig, REENACT_OPTIONS)
-    re_.add_argument(
-        "--max-seconds", type=number(float, 0.1, 86_400.0), default=None, help="--live: stop after this long"
-    )
+    add_options(re_, SourceConfig, SOURCE_OPTIONS)  # the live source's options, as `anima live` declares them
     add_json_quiet(re_)  # --quiet: no progress bars (the summary is still printed)
     re_.set_defaults(func=cmd_reenact)
 
 
 def cmd_reenact(a) -> int:
-    r = reenact.run(
-        a.target,
-        a.out,
-        config_from_args(ReenactConfig, a, REENACT_OPTIONS),
-        actor=a.actor,
-        live=a.live,
-        sbs=a.side_by_side,
-        db_path=a.db,
-        max_seconds=a.max_seconds,
-        progress=not a.quiet,
-        allow_network=a.allow_network,
-    )
+    cfg = config_from_args(ReenactConfig, a, REENACT_OPTIONS)
+    if a.live is not None:
+        if a.actor:
+            raise InputError("give --actor or --live, not both")
+        src = config_from_args(SourceConfig, a, SOURCE_OPTIONS)
+        r = live_reenact.run(a.live, a.target, a.out, cfg, a.db, src.max_seconds, not a.quiet, src.allow_network)
+    else:
+        if not a.actor:
+            raise InputError("give --actor VIDEO or --live SOURCE")
+        if a.max_seconds is not None or a.allow_network:
+            raise InputError("--max-seconds and --allow-network are for --live")
+        r = reenact.run(a.target, a.out, cfg, a.actor, a.side_by_side, a.db, progress=not a.quiet)
     notes(r.get("notes"))
     return emit(r, a.json, _text)
 

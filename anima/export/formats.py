@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +12,7 @@ from anima.core import rig
 from anima.core.rotations import matrix_to_euler, matrix_to_quat
 from anima.errors import InputError
 from anima.export.avatar import character_motion, write_avatar
+from anima.export.fbx import blender, export_fbx
 from anima.export.vrm import arkit_weights, vrm_expressions
 from anima.facemodel.ict import load_face_model
 from anima.io.arkit import write_live_link_csv
@@ -18,10 +21,6 @@ from anima.io.gltf import write_glb, write_vrma
 from anima.io.outdir import check_out_file
 from anima.io.sequence import TrackedSequence, read_sequence
 from anima.io.validate import MAX_FRAMES
-
-FORMATS = ("arkit", "glb", "avatar", "bvh", "vrma")
-SUFFIXES = {"arkit": (".csv",), "glb": (".glb",), "avatar": (".glb", ".vrm"), "bvh": (".bvh",), "vrma": (".vrma",)}
-"""The file names each format writes (``--out``): a file of that kind that anima wrote, or a new name."""
 
 
 def export_arkit_csv(seq: TrackedSequence, path: str | Path) -> Path:
@@ -101,28 +100,64 @@ def resample_motion(root: np.ndarray, local: np.ndarray, fps: float, new_fps: fl
     return R, L
 
 
-def export_file(
-    fmt: str, sequence_path: str | Path, out: str | Path, fps: float | None = None, preset: str = "anima"
-) -> Path:
+@dataclass(frozen=True)
+class ExportFormat:
+    """One format of ``anima export``: the file names it writes, whether it needs a tracked face, its writer
+    ``write(seq, path, options) -> notes``, and a line for ``--help``."""
+
+    suffixes: tuple[str, ...]
+    needs_face: bool
+    write: Callable[[TrackedSequence, Path, dict], list[str]]
+    help: str
+
+
+def _notes(write):
+    def run(seq, path, o):
+        write(seq, path, o)
+        return []
+
+    return run
+
+
+EXPORTS: dict[str, ExportFormat] = {
+    "arkit": ExportFormat((".csv",), True, _notes(lambda s, p, o: export_arkit_csv(s, p)),
+                          "the 52 ARKit channels and the head as a Live Link Face CSV"),
+    "glb": ExportFormat((".glb",), True, _notes(lambda s, p, o: export_glb(s, p)),
+                        "the fitted face with its 53 morph targets, animated"),
+    "avatar": ExportFormat((".glb", ".vrm"), False, _notes(lambda s, p, o: write_avatar(s, p, preset=o["preset"])),
+                           "the animated character, body and face on one timeline (.vrm: a VRM 1.0)"),
+    "bvh": ExportFormat((".bvh",), False, _notes(lambda s, p, o: export_bvh(s, p, o["fps"], o["preset"])),
+                        "the character's skeleton (metres, T-pose rest)"),
+    "vrma": ExportFormat((".vrma",), False, _notes(lambda s, p, o: export_vrma(s, p)),
+                         "a VRM Animation: plays on any VRM (the face as VRM expression presets)"),
+    "fbx": ExportFormat((".fbx",), False, lambda s, p, o: export_fbx(s, p, o["preset"], o["units"])["notes"],
+                        "the character with the take as binary FBX 7.4 for Unity, Unreal, Maya (Blender's exporter)"),
+}  # fmt: skip
+"""``anima export FORMAT``: every format, by name (the command line lists them from here)."""
+FORMATS = tuple(EXPORTS)
+
+
+def export_file(fmt: str, sequence_path: str | Path, out: str | Path, **options) -> Path:
+    """:func:`export`'s file."""
+    return export(fmt, sequence_path, out, **options)[0]
+
+
+def export(
+    fmt: str, sequence_path: str | Path, out: str | Path, fps: float | None = None, preset: str = "anima",
+    units: str = "m",
+) -> tuple[Path, list[str]]:  # fmt: skip
     """``anima export FORMAT FILE --out OUT``: read a tracked sequence and write one export (``preset``: the
-    joint names of a BVH or an avatar)."""
-    if fmt not in SUFFIXES:
+    joint names of a BVH, an avatar or an FBX; ``units``: an FBX's). Returns the file and notes for the user."""
+    if fmt not in EXPORTS:
         raise InputError(f"unknown export format {fmt!r}: {', '.join(FORMATS)}")
-    check_out_file(out, inputs=[sequence_path], suffixes=SUFFIXES[fmt])
-    seq = read_sequence(sequence_path, landmarks=False)
-    if fmt == "bvh":
-        return export_bvh(seq, out, fps, preset)
-    if fps is not None:
+    spec = EXPORTS[fmt]
+    check_out_file(out, inputs=[sequence_path], suffixes=spec.suffixes)
+    if fps is not None and fmt != "bvh":
         raise InputError("--fps applies to the BVH export only")
-    if fmt == "avatar":
-        write_avatar(seq, out, preset=preset)
-        return Path(out)
-    if fmt == "vrma":
-        return export_vrma(seq, out)
-    if not seq.tracked.any():
+    if fmt == "fbx":
+        blender()  # no writer: exit 3 with the install line, before the sequence is read
+    seq = read_sequence(sequence_path, landmarks=False)
+    if spec.needs_face and not seq.tracked.any():
         raise InputError(f"no frame of {sequence_path} has a face: no {fmt} export can be made from it")
-    if fmt == "arkit":
-        return export_arkit_csv(seq, out)
-    if fmt == "glb":
-        return export_glb(seq, out)
-    raise InputError(f"unknown export format {fmt!r}: {', '.join(FORMATS)}")
+    notes = spec.write(seq, Path(out), {"fps": fps, "preset": preset, "units": units})
+    return Path(out), notes

@@ -4,7 +4,6 @@ its real frame rate) re-enactment on a target database."""
 from __future__ import annotations
 
 import dataclasses
-import threading
 import time
 import warnings
 from pathlib import Path
@@ -13,16 +12,10 @@ import cv2
 import numpy as np
 
 from anima.capture.config import CaptureConfig
-from anima.capture.fit import LandmarkBasis, choose_keyframes, fit_frames, fit_identity
-from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.capture.pipeline import capture_face
-from anima.core.camera import mediapipe_to_camera
 from anima.errors import InputError
-from anima.facemodel.correspondence import load_correspondence
-from anima.facemodel.ict import load_face_model
 from anima.io import owned
 from anima.io.atomic import write_json
-from anima.io.live_source import PacedReader, check_live_source
 from anima.io.outdir import check_out_file
 from anima.io.owned import record_of
 from anima.io.validate import input_file, read_json
@@ -30,7 +23,6 @@ from anima.io.video import VideoWriter, iter_frames, probe_video
 from anima.reenact.config import ReenactConfig
 from anima.reenact.database import build_database, read_database, write_database
 from anima.reenact.pipeline import Reenactor, Smoother, actor_expressions
-from anima.reenact.synth import expression_mapping
 
 MAX_TARGET_BYTES = 1 << 30
 
@@ -173,181 +165,10 @@ def _reenact_video(actor, targets, out, cfg, sbs, db_path, progress) -> dict:
     }
 
 
-def reenact_live(
-    source: str,
-    targets: list[str],
-    out: str | None,
-    cfg: ReenactConfig | None = None,
-    db_path: str | None = None,
-    max_seconds: float | None = None,
-    progress: bool = True,
-) -> dict:
-    with single_thread_blas():
-        return _reenact_live(source, targets, out, cfg, db_path, max_seconds, progress)
-
-
-class ActorTracker:
-    """The actor's expression per live frame: MediaPipe face mesh, the actor's identity fitted on its first
-    ``warm`` tracked frames, a per-frame fit, and the expression mapping into the target's space from its
-    first 30 fitted frames (the actor statistics so far). Call with an RGB frame; returns ``(found, x)``:
-    ``found`` False when no face is tracked, ``x`` None while the identity is still being gathered."""
-
-    def __init__(self, db, cfg: ReenactConfig, warm: int = 10):
-        self.db, self.cfg, self.warm_n = db, cfg, warm
-        self.fcfg = CaptureConfig().fit
-        self.basis = LandmarkBasis.build(load_face_model(), load_correspondence(), self.fcfg.use_iris)
-        self.tracker = FaceMeshTracker(static_image_mode=False)
-        self.warm, self.seen, self.identity, self.mapping = [], [], None, None
-
-    def __call__(self, rgb: np.ndarray):
-        H, W = rgb.shape[:2]
-        lm = self.tracker(rgb)
-        if lm is None:
-            return False, None
-        P = mediapipe_to_camera(lm[self.basis.index][None], W, H)
-        if self.identity is None:
-            self.warm.append(P[0])
-            if len(self.warm) < self.warm_n:
-                return True, None
-            Pw = np.stack(self.warm)
-            self.identity = fit_identity(Pw[choose_keyframes(Pw, self.basis, min(8, len(Pw)))], self.basis, self.fcfg)
-        xa = fit_frames(P, self.basis, self.identity, self.fcfg).expr[0].astype(np.float32)
-        if len(self.seen) < 60:
-            self.seen.append(xa)
-        if self.mapping is None and self.cfg.map_expressions and len(self.seen) >= 30:
-            self.mapping = expression_mapping(np.stack(self.seen), self.db.expression)
-        return True, (self.mapping(xa) if self.mapping else xa)
-
-    def close(self):
-        self.tracker.close()
-
-
-def ahead(items, fn, depth: int = 1):
-    """Yield ``(item, fn(item))`` in order, with ``fn`` running on a worker thread up to ``depth`` items
-    ahead of the consumer: the live loop tracks the next frame (MediaPipe and the fit release the GIL)
-    while it re-enacts this one. An exception in the worker is raised here; closing the generator stops
-    the worker."""
-    import queue
-
-    q: queue.Queue = queue.Queue(maxsize=max(1, depth))
-    stop = threading.Event()
-    end = object()
-
-    def work():
-        try:
-            for it in items:
-                if stop.is_set():
-                    return
-                q.put((it, fn(it), None))
-        except BaseException as e:  # handed to the consumer
-            q.put((None, None, e))
-        q.put((end, None, None))
-
-    th = threading.Thread(target=work, daemon=True)
-    th.start()
-    try:
-        while True:
-            it, res, err = q.get()
-            if err is not None:
-                raise err
-            if it is end:
-                return
-            yield it, res
-    finally:
-        stop.set()
-        while th.is_alive():  # unblock a worker waiting on a full queue
-            try:
-                q.get_nowait()
-            except Exception:
-                pass
-            th.join(0.01)
-
-
-def _reenact_live(source, targets, out, cfg, db_path, max_seconds, progress) -> dict:
-    """Live loop: track the actor frame by frame (:class:`ActorTracker`, one frame ahead on a worker
-    thread), re-enact on the target, write what was produced. Frames that arrive while one is being
-    processed are dropped (reported), so latency stays bounded."""
-
-    cfg = cfg or ReenactConfig()
-    db, tseq = prepare(targets, db_path, progress)
-    tframes, tfps = load_target_frames(targets[0])
-    n_t = min(len(tframes), tseq.n_frames)
-    rx = Reenactor(db, cfg)
-    actor = ActorTracker(db, cfg)
-    reader = PacedReader(source)
-    writer = None
-    last_x, lost_run = None, 0
-    sm = Smoother(cfg.smooth)
-    latencies, processed, last_i = [], 0, -1
-    t_start = time.perf_counter()
-
-    def frames():
-        nonlocal last_i
-        while True:
-            got = reader.get(last_i)
-            if got is None or (max_seconds and time.perf_counter() - t_start > max_seconds):
-                return
-            last_i = got[0]
-            yield got
-
-    try:
-        for (_, t_cap, _rgb), (found, xa) in ahead(frames(), lambda g: actor(g[2])):
-            x, alpha = last_x, 1.0
-            if found:
-                if xa is not None:
-                    x = last_x = xa
-                    lost_run = 0
-            else:
-                lost_run += 1
-                if lost_run > cfg.hold_frames:
-                    alpha = max(0.0, 1.0 - (lost_run - cfg.hold_frames) / max(cfg.fade_frames, 1))
-            j = int(pingpong(np.array([int(round((time.perf_counter() - t_start) * tfps))]), n_t)[0])
-            if x is None:
-                items = [(None, None, (j, t_cap, 0.0))]
-            else:
-                col = rx.texture(x, skin=rx.target_skin(tframes, tseq, j, db.identity[0]))
-                uvz = rx.geometry(x, db.identity[0], tseq.scale[j], tseq.rotation[j], tseq.translation[j])
-                items = sm.push(uvz, col, (j, t_cap, alpha))
-            for uvz, col, (jj, tc, al) in items:
-                frame = tframes[jj] if uvz is None else rx.blend(tframes[jj], uvz, col, al)
-                if out and writer is None:
-                    writer = VideoWriter(out, reader.fps, (frame.shape[1], frame.shape[0]))
-                if writer:
-                    writer.write(frame)
-                latencies.append(1e3 * (time.perf_counter() - tc))
-                processed += 1
-    finally:
-        actor.close()
-        if writer:
-            writer.close()
-    received = max(reader.read, last_i + 1)
-    lat = np.asarray(latencies) if latencies else np.zeros(1)
-    return {
-        "source": str(source),
-        "frames_received": int(received),
-        "frames_processed": int(processed),
-        "frames_dropped": int(max(0, received - processed)),
-        "source_fps": reader.fps,
-        "latency_ms": {"median": float(np.median(lat)), "p95": float(np.percentile(lat, 95)), "max": float(lat.max())},
-        "output": out,
-    }
-
-
-def run(
-    targets: list[str],
-    out: str | None,
-    cfg: ReenactConfig,
-    actor: str | None = None,
-    live: str | None = None,
-    sbs: bool = False,
-    db_path: str | None = None,
-    max_seconds: float | None = None,
-    progress: bool = True,
-    allow_network: bool = False,
-) -> dict:
-    """``anima reenact``: check every input, then re-enact an actor video (or a live source) on the targets.
-    ``out`` must be a video name that is none of the inputs; its record (``OUT.json``) may only replace an
-    earlier record."""
+def check_run(targets: list[str], out: str | None, actor: str | None = None, live: str | None = None,
+              db_path: str | None = None) -> None:  # fmt: skip
+    """Every input and output of a re-enactment checked before any work (offline or live): the videos, ``out``
+    (a video anima wrote, or a new name; never an input) and its record, the database path."""
     if not actor and live is None:
         raise InputError("give --actor VIDEO or --live SOURCE")
     if actor and live is not None:
@@ -358,8 +179,6 @@ def run(
         probe_video(input_file(t, "target video"))
     if actor:
         probe_video(input_file(actor, "actor video"))
-    if live is not None:
-        live = check_live_source(live, allow_network)
     inputs = [*targets, actor, db_path] if actor else [*targets, db_path]
     if out:  # a video anima wrote (its record names its sha256) or a new name; the record likewise
         check_out_file(out, inputs=inputs, suffixes=VIDEO_SUFFIXES, ours=owned.video, what="a video")
@@ -367,23 +186,39 @@ def run(
     if db_path:  # read when it exists (an anima database), else written
         check_out_file(db_path, "--db", inputs=[*targets, actor, out], suffixes=(".npz",), ours=DB_NPZ,
                        what="a re-enactment database")  # fmt: skip
-    if live is not None:
-        r = reenact_live(live, targets, out, cfg, db_path, max_seconds, progress=progress)
-    else:
-        r = reenact_video(actor, targets, out, cfg, sbs, db_path, progress=progress)
-    if out and Path(out).is_file():
-        write_json(
-            record_of(out),
-            {
-                "schema": RECORD_SCHEMA,
-                "version": 1,
-                "actor": str(actor if actor else live),
-                "live": live is not None,
-                "targets": [str(t) for t in targets],
-                "side_by_side": sbs,
-                "config": dataclasses.asdict(cfg),
-                "result": r,
-                "video_sha256": owned.sha256(Path(out)),  # what lets a later run replace this video
-            },
-        )
+
+
+def write_record(out: str, actor: str, targets: list[str], cfg: ReenactConfig, result: dict, sbs: bool = False,
+                 live: bool = False) -> None:  # fmt: skip
+    """``OUT.json`` beside the video: what made it, and the video's sha256 (what lets a later run replace it)."""
+    write_json(
+        record_of(out),
+        {
+            "schema": RECORD_SCHEMA,
+            "version": 1,
+            "actor": str(actor),
+            "live": live,
+            "targets": [str(t) for t in targets],
+            "side_by_side": sbs,
+            "config": dataclasses.asdict(cfg),
+            "result": result,
+            "video_sha256": owned.sha256(Path(out)),
+        },
+    )
+
+
+def run(
+    targets: list[str],
+    out: str,
+    cfg: ReenactConfig,
+    actor: str,
+    sbs: bool = False,
+    db_path: str | None = None,
+    progress: bool = True,
+) -> dict:
+    """``anima reenact --actor``: check every input, then re-enact the actor video on the targets; the video and
+    its record (``OUT.json``)."""
+    check_run(targets, out, actor=actor, db_path=db_path)
+    r = reenact_video(actor, targets, out, cfg, sbs, db_path, progress=progress)
+    write_record(out, actor, targets, cfg, r, sbs)
     return r

@@ -731,10 +731,18 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
             add(f"export {fmt} {k}", "export", fmt, f, "--out", out / f"e_{k}.{sfx}")
         add(f"retarget {k}", "retarget", f, "--avatar", asset(AVATAR), "--out", out / f"r_{k}.vrm")
         add(f"livelink {k}", "livelink", f, "--to", "127.0.0.1:9")
+        add(f"vmc {k}", "vmc", f, "--to", "127.0.0.1:9")
     add("livelink of a sequence with no face", "livelink", npz["no_face"], "--to", "127.0.0.1:9")
     for to in ("", "11111", "host:", ":11111", "127.0.0.1:70000", "127.0.0.1:-1", "no.such.host.invalid:11111"):
         add(f"livelink --to {to!r}", "livelink", base, "--to", to)
     add("livelink --loops 0", "livelink", base, "--to", "127.0.0.1:9", "--loops", "0")
+    for to in ("", "39539", "host:", "127.0.0.1:70000", "no.such.host.invalid:39539", "[::1:9", "a:" + "9" * 5000):
+        add(f"vmc --to {to[:20]!r}", "vmc", base, "--to", to)
+        add(f"live --vmc {to[:20]!r}", "live", d0, "--no-browser", "--vmc", to)
+    add("vmc a folder without a sequence", "vmc", files["dir"], "--to", "127.0.0.1:9")
+    add("export fbx --out .glb", "export", "fbx", base, "--out", out / "f.glb")
+    add("export fbx --units km", "export", "fbx", base, "--out", out / "f.fbx", "--units", "km")
+    add("export glb --units cm", "export", "glb", base, "--out", out / "f2.glb", "--units", "cm")
     for k in ("missing", "dir", "empty", "random", "text", "png", "wav"):
         add(f"live source {k}", "live", files[k], "--no-browser")
     for src in ("rtsp://example.com/cam", "concat:a.mp4|b.mp4", "file:/etc/passwd", "9999", "-1"):
@@ -760,7 +768,7 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
     add("export arkit --fps", "export", "arkit", base, "--out", out / "f.csv", "--fps", "30")
     add("export --out is a folder", "export", "arkit", base, "--out", files["dir"])
     add("export --out in /proc", "export", "glb", base, "--out", "/proc/anima/x.glb")
-    add("export bogus format", "export", "fbx", base, "--out", out / "f.fbx")
+    add("export bogus format", "export", "obj", base, "--out", out / "f.obj")
 
     for k in ("missing", "unicode_missing", "dir", "empty", "random", "text", "png", "novideo_audio", "cut"):
         add(f"audio features {k}", "audio", "features", files[k], "--out", out / f"a_{k}.npz")

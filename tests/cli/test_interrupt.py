@@ -9,7 +9,7 @@ import os, signal, threading, time
 import numpy as np
 from anima.capture.fit import _box_qp_gauss_seidel
 from anima.cli.main import _interrupted
-from anima.view.live import StopOnSignal
+from anima.live.tracker import StopOnSignal
 
 F, n = 2000, 53
 rng = np.random.default_rng(0)

@@ -313,7 +313,7 @@ def test_reenact_bad_inputs(tmp_path, cli):
 
 
 def test_live_loop_on_a_paced_file(obama_db):
-    from anima.reenact.run import reenact_live
+    from anima.live.reenact import reenact_live
 
     r = reenact_live(
         str(asset(ACTOR)),
@@ -332,7 +332,7 @@ def test_live_loop_on_a_paced_file(obama_db):
 def test_ahead_keeps_order_raises_worker_errors_and_stops_when_closed():
     import threading
 
-    from anima.reenact.run import ahead
+    from anima.live.reenact import ahead
 
     assert [(i, r) for i, r in ahead(range(50), lambda i: i * i)] == [(i, i * i) for i in range(50)]
 

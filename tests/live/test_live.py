@@ -21,6 +21,7 @@ from anima.io.sequence import read_sequence
 pytestmark = pytest.mark.slow
 D0 = "liveportrait-examples/assets/examples/driving/d0.mp4"  # a face: a smile and blinks
 D6 = "liveportrait-examples/assets/examples/driving/d6.mp4"  # a face turning, 30 fps
+S13 = "liveportrait-examples/assets/examples/source/s13.mp4"  # a woman standing, full body, 25 fps
 
 
 def _ctrl_c_works() -> None:
@@ -202,3 +203,21 @@ def test_a_take_never_touches_what_it_did_not_start(cli, tmp_path):
     r = cli("live", blank, "--no-browser", "--record", take)
     assert r.returncode == 2 and "nothing to record" in r.stderr, r.stderr
     assert not take.exists()
+
+
+def test_live_sends_every_frame_over_vmc(tmp_path):
+    """``anima live CLIP --realtime --vmc``: a full-body clip at 25 fps played as a camera; the VMC receiver
+    (python-osc) gets at least 20 bundles a second, every humanoid bone with a unit quaternion, and bones and
+    blend values that move (issue 49)."""
+    from vmc_receiver import VmcReceiver
+
+    with VmcReceiver(idle_s=20) as rx:
+        r = _result(_live(asset(S13), "--realtime", "--vmc", f"127.0.0.1:{rx.port}"), timeout=180)
+    assert not rx.bad, rx.bad[:5]
+    t = np.array([f["t"] for f in rx.frames])
+    rate = (len(t) - 1) / (t[-1] - t[0])  # every tracked frame arrives, at the tracking rate (2 cores: 15-20 fps)
+    assert len(t) == r["frames_tracked"] and rate >= 0.9 * r["fps"] and rate >= 10, (len(t), rate, r["fps"])
+    assert min(len(f["bones"]) for f in rx.frames) >= 50
+    moved_bones, moved_blends = rx.moving()
+    assert moved_bones >= 40 and moved_blends >= 40, (moved_bones, moved_blends)
+    assert r["vmc"]["bundles_sent"] == len(rx.frames) and r["vmc"]["unsent"] == 0

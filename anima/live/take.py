@@ -1,8 +1,9 @@
-"""The take journal of ``anima live --record DIR``: the take is flushed to ``DIR/take/part-NNNNN.npz`` every
-:data:`CHUNK_S` seconds while it runs (each part written atomically and listed in anima's folder marker), so
-a take killed with SIGKILL loses at most the last seconds and leaves a folder that is still anima's and says
-what it holds: ``anima live --recover DIR`` writes the result from the parts. A take that ends normally writes
-its result and removes the parts. One writer (:class:`Journal`) and one reader (:func:`read_parts`).
+"""The take of ``anima live --record DIR``: its journal, its reader and its writer. The take is flushed to
+``DIR/take/part-NNNNN.npz`` every :data:`CHUNK_S` seconds while it runs (each part written atomically and
+listed in anima's folder marker), so a take killed with SIGKILL loses at most the last seconds and leaves a
+folder that is still anima's and says what it holds: ``anima live --recover DIR`` writes the result from the
+parts (:func:`recover`). A take that ends normally writes its result (:func:`write_take`) and removes the
+parts. One writer of parts (:class:`Journal`) and one reader (:func:`read_parts`).
 
 A part's arrays: ``index [n]`` source frame indices, ``t_capture [n]`` seconds since the epoch, ``face [n]``
 bool, ``expression [n, 53]``, ``rotation [n, 3]`` (head axis-angle), ``body [n, 55, 3]`` (NaN where unseen
@@ -18,10 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.core.contract import N_EXPR, N_JOINTS
+from anima.capture.config import CaptureConfig
+from anima.core.contract import FACE_DIM, N_EXPR, N_JOINTS
+from anima.core.filters import gaussian_smooth
 from anima.errors import InputError
+from anima.export.framing import generated_sequence
+from anima.export.motion import write_motion_outputs
 from anima.io.atomic import remove_stale_temps, write_npz
-from anima.io.outdir import OutputFolder, confined, read_marker, sha256
+from anima.io.outdir import OutputFolder, check_out_dir, confined, read_marker, sha256
 from anima.io.validate import MAX_FRAMES, check_expansion, frame_rate, npz_headers
 
 TAKE = "take"
@@ -110,7 +115,7 @@ def part_names(folder: str | Path) -> list[str]:
 
 
 def read_parts(folder: str | Path) -> tuple[list, float]:
-    """The frames of an unfinished take (as :class:`anima.view.live.LiveFrame` without rig rotations) and
+    """The frames of an unfinished take (as :class:`LiveFrame` without rig rotations) and
     the source's frame rate. A part that is missing, altered or unreadable is an :class:`InputError`."""
     folder = Path(folder)
     names = part_names(folder)
@@ -167,3 +172,67 @@ def check_part(path: Path, room: int) -> None:
     if k > room:
         raise InputError(f"{path}: the take would exceed {MAX_FRAMES:,} frames")
     check_expansion(path, h, [*_PART_SHAPES, "fps"])
+
+
+def recover(folder: str, command: str | None = None) -> dict:
+    """``anima live --recover DIR``: the result folder from the parts of a take that was killed."""
+    check_out_dir(folder, "--recover")
+    frames, fps = read_parts(folder)
+    stats = {"recovered": True, "frames_tracked": len(frames), "source_fps": fps}
+    with OutputFolder(folder, kind="capture", command=command) as od:
+        return {"record": write_take(frames, fps, od, stats, None)}
+
+
+def take_sequence(frames: list[LiveFrame], fps: float, cfg: CaptureConfig | None = None):
+    """The take on the source's frame grid (frames the loop dropped are interpolated from their neighbours;
+    frames before the first face hold its first values), smoothed as ``anima capture`` smooths when it is
+    written: the take is whole by then, so the zero-phase filters cost the stream nothing (the live messages
+    stay unsmoothed, no look-ahead): expression weights and head rotation (axis-angle) by a Gaussian of
+    ``cfg.smooth_sigma`` frames, joints by one of ``cfg.body_sigma``."""
+    cfg = cfg or CaptureConfig()
+    if not frames:
+        raise InputError("the take has no frame: nothing to record")
+    last = {f.index: f for f in frames}  # a frame written again (a warm-up frame fitted later): the last one
+    frames = [last[k] for k in sorted(last)]
+    idx = np.array([f.index for f in frames])
+    grid = np.arange(idx[0], idx[-1] + 1)
+    face = np.stack([np.concatenate([f.expression, f.rotation]) for f in frames])
+    ok = np.array([f.face for f in frames])
+    F = np.zeros((len(grid), FACE_DIM), np.float32)
+    if ok.any():
+        for c in range(FACE_DIM):
+            F[:, c] = np.interp(grid, idx[ok], face[ok, c])
+        F[:, :N_EXPR] = np.clip(gaussian_smooth(F[:, :N_EXPR], cfg.smooth_sigma), 0, 1)
+        F[:, N_EXPR:] = gaussian_smooth(F[:, N_EXPR:], cfg.smooth_sigma)
+    body = None
+    if any(f.body is not None for f in frames):
+        B = np.stack([f.body if f.body is not None else np.full((N_JOINTS, 3), np.nan) for f in frames])
+        body = np.full((len(grid), N_JOINTS, 3), np.nan, np.float32)
+        for j in range(N_JOINTS):
+            seen = np.isfinite(B[:, j]).all(-1)
+            if seen.sum() >= 2:
+                for c in range(3):
+                    body[:, j, c] = np.interp(grid, idx[seen], B[seen, j, c])
+        seen = np.isfinite(body).all(-1)
+        flat = np.where(seen[..., None], body, 0).reshape(len(grid), -1)
+        body = np.where(seen[..., None], gaussian_smooth(flat, cfg.body_sigma).reshape(body.shape), np.nan)
+        body = body.astype(np.float32)
+    return generated_sequence(fps, face=F if ok.any() else None, body=body, meta={"recorded_by": "anima live"}) if (
+        ok.any() or body is not None
+    ) else None  # fmt: skip
+
+
+def write_take(frames: list[LiveFrame], fps: float, od: OutputFolder, stats: dict, journal: Journal | None) -> dict:
+    """``--record DIR``: the take as a result folder (``capture.npz``, ``avatar.glb``, ``body.bvh``,
+    ``arkit.csv``, ``info.json``; the manifest last, when ``od`` closes), written when the take ends; the
+    journal's parts go once the result is written."""
+    seq = take_sequence(frames, fps)
+    if seq is None:
+        raise InputError("the take never saw a face or a body: nothing to record")
+    info = {"live": {k: v for k, v in stats.items() if k != "rss_mb"}, "frames": seq.n_frames, "fps": fps}
+    od.info = info
+    files = write_motion_outputs(seq, od, "capture.npz", render=False, info=info, progress=False)
+    if journal is not None:
+        journal.discard()
+    remove_parts(od.path, part_names(od.path))  # a recovered take's parts: the result now holds them
+    return {"folder": str(od.path), "frames": seq.n_frames, "files": sorted(Path(p).name for p in files.values())}

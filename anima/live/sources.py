@@ -1,10 +1,19 @@
-"""Live video sources (``anima reenact --live``, ``anima live``): a camera index, a video file, or an allowed
-network stream, read on a thread (:class:`PacedReader`)."""
+"""Live video sources: one table of openers (:data:`OPENERS`: camera, stream, file), each saying which specs
+it takes, how it checks one before any work, and how it is read. ``anima live`` and ``anima reenact --live``
+both open their source here; adding a kind of source is one entry of the table.
+
+Every source is read on a thread by :class:`PacedReader` (OpenCV's capture): a camera or stream delivers frames
+at its own rate and only the newest is kept (a slow consumer drops frames, counted, instead of falling behind);
+a file is paced at its real frame rate (``realtime``) or handed over frame by frame, none dropped. Specs that
+OpenCV's FFmpeg would interpret as something else (``concat:``, ``subfile,``, ``file:``, image patterns, other
+protocols) are refused before any table entry is asked."""
 
 from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -15,25 +24,66 @@ from anima.io.video import probe_video
 NETWORK_SCHEMES = ("rtsp://", "rtsps://", "rtmp://", "rtmps://", "http://", "https://")
 
 
-def check_live_source(source: str, allow_network: bool = False) -> str:
-    """A ``--live`` source: a camera index, an existing video file, or (with ``allow_network``) an
-    rtsp/rtmp/http(s) URL. Anything else OpenCV's FFmpeg would interpret (``concat:``, ``subfile,``,
-    ``file:``, image patterns, other protocols) is refused."""
-    s = str(source).strip()
-    if s.isdigit() and len(s) <= 3:
-        return s
-    low = s.lower()
-    if low.startswith(NETWORK_SCHEMES):
-        if not allow_network:
-            raise InputError(f"--live {s!r} is a network stream: pass --allow-network to read it")
-        return s
-    if "://" in s or (":" in s.split("/")[0] and not Path(s).exists()) or "%" in s or "," in s.split("/")[0]:
-        raise InputError(f"--live {s!r}: not a camera index, a video file or an rtsp/rtmp/http(s) URL")
+def _is_camera(s: str) -> bool:
+    return s.isdigit() and len(s) <= 3
+
+
+def _check_camera(s: str, allow_network: bool) -> str:
+    return s
+
+
+def _is_stream(s: str) -> bool:
+    return s.lower().startswith(NETWORK_SCHEMES)
+
+
+def _check_stream(s: str, allow_network: bool) -> str:
+    if not allow_network:
+        raise InputError(f"--live {s!r} is a network stream: pass --allow-network to read it")
+    return s
+
+
+def _is_file(s: str) -> bool:
+    return True  # the last entry: anything left must be a video file
+
+
+def _check_file(s: str, allow_network: bool) -> str:
     p = Path(s)
     if not p.is_file():
         raise InputError(f"--live source not found: {s} (a camera index, a video file, or a URL with --allow-network)")
     probe_video(p)  # a file must be a readable video
     return str(p.resolve())
+
+
+@dataclass(frozen=True)
+class Opener:
+    """One kind of source: ``matches(spec)``, ``check(spec, allow_network) -> spec`` (InputError else), and
+    whether it is a file (paced by the reader, may loop)."""
+
+    kind: str
+    matches: Callable[[str], bool]
+    check: Callable[[str, bool], str]
+    is_file: bool
+
+
+OPENERS = (
+    Opener("camera", _is_camera, _check_camera, False),
+    Opener("stream", _is_stream, _check_stream, False),
+    Opener("file", _is_file, _check_file, True),
+)
+"""The kinds of source, asked in order (the first that matches opens it)."""
+
+
+def check_live_source(source: str, allow_network: bool = False) -> str:
+    """A live source spec checked before any work (see the module docstring): the normalised spec."""
+    s = str(source).strip()
+    if not _is_camera(s) and not _is_stream(s):
+        if "://" in s or (":" in s.split("/")[0] and not Path(s).exists()) or "%" in s or "," in s.split("/")[0]:
+            raise InputError(f"--live {s!r}: not a camera index, a video file or an rtsp/rtmp/http(s) URL")
+    return opener_of(s).check(s, allow_network)
+
+
+def opener_of(spec: str) -> Opener:
+    return next(o for o in OPENERS if o.matches(str(spec)))
 
 
 class PacedReader:
@@ -49,7 +99,7 @@ class PacedReader:
                 raise AssetNotFound(f"no camera {source} on this machine (or it is busy): cannot open it")
             raise InputError(f"cannot open live source {source!r}")
         self.fps = self.cap.get(cv2.CAP_PROP_FPS) or 30.0  # contract: not ours (a camera that names no rate)
-        self.is_file = not str(source).isdigit() and Path(str(source)).exists()
+        self.is_file = opener_of(str(source)).is_file and Path(str(source)).exists()
         self.every = self.is_file and not realtime
         self.loop = loop and self.is_file
         self.lock = threading.Lock()
@@ -105,3 +155,8 @@ class PacedReader:
         self.stopped = True
         self.th.join(2.0)
         self.cap.release()
+
+
+def open_source(spec: str, realtime: bool = True, loop: bool = False) -> PacedReader:
+    """Open a checked spec (:func:`check_live_source`): its reader, started."""
+    return PacedReader(spec, realtime=realtime, loop=loop)
