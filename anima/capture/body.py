@@ -47,6 +47,8 @@ class BodyTrack:
     image: np.ndarray = field(default=None)  # (F, 55, 2) pixel positions of the tracked joints (raw)
     legs: np.ndarray = field(default=None)  # (F, 8, 3) metres, pelvis-relative (LEG_JOINTS), NaN where missing
     leg_conf: np.ndarray = field(default=None)  # (F, 8) pose visibility of the leg joints
+    leg_image: np.ndarray = field(default=None)  # (F, 8, 2) pixel positions of the leg joints (raw)
+    camera_step: np.ndarray = field(default=None)  # (F, 3) the background's shift (px) and log scale per frame
 
     @property
     def valid(self) -> np.ndarray:
@@ -155,15 +157,25 @@ def assemble_legs(pose_world: np.ndarray | None) -> tuple[np.ndarray, np.ndarray
     return W[idx] - pelvis, pose_world[idx, 3].astype(np.float64)
 
 
+def leg_pixels(pose: np.ndarray | None, width: int, height: int) -> np.ndarray:
+    """The leg joints' pixel positions ``[8, 2]`` (LEG_JOINTS order; NaN without a pose)."""
+    if pose is None:
+        return np.full((len(LEG_JOINTS), 2), np.nan)
+    return pose[list(MP_LEGS), :2].astype(np.float64) * [width, height]
+
+
 def assemble(frames, width: int, height: int, fps: float) -> BodyTrack:
     out = [assemble_frame(f.pose, f.pose_world, f.left_hand, f.right_hand, width, height) for f in frames]
     legs = [assemble_legs(f.pose_world if f.pose is not None else None) for f in frames]
+    leg_px = np.stack([leg_pixels(f.pose, width, height) for f in frames]) if frames else np.zeros((0, 8, 2))
+    steps = [getattr(f, "camera_step", None) for f in frames]
+    cam = np.stack([np.zeros(3) if s is None else s for s in steps]) if frames else np.zeros((0, 3))
     J = np.stack([o[0] for o in out]) if out else np.zeros((0, N_JOINTS, 3))
     C = np.stack([o[1] for o in out]) if out else np.zeros((0, N_JOINTS))
     UV = np.stack([o[2] for o in out]) if out else np.zeros((0, N_JOINTS, 2))
     LJ = np.stack([g[0] for g in legs]) if legs else np.zeros((0, len(LEG_JOINTS), 3))
     LC = np.stack([g[1] for g in legs]) if legs else np.zeros((0, len(LEG_JOINTS)))
-    return BodyTrack(J, C, fps, np.zeros(C.shape, bool), UV, LJ, LC)
+    return BodyTrack(J, C, fps, np.zeros(C.shape, bool), UV, LJ, LC, leg_px, cam)
 
 
 def _interp_gaps(x: np.ndarray, max_gap: int) -> tuple[np.ndarray, np.ndarray]:

@@ -15,6 +15,7 @@ class HolisticFrame:
     pose_world: np.ndarray | None  # (33, 4) metres (MediaPipe axes: y down) + visibility
     left_hand: np.ndarray | None  # (21, 3) normalised (subject's left hand)
     right_hand: np.ndarray | None
+    camera_step: np.ndarray | None = None  # (3,) the background's shift (pixels) and log scale since the last frame
 
 
 def _arr(lms, vis: bool = False):

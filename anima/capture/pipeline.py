@@ -13,6 +13,7 @@ from tqdm import tqdm
 from anima import __version__
 from anima.audio.features import NoAudio, read_audio, speech_features
 from anima.capture.body import assemble, clean
+from anima.capture.camera_motion import BackgroundMotion
 from anima.capture.config import CaptureConfig
 from anima.capture.fit import FrameFit, LandmarkBasis, choose_keyframes, fit_frames, fit_identity, landmark_error
 from anima.capture.holistic import HolisticTracker
@@ -272,6 +273,7 @@ def track_holistic(
     total = info.n_frames if max_frames is None else min(info.n_frames, max_frames)
     lms, frames = [], []
     errs: list[str] = []
+    background = BackgroundMotion()
     with (
         HolisticTracker() as tracker,
         tqdm(total=total, desc="track", unit="fr", disable=not progress, leave=False) as bar,
@@ -280,6 +282,7 @@ def track_holistic(
             if max_frames is not None and i >= max_frames:
                 break
             fr = tracker(image)
+            fr.camera_step = background(image, fr.pose)
             frames.append(fr)
             lms.append(np.full((478, 3), np.nan, np.float32) if fr.face is None else fr.face)
             if on_face is not None:
@@ -316,9 +319,11 @@ def track_holistic_range(
     lms, frames = [], []
     errs: list[str] = []
     first = max(0, start - warmup)
+    background = BackgroundMotion()
     with HolisticTracker() as tracker:
         for k, image in iter_frame_range(info, first, stop, times=times, errors=errs):
             fr = tracker(image)
+            fr.camera_step = background(image, fr.pose)
             if k < start:
                 continue
             frames.append(fr)
@@ -474,6 +479,7 @@ def capture_video(
         seq.body_conf, seq.body_interpolated = cleaned.conf, cleaned.interpolated
         seq.body_image = body.image
         seq.leg_joints, seq.leg_conf = cleaned.legs, cleaned.leg_conf
+        seq.leg_image, seq.camera_step = body.leg_image, body.camera_step
         seq.meta["skeleton"] = {
             "joints": JOINT_NAMES,
             "parents": PARENTS.tolist(),

@@ -143,7 +143,7 @@ def _globals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None, fp
     ls, rs, lh, rh = t("left_shoulder"), t("right_shoulder"), t("left_hip"), t("right_hip")
     neck = (ls + rs) / 2
     pelvis = np.where(np.isfinite(t("pelvis")), t("pelvis"), 0.0)
-    up_t = neck - pelvis
+    up_t = upright(neck - pelvis, np.isfinite(lh).all(-1) & np.isfinite(rh).all(-1), fps)
     mid_r = (r("LeftArm") + r("RightArm")) / 2
     up_r = mid_r - r("Hips")
     chest = _fit(np.stack([r("LeftArm") - r("RightArm"), up_r]), np.stack([ls - rs, up_t], 1))
@@ -190,6 +190,34 @@ def _globals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None, fp
                 G[:, IX[f"{S}Hand{f}{k}"]] = g
                 parent = g
     return G
+
+
+LEAN_DEG = 15.0
+"""The torso's pitch (towards or away from the camera) is what the monocular tracker's depth says least
+reliably: a standing person's spine reads 15 degrees forward, then back. The pitch the character gets is the
+tracked pitch smoothed over :data:`LEAN_SMOOTH_S` and shrunk by ``p - D tanh(p / D)`` with ``D`` this many
+degrees (15 degrees of noise become 4, a 40-degree bow stays 25); with the hips unseen it is 0 (no evidence).
+The roll (the lean the picture shows) is kept as tracked."""
+LEAN_SMOOTH_S = 0.3
+
+
+def upright(up: np.ndarray, hips_seen: np.ndarray, fps: float) -> np.ndarray:
+    """Torso up vectors ``[F, 3]`` (pelvis to neck) with their pitch limited to the evidence (see
+    :data:`LEAN_DEG`)."""
+    ok = np.isfinite(up).all(-1)
+    if not ok.any():
+        return up
+    pitch = np.where(ok, np.arctan2(up[:, 2], up[:, 1]), np.nan)
+    p = np.interp(np.arange(len(up)), np.flatnonzero(ok), pitch[ok])
+    p = gaussian_smooth(p[:, None], LEAN_SMOOTH_S * fps)[:, 0] if len(p) > 1 else p
+    D = np.radians(LEAN_DEG)
+    keep = np.where(hips_seen, p - D * np.tanh(p / D), 0.0)
+    c, s = np.cos(keep - pitch), np.sin(keep - pitch)  # turn about x by the difference
+    y, z = up[:, 1], up[:, 2]
+    out = up.copy()
+    out[:, 1] = c * y - s * z
+    out[:, 2] = s * y + c * z
+    return np.where(ok[:, None], out, up)
 
 
 def hold_and_blend(L: np.ndarray, fps: float, blend_s: float = BLEND_S) -> tuple[np.ndarray, np.ndarray]:
@@ -289,8 +317,13 @@ def tracked_legs(G: np.ndarray, legs: dict, rest: np.ndarray) -> np.ndarray:
             return np.zeros(len(G), bool)
         g_up = _aim(G[:, HIPS], off[leg], knee - hip)
         g_leg = _aim(g_up, off[foot], ankle - knee)
+        # the thigh seen, the shin not (a seated person cut off at the knees): the shin hangs straight down
+        hang = _aim(g_up, off[foot], np.broadcast_to(np.array([0.0, -1.0, 0.0]), knee.shape))
+        g_leg = np.where((~np.isfinite(g_leg).all((-1, -2)) & np.isfinite(g_up).all((-1, -2)))[:, None, None], hang,
+                         g_leg)  # fmt: skip
         toe = legs.get(f"{s}_foot_index")
         g_foot = _aim(g_leg, off[IX[f"{S}ToeBase"]], toe - ankle) if toe is not None else g_leg
+        g_foot = np.where(np.isfinite(g_foot).all((-1, -2))[:, None, None], g_foot, g_leg)  # the toe unseen
         seen = np.isfinite(g_up).all((-1, -2)) & np.isfinite(g_leg).all((-1, -2))
         ok &= seen
         for j, g in ((up, g_up), (leg, g_leg), (foot, g_foot), (IX[f"{S}ToeBase"], g_foot)):
@@ -364,16 +397,27 @@ def solve(
         G2[:, j] = G2[:, PARENTS_RIG[j]]
     L = local_rotations(G2, PARENTS_RIG)
     leg_seen = np.zeros(F, bool)
+    leg_weight = np.zeros(F)
     if legs:
         Gt = G2.copy()
         leg_seen = tracked_legs(Gt, legs, rest)
         if leg_seen.any():
-            # tracked where both legs are seen, standing elsewhere, cross-faded over blend_s at each change
-            n = max(1, int(round(blend_s * fps)))
-            w = np.clip(_run_depth(leg_seen) / (n + 1), 0.0, 1.0)
+            # tracked where both legs are seen; between such frames the legs hold their last tracked pose and
+            # blend into the next (a seated person stays seated when the legs leave the picture for a moment);
+            # standing only before the first and after the last seen frame, cross-faded over blend_s
             Lt = local_rotations(Gt, PARENTS_RIG)
-            for j in np.flatnonzero(~upper & ~LEAVES):
-                L[leg_seen, j] = slerp_rot(L[leg_seen, j], Lt[leg_seen, j], w[leg_seen])
+            legj = np.flatnonzero(~upper & ~LEAVES)
+            Lt[~leg_seen] = np.nan
+            first, last = np.flatnonzero(leg_seen)[[0, -1]]
+            held, _ = hold_and_blend(Lt[:, legj], fps, blend_s)
+            n = max(1, int(round(blend_s * fps)))
+            w = np.ones(F)  # open at the clip's ends: legs seen from the first frame are tracked from it
+            w[:first] = np.clip(1.0 - (first - np.arange(first)) / (n + 1), 0.0, 1.0)
+            w[last + 1 :] = np.clip(1.0 - (np.arange(last + 1, F) - last) / (n + 1), 0.0, 1.0)
+            for k, j in enumerate(legj):
+                L[:, j] = slerp_rot(L[:, j], held[:, k], w)
+            leg_weight = w
+            leg_seen = w > 0
     G3, P = forward(L, rest, root)
     report = {
         "joints_never_seen": [NAMES[j] for j in range(N_RIG) if upper[j] and not LEAVES[j] and not seen[:, j].any()]
@@ -384,7 +428,8 @@ def solve(
         else ("standing" if not leg_seen.any() else "tracked where seen, else standing"),
         "max_joint_step_m": round(float(np.linalg.norm(np.diff(P, axis=0), axis=-1).max()), 4) if F > 1 else 0.0,
     }
-    return {"root": root, "local": L, "global": G3, "positions": P, "report": report}
+    return {"root": root, "local": L, "global": G3, "positions": P, "report": report, "leg_seen": leg_seen,
+            "leg_weight": leg_weight}  # fmt: skip
 
 
 def _relaxed_hand(J: np.ndarray, s: str, wrist: np.ndarray, down: np.ndarray, palm: np.ndarray, rest) -> None:
@@ -502,11 +547,15 @@ def preset_names(preset: str) -> list[str]:
     return [CONVENTIONS[preset][n] or n for n in NAMES]
 
 
-def frame_locals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None, held: np.ndarray) -> np.ndarray:
+def frame_locals(
+    body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None, held: np.ndarray, legs: dict | None = None
+) -> np.ndarray:
     """One frame of a stream (``anima live``): local rotations ``[J, 3, 3]`` of the upper body from tracked joints
     ``body [55, 3]`` (NaN where unseen) and the face fit's head rotation (``[3, 3]`` or None), every joint not
-    seen now kept at ``held`` (the previous frame's locals); the legs stand straight, the end joints rest.
-    No look-ahead: the offline retargeting's blends and flip rules need the clip's future, a stream has none."""
+    seen now kept at ``held`` (the previous frame's locals); the legs from ``legs`` (``{"left_hip": [3],
+    "left_knee": ..., ...}``, as :func:`tracked_legs` takes them for one frame) where both are seen, else
+    standing straight; the end joints rest. No look-ahead: the offline retargeting's blends and flip rules need
+    the clip's future, a stream has none."""
     any_rate = 30.0  # contract: not (one frame: no rate is used)
     G = _globals(body[None], rest, None if head_rot is None else head_rot[None], any_rate)[0]
     par = np.maximum(PARENTS_RIG, 0)
@@ -514,8 +563,15 @@ def frame_locals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None
     L[HIPS] = G[HIPS]
     ok = np.isfinite(L).all((-1, -2))
     out = np.where(ok[:, None, None], L, held)
-    for S in ("Left", "Right"):
-        for n in ("UpLeg", "Leg", "Foot", "ToeBase"):
-            out[IX[f"{S}{n}"]] = np.eye(3)
+    legj = [IX[f"{S}{n}"] for S in ("Left", "Right") for n in ("UpLeg", "Leg", "Foot", "ToeBase")]
+    seen = False
+    if legs and np.isfinite(G[HIPS]).all():
+        Gl = G[None].copy()
+        seen = bool(tracked_legs(Gl, {k: np.asarray(v, np.float64)[None] for k, v in legs.items()}, rest)[0])
+        if seen:
+            Ll = np.einsum("jba,jbc->jac", Gl[0][par], Gl[0])
+            out[legj] = Ll[legj]
+    if not seen:
+        out[legj] = np.eye(3)
     out[LEAVES] = np.eye(3)
     return out

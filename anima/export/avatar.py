@@ -25,8 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.core import rig
+from anima.core import rig, world
+from anima.core.contact import TorsoSurface
 from anima.core.contract import EXPR_NAMES, JOINT_NAMES, LEG_JOINTS
+from anima.core.ground import Picture
 from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
 from anima.errors import InputError
 from anima.export.vrm import character_vrm
@@ -59,6 +61,26 @@ def legs_of(seq: TrackedSequence) -> dict | None:
     return out
 
 
+def torso_surface(V: np.ndarray, rest: np.ndarray, ch) -> TorsoSurface:
+    """The front of the shaped character's torso (vertices mostly skinned to the hips and spine), for hands
+    that rest on it (:mod:`anima.core.contact`)."""
+    torso_joints = [rig.IX[n] for n in ("Hips", "Spine", "Spine1", "Spine2")]
+    main = ch.skin_joints[np.arange(len(V)), np.argmax(ch.skin_weights, 1)]
+    return TorsoSurface.from_mesh(V, rest[rig.IX["Spine2"]], np.isin(main, torso_joints))
+
+
+def picture_of(seq: TrackedSequence) -> Picture | None:
+    """The sequence's 2D evidence for the world (:class:`anima.core.ground.Picture`), or None (no body in the
+    picture: a generated sequence, a face-only capture)."""
+    if seq.body_image is None or body_of(seq) is None or not np.isfinite(seq.body_image).any():
+        return None
+    step = seq.camera_step.astype(np.float64) if seq.camera_step is not None else np.zeros((seq.n_frames, 3))
+    return Picture(seq.width, seq.height, seq.body_image.astype(np.float64), seq.body_joints.astype(np.float64),
+                   None if seq.leg_image is None else seq.leg_image.astype(np.float64),
+                   None if seq.leg_joints is None else seq.leg_joints.astype(np.float64),
+                   seq.leg_conf, np.cumsum(step[:, :2], 0), np.exp(np.cumsum(step[:, 2])))  # fmt: skip
+
+
 def head_rotations(seq: TrackedSequence) -> np.ndarray | None:
     """The face fit's head rotations ``[F, 3, 3]`` (NaN where no face was tracked), or None when the sequence
     has no head rotation of its own (no face, or a generated face that never turns: the body's head joints
@@ -82,9 +104,9 @@ def character_motion(seq: TrackedSequence, seed: int = 0) -> dict:
         coeffs = np.zeros(ch.n_components)
         shape = {"measures": {}, "height_m": round(float(ch.vertices[:, 1].max()), 3)}
     V, rest = ch.shaped(coeffs)
-    image = seq.body_image if body is not None else None
     legs = legs_of(seq) if body is not None else None
-    mo = rig.solve(body, rest, seq.fps, head_rotations(seq), image=image, legs=legs, seed=seed, frames=seq.n_frames)
+    mo = world.solve(body, rest, seq.fps, head_rotations(seq), picture_of(seq), legs, seed=seed, frames=seq.n_frames,
+                     surface=torso_surface(V, rest, ch))  # fmt: skip
     idle = "idle: no body in this sequence, the default body stands at ease"
     report = {
         "body": "tracked" if body is not None else idle,

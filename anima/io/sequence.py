@@ -25,6 +25,10 @@ body_image         (F, 55, 2) f4    raw pixel positions of the joints (2D eviden
 leg_joints         (F, 8, 3) f4     knees, ankles, heels, toes (contract LEG_JOINTS), metres,
                                     pelvis-relative, cleaned, NaN where not seen           [v2, optional]
 leg_conf           (F, 8) f4        their confidence (pose visibility)                    [v2, optional]
+leg_image          (F, 8, 2) f4     raw pixel positions of the leg joints (2D evidence)   [v2, optional]
+camera_step        (F, 3) f4        the background's shift in the picture since the previous
+                                    frame (pixels x, y; a panning or tilting camera) and the
+                                    log of its scale (a zoom), 0 for a still camera       [v2, optional]
 speech             (F, 28) f4       13 MFCC + log energy + first derivatives per frame    [v2, optional]
 speech_valid       (F,) u1          1 where the frame's time lies inside the audio        [v2, optional]
 =================  ===============  ===========================================================
@@ -68,7 +72,7 @@ FLAG_LOW_CONFIDENCE = 2
 ARRAYS = ("identity", "expression", "rotation", "scale", "translation", "fit_error_px", "fit_nme", "flags", "landmarks")
 OPTIONAL = (
     "body_joints", "body_joints_raw", "body_conf", "body_interpolated", "body_image", "leg_joints", "leg_conf",
-    "speech", "speech_valid",
+    "leg_image", "camera_step", "speech", "speech_valid",
 )  # fmt: skip
 
 
@@ -95,6 +99,8 @@ class TrackedSequence:
     body_image: np.ndarray | None = None
     leg_joints: np.ndarray | None = None
     leg_conf: np.ndarray | None = None
+    leg_image: np.ndarray | None = None
+    camera_step: np.ndarray | None = None
     speech: np.ndarray | None = None
     speech_valid: np.ndarray | None = None
 
@@ -213,6 +219,8 @@ _FRAME_ARRAYS = {
     "body_image": ((None, 2), False),
     "leg_joints": ((len(LEG_JOINTS), 3), False),
     "leg_conf": ((len(LEG_JOINTS),), False),
+    "leg_image": ((len(LEG_JOINTS), 2), False),
+    "camera_step": ((3,), True),
     "speech": ((None,), False),
     "speech_valid": ((), True),
 }

@@ -143,7 +143,8 @@ def run(cfg: LiveConfig, command: str | None = None, announce=print) -> dict:
                     stop = True
                     break
                 t_cap = time.time() - (time.perf_counter() - t_perf)  # the frame's arrival on the epoch clock
-                f = tracker.frame(lm, body, size, i, t_cap)
+                body, legs = body
+                f = tracker.frame(lm, body, size, i, t_cap, legs)
                 n, n_face, n_body = n + 1, n_face + f.face, n_body + (f.body is not None)  # counted before it is sent
                 if tracker.backfill:  # the warm-up frames fitted: they replace their first versions in the take
                     for b in tracker.backfill if journal is not None else ():

@@ -42,8 +42,9 @@ class LiveLinkSink:
 
 
 class VmcSink:
-    """Every frame as one VMC bundle (``--vmc HOST:PORT``): the humanoid bones, the hips at the character's
-    rest height, the ARKit blend values and the VRM presets (:mod:`anima.export.vmc`)."""
+    """Every frame as one VMC bundle (``--vmc HOST:PORT``): the humanoid bones, the hips where the legs stand
+    them (:meth:`anima.live.tracker.LiveTracker.standing_root`), the ARKit blend values and the VRM presets
+    (:mod:`anima.export.vmc`)."""
 
     name = "vmc"
 
@@ -53,7 +54,8 @@ class VmcSink:
 
     def send(self, f: LiveFrame, fps: float) -> None:
         arkit = arkit_weights(f.expression[None], list(EXPR_NAMES)) * float(f.face)
-        self.out.send(f.local, self.hips, blend_values(arkit)[0], f.face or f.body is not None)
+        hips = self.hips if f.root is None else f.root
+        self.out.send(f.local, hips, blend_values(arkit)[0], f.face or f.body is not None)
 
     def close(self) -> None:
         self.out.close()

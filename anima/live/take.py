@@ -7,7 +7,8 @@ parts. One writer of parts (:class:`Journal`) and one reader (:func:`read_parts`
 
 A part's arrays: ``index [n]`` source frame indices, ``t_capture [n]`` seconds since the epoch, ``face [n]``
 bool, ``expression [n, 53]``, ``rotation [n, 3]`` (head axis-angle), ``body [n, 55, 3]`` (NaN where unseen
-or no body), ``has_body [n]`` bool, ``fps`` the source's frame rate.
+or no body), ``has_body [n]`` bool, ``legs [n, 8, 3]`` (knees, ankles, heels, toes; NaN unseen; parts of an
+older anima have none), ``fps`` the source's frame rate.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from anima.capture.config import CaptureConfig
-from anima.core.contract import FACE_DIM, N_EXPR, N_JOINTS
+from anima.core.contract import FACE_DIM, LEG_JOINTS, N_EXPR, N_JOINTS
 from anima.core.filters import gaussian_smooth
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
@@ -46,6 +47,8 @@ class LiveFrame:
     rotation: np.ndarray  # [3] head axis-angle
     body: np.ndarray | None  # [55, 3] metres, pelvis-relative, NaN unseen
     local: np.ndarray | None  # [65, 3, 3] the rig's local rotations (None when read back from a part)
+    legs: np.ndarray | None = None  # [8, 3] knees, ankles, heels, toes (LEG_JOINTS), pelvis-relative, NaN unseen
+    root: np.ndarray | None = None  # [3] the hips where the legs stand them (the stream's, not recorded)
 
 
 class Journal:
@@ -71,6 +74,7 @@ class Journal:
         path = self.od.path / name
         path.parent.mkdir(exist_ok=True)
         none = np.full((N_JOINTS, 3), np.nan, np.float32)
+        no_legs = np.full((len(LEG_JOINTS), 3), np.nan, np.float32)
         write_npz(
             path,
             compressed=False,
@@ -81,6 +85,7 @@ class Journal:
             rotation=np.stack([f.rotation for f in fr]).astype(np.float32),
             body=np.stack([none if f.body is None else f.body for f in fr]).astype(np.float32),
             has_body=np.array([f.body is not None for f in fr], bool),
+            legs=np.stack([no_legs if f.legs is None else f.legs for f in fr]).astype(np.float32),
             fps=np.float64(self.fps),
         )
         self.parts[name] = sha256(path)
@@ -147,6 +152,7 @@ def read_parts(folder: str | Path) -> tuple[list, float]:
                     a["rotation"][j],
                     a["body"][j] if a["has_body"][j] else None,
                     None,
+                    a["legs"][j] if "legs" in a else None,
                 )
             )
     return frames, fps
@@ -171,7 +177,9 @@ def check_part(path: Path, room: int) -> None:
         raise InputError(f"{path}: a part of the take whose arrays do not match ({', '.join(bad) or 'index'})")
     if k > room:
         raise InputError(f"{path}: the take would exceed {MAX_FRAMES:,} frames")
-    check_expansion(path, h, [*_PART_SHAPES, "fps"])
+    if "legs" in h and h["legs"][0] != (k, len(LEG_JOINTS), 3):
+        raise InputError(f"{path}: a part of the take whose arrays do not match (legs)")
+    check_expansion(path, h, [*_PART_SHAPES, "fps", *(["legs"] if "legs" in h else [])])
 
 
 def recover(folder: str, command: str | None = None) -> dict:
@@ -217,9 +225,30 @@ def take_sequence(frames: list[LiveFrame], fps: float, cfg: CaptureConfig | None
         flat = np.where(seen[..., None], body, 0).reshape(len(grid), -1)
         body = np.where(seen[..., None], gaussian_smooth(flat, cfg.body_sigma).reshape(body.shape), np.nan)
         body = body.astype(np.float32)
-    return generated_sequence(fps, face=F if ok.any() else None, body=body, meta={"recorded_by": "anima live"}) if (
-        ok.any() or body is not None
-    ) else None  # fmt: skip
+    legs = _take_legs(frames, idx, grid, cfg) if body is not None else None
+    if not ok.any() and body is None:
+        return None
+    seq = generated_sequence(fps, face=F if ok.any() else None, body=body, meta={"recorded_by": "anima live"})
+    seq.leg_joints = legs
+    if legs is not None:
+        seq.leg_conf = np.where(np.isfinite(legs).all(-1), 1.0, 0.0).astype(np.float32)
+    return seq
+
+
+def _take_legs(frames: list[LiveFrame], idx: np.ndarray, grid: np.ndarray, cfg: CaptureConfig) -> np.ndarray | None:
+    """The take's legs on the frame grid (interpolated where a frame was dropped, smoothed as the body), or None
+    when no frame saw them."""
+    if not any(f.legs is not None and np.isfinite(f.legs).all(-1).any() for f in frames):
+        return None
+    Lg = np.stack([f.legs if f.legs is not None else np.full((len(LEG_JOINTS), 3), np.nan) for f in frames])
+    out = np.full((len(grid), len(LEG_JOINTS), 3), np.nan, np.float32)
+    for j in range(len(LEG_JOINTS)):
+        seen = np.isfinite(Lg[:, j]).all(-1)
+        if seen.sum() >= 2:
+            for c in range(3):
+                out[:, j, c] = np.interp(grid, idx[seen], Lg[seen, j, c])
+            out[:, j] = gaussian_smooth(out[:, j], cfg.body_sigma)
+    return out
 
 
 def write_take(frames: list[LiveFrame], fps: float, od: OutputFolder, stats: dict, journal: Journal | None) -> dict:

@@ -14,14 +14,14 @@ import time
 
 import numpy as np
 
-from anima.capture.body import assemble_frame
+from anima.capture.body import assemble_frame, assemble_legs
 from anima.capture.config import CaptureConfig
 from anima.capture.fit import LandmarkBasis, choose_keyframes, fit_frames, fit_identity
 from anima.capture.holistic import HolisticTracker
 from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.core import rig
 from anima.core.camera import mediapipe_to_camera
-from anima.core.contract import N_EXPR, N_JOINTS
+from anima.core.contract import JOINT_NAMES, LEG_JOINTS, N_EXPR, N_JOINTS
 from anima.core.rotations import matrix_to_quat, matrix_to_rotvec
 from anima.export.retarget import LiveRetarget
 from anima.facemodel.character import load_character
@@ -56,19 +56,22 @@ class LiveTracker:
         self.rotation = np.zeros(3)
 
     def landmarks(self, rgb: np.ndarray, k: int = 0):
-        """``(face landmarks [478, 3] or None, body joints [55, 3] or None)`` of one frame, by tracker ``k``."""
+        """``(face landmarks [478, 3] or None, body joints [55, 3] or None, leg joints [8, 3] or None)`` of one
+        frame, by tracker ``k``."""
         H, W = rgb.shape[:2]
         if self.face_only:
-            return self.trackers[k](rgb), None
+            return self.trackers[k](rgb), None, None
         hf = self.trackers[k](rgb)
-        body = None
+        body = legs = None
         if hf.pose is not None:
             J, C, _ = assemble_frame(hf.pose, hf.pose_world, hf.left_hand, hf.right_hand, W, H)
             J[C < MIN_CONF] = np.nan
             body = J
-        return hf.face, body
+            legs, lc = assemble_legs(hf.pose_world)
+            legs[lc < MIN_CONF] = np.nan
+        return hf.face, body, legs
 
-    def frame(self, lm, body, size: tuple[int, int], index: int, t_capture: float) -> LiveFrame:
+    def frame(self, lm, body, size: tuple[int, int], index: int, t_capture: float, legs=None) -> LiveFrame:
         """The face fit (the identity from the first :data:`WARM` faces) and the rig of one tracked frame."""
         H, W = size
         expr, R, face = np.zeros(N_EXPR), None, False
@@ -92,12 +95,27 @@ class LiveTracker:
                 expr, R, face = np.clip(fit.expr[0], 0.0, 1.0), fit.R[0], True
                 self.rotation = matrix_to_rotvec(R)
         frame_body = body if body is not None else (self.idle if self.face_only else np.full((N_JOINTS, 3), np.nan))
-        self.held = rig.frame_locals(frame_body, self.rest, R, self.held)
-        return LiveFrame(index, t_capture, face, expr, self.rotation.copy(), body, self.held.copy())
+        leg_dict = None
+        if legs is not None and body is not None:
+            leg_dict = {n: legs[k] for k, n in enumerate(LEG_JOINTS)}
+            leg_dict.update(
+                left_hip=body[JOINT_NAMES.index("left_hip")], right_hip=body[JOINT_NAMES.index("right_hip")]
+            )
+        self.held = rig.frame_locals(frame_body, self.rest, R, self.held, leg_dict)
+        return LiveFrame(index, t_capture, face, expr, self.rotation.copy(), body, self.held.copy(), legs,
+                         self.standing_root(self.held))  # fmt: skip
+
+    def standing_root(self, L: np.ndarray) -> np.ndarray:
+        """The hips' position ``[3]`` that stands this frame's legs on the floor (the lowest foot point at its
+        rest height above it): a crouch lowers the hips, straight legs stand."""
+        _, P = rig.forward(L[None], self.rest, self.rest[rig.HIPS][None])
+        low = min(P[0, rig.IX[f"{S}{n}"], 1] - self.rest[rig.IX[f"{S}{n}"], 1]
+                  for S in ("Left", "Right") for n in ("Foot", "ToeBase", "Toe_End"))  # fmt: skip
+        return self.rest[rig.HIPS] - np.array([0.0, low, 0.0])
 
     def __call__(self, rgb: np.ndarray, index: int, t_capture: float) -> LiveFrame:
-        lm, body = self.landmarks(rgb)
-        return self.frame(lm, body, rgb.shape[:2], index, t_capture)
+        lm, body, legs = self.landmarks(rgb)
+        return self.frame(lm, body, rgb.shape[:2], index, t_capture, legs)
 
     def close(self) -> None:
         for t in self.trackers:
@@ -155,8 +173,8 @@ def tracked(reader: PacedReader, tracker: LiveTracker, deadline: float | None, m
                 ):
                     break
                 i, t_perf, rgb = got
-                lm, body = tracker.landmarks(rgb, k)
-                out.put((i, t_perf, rgb.shape[:2], lm, body, None))
+                lm, body, legs = tracker.landmarks(rgb, k)
+                out.put((i, t_perf, rgb.shape[:2], lm, (body, legs), None))
         except BaseException as e:  # handed to the consumer
             out.put((None, None, None, None, None, e))
         out.put(None)

@@ -219,5 +219,5 @@ def test_live_sends_every_frame_over_vmc(tmp_path):
     assert len(t) == r["frames_tracked"] and rate >= 0.9 * r["fps"] and rate >= 10, (len(t), rate, r["fps"])
     assert min(len(f["bones"]) for f in rx.frames) >= 50
     moved_bones, moved_blends = rx.moving()
-    assert moved_bones >= 40 and moved_blends >= 40, (moved_bones, moved_blends)
+    assert moved_bones >= 50 and moved_blends >= 40, (moved_bones, moved_blends)  # legs too: she stands and steps
     assert r["vmc"]["bundles_sent"] == len(rx.frames) and r["vmc"]["unsent"] == 0

@@ -1,0 +1,285 @@
+"""The character in the world: a floor, a root that moves in three dimensions, feet that plant. Pure functions.
+
+A monocular tracker's 3D skeleton is centred on the pelvis (MediaPipe's world landmarks are), so where the
+person is, how high the hips are and whether a foot is down must come from the picture. Everything here is in
+the character's world: metres, +y up with the floor at y = 0, +x the picture's right (the person's left when
+they face the camera), +z towards the camera.
+
+* **The picture's scale** (:func:`metres_per_pixel`): per frame, the pixels per metre of the least
+  foreshortened of the body's segments (shoulders, hips, torso, upper arms, forearms, thighs, shins: each
+  segment's picture length over its clip-median 3D length; the second largest, so one mis-tracked joint does
+  not decide), smoothed over a quarter second.
+* **The camera** (``Picture.camera``): the background's shift in the picture, summed over frames
+  (``anima.capture.camera_motion``), is taken out of every picture position: a panning or tilting camera does
+  not move the character.
+* **Depth** from the person's apparent size under the clip's camera: distance ``d = f * metres_per_pixel``
+  with an assumed focal length :data:`FOCAL` (in units of the picture's long side: a 55 degree field of view
+  across it, a phone's main camera in video); the root's z is the distance's change, smoothed over
+  :data:`DEPTH_SIGMA_S`.
+* **Sideways** as the picture shows it: the shoulders' midpoint's column, through the same camera.
+* **Height from the legs**: the hips stand as high as the character's own legs reach, the lowest point of a
+  foot on the floor (a crouch lowers the hips, a seated person's hips sit where the thighs put them), and no
+  higher than the picture shows them above the floor's row (plus :data:`HIPS_MARGIN_M`: a person sitting on
+  the ground, legs folded, whose tracked legs say otherwise);
+  **flight** from the picture: the feet's lowest row against the floor's row (the lowest rows of the nearby
+  frames: the feet were on the floor then) lifts the whole character when both feet are off the floor.
+* **Contacts** (:func:`foot_contacts`), per foot: its lowest point within :data:`CONTACT_M` of the floor in
+  the picture and moving less than :data:`CONTACT_SPEED` (metres per second, in the picture), for at least
+  three frames (two-frame gaps closed).
+* **Locking** (:func:`lock_feet`): a planted foot stays where it landed: its ankle held at the landing point
+  by a two-bone leg IK (hip, knee, ankle; the knee keeps the plane the tracked leg bent in), blended in and out
+  over :data:`LOCK_BLEND_S`; a foot never goes under the floor (the root rises instead).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from anima.core.contract import JOINT_NAMES, LEG_JOINTS
+from anima.core.filters import gaussian_smooth
+
+FOCAL = 0.96
+"""The assumed focal length, in units of the picture's long side (a 55 degree field of view across it)."""
+DEPTH_SIGMA_S = 0.5
+SIDE_SIGMA_S = 0.1
+SCALE_SIGMA_S = 0.25
+FLOOR_WINDOW_S = 0.6
+"""The floor's row at a frame: the lowest foot row within this many seconds either side (a foot was down)."""
+AIR_DEADBAND_M = 0.03
+"""Feet less than this above the floor's row count as on it (the picture's noise)."""
+CONTACT_M = 0.05
+CONTACT_SPEED = 0.35
+LOCK_BLEND_S = 0.12
+REPLANT_M = 0.18
+"""A standing foot (legs not seen) re-plants when the hips have carried it this far from where it stands."""
+MIN_CONF = 0.5
+HIPS_MARGIN_M = 0.10
+
+_J = {n: i for i, n in enumerate(JOINT_NAMES)}
+_L = {n: i for i, n in enumerate(LEG_JOINTS)}
+_BODY_SEGMENTS = (("left_shoulder", "right_shoulder"), ("left_hip", "right_hip"), ("neck", "pelvis"),
+                  ("left_shoulder", "left_elbow"), ("left_elbow", "left_wrist"),
+                  ("right_shoulder", "right_elbow"), ("right_elbow", "right_wrist"))  # fmt: skip
+_LEG_SEGMENTS = (("left_knee", "left_ankle"), ("right_knee", "right_ankle"))
+_FOOT_POINTS = {"left": ("left_ankle", "left_heel", "left_foot_index"),
+                "right": ("right_ankle", "right_heel", "right_foot_index")}  # fmt: skip
+
+
+@dataclass
+class Picture:
+    """The 2D evidence of a clip: the picture's size, the joints' pixel positions (``body [F, 55, 2]``, ``legs
+    [F, 8, 2]`` or None), their 3D positions (pelvis-relative metres) and the legs' visibility, the
+    background's cumulative shift ``camera [F, 2]`` (pixels; zeros for a still camera) and its cumulative
+    scale ``zoom [F]`` (ones for a still camera; a zoom in is > 1)."""
+
+    width: int
+    height: int
+    body: np.ndarray
+    body3d: np.ndarray
+    legs: np.ndarray | None = None
+    legs3d: np.ndarray | None = None
+    leg_conf: np.ndarray | None = None
+    camera: np.ndarray | None = None
+    zoom: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.camera is None:
+            self.camera = np.zeros((len(self.body), 2))
+        if self.zoom is None:
+            self.zoom = np.ones(len(self.body))
+
+    @property
+    def n(self) -> int:
+        return len(self.body)
+
+    def stable(self, px: np.ndarray) -> np.ndarray:
+        """Pixel positions ``[F, ..., 2]`` with the camera's motion taken out."""
+        return px - self.camera.reshape((self.n,) + (1,) * (px.ndim - 2) + (2,))
+
+    def leg_px(self) -> np.ndarray | None:
+        """The legs' pixel positions, NaN where not seen (visibility under :data:`MIN_CONF`), camera taken out."""
+        if self.legs is None:
+            return None
+        px = np.array(self.legs, np.float64)
+        if self.leg_conf is not None:
+            px[self.leg_conf < MIN_CONF] = np.nan
+        return self.stable(px)
+
+
+def _fill(x: np.ndarray) -> np.ndarray:
+    """NaN frames of ``x [F]`` interpolated from their neighbours (held at the ends); zeros when none is set."""
+    ok = np.isfinite(x)
+    if not ok.any():
+        return np.zeros_like(x)
+    return np.interp(np.arange(len(x)), np.flatnonzero(ok), x[ok])
+
+
+def _smooth(x: np.ndarray, sigma_frames: float) -> np.ndarray:
+    return gaussian_smooth(x[:, None], sigma_frames)[:, 0] if sigma_frames > 0 and len(x) > 1 else x
+
+
+def metres_per_pixel(pic: Picture, fps: float) -> np.ndarray | None:
+    """Metres per pixel ``[F]`` at the person (see the module docstring); None without two seen segments."""
+    ratios = []
+    for a, b in _BODY_SEGMENTS:
+        l3 = np.linalg.norm(pic.body3d[:, _J[a]] - pic.body3d[:, _J[b]], axis=-1)
+        l2 = np.where(np.isfinite(l3), np.linalg.norm(pic.body[:, _J[a]] - pic.body[:, _J[b]], axis=-1), np.nan)
+        ratios.append(l2 / np.nanmedian(l3) if np.isfinite(l3).any() else np.full(pic.n, np.nan))
+    if pic.legs is not None and pic.legs3d is not None:
+        legs = pic.leg_px()
+        for a, b in _LEG_SEGMENTS:
+            l3 = np.linalg.norm(pic.legs3d[:, _L[a]] - pic.legs3d[:, _L[b]], axis=-1)
+            l2 = np.where(np.isfinite(l3), np.linalg.norm(legs[:, _L[a]] - legs[:, _L[b]], axis=-1), np.nan)
+            ratios.append(l2 / np.nanmedian(l3) if np.isfinite(l3).any() else np.full(pic.n, np.nan))
+    R = np.stack(ratios, 1)
+    R[~np.isfinite(R) | (R <= 0)] = np.nan
+    n_ok = np.isfinite(R).sum(1)
+    S = np.sort(np.where(np.isfinite(R), R, -np.inf), 1)
+    ppm = np.where(n_ok >= 3, S[:, -2], np.where(n_ok >= 1, S[:, -1], np.nan))
+    ppm[~np.isfinite(ppm) | (ppm <= 0)] = np.nan
+    if np.isfinite(ppm).sum() < 1:
+        return None
+    ppm = _smooth(_fill(ppm), SCALE_SIGMA_S * fps)
+    return 1.0 / np.maximum(ppm, 1e-6)
+
+
+def apparent_scale(pic: Picture, mpp: np.ndarray) -> np.ndarray:
+    """Metres per pixel with the camera's zoom taken out (a zoom changes the picture's scale, not the person's
+    distance): what the distance follows."""
+    return mpp * pic.zoom
+
+
+def picture_travel(pic: Picture, mpp: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """The person's sideways and depth travel ``x [F]``, ``z [F]`` (metres, relative to their clip medians):
+    the shoulders' midpoint through a pinhole camera of focal :data:`FOCAL`, distance from apparent size."""
+    f = FOCAL * max(pic.width, pic.height)
+    u = pic.stable(pic.body[:, [_J["left_shoulder"], _J["right_shoulder"]]]).mean(1)[:, 0]
+    d = _smooth(f * apparent_scale(pic, mpp), DEPTH_SIGMA_S * fps)
+    X = _fill((u - pic.width / 2) * d / f)
+    x = _smooth(X - np.median(X), SIDE_SIGMA_S * fps)
+    z = -(d - np.median(d))
+    return x, z
+
+
+def _rolling_max(x: np.ndarray, half: int) -> np.ndarray:
+    out = np.full_like(x, np.nan)
+    for i in range(len(x)):
+        w = x[max(0, i - half) : i + half + 1]
+        if np.isfinite(w).any():
+            out[i] = np.nanmax(w)
+    return out
+
+
+def foot_rows(pic: Picture) -> np.ndarray | None:
+    """Each foot's lowest row in the picture ``[F, 2]`` (left, right; camera taken out; NaN where unseen)."""
+    legs = pic.leg_px()
+    if legs is None:
+        return None
+    rows = []
+    for side in ("left", "right"):
+        v = legs[:, [_L[n] for n in _FOOT_POINTS[side]], 1]
+        with np.errstate(all="ignore"):
+            rows.append(np.where(np.isfinite(v).any(1), np.nanmax(np.where(np.isfinite(v), v, -np.inf), 1), np.nan))
+    return np.stack(rows, 1)
+
+
+def feet_in_picture(pic: Picture, mpp: np.ndarray, fps: float) -> dict | None:
+    """The feet against the floor in the picture: ``height [F, 2]`` (metres of each foot's lowest point above
+    the floor's row), ``speed [F, 2]`` (metres per second in the picture), ``seen [F, 2]``, and ``hips [F]``
+    (the hips' height above the floor's row where they are seen, else NaN); None when the feet are never
+    seen."""
+    rows = foot_rows(pic)
+    if rows is None or not np.isfinite(rows).any():
+        return None
+    legs = pic.leg_px()
+    floor = _rolling_max(np.nanmax(np.where(np.isfinite(rows), rows, -np.inf), 1), int(round(FLOOR_WINDOW_S * fps)))
+    floor[~np.isfinite(floor)] = np.nan
+    floor = _smooth(_fill(floor), 0.1 * fps)
+    height = (floor[:, None] - rows) * mpp[:, None]
+    speed = np.full((pic.n, 2), np.nan)
+    for k, side in enumerate(("left", "right")):
+        p = np.nanmean(legs[:, [_L[n] for n in _FOOT_POINTS[side]]], 1) * mpp[:, None]
+        v = np.linalg.norm(np.gradient(p, axis=0), axis=-1) * fps if pic.n > 1 else np.zeros(pic.n)
+        speed[:, k] = v
+    pelvis = pic.stable(pic.body[:, [_J["left_hip"], _J["right_hip"]]]).mean(1)[:, 1]
+    hips_seen = np.isfinite(pic.body3d[:, [_J["left_hip"], _J["right_hip"]]]).all((-1, -2))
+    hips = np.where(hips_seen, (floor - pelvis) * mpp, np.nan)
+    return {"height": height, "speed": speed, "seen": np.isfinite(rows), "hips": hips}
+
+
+def runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """``[start, stop)`` of each run of True in ``mask``."""
+    m = np.concatenate([[False], np.asarray(mask, bool), [False]])
+    d = np.flatnonzero(np.diff(m.astype(int)))
+    return list(zip(d[::2], d[1::2]))
+
+
+def _clean_runs(mask: np.ndarray, min_len: int = 3, max_gap: int = 2) -> np.ndarray:
+    out = np.asarray(mask, bool).copy()
+    for a, b in runs(~out):  # close short gaps inside contacts
+        if a > 0 and b < len(out) and b - a <= max_gap:
+            out[a:b] = True
+    for a, b in runs(out):
+        if b - a < min_len:
+            out[a:b] = False
+    return out
+
+
+def foot_contacts(feet: dict, fps: float) -> np.ndarray:
+    """Contact ``[F, 2]`` per foot (see the module docstring)."""
+    h, v = feet["height"], feet["speed"]
+    with np.errstate(invalid="ignore"):
+        c = (h < CONTACT_M) & (v < CONTACT_SPEED) & feet["seen"]
+    return np.stack([_clean_runs(c[:, k]) for k in range(2)], 1)
+
+
+def air_height(feet: dict) -> np.ndarray:
+    """How high the lower foot is above the floor ``[F]`` when both feet are off it (0 otherwise)."""
+    h = np.where(feet["seen"], feet["height"], np.nan)
+    with np.errstate(all="ignore"):
+        low = np.nanmin(h, 1)
+    low = np.where(np.isfinite(low), low, 0.0)
+    return np.maximum(low - AIR_DEADBAND_M, 0.0)
+
+
+def two_bone(hip: np.ndarray, target: np.ndarray, a: float, b: float, pole: np.ndarray) -> np.ndarray:
+    """Knee positions ``[F, 3]`` of legs of lengths ``a`` (thigh) and ``b`` (shin) from ``hip`` reaching for
+    ``target`` with the knee bending towards ``pole`` (``[F, 3]``; its part along the leg is ignored)."""
+    d = target - hip
+    n = np.linalg.norm(d, axis=-1)
+    n_c = np.clip(n, abs(a - b) + 1e-4, a + b - 1e-4)
+    u = d / np.maximum(n, 1e-9)[:, None]
+    x = (a * a - b * b + n_c * n_c) / (2 * n_c)
+    h = np.sqrt(np.maximum(a * a - x * x, 0.0))
+    side = pole - (pole * u).sum(-1, keepdims=True) * u
+    side = side / np.maximum(np.linalg.norm(side, axis=-1, keepdims=True), 1e-9)
+    return hip + u * x[:, None] + side * h[:, None]
+
+
+def lock_weights(contact: np.ndarray, fps: float) -> np.ndarray:
+    """Per frame ``[F]``, how much a foot (or a hand) is held at its contact point: 1 throughout a contact,
+    ramping up over the :data:`LOCK_BLEND_S` before it and down over those after it (the approach and the
+    release ease in and out, no pop)."""
+    n = max(1, int(round(LOCK_BLEND_S * fps)))
+    w = np.zeros(len(contact))
+    for a, b in runs(contact):
+        w[a:b] = 1.0
+        head = np.arange(max(0, a - n), a)
+        w[head] = np.maximum(w[head], 1.0 - (a - head) / (n + 1))
+        tail = np.arange(b, min(len(w), b + n))
+        w[tail] = np.maximum(w[tail], 1.0 - (tail - b + 1) / (n + 1))
+    return w
+
+
+def anchors(ankle: np.ndarray, contact: np.ndarray, fps: float) -> np.ndarray:
+    """The point each frame's foot is held at ``[F, 3]``: where its contact began (the mean of its first frames),
+    carried through the release (NaN where there is no contact nearby)."""
+    out = np.full_like(ankle, np.nan)
+    n = max(1, int(round(LOCK_BLEND_S * fps)))
+    for a, b in runs(contact):
+        k = min(b, a + 3)
+        p = np.nanmean(ankle[a:k], 0)
+        out[max(0, a - n) : min(len(out), b + n)] = p
+    return out

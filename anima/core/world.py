@@ -1,0 +1,234 @@
+"""The motion on the character, in the world: :func:`anima.core.rig.solve`'s rotations grounded by
+:mod:`anima.core.ground` (a root that moves in three dimensions, feet planted where they land, never under the
+floor) and limited to the steps a body makes (:func:`limit_steps`). Pure functions; the one entry is
+:func:`solve`."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from anima.core import contact, ground, rig
+from anima.core.bvh_math import local_rotations
+from anima.core.contract import JOINT_NAMES
+from anima.core.rotations import matrix_to_rotvec, rotvec_to_matrix
+
+MAX_STEP_DEG = 40.0
+"""No bone of any output turns more than this between two frames (a larger step is spread over the next
+frames): the same limit for capture, gesture and text2face."""
+LOST_S = 1.0
+"""A hand or a leg unseen for longer than this is said in the report (with its frames)."""
+_FOOT = {"left": "Left", "right": "Right"}
+_FOOT_POINTS = ("Foot", "ToeBase", "Toe_End")
+_ARMS = {
+    s: (rig.IX[f"{S}Shoulder"], rig.IX[f"{S}Arm"], rig.IX[f"{S}ForeArm"], rig.IX[f"{S}Hand"],
+        [rig.IX[f"{S}Hand{f}1"] for f in ("Index", "Middle", "Ring", "Pinky")])
+    for s, S in (("left", "Left"), ("right", "Right"))
+}  # fmt: skip
+
+
+def limit_steps(L: np.ndarray, max_deg: float = MAX_STEP_DEG) -> tuple[np.ndarray, int]:
+    """Local rotations ``[F, J, 3, 3]`` whose every frame-to-frame turn is at most ``max_deg`` (a larger turn
+    is cut to the limit and the rest carried into the next frames). Returns (the rotations, how many steps
+    were cut)."""
+    out = L.copy()
+    cut = 0
+    lim = np.radians(max_deg)
+    for f in range(1, len(L)):
+        rel = np.einsum("jba,jbc->jac", out[f - 1], L[f])
+        rv = matrix_to_rotvec(rel)
+        ang = np.linalg.norm(rv, axis=-1)
+        big = ang > lim
+        if big.any():
+            cut += int(big.sum())
+            rv[big] *= (lim / ang[big])[:, None]
+            out[f, big] = out[f - 1, big] @ rotvec_to_matrix(rv[big])
+    return out, cut
+
+
+def _foot_low(P: np.ndarray, side: str, rest: np.ndarray) -> np.ndarray:
+    """The height of a foot's sole ``[F]``: the lowest of its points (ankle, ball, toe tip) over its height in
+    the rest pose, where the sole is flat on the floor (the joints sit inside the foot: a flat foot is 0, a
+    foot on its toes is held up by them, one on its heel by the heel)."""
+    return np.min([P[:, rig.IX[f"{_FOOT[side]}{n}"], 1] - rest[rig.IX[f"{_FOOT[side]}{n}"], 1] for n in _FOOT_POINTS],
+                  0)  # fmt: skip
+
+
+def _standing_anchors(free: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Planted standing feet (legs not seen): each foot stays where it stands until the hips have carried its
+    free place :data:`anima.core.ground.REPLANT_M` away, then steps there over 0.3 s. ``free [F, 3]``: where
+    the foot would stand under the hips. Returns (the foot's place ``[F, 3]``, steps ``[F]`` bool)."""
+    F = len(free)
+    out = free.copy()
+    steps = np.zeros(F, bool)
+    n = max(1, int(round(0.3 * fps)))
+    anchor, f = free[0].copy(), 0
+    while f < F:
+        if np.linalg.norm((free[f] - anchor)[[0, 2]]) > ground.REPLANT_M:
+            new = free[min(F - 1, f + n)].copy()
+            k = np.arange(min(n, F - f))
+            w = ((k + 1) / n)[:, None]
+            out[f : f + len(k)] = anchor * (1 - w) + new * w
+            out[f : f + len(k), 1] = anchor[1] + 0.04 * np.sin(np.pi * (k + 1) / n)  # the foot lifts as it steps
+            steps[f : f + len(k)] = True
+            anchor, f = new, f + len(k)
+            continue
+        out[f] = anchor
+        f += 1
+    return out, steps
+
+
+def _ik_leg(G: np.ndarray, P: np.ndarray, rest: np.ndarray, side: str, target: np.ndarray, w: np.ndarray) -> None:
+    """Move ``side``'s ankle towards ``target [F, 3]`` by ``w [F]`` with a two-bone IK (the knee keeps its
+    plane, the foot its world rotation); ``G`` (global rotations) updated in place where ``w > 0``."""
+    S = _FOOT[side]
+    up, leg, foot = rig.IX[f"{S}UpLeg"], rig.IX[f"{S}Leg"], rig.IX[f"{S}Foot"]
+    off = rig.rest_offsets(rest)
+    on = (w > 0) & np.isfinite(target).all(-1)
+    if not on.any():
+        return
+    hip, knee, ankle = P[on, up], P[on, leg], P[on, foot]
+    goal = ankle + (target[on] - ankle) * w[on, None]
+    a, b = np.linalg.norm(off[leg]), np.linalg.norm(off[foot])
+    new_knee = ground.two_bone(hip, goal, a, b, knee - hip)
+    Gu = rig._aim(G[on, rig.HIPS], off[leg], new_knee - hip)
+    Gl = rig._aim(Gu, off[foot], goal - new_knee)
+    G[on, up], G[on, leg] = Gu, Gl
+
+
+def _lost_runs(body: np.ndarray, legs: dict | None, fps: float) -> list[dict]:
+    """The hands and legs unseen for more than :data:`LOST_S` (frame ranges), for the report."""
+    out = []
+    parts = {"left hand": body[:, JOINT_NAMES.index("left_hand_wrist")],
+             "right hand": body[:, JOINT_NAMES.index("right_hand_wrist")]}  # fmt: skip
+    if legs:
+        for side in ("left", "right"):
+            if legs.get(f"{side}_ankle") is not None:
+                parts[f"{side} leg"] = legs[f"{side}_ankle"]
+    n = int(round(LOST_S * fps))
+    for name, x in parts.items():
+        for a, b in ground.runs(~np.isfinite(x).all(-1)):
+            if b - a > n:
+                out.append({"part": name, "frames": [int(a), int(b - 1)], "seconds": round((b - a) / fps, 2)})
+    return out
+
+
+def solve(
+    body: np.ndarray | None,
+    rest: np.ndarray,
+    fps: float,
+    head_rot: np.ndarray | None = None,
+    picture: ground.Picture | None = None,
+    legs: dict | None = None,
+    seed: int = 0,
+    frames: int | None = None,
+    surface: contact.TorsoSurface | None = None,
+) -> dict:
+    """The motion on the rig, in the world: :func:`anima.core.rig.solve`'s (the same arguments; ``picture``:
+    the clip's 2D evidence, :class:`anima.core.ground.Picture`) with the root in three dimensions, the feet
+    planted and on the floor, and every bone's step limited. Returns ``root``, ``local``, ``global``,
+    ``positions``, ``contact [F, 2]`` (left, right) and the ``report``."""
+    mo = rig.solve(body, rest, fps, head_rot, image=None, legs=legs, seed=seed, frames=frames)
+    L, root = mo["local"], mo["root"].copy()
+    F = len(L)
+    report = dict(mo["report"])
+    leg_seen = np.asarray(mo.get("leg_seen", np.zeros(F, bool)), bool)
+    mpp = ground.metres_per_pixel(picture, fps) if picture is not None else None
+    feet = ground.feet_in_picture(picture, mpp, fps) if mpp is not None else None
+    if mpp is not None:
+        x, z = ground.picture_travel(picture, mpp, fps)
+        root[:, 0] += x
+        root[:, 2] += z
+    L, cut = limit_steps(L)
+    # height: the hips as high as the legs reach (the lowest foot point on the floor), plus flight
+    G, P = rig.forward(L, rest, root)
+    low = np.minimum(_foot_low(P, "left", rest), _foot_low(P, "right", rest)) - root[:, 1]
+    air = ground.air_height(feet) if feet is not None else np.zeros(F)
+    w_leg = np.asarray(mo["leg_weight"], np.float64)  # tracked legs' share, 0 where the legs stand
+    legs_say = -low + w_leg * air  # standing or tracked, the lowest foot point is on the floor
+    if feet is not None and np.isfinite(feet["hips"]).any():
+        seen_says = ground._smooth(ground._fill(feet["hips"]), 0.2 * fps) + ground.HIPS_MARGIN_M
+        legs_say = (1 - w_leg) * legs_say + w_leg * np.minimum(legs_say, seen_says)
+    root[:, 1] = legs_say
+    G, P = rig.forward(L, rest, root)
+    # contacts: tracked legs from the picture (else from the 3D feet); standing legs are planted
+    feet_down = np.zeros((F, 2), bool)
+    if feet is not None:
+        feet_down = ground.foot_contacts(feet, fps) & leg_seen[:, None]
+    elif leg_seen.any():
+        for k, side in enumerate(("left", "right")):
+            h = _foot_low(P, side, rest)
+            v = np.linalg.norm(np.gradient(P[:, rig.IX[f"{_FOOT[side]}Foot"], ::2], axis=0), axis=-1) * fps
+            feet_down[:, k] = ground._clean_runs((h < ground.CONTACT_M) & (v < ground.CONTACT_SPEED) & leg_seen)
+    steps_total = 0
+    for k, side in enumerate(("left", "right")):
+        S = _FOOT[side]
+        ankle = P[:, rig.IX[f"{S}Foot"]]
+        target = ground.anchors(ankle, feet_down[:, k], fps)
+        w = ground.lock_weights(feet_down[:, k], fps)
+        if (~leg_seen).any():  # standing legs: planted, re-planted when the hips carry them too far
+            free = ankle.copy()
+            free[:, 1] = rest[rig.IX[f"{S}Foot"], 1]
+            placed, steps = _standing_anchors(free, fps)
+            stand = 1.0 - w_leg
+            target = np.where((stand > 0)[:, None], placed, target)
+            w = np.maximum(w, stand)
+            steps_total += int(len(ground.runs(steps & (stand > 0))))
+        _ik_leg(G, P, rest, side, target, w)
+    L = local_rotations(G, rig.PARENTS_RIG)
+    L[:, rig.LEAVES] = np.eye(3)
+    G, P = rig.forward(L, rest, root)
+    # never under the floor: a frame whose lowest foot point is below it raises the root
+    low = np.minimum(_foot_low(P, "left", rest), _foot_low(P, "right", rest))
+    lift = np.maximum(-low, 0.0)
+    if lift.any():
+        root[:, 1] += lift
+        G, P = rig.forward(L, rest, root)
+    hands = np.zeros((F, 2), bool)
+    if picture is not None and surface is not None:
+        hands = contact.hand_contacts(picture, fps)
+        if hands.any():
+            gap = contact.place_hands(G, P, rest, hands, surface, rig.IX["Spine2"], _ARMS, fps, rig._aim,
+                                      ground.two_bone)  # fmt: skip
+            L = local_rotations(G, rig.PARENTS_RIG)
+            L[:, rig.LEAVES] = np.eye(3)
+            G, P = rig.forward(L, rest, root)
+            report["hand_contact"] = {
+                "fraction": [round(float(hands[:, k].mean()), 3) for k in range(2)],
+                "palm_to_torso_m": [
+                    round(float(np.nanmedian(gap[:, k])), 3) if hands[:, k].any() else None for k in range(2)
+                ],  # fmt: skip
+            }
+    L, cut2 = limit_steps(L)  # what the feet and hands moved obeys the same limit
+    if cut2:
+        G, P = rig.forward(L, rest, root)
+    cut += cut2
+    report.update(_grounding_report(P, rest, root, feet_down, fps, mpp is not None, feet is not None, cut, steps_total))
+    if body is not None:
+        report["lost"] = _lost_runs(body, legs, fps)
+    return {"root": root, "local": L, "global": G, "positions": P, "contact": feet_down, "hand_contact": hands,
+            "report": report}  # fmt: skip
+
+
+def _grounding_report(P, rest, root, contact, fps, travel: bool, feet: bool, cut: int, steps: int) -> dict:
+    skate = []
+    for k, side in enumerate(("left", "right")):
+        a = P[:, rig.IX[f"{_FOOT[side]}Foot"], ::2]
+        both = contact[1:, k] & contact[:-1, k]
+        if both.any():
+            skate.append(np.linalg.norm(np.diff(a, axis=0), axis=-1)[both])
+    low = np.minimum(_foot_low(P, "left", rest), _foot_low(P, "right", rest))
+    return {
+        "ground": {
+            "root": "picture travel (sideways, depth from apparent size) and height from the legs"
+            if travel
+            else "in place, height from the legs",
+            "floor": "the feet's lowest plants in the picture" if feet else "the character's feet (no feet seen)",
+            "contact_fraction": [round(float(contact[:, k].mean()), 3) for k in range(2)],
+            "skating_mm_per_frame": round(1000 * float(np.median(np.concatenate(skate))), 2) if skate else None,
+            "lowest_foot_m": round(float(low.min()), 4),
+            "hips_height_range_m": round(float(np.ptp(root[:, 1])), 4),
+            "root_travel_m": [round(float(np.ptp(root[:, i])), 3) for i in range(3)],
+            "standing_steps": steps,
+            "steps_limited": cut,
+        }
+    }
