@@ -10,7 +10,9 @@ from anima.audio.features import read_audio
 from anima.capture.config import CaptureConfig
 from anima.capture.pipeline import Timings, capture_video
 from anima.core.clock import Stopwatch
+from anima.core.world import lost_runs
 from anima.errors import InputError
+from anima.export.avatar import body_of, legs_of
 from anima.export.motion import write_motion_outputs
 from anima.io.outdir import OutputFolder
 from anima.io.validate import input_file
@@ -37,6 +39,16 @@ def check_capture_inputs(
         load_checkpoint(Path(cfg.pose_model) if cfg.pose_model else default_checkpoint())
 
 
+def lost_warnings(seq) -> list[str]:
+    """A hand or a leg the clip loses for more than a second, said with its frames (the character holds it
+    and blends it back: ``anima.core.world.lost_runs``)."""
+    body = body_of(seq)
+    if body is None:
+        return []
+    return [f"{r['part']} not seen for {r['seconds']:.1f} s (frames {r['frames'][0]}-{r['frames'][1]}): the "
+            "character holds it, then blends it back" for r in lost_runs(body, legs_of(seq), seq.fps)]  # fmt: skip
+
+
 def run(
     video: str,
     out: str | Path,
@@ -61,7 +73,7 @@ def run(
             seq = capture_video(video, cfg, audio=audio, progress=progress, timings=tm)
         s = seq.summary()
         s["capture_fps"] = round(tm.frames / max(tm.decode_track_s + tm.fit_s, 1e-9), 1)
-        s["warnings"] = seq.meta.get("source", {}).get("warnings", [])
+        s["warnings"] = seq.meta.get("source", {}).get("warnings", []) + lost_warnings(seq)
         od.info = s
         files = write_motion_outputs(
             seq,

@@ -17,15 +17,16 @@ they face the camera), +z towards the camera.
   across it, a phone's main camera in video); the root's z is the distance's change, smoothed over
   :data:`DEPTH_SIGMA_S`.
 * **Sideways** as the picture shows it: the shoulders' midpoint's column, through the same camera.
-* **Height from the legs**: the hips stand as high as the character's own legs reach, the lowest point of a
-  foot on the floor (a crouch lowers the hips, a seated person's hips sit where the thighs put them), and no
-  higher than the picture shows them above the floor's row (plus :data:`HIPS_MARGIN_M`: a person sitting on
-  the ground, legs folded, whose tracked legs say otherwise);
-  **flight** from the picture: the feet's lowest row against the floor's row (the lowest rows of the nearby
-  frames: the feet were on the floor then) lifts the whole character when both feet are off the floor.
-* **Contacts** (:func:`foot_contacts`), per foot: its lowest point within :data:`CONTACT_M` of the floor in
-  the picture and moving less than :data:`CONTACT_SPEED` (metres per second, in the picture), for at least
-  three frames (two-frame gaps closed).
+* **Height**: where the picture shows the hips and the feet, the hips stand as high above the floor's row
+  (the feet's lowest rows in the nearby frames: a foot was down then) as the picture shows them, in the
+  character's scale (:func:`hips_in_picture`: the tracker's legs are too straight in a crouch and a jump's
+  flight is only in the picture); elsewhere as high as the character's own legs reach with the lowest point
+  of a sole on the floor, lifted by the feet's height above the floor's row when both are off it (a flight).
+* **Contacts** (:func:`foot_contacts`), per foot: its lowest point within :data:`CONTACT_M` of the lower
+  foot's (the stance foot is the lower one; both, in double support) and the lower foot within
+  :data:`FLIGHT_M` of the floor's row (not in flight), moving less than :data:`CONTACT_SPEED` (metres per
+  second in the picture, its track smoothed over :data:`FOOT_SIGMA_FRAMES`), for at least three frames
+  (two-frame gaps closed).
 * **Locking** (:func:`lock_feet`): a planted foot stays where it landed: its ankle held at the landing point
   by a two-bone leg IK (hip, knee, ankle; the knee keeps the plane the tracked leg bent in), blended in and out
   over :data:`LOCK_BLEND_S`; a foot never goes under the floor (the root rises instead).
@@ -42,20 +43,24 @@ from anima.core.filters import gaussian_smooth
 
 FOCAL = 0.96
 """The assumed focal length, in units of the picture's long side (a 55 degree field of view across it)."""
-DEPTH_SIGMA_S = 0.5
+DEPTH_SIGMA_S = 0.3
 SIDE_SIGMA_S = 0.1
 SCALE_SIGMA_S = 0.25
 FLOOR_WINDOW_S = 0.6
 """The floor's row at a frame: the lowest foot row within this many seconds either side (a foot was down)."""
 AIR_DEADBAND_M = 0.03
 """Feet less than this above the floor's row count as on it (the picture's noise)."""
-CONTACT_M = 0.05
+CONTACT_M = 0.04
+"""A foot within this of the lower foot (in the picture, metres) may be down."""
+FLIGHT_M = 0.10
+"""Both feet this far above the floor's row: in the air, no contact."""
 CONTACT_SPEED = 0.35
+FOOT_SIGMA_FRAMES = 1.5
 LOCK_BLEND_S = 0.12
 REPLANT_M = 0.18
 """A standing foot (legs not seen) re-plants when the hips have carried it this far from where it stands."""
 MIN_CONF = 0.5
-HIPS_MARGIN_M = 0.10
+HIPS_SIGMA_FRAMES = 1.0
 
 _J = {n: i for i, n in enumerate(JOINT_NAMES)}
 _L = {n: i for i, n in enumerate(LEG_JOINTS)}
@@ -200,13 +205,38 @@ def feet_in_picture(pic: Picture, mpp: np.ndarray, fps: float) -> dict | None:
     height = (floor[:, None] - rows) * mpp[:, None]
     speed = np.full((pic.n, 2), np.nan)
     for k, side in enumerate(("left", "right")):
-        p = np.nanmean(legs[:, [_L[n] for n in _FOOT_POINTS[side]]], 1) * mpp[:, None]
-        v = np.linalg.norm(np.gradient(p, axis=0), axis=-1) * fps if pic.n > 1 else np.zeros(pic.n)
-        speed[:, k] = v
+        pts = legs[:, [_L[n] for n in _FOOT_POINTS[side]]]
+        seen = np.isfinite(pts).all(-1).any(1)
+        with np.errstate(all="ignore"):
+            p = np.where(seen[:, None], np.nanmean(pts, 1), np.nan)
+        p = np.stack([_fill(p[:, 0]), _fill(p[:, 1])], -1)
+        p = gaussian_smooth(p, FOOT_SIGMA_FRAMES) if pic.n > 1 else p  # a pixel of jitter is 25 cm/s at 25 fps
+        v = np.linalg.norm(np.gradient(p, axis=0), axis=-1) * mpp * fps if pic.n > 1 else np.zeros(pic.n)
+        speed[:, k] = np.where(seen, v, np.nan)
     pelvis = pic.stable(pic.body[:, [_J["left_hip"], _J["right_hip"]]]).mean(1)[:, 1]
     hips_seen = np.isfinite(pic.body3d[:, [_J["left_hip"], _J["right_hip"]]]).all((-1, -2))
     hips = np.where(hips_seen, (floor - pelvis) * mpp, np.nan)
     return {"height": height, "speed": speed, "seen": np.isfinite(rows), "hips": hips}
+
+
+def hips_in_picture(feet: dict, legs_say: np.ndarray, fps: float) -> np.ndarray | None:
+    """The hips' height ``[F]`` as the picture shows it above the floor's row, in the character's scale (the
+    picture's metres times the median ratio of the legs' height to the picture's over the frames with a foot
+    on the floor: the tracker's size is not the character's), where the hips are seen (else the legs' own);
+    None when the picture never shows both. What a crouch, a jump and a seated pose look like, whatever the
+    tracked legs say."""
+    h = feet["hips"]
+    with np.errstate(all="ignore"):
+        low = np.nanmin(np.where(feet["seen"], feet["height"], np.nan), 1)
+        down = np.isfinite(h) & (low < FLIGHT_M) & (h > 0.2)
+    if down.sum() < 3:
+        return None
+    ratio = float(np.median(legs_say[down] / h[down]))
+    if not 0.5 < ratio < 2.0:
+        return None
+    seen = np.isfinite(h)
+    out = np.where(seen, ratio * np.where(seen, h, 0.0), legs_say)
+    return _smooth(out, HIPS_SIGMA_FRAMES)
 
 
 def runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -230,8 +260,9 @@ def _clean_runs(mask: np.ndarray, min_len: int = 3, max_gap: int = 2) -> np.ndar
 def foot_contacts(feet: dict, fps: float) -> np.ndarray:
     """Contact ``[F, 2]`` per foot (see the module docstring)."""
     h, v = feet["height"], feet["speed"]
-    with np.errstate(invalid="ignore"):
-        c = (h < CONTACT_M) & (v < CONTACT_SPEED) & feet["seen"]
+    with np.errstate(all="ignore"):
+        low = np.nanmin(np.where(feet["seen"], h, np.nan), 1, keepdims=True)
+        c = (h - low < CONTACT_M) & (low < FLIGHT_M) & (v < CONTACT_SPEED) & feet["seen"]
     return np.stack([_clean_runs(c[:, k]) for k in range(2)], 1)
 
 

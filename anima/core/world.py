@@ -95,7 +95,7 @@ def _ik_leg(G: np.ndarray, P: np.ndarray, rest: np.ndarray, side: str, target: n
     G[on, up], G[on, leg] = Gu, Gl
 
 
-def _lost_runs(body: np.ndarray, legs: dict | None, fps: float) -> list[dict]:
+def lost_runs(body: np.ndarray, legs: dict | None, fps: float) -> list[dict]:
     """The hands and legs unseen for more than :data:`LOST_S` (frame ranges), for the report."""
     out = []
     parts = {"left hand": body[:, JOINT_NAMES.index("left_hand_wrist")],
@@ -145,9 +145,9 @@ def solve(
     air = ground.air_height(feet) if feet is not None else np.zeros(F)
     w_leg = np.asarray(mo["leg_weight"], np.float64)  # tracked legs' share, 0 where the legs stand
     legs_say = -low + w_leg * air  # standing or tracked, the lowest foot point is on the floor
-    if feet is not None and np.isfinite(feet["hips"]).any():
-        seen_says = ground._smooth(ground._fill(feet["hips"]), 0.2 * fps) + ground.HIPS_MARGIN_M
-        legs_say = (1 - w_leg) * legs_say + w_leg * np.minimum(legs_say, seen_says)
+    seen = ground.hips_in_picture(feet, legs_say, fps) if feet is not None else None
+    if seen is not None:  # the picture's hips above the floor, in the character's scale: crouches, jumps, sitting
+        legs_say = (1 - w_leg) * legs_say + w_leg * seen
     root[:, 1] = legs_say
     G, P = rig.forward(L, rest, root)
     # contacts: tracked legs from the picture (else from the 3D feet); standing legs are planted
@@ -163,7 +163,8 @@ def solve(
     for k, side in enumerate(("left", "right")):
         S = _FOOT[side]
         ankle = P[:, rig.IX[f"{S}Foot"]]
-        target = ground.anchors(ankle, feet_down[:, k], fps)
+        sole = _foot_low(P, side, rest)
+        target = ground.anchors(ankle - sole[:, None] * [0.0, 1.0, 0.0], feet_down[:, k], fps)  # sole on the floor
         w = ground.lock_weights(feet_down[:, k], fps)
         if (~leg_seen).any():  # standing legs: planted, re-planted when the hips carry them too far
             free = ankle.copy()
@@ -177,12 +178,6 @@ def solve(
     L = local_rotations(G, rig.PARENTS_RIG)
     L[:, rig.LEAVES] = np.eye(3)
     G, P = rig.forward(L, rest, root)
-    # never under the floor: a frame whose lowest foot point is below it raises the root
-    low = np.minimum(_foot_low(P, "left", rest), _foot_low(P, "right", rest))
-    lift = np.maximum(-low, 0.0)
-    if lift.any():
-        root[:, 1] += lift
-        G, P = rig.forward(L, rest, root)
     hands = np.zeros((F, 2), bool)
     if picture is not None and surface is not None:
         hands = contact.hand_contacts(picture, fps)
@@ -202,9 +197,15 @@ def solve(
     if cut2:
         G, P = rig.forward(L, rest, root)
     cut += cut2
+    # never under the floor: a frame whose lowest foot point is below it raises the root
+    low = np.minimum(_foot_low(P, "left", rest), _foot_low(P, "right", rest))
+    lift = np.maximum(-low, 0.0)
+    if lift.any():
+        root[:, 1] += lift
+        G, P = rig.forward(L, rest, root)
     report.update(_grounding_report(P, rest, root, feet_down, fps, mpp is not None, feet is not None, cut, steps_total))
     if body is not None:
-        report["lost"] = _lost_runs(body, legs, fps)
+        report["lost"] = lost_runs(body, legs, fps)
     return {"root": root, "local": L, "global": G, "positions": P, "contact": feet_down, "hand_contact": hands,
             "report": report}  # fmt: skip
 

@@ -1,0 +1,311 @@
+"""The body's round trip with ground truth (issue 47): real mocap with global trajectories played on anima's
+character, filmed by a camera in Blender (a still one and one that pans to follow), captured back with anima's
+capture, and compared with the truth.
+
+    python benchmarks/roundtrip_body.py            # writes benchmarks/results/roundtrip_body.json (~10 min)
+
+**Truth.** Real mocap with global trajectories: Human3.6M's world poses (``pose3d/derived/
+h36m_3d17_world_mm_10fps_allsubjects.npz``, S9 "Walking", 5 s from 2 s in, 10 fps resampled to 25 by cubic
+splines; Human3.6M's research terms: nothing of it leaves this machine) and a CMU jumping clip
+(``pose3d/derived/cmu_dmgnn_38j_mm_30fps.npz``, "train/jumping/jumping_2", the first 5 s, 30 fps; free for any
+use; its vertical trajectory is kept, the horizontal one of this conversion is not trusted: the walks' feet
+slide in it, so CMU's walks are not used). Each is put on the character (``anima.core.rig.solve`` on its
+joints, the hips' trajectory scaled by the character's hip height over the actor's) and written as the
+character's glTF. The character's joints by its own forward
+kinematics are the truth; a foot is in contact where its truth moves under 0.25 m/s within 5 cm of its
+lowest height.
+
+**Film.** ``benchmarks/blender_render_take.py`` renders it at 720 x 720 (a 35 mm lens on a 36 mm sensor, 55
+degrees across): the camera 4.5 m in front of the clip's centre at 1.2 m, still (the person fills 30 to 50 % of
+the picture's height as they walk); or at the same place turning to follow the hips (a pan). The frames become
+an H.264 video at the clip's rate.
+
+**Capture.** ``anima capture VIDEO --no-render`` (the shipped defaults), then the character's motion
+(``anima.export.avatar.character_motion``). The capture's world is the camera's frame at the first frame (the
+pan taken out), the truth's is the scene's: the two are aligned once, by the rotation about the vertical and
+the translation that best match the hips over the first second (a per-frame alignment would hide drift).
+
+**Metrics** (each on the 12 joints both have: hips, knees, ankles, shoulders, elbows, wrists): W-MPJPE (mm,
+world joints after that one alignment), root error (mm, the hips), the hips' travel (path length) over the
+truth's, foot sliding (mm per frame, median over the truth's contact frames, the ankle's horizontal step),
+penetration (the lowest sole, m), jitter (mean joint acceleration, m/s^2) and, for the jumps, how high the hips
+rise (the 95th percentile of their height over its median). **Baseline**: the raw tracker, MediaPipe
+Holistic's world landmarks as capture stores them (pelvis-centred: no root, no floor).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from anima.capture.config import CaptureConfig
+from anima.capture.pipeline import capture_video
+from anima.core import rig
+from anima.core.contract import JOINT_NAMES, LEG_JOINTS
+from anima.core.rotations import matrix_to_quat
+from anima.export.avatar import character_motion
+from anima.facemodel.character import load_character
+from anima.io.assets import asset
+from anima.io.atomic import write_json
+from anima.io.gltf import write_character_glb
+from anima.io.sequence import read_sequence, write_sequence
+from anima.io.video import FFMPEG
+from anima.render.raster import vertex_normals
+
+CMU = "pose3d/derived/cmu_dmgnn_38j_mm_30fps.npz"
+H36M = "pose3d/derived/h36m_3d17_world_mm_10fps_allsubjects.npz"
+CLIPS = {"walking": ("h36m", "S9/Walking", 2.0, 5.0), "jumping": ("cmu", "train/jumping/jumping_2", 0.0, 5.0)}
+FPS = 25.0
+DISTANCE_M, SIZE = 4.5, 720
+# Human3.6M's 17 joints -> the CMU indices _CMU uses (for one conversion of both): pelvis 0, r_hip 1, r_knee 2,
+# r_ankle 3, l_hip 4, l_knee 5, l_ankle 6, spine 7, thorax 8, neck_nose 9, head 10, l_shoulder 11, l_elbow 12,
+# l_wrist 13, r_shoulder 14, r_elbow 15, r_wrist 16
+_H36M_AS_CMU = {0: 0, 2: 4, 3: 5, 4: 6, 8: 1, 9: 2, 10: 3, 14: 7, 16: 8, 18: 9, 19: 10, 21: 11, 22: 12, 23: 13,
+                30: 14, 31: 15, 32: 16}  # fmt: skip
+# CMU (DMGNN's 38 joints) -> anima's tracked joints; chain 1-6 the left leg, 20-28 the left arm (ASF order)
+_CMU = {"pelvis": 0, "left_hip": 2, "left_knee": 3, "left_ankle": 4, "left_foot_index": 5, "right_hip": 8,
+        "right_knee": 9, "right_ankle": 10, "right_foot_index": 11, "spine": 14, "neck": 16, "head": 18,
+        "nose": 19, "left_shoulder": 21, "left_elbow": 22, "left_wrist": 23, "right_shoulder": 30,
+        "right_elbow": 31, "right_wrist": 32}  # fmt: skip
+COMPARE = ("LeftUpLeg", "RightUpLeg", "LeftLeg", "RightLeg", "LeftFoot", "RightFoot", "LeftArm", "RightArm",
+           "LeftForeArm", "RightForeArm", "LeftHand", "RightHand")  # fmt: skip
+_RAW = {"LeftUpLeg": "left_hip", "RightUpLeg": "right_hip", "LeftArm": "left_shoulder",
+        "RightArm": "right_shoulder", "LeftForeArm": "left_elbow", "RightForeArm": "right_elbow",
+        "LeftHand": "left_wrist", "RightHand": "right_wrist"}  # fmt: skip
+_RAW_LEGS = {"LeftLeg": "left_knee", "RightLeg": "right_knee", "LeftFoot": "left_ankle", "RightFoot": "right_ankle"}
+
+
+def _resample(J: np.ndarray, fps: float, start_s: float, seconds: float) -> np.ndarray:
+    from scipy.interpolate import CubicSpline
+
+    t = np.arange(len(J)) / fps
+    new = start_s + np.arange(int(round(seconds * FPS))) / FPS
+    new = new[new <= t[-1]]
+    out = np.full((len(new),) + J.shape[1:], np.nan)
+    ok = np.isfinite(J).all((0, 2))
+    out[:, ok] = CubicSpline(t, J[:, ok], axis=0)(new)
+    return out
+
+
+def clip(kind: str, name: str, start_s: float, seconds: float) -> np.ndarray:
+    """A clip's joints ``[F, 38, 3]`` (CMU's indices; Human3.6M's placed at the same ones) in anima's axes
+    (metres, +y up), at :data:`FPS`."""
+    if kind == "cmu":
+        z = np.load(asset(CMU), allow_pickle=False)
+        k = list(z["seq_name"]).index(name)
+        a, n = int(z["seq_start"][k]), int(z["seq_len"][k])
+        J = z["joints38_mm"][a : a + n].astype(np.float64) / 1000.0
+        J = np.stack([J[..., 0], J[..., 2], J[..., 1]], -1)  # index 2 up, mirrored by the source's swap: undone
+        fps = float(z["source_fps_estimate"]) / float(z["frame_step_from_source"])
+    else:
+        z = np.load(asset(H36M), allow_pickle=False)
+        k = list(z["seq_name"]).index(name)
+        a, n = int(z["seq_start"][k]), int(z["seq_len"][k])
+        H = z["joints17_world_mm"][a : a + n].astype(np.float64) / 1000.0
+        H = np.stack([H[..., 0], H[..., 2], -H[..., 1]], -1)  # z up -> y up (a rotation)
+        J = np.full((len(H), 38, 3), np.nan)
+        for c, h in _H36M_AS_CMU.items():
+            J[:, c] = H[:, h]
+        J[:, 5], J[:, 11] = J[:, 4], J[:, 10]  # no toes: the ankles
+        fps = 10.0
+    return _resample(J, fps, start_s, seconds)
+
+
+def truth_motion(J: np.ndarray, fps: float):
+    """The clip on the character: its rig motion (rotations from the clip's joints, the hips where the clip's
+    are, scaled to the character) and the character's rest."""
+    pelvis = J[:, 0]
+    F = len(J)
+    body = np.full((F, len(JOINT_NAMES), 3), np.nan)
+    for n, i in _CMU.items():
+        if n in JOINT_NAMES:
+            body[:, JOINT_NAMES.index(n)] = J[:, i] - pelvis
+    body[:, JOINT_NAMES.index("neck")] = (J[:, 21] + J[:, 30]) / 2 - pelvis
+    legs = {n: J[:, _CMU[n]] - pelvis for n in LEG_JOINTS if n in _CMU}
+    legs["left_heel"], legs["right_heel"] = legs["left_ankle"], legs["right_ankle"]
+    legs["left_hip"], legs["right_hip"] = (
+        body[:, JOINT_NAMES.index("left_hip")],
+        body[:, JOINT_NAMES.index("right_hip")],
+    )
+    ch = load_character()
+    V, rest = ch.shaped(np.zeros(ch.n_components))
+    mo = rig.solve(body, rest, fps, None, legs=legs, frames=F)
+    floor = np.percentile(J[:, [4, 10], 1].min(1), 2)
+    scale = rest[rig.HIPS, 1] / np.median(pelvis[:, 1] - floor)
+    root = np.stack([pelvis[:, 0] * scale, (pelvis[:, 1] - floor) * scale, pelvis[:, 2] * scale], -1)
+    root[:, [0, 2]] -= root[:, [0, 2]].mean(0)
+    G, P = rig.forward(mo["local"], rest, root)
+    sole = np.min([P[:, rig.IX[n], 1] - rest[rig.IX[n], 1] for n in ("LeftFoot", "RightFoot", "LeftToeBase",
+                                                                      "RightToeBase")], 0)  # fmt: skip
+    root[:, 1] -= np.percentile(sole, 2)  # the truth stands on the floor
+    G, P = rig.forward(mo["local"], rest, root)
+    return {"local": mo["local"], "root": root, "global": G, "positions": P, "rest": rest, "vertices": V, "ch": ch}
+
+
+def write_take(m: dict, fps: float, path: Path) -> Path:
+    ch = m["ch"]
+    F = len(m["root"])
+    write_character_glb(
+        path, rig.preset_names("anima"), rig.PARENTS_RIG, m["rest"], m["root"], matrix_to_quat(m["local"]),
+        m["vertices"], vertex_normals(m["vertices"], ch.faces), ch.faces, ch.skin_joints, ch.skin_weights,
+        list(zip(ch.morph_index, ch.morph_delta)), [f"m{k}" for k in range(len(ch.morph_index))],
+        np.zeros((F, len(ch.morph_index))), fps, {}, {"anima_fps": fps}, animated=~rig.LEAVES,
+    )  # fmt: skip
+    return path
+
+
+def film(glb: Path, m: dict, fps: float, pan: bool, work: Path) -> Path:
+    F = len(m["root"])
+    centre = m["root"].mean(0)
+    pos = np.tile([centre[0], 1.2, centre[2] + DISTANCE_M], (F, 1))
+    hips = m["root"] * [1, 0, 1] + [0, 1.0, 0]
+    target = hips if pan else np.tile([centre[0], 1.0, centre[2]], (F, 1))
+    cam = {"fps": fps, "frames": F, "size": SIZE, "lens_mm": 35.0, "sensor_mm": 36.0, "position": pos.tolist(),
+           "target": target.tolist()}  # fmt: skip
+    (work / "camera.json").write_text(json.dumps(cam))
+    frames = work / ("frames_pan" if pan else "frames_still")
+    frames.mkdir(exist_ok=True)
+    script = Path(__file__).with_name("blender_render_take.py")
+    r = subprocess.run(
+        [shutil.which("blender"), "-b", "--factory-startup", "--python", str(script), "--", str(glb), str(frames),
+         str(work / "camera.json")],
+        capture_output=True, text=True, timeout=3600,
+    )  # fmt: skip
+    if r.returncode != 0 or "anima-render: done" not in r.stdout:
+        raise RuntimeError((r.stdout + r.stderr)[-2000:])
+    video = work / f"{'pan' if pan else 'still'}.mp4"
+    subprocess.run([FFMPEG, "-v", "error", "-y", "-framerate", repr(fps), "-i", str(frames / "frame_%04d.png"),
+                    "-c:v", "libx264", "-pix_fmt", "yuv420p", "-crf", "18", str(video)], check=True)  # fmt: skip
+    return video
+
+
+def _align(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rotation about +y and the horizontal translation taking points ``A [N, 3]`` onto ``B``, least
+    squares (the heights are each motion's own: both stand on a floor at y = 0)."""
+    a0, b0 = A.mean(0), B.mean(0)
+    H = (A - a0)[:, [0, 2]].T @ (B - b0)[:, [0, 2]]
+    th = np.arctan2(H[0, 1] - H[1, 0], H[0, 0] + H[1, 1])
+    c, s = np.cos(th), np.sin(th)
+    R = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    t = b0 - a0 @ R.T
+    t[1] = 0.0
+    return R, t
+
+
+def contacts(P: np.ndarray, rest: np.ndarray, fps: float) -> np.ndarray:
+    out = []
+    for S in ("Left", "Right"):
+        a = P[:, rig.IX[f"{S}Foot"]]
+        v = np.linalg.norm(np.gradient(a, axis=0), axis=-1) * fps
+        h = a[:, 1] - a[:, 1].min()
+        out.append((v < 0.25) & (h < 0.05))
+    return np.stack(out, 1)
+
+
+def metrics(P: np.ndarray, root: np.ndarray, truth: dict, fps: float, rest: np.ndarray | None) -> dict:
+    """P ``[F, 65, 3]`` a motion's joints (rig order), already in the truth's frame; ``rest``: its character's
+    rest (None for the raw tracker: no soles)."""
+    T, Tr = truth["positions"], truth["root"]
+    F = min(len(P), len(T))
+    idx = [rig.IX[n] for n in COMPARE]
+    err = np.linalg.norm(P[:F, idx] - T[:F, idx], axis=-1)
+    path = lambda r: np.linalg.norm(np.diff(r[:F, [0, 2]], axis=0), axis=-1).sum()
+    c = contacts(T[:F], truth["rest"], fps)
+    slide = []
+    for k, S in enumerate(("Left", "Right")):
+        a = P[:F, rig.IX[f"{S}Foot"], ::2]
+        both = c[1:, k] & c[:-1, k]
+        slide.append(np.linalg.norm(np.diff(a, axis=0), axis=-1)[both])
+    acc = np.nanmean(np.linalg.norm(np.diff(P[:F, idx], 2, axis=0), axis=-1)) * fps * fps
+    out = {
+        "w_mpjpe_mm": round(1000 * float(np.nanmean(err)), 1),
+        "root_error_mm": round(1000 * float(np.nanmean(np.linalg.norm(root[:F] - Tr[:F], axis=-1))), 1),
+        "hips_travel_ratio": round(float(path(root) / max(path(Tr), 1e-6)), 3),
+        "foot_sliding_mm_per_frame": round(1000 * float(np.nanmedian(np.concatenate(slide))), 2),
+        "contact_frames": int(c.sum()),
+        "jitter_m_s2": round(float(acc), 2),
+        "hips_rise_m": round(float(np.percentile(root[:F, 1], 95) - np.median(root[:F, 1])), 3),
+    }  # fmt: skip
+    if rest is not None:
+        sole = np.min([P[:F, rig.IX[n], 1] - rest[rig.IX[n], 1] for n in ("LeftFoot", "RightFoot", "LeftToeBase",
+                                                                           "RightToeBase", "LeftToe_End",
+                                                                           "RightToe_End")], 0)  # fmt: skip
+        out["lowest_sole_m"] = round(float(sole.min()), 3)
+    return out
+
+
+def raw_positions(seq) -> np.ndarray:
+    """The raw tracker's joints on rig indices (pelvis-centred, no root), NaN where it has none."""
+    P = np.full((seq.n_frames, rig.N_RIG, 3), np.nan)
+    for n, t in _RAW.items():
+        P[:, rig.IX[n]] = seq.body_joints_raw[:, JOINT_NAMES.index(t)]
+    if seq.leg_joints is not None:
+        for n, t in _RAW_LEGS.items():
+            P[:, rig.IX[n]] = seq.leg_joints[:, LEG_JOINTS.index(t)]
+    return P
+
+
+def run_case(name: str, pan: bool, work: Path, cache: Path | None = None) -> dict:
+    """One clip and camera; ``cache``: a folder keeping the rendered video and its capture (reused when there)."""
+    J, fps = clip(*CLIPS[name]), FPS
+    truth = truth_motion(J, fps)
+    t0 = time.perf_counter()
+    key = f"{name}_{'pan' if pan else 'still'}"
+    if cache is not None and (cache / f"{key}.npz").is_file():
+        seq = read_sequence(cache / f"{key}.npz")
+    else:
+        glb = write_take(truth, fps, work / "truth.glb")
+        video = film(glb, truth, fps, pan, work)
+        seq = capture_video(str(video), CaptureConfig(), progress=False)
+        if cache is not None:
+            cache.mkdir(parents=True, exist_ok=True)
+            write_sequence(seq, cache / f"{key}.npz")
+            shutil.copy(video, cache / f"{key}.mp4")
+    t1 = time.perf_counter()
+    m = character_motion(seq)
+    F = min(seq.n_frames, len(truth["root"]))
+    n = max(2, min(F, int(round(fps))))
+    R, t = _align(m["root"][:n], truth["root"][:n])
+    P = m["positions"] @ R.T + t
+    root = m["root"] @ R.T + t
+    ours = metrics(P, root, truth, fps, m["rest"])
+    raw = raw_positions(seq) + truth["root"][:1]  # the tracker's pelvis-centred joints where the truth starts
+    base = metrics(raw, np.tile(truth["root"][:1], (seq.n_frames, 1)), truth, fps, None)
+    Tr = truth["root"]
+    return {"clip": name, "source": " ".join(map(str, CLIPS[name])), "frames": F, "fps": round(fps, 2),
+            "camera": "panning to follow" if pan else "still",
+            "truth_hips_rise_m": round(float(np.percentile(Tr[:, 1], 95) - np.median(Tr[:, 1])), 3),
+            "truth_travel_m": round(float(np.linalg.norm(np.diff(Tr[:, [0, 2]], axis=0), axis=-1).sum()), 2),
+            "anima": ours, "raw_holistic": base, "render_and_capture_s": round(t1 - t0, 1),
+            "ground": m["report"].get("ground")}  # fmt: skip
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "roundtrip_body.json"))
+    ap.add_argument("--clips", nargs="*", default=list(CLIPS), choices=list(CLIPS))
+    ap.add_argument("--cache", default=None, help="keep the rendered videos and their captures here (and reuse them)")
+    a = ap.parse_args()
+    if shutil.which("blender") is None:
+        sys.exit("benchmarks/roundtrip_body.py renders with Blender: ./dev setup installs it")
+    rows = []
+    for name in a.clips:
+        for pan in (False, True) if name == "walking" else (False,):
+            with tempfile.TemporaryDirectory(prefix="anima-roundtrip-") as tmp:
+                r = run_case(name, pan, Path(tmp), Path(a.cache) if a.cache else None)
+            rows.append(r)
+            print(json.dumps(r), flush=True)
+    write_json(a.out, {"rows": rows, "protocol": "benchmarks/roundtrip_body.py docstring",
+                       "machine": "2 cores, no GPU"})  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
