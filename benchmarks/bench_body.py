@@ -1,6 +1,8 @@
-"""Body capture speed on 2 cores: full one-pass capture (decode + Holistic + face fit + skeleton assembly
-and cleaning + speech features) vs raw Holistic (decode + Holistic) on the same frames.
-Writes benchmarks/results/body.json.
+"""Body capture speed on 2 cores: full one-pass capture (decode + Holistic + the camera's motion from the
+background + face fit + skeleton assembly and cleaning + speech features + the character in the world: root,
+floor, contacts, foot locking, hands on the body, step limits) vs raw Holistic (decode + Holistic) on the same
+frames. Writes benchmarks/results/body.json; the default clip is a full-body one (LivePortrait's s13, 720 x 1080),
+``--clip`` another.
 
     python benchmarks/bench_body.py [--clip REL_PATH] [--repeats R]
 
@@ -22,6 +24,7 @@ os.environ.setdefault("GLOG_minloglevel", "2")
 from anima.capture.config import CaptureConfig
 from anima.capture.holistic import HolisticTracker
 from anima.capture.pipeline import capture_video
+from anima.export.avatar import character_motion
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
 from anima.io.assets import asset
@@ -40,13 +43,14 @@ def raw_holistic(path: str) -> float:
 
 def full_capture(path: str) -> float:
     t0 = time.perf_counter()
-    capture_video(path, CaptureConfig(), progress=False)
+    seq = capture_video(path, CaptureConfig(), progress=False)
+    character_motion(seq)  # the character in the world: what every output of the capture is made from
     return time.perf_counter() - t0
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--clip", default="gesture-video/pats-crops/oliver1_gt.mp4")
+    ap.add_argument("--clip", default="liveportrait-examples/assets/examples/source/s13.mp4")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "body.json"))
     a = ap.parse_args()
@@ -69,7 +73,7 @@ def main() -> None:
         "raw_holistic_fps": info.n_frames / statistics.median(raw_t),
         "capture_fps": info.n_frames / statistics.median(full_t),
         "overhead_ratio": statistics.median(f / r for f, r in zip(full_t, raw_t)),
-        "target": {"overhead_ratio": "<= 1.2"},
+        "target": {"overhead_ratio": "<= 1.25"},
         "raw_s": raw_t,
         "capture_s": full_t,
     }

@@ -27,10 +27,12 @@ the translation that best match the hips over the first second (a per-frame alig
 
 **Metrics** (each on the 12 joints both have: hips, knees, ankles, shoulders, elbows, wrists): W-MPJPE (mm,
 world joints after that one alignment), root error (mm, the hips), the hips' travel (path length) over the
-truth's, foot sliding (mm per frame, median over the truth's contact frames, the ankle's horizontal step),
-penetration (the lowest sole, m), jitter (mean joint acceleration, m/s^2) and, for the jumps, how high the hips
-rise (the 95th percentile of their height over its median). **Baseline**: the raw tracker, MediaPipe
-Holistic's world landmarks as capture stores them (pelvis-centred: no root, no floor).
+truth's (and in body heights: the captured character is shaped to the tracker's measures, the truth is the
+default character), the feet's contacts against the truth's (precision, recall), foot sliding (mm per frame,
+median over the truth's contact frames, the ankle's horizontal step), penetration (the lowest sole, m), jitter
+(mean joint acceleration, m/s^2) and, for the jumps, how high the hips rise (the 95th percentile of their
+height over its median). **Baseline**: the raw tracker, MediaPipe Holistic's world landmarks as capture stores
+them (pelvis-centred: no root, no floor).
 """
 
 from __future__ import annotations
@@ -277,6 +279,15 @@ def run_case(name: str, pan: bool, work: Path, cache: Path | None = None) -> dic
     P = m["positions"] @ R.T + t
     root = m["root"] @ R.T + t
     ours = metrics(P, root, truth, fps, m["rest"])
+    # the capture's character is shaped to the tracker's measures, the truth is the default character: the
+    # travel in body heights takes that size out (the tracker's metres are its own, not the scene's)
+    tall = float(truth["vertices"][:, 1].max() - truth["vertices"][:, 1].min())
+    ours["hips_travel_ratio_in_heights"] = round(ours["hips_travel_ratio"] * tall / m["report"]["height_m"], 3)
+    ours["character_height_m"], ours["truth_height_m"] = m["report"]["height_m"], round(tall, 3)
+    tc = contacts(truth["positions"][:F], truth["rest"], fps)
+    hit = (m["contact"][:F] & tc).sum()
+    ours["contact_precision"] = round(float(hit / max(m["contact"][:F].sum(), 1)), 3)
+    ours["contact_recall"] = round(float(hit / max(tc.sum(), 1)), 3)
     raw = raw_positions(seq) + truth["root"][:1]  # the tracker's pelvis-centred joints where the truth starts
     base = metrics(raw, np.tile(truth["root"][:1], (seq.n_frames, 1)), truth, fps, None)
     Tr = truth["root"]

@@ -10,7 +10,8 @@ from anima.audio.features import read_audio
 from anima.capture.config import CaptureConfig
 from anima.capture.pipeline import Timings, capture_video
 from anima.core.clock import Stopwatch
-from anima.core.world import lost_runs
+from anima.core.ground import runs
+from anima.core.world import LOST_S, lost_runs
 from anima.errors import InputError
 from anima.export.avatar import body_of, legs_of
 from anima.export.motion import write_motion_outputs
@@ -40,13 +41,16 @@ def check_capture_inputs(
 
 
 def lost_warnings(seq) -> list[str]:
-    """A hand or a leg the clip loses for more than a second, said with its frames (the character holds it
-    and blends it back: ``anima.core.world.lost_runs``)."""
+    """The face, a hand or a leg the clip loses for more than a second, said with its frames (the character
+    holds it and blends it back: ``anima.core.world.lost_runs``; the face eases to its rest and back)."""
+    out = [f"face not seen for {(b - a) / seq.fps:.1f} s (frames {a}-{b - 1}): the character's face rests, then "
+           "blends back" for a, b in runs(~seq.tracked) if seq.tracked.any() and b - a > LOST_S * seq.fps]  # fmt: skip
     body = body_of(seq)
     if body is None:
-        return []
-    return [f"{r['part']} not seen for {r['seconds']:.1f} s (frames {r['frames'][0]}-{r['frames'][1]}): the "
-            "character holds it, then blends it back" for r in lost_runs(body, legs_of(seq), seq.fps)]  # fmt: skip
+        return out
+    lost = lost_runs(body, legs_of(seq), seq.fps)
+    return out + [f"{r['part']} not seen for {r['seconds']:.1f} s (frames {r['frames'][0]}-{r['frames'][1]}): the "
+                  "character holds it, then blends it back" for r in lost]  # fmt: skip
 
 
 def run(

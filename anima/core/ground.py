@@ -17,8 +17,11 @@ they face the camera), +z towards the camera.
   across it, a phone's main camera in video); the root's z is the distance's change, smoothed over
   :data:`DEPTH_SIGMA_S`.
 * **Sideways** as the picture shows it: the shoulders' midpoint's column, through the same camera.
+* **The floor** (:func:`floor_rows`): the ground plane's row under the person, a line in their pixels per
+  metre whose slope is the camera's height, fitted to the lower foot's rows; what it leaves is taken from the
+  nearby frames' lowest foot (a foot was down then).
 * **Height**: where the picture shows the hips and the feet, the hips stand as high above the floor's row
-  (the feet's lowest rows in the nearby frames: a foot was down then) as the picture shows them, in the
+  as the picture shows them, in the
   character's scale (:func:`hips_in_picture`: the tracker's legs are too straight in a crouch and a jump's
   flight is only in the picture); elsewhere as high as the character's own legs reach with the lowest point
   of a sole on the floor, lifted by the feet's height above the floor's row when both are off it (a flight).
@@ -47,7 +50,14 @@ DEPTH_SIGMA_S = 0.3
 SIDE_SIGMA_S = 0.1
 SCALE_SIGMA_S = 0.25
 FLOOR_WINDOW_S = 0.6
-"""The floor's row at a frame: the lowest foot row within this many seconds either side (a foot was down)."""
+"""The floor's row at a frame: the ground plane's row at the person's distance, corrected by the lowest foot row
+(the plane taken out) within this many seconds either side (a foot was down)."""
+FLOOR_QUANTILE = 0.75
+"""The ground plane's line is fitted to this quantile of the lower foot's rows (the lower foot is down in most
+frames; a jump's flight and a mis-tracked foot are the rest)."""
+CAMERA_HEIGHT_M = (0.2, 4.0)
+"""The camera heights above the floor the ground plane may have; outside them, or when the person's distance
+hardly changes, the floor's row is the clip's own (no plane)."""
 AIR_DEADBAND_M = 0.03
 """Feet less than this above the floor's row count as on it (the picture's noise)."""
 CONTACT_M = 0.04
@@ -76,8 +86,10 @@ _FOOT_POINTS = {"left": ("left_ankle", "left_heel", "left_foot_index"),
 class Picture:
     """The 2D evidence of a clip: the picture's size, the joints' pixel positions (``body [F, 55, 2]``, ``legs
     [F, 8, 2]`` or None), their 3D positions (pelvis-relative metres) and the legs' visibility, the
-    background's cumulative shift ``camera [F, 2]`` (pixels; zeros for a still camera) and its cumulative
-    scale ``zoom [F]`` (ones for a still camera; a zoom in is > 1)."""
+    background's cumulative shift ``camera [F, 2]`` (pixels; zeros for a still camera). The background's
+    scale (``camera_step``'s third column) is not used: a similarity fitted to a pan's background takes its
+    perspective for a zoom (4 % over a 14-degree pan in the round trip), which would read as the person
+    walking away."""
 
     width: int
     height: int
@@ -87,13 +99,10 @@ class Picture:
     legs3d: np.ndarray | None = None
     leg_conf: np.ndarray | None = None
     camera: np.ndarray | None = None
-    zoom: np.ndarray | None = None
 
     def __post_init__(self):
         if self.camera is None:
             self.camera = np.zeros((len(self.body), 2))
-        if self.zoom is None:
-            self.zoom = np.ones(len(self.body))
 
     @property
     def n(self) -> int:
@@ -150,22 +159,20 @@ def metres_per_pixel(pic: Picture, fps: float) -> np.ndarray | None:
     return 1.0 / np.maximum(ppm, 1e-6)
 
 
-def apparent_scale(pic: Picture, mpp: np.ndarray) -> np.ndarray:
-    """Metres per pixel with the camera's zoom taken out (a zoom changes the picture's scale, not the person's
-    distance): what the distance follows."""
-    return mpp * pic.zoom
-
-
 def picture_travel(pic: Picture, mpp: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
-    """The person's sideways and depth travel ``x [F]``, ``z [F]`` (metres, relative to their clip medians):
-    the shoulders' midpoint through a pinhole camera of focal :data:`FOCAL`, distance from apparent size."""
+    """The person's sideways and depth travel ``x [F]``, ``z [F]`` (metres, relative to their clip medians) in
+    the first frame's camera: the shoulders' midpoint through a pinhole camera of focal :data:`FOCAL`, its depth
+    from apparent size, its bearing the picture's angle plus the camera's turn (a pan turns the camera: the
+    background's cumulative shift over the focal length)."""
     f = FOCAL * max(pic.width, pic.height)
-    u = pic.stable(pic.body[:, [_J["left_shoulder"], _J["right_shoulder"]]]).mean(1)[:, 0]
-    d = _smooth(f * apparent_scale(pic, mpp), DEPTH_SIGMA_S * fps)
-    X = _fill((u - pic.width / 2) * d / f)
-    x = _smooth(X - np.median(X), SIDE_SIGMA_S * fps)
-    z = -(d - np.median(d))
-    return x, z
+    u = pic.body[:, [_J["left_shoulder"], _J["right_shoulder"]]].mean(1)[:, 0]
+    depth = _smooth(f * mpp, DEPTH_SIGMA_S * fps)
+    alpha = np.arctan(_fill((u - pic.width / 2) / f))
+    turn = -pic.camera[:, 0] / f
+    bearing = _smooth(alpha + turn, SIDE_SIGMA_S * fps)
+    r = depth / np.cos(alpha)  # along the ray
+    X, Z = r * np.sin(bearing), r * np.cos(bearing)
+    return X - np.median(X), -(Z - np.median(Z))
 
 
 def _rolling_max(x: np.ndarray, half: int) -> np.ndarray:
@@ -190,6 +197,47 @@ def foot_rows(pic: Picture) -> np.ndarray | None:
     return np.stack(rows, 1)
 
 
+def _quantile_line(x: np.ndarray, y: np.ndarray, q: float, iters: int = 60) -> tuple[float, float]:
+    """``a, b`` of the line ``y = a + b x`` under which a share ``q`` of the points lie (quantile regression by
+    iteratively reweighted least squares)."""
+    x0 = float(np.mean(x))
+    A = np.stack([np.ones_like(x), x - x0], 1)
+    beta = np.linalg.lstsq(A, y, rcond=None)[0]
+    eps = 1e-3 * max(float(np.std(y)), 1e-6)
+    for _ in range(iters):
+        r = y - A @ beta
+        w = np.where(r > 0, q, 1.0 - q) / np.maximum(np.abs(r), eps)
+        Aw = A * w[:, None]
+        beta = np.linalg.solve(Aw.T @ A + 1e-12 * np.eye(2), Aw.T @ y)
+    return float(beta[0] - beta[1] * x0), float(beta[1])
+
+
+def floor_rows(low: np.ndarray, mpp: np.ndarray, fps: float) -> tuple[np.ndarray, float | None]:
+    """The floor's row under the person ``[F]`` (pixels, camera taken out) from the lower foot's lowest row ``low
+    [F]`` (NaN where unseen), and the camera's height above the floor (metres) when the plane was used.
+
+    A floor seen by a level pinhole camera puts a point at distance ``d`` at the row ``horizon + f h / d``
+    (``h`` the camera's height), and the person's metres per pixel are ``d / f``: the floor's row under them is
+    ``horizon + h / mpp``, a line in ``1 / mpp`` whose slope is the camera's height. It is fitted to the lower
+    foot's rows (:data:`FLOOR_QUANTILE`); what is left (tilt the camera track missed, a slope) is the nearby
+    frames' lowest residual (:data:`FLOOR_WINDOW_S`). A person walking towards or away from the camera no
+    longer stands above or below a floor taken from other distances."""
+    ok = np.isfinite(low) & np.isfinite(mpp)
+    plane = np.zeros(len(low))
+    height = None
+    if ok.sum() >= 10:
+        x = 1.0 / mpp[ok]
+        if np.std(x) > 0.03 * np.mean(x):
+            a, b = _quantile_line(x, low[ok], FLOOR_QUANTILE)
+            if CAMERA_HEIGHT_M[0] <= b <= CAMERA_HEIGHT_M[1]:
+                plane = b / mpp
+                height = b
+    plane = np.where(np.isfinite(plane), plane, 0.0)
+    rest = _rolling_max(low - plane, int(round(FLOOR_WINDOW_S * fps)))
+    rest[~np.isfinite(rest)] = np.nan
+    return plane + _smooth(_fill(rest), 0.1 * fps), height
+
+
 def feet_in_picture(pic: Picture, mpp: np.ndarray, fps: float) -> dict | None:
     """The feet against the floor in the picture: ``height [F, 2]`` (metres of each foot's lowest point above
     the floor's row), ``speed [F, 2]`` (metres per second in the picture), ``seen [F, 2]``, and ``hips [F]``
@@ -199,9 +247,9 @@ def feet_in_picture(pic: Picture, mpp: np.ndarray, fps: float) -> dict | None:
     if rows is None or not np.isfinite(rows).any():
         return None
     legs = pic.leg_px()
-    floor = _rolling_max(np.nanmax(np.where(np.isfinite(rows), rows, -np.inf), 1), int(round(FLOOR_WINDOW_S * fps)))
-    floor[~np.isfinite(floor)] = np.nan
-    floor = _smooth(_fill(floor), 0.1 * fps)
+    low = np.nanmax(np.where(np.isfinite(rows), rows, -np.inf), 1)
+    low[~np.isfinite(low)] = np.nan
+    floor, camera_height = floor_rows(low, mpp, fps)
     height = (floor[:, None] - rows) * mpp[:, None]
     speed = np.full((pic.n, 2), np.nan)
     for k, side in enumerate(("left", "right")):
@@ -216,7 +264,7 @@ def feet_in_picture(pic: Picture, mpp: np.ndarray, fps: float) -> dict | None:
     pelvis = pic.stable(pic.body[:, [_J["left_hip"], _J["right_hip"]]]).mean(1)[:, 1]
     hips_seen = np.isfinite(pic.body3d[:, [_J["left_hip"], _J["right_hip"]]]).all((-1, -2))
     hips = np.where(hips_seen, (floor - pelvis) * mpp, np.nan)
-    return {"height": height, "speed": speed, "seen": np.isfinite(rows), "hips": hips}
+    return {"height": height, "speed": speed, "seen": np.isfinite(rows), "hips": hips, "camera_height": camera_height}
 
 
 def hips_in_picture(feet: dict, legs_say: np.ndarray, fps: float) -> np.ndarray | None:

@@ -26,6 +26,27 @@ _ARMS = {
 }  # fmt: skip
 
 
+_SIZE_SEGMENTS = {("left_shoulder", "right_shoulder"): ("LeftArm", "RightArm"),
+                  ("left_hip", "right_hip"): ("LeftUpLeg", "RightUpLeg"),
+                  ("left_shoulder", "left_elbow"): ("LeftArm", "LeftForeArm"),
+                  ("right_shoulder", "right_elbow"): ("RightArm", "RightForeArm"),
+                  ("left_elbow", "left_wrist"): ("LeftForeArm", "LeftHand"),
+                  ("right_elbow", "right_wrist"): ("RightForeArm", "RightHand")}  # fmt: skip
+
+
+def character_size(body3d: np.ndarray, rest: np.ndarray) -> float:
+    """The character's size over the tracked person's (the median over shoulders, hips, upper arms and forearms
+    of the character's length over the tracker's clip-median length; 1 when none is seen). The picture's metres
+    are the tracker's; the root travels in the character's, so that its strides fit its own legs."""
+    J = {n: i for i, n in enumerate(JOINT_NAMES)}
+    r = []
+    for (a, b), (ra, rb) in _SIZE_SEGMENTS.items():
+        d = np.linalg.norm(body3d[:, J[a]] - body3d[:, J[b]], axis=-1)
+        if np.isfinite(d).any() and np.nanmedian(d) > 1e-3:
+            r.append(np.linalg.norm(rest[rig.IX[ra]] - rest[rig.IX[rb]]) / np.nanmedian(d))
+    return float(np.clip(np.median(r), 0.5, 2.0)) if r else 1.0
+
+
 def limit_steps(L: np.ndarray, max_deg: float = MAX_STEP_DEG) -> tuple[np.ndarray, int]:
     """Local rotations ``[F, J, 3, 3]`` whose every frame-to-frame turn is at most ``max_deg`` (a larger turn
     is cut to the limit and the rest carried into the next frames). Returns (the rotations, how many steps
@@ -96,7 +117,9 @@ def _ik_leg(G: np.ndarray, P: np.ndarray, rest: np.ndarray, side: str, target: n
 
 
 def lost_runs(body: np.ndarray, legs: dict | None, fps: float) -> list[dict]:
-    """The hands and legs unseen for more than :data:`LOST_S` (frame ranges), for the report."""
+    """The hands and legs the clip shows and then loses for more than :data:`LOST_S` (frame ranges), for the
+    report (a part never in the picture, as the hands of a head-and-shoulders clip, is not lost: it stands at
+    ease)."""
     out = []
     parts = {"left hand": body[:, JOINT_NAMES.index("left_hand_wrist")],
              "right hand": body[:, JOINT_NAMES.index("right_hand_wrist")]}  # fmt: skip
@@ -106,7 +129,10 @@ def lost_runs(body: np.ndarray, legs: dict | None, fps: float) -> list[dict]:
                 parts[f"{side} leg"] = legs[f"{side}_ankle"]
     n = int(round(LOST_S * fps))
     for name, x in parts.items():
-        for a, b in ground.runs(~np.isfinite(x).all(-1)):
+        seen = np.isfinite(x).all(-1)
+        if not seen.any():
+            continue
+        for a, b in ground.runs(~seen):
             if b - a > n:
                 out.append({"part": name, "frames": [int(a), int(b - 1)], "seconds": round((b - a) / fps, 2)})
     return out
@@ -136,8 +162,9 @@ def solve(
     feet = ground.feet_in_picture(picture, mpp, fps) if mpp is not None else None
     if mpp is not None:
         x, z = ground.picture_travel(picture, mpp, fps)
-        root[:, 0] += x
-        root[:, 2] += z
+        size = character_size(picture.body3d, rest)
+        root[:, 0] += size * x
+        root[:, 2] += size * z
     L, cut = limit_steps(L)
     # height: the hips as high as the legs reach (the lowest foot point on the floor), plus flight
     G, P = rig.forward(L, rest, root)
@@ -203,14 +230,23 @@ def solve(
     if lift.any():
         root[:, 1] += lift
         G, P = rig.forward(L, rest, root)
-    report.update(_grounding_report(P, rest, root, feet_down, fps, mpp is not None, feet is not None, cut, steps_total))
+    report.update(_grounding_report(P, rest, root, feet_down, fps, mpp is not None, feet, cut, steps_total))
     if body is not None:
         report["lost"] = lost_runs(body, legs, fps)
     return {"root": root, "local": L, "global": G, "positions": P, "contact": feet_down, "hand_contact": hands,
             "report": report}  # fmt: skip
 
 
-def _grounding_report(P, rest, root, contact, fps, travel: bool, feet: bool, cut: int, steps: int) -> dict:
+def _floor_said(feet: dict | None) -> str:
+    if feet is None:
+        return "the character's feet (no feet seen)"
+    h = feet.get("camera_height")
+    if h is None:
+        return "the feet's lowest plants in the picture"
+    return f"the ground plane through the feet's plants (the camera {h:.2f} m above it, in the tracker's metres)"
+
+
+def _grounding_report(P, rest, root, contact, fps, travel: bool, feet: dict | None, cut: int, steps: int) -> dict:
     skate = []
     for k, side in enumerate(("left", "right")):
         a = P[:, rig.IX[f"{_FOOT[side]}Foot"], ::2]
@@ -223,7 +259,10 @@ def _grounding_report(P, rest, root, contact, fps, travel: bool, feet: bool, cut
             "root": "picture travel (sideways, depth from apparent size) and height from the legs"
             if travel
             else "in place, height from the legs",
-            "floor": "the feet's lowest plants in the picture" if feet else "the character's feet (no feet seen)",
+            "floor": _floor_said(feet),
+            "floor_camera_m": None
+            if feet is None or feet.get("camera_height") is None
+            else round(float(feet["camera_height"]), 3),
             "contact_fraction": [round(float(contact[:, k].mean()), 3) for k in range(2)],
             "skating_mm_per_frame": round(1000 * float(np.median(np.concatenate(skate))), 2) if skate else None,
             "lowest_foot_m": round(float(low.min()), 4),

@@ -49,6 +49,48 @@ def test_the_spine_leans_only_as_far_as_the_evidence():
         np.testing.assert_allclose(np.linalg.norm(out, axis=-1), 0.5)
 
 
+def test_the_floor_is_the_ground_plane_under_a_person_who_walks_away():
+    """A level pinhole camera 1.3 m above the floor, a person walking from 3 to 6 m away, one foot down at a
+    time (the lower foot on the floor, the other lifted up to 15 cm): the floor's row follows the plane (the
+    camera's height recovered within 5 %, the stance foot within 1 cm of it); a floor from the nearby frames'
+    lowest foot alone was 5-15 cm off at these distances."""
+    fps, F, f, h = 25.0, 150, 700.0, 1.3
+    d = np.linspace(3.0, 6.0, F)
+    mpp = d / f
+    rng = np.random.default_rng(0)
+    lift = np.abs(np.sin(np.arange(F) * np.pi / 25)) * 0.15
+    swing = np.where((np.arange(F) // 25) % 2 == 0, 0, 1)
+    heights = np.zeros((F, 2))
+    heights[np.arange(F), swing] = lift
+    rows_true = 360 + h / mpp  # the floor's row under the person
+    rows = rows_true[:, None] - heights / mpp[:, None] + rng.normal(0, 0.5, (F, 2))
+    low = rows.max(1)
+    floor, cam = ground.floor_rows(low, mpp, fps)
+    assert cam is not None and abs(cam - h) < 0.05 * h, cam
+    stance = (floor - low) * mpp  # half a pixel of noise is 2-4 mm here
+    assert np.median(np.abs(stance)) < 0.01 and np.abs(stance).max() < 0.03, np.abs(stance).max()
+    floor_still, none = ground.floor_rows(low, np.full(F, mpp.mean()), fps)  # no change of distance: no plane
+    assert none is None
+
+
+def test_a_panning_camera_does_not_move_a_person_who_stands():
+    """A person standing 4 m away, the camera turning 20 degrees: their picture slides by the turn; the
+    bearing model leaves them in place (within 2 cm), sideways and in depth."""
+    F, W = 100, 720
+    f = ground.FOCAL * W
+    turn = np.radians(np.linspace(0, 20, F))
+    alpha = np.radians(5) - turn  # their angle off the camera's axis as it turns towards them and past
+    u = W / 2 + f * np.tan(alpha)
+    body = np.full((F, 55, 2), 300.0)
+    body3d = np.zeros((F, 55, 3))
+    for k, n in enumerate(("left_shoulder", "right_shoulder")):
+        j = ground._J[n]
+        body[:, j, 0] = u + (k - 0.5) * 40
+    pic = ground.Picture(W, W, body, body3d, camera=np.stack([-f * turn, np.zeros(F)], 1))
+    x, z = ground.picture_travel(pic, 4.0 * np.cos(alpha) / f, 25.0)  # their depth along the camera's axis
+    assert np.abs(x).max() < 0.02 and np.abs(z).max() < 0.02, (np.abs(x).max(), np.abs(z).max())
+
+
 def test_locks_blend_in_and_out():
     c = np.zeros(40, bool)
     c[10:25] = True

@@ -124,6 +124,8 @@ def test_a_joint_that_returns_blends_in_instead_of_snapping(captures):
     step = np.swapaxes(fore[gap.stop - 1 : gap.stop + n], -1, -2) @ fore[gap.stop : gap.stop + n + 1]
     d = np.degrees(np.linalg.norm(matrix_to_rotvec(step), axis=-1))
     assert (d > 0).sum() >= n - 1  # turning over the blend's frames, not in one
+    said = [r for r in m["report"]["lost"] if r["part"] == "left hand"]  # and info.json says so, with its frames
+    assert said and said[0]["frames"][0] <= gap.start and said[0]["frames"][1] >= gap.stop - 1, m["report"]["lost"]
 
 
 def test_a_clip_that_never_shows_the_hips_still_gets_a_whole_body(captures, tmp_path):
