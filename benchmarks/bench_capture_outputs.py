@@ -4,8 +4,11 @@ user runs it, interleaved ``repeats`` times so machine noise hits both alike. Th
 repeats of the ratio of back-to-back pairs. Writes benchmarks/results/capture_outputs.json.
 
     python benchmarks/bench_capture_outputs.py [--clip REL_PATH] [--repeats R]
+    python benchmarks/bench_capture_outputs.py --clip gesture-video/pats-crops/oliver1_gt.mp4 --target 1.5 \
+        --out benchmarks/results/capture_outputs_half_body.json
 
-Target (issue 21): the default outputs at most 1.5x the time of --no-render.
+Targets (issue 51): the default outputs (the face close-up in ``avatar.mp4`` included) at most 1.4x the time of
+--no-render on a face clip (d0, the default) and 1.5x on a half-body clip (a PATS host).
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--clip", default=CLIP)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--target", type=float, default=1.4, help="the ratio the clip's default outputs may cost")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "capture_outputs.json"))
     a = ap.parse_args()
     clip = str(asset(a.clip))
@@ -61,7 +65,8 @@ def main() -> None:
         "no_render_s_median": statistics.median(r["no_render_s"] for r in rows),
         "default_s_median": statistics.median(r["default_s"] for r in rows),
         "ratio_median": statistics.median(r["ratio"] for r in rows),
-        "target": "ratio <= 1.5 (issue 21)",
+        "target": f"ratio <= {a.target} (issue 51)",
+        "met": statistics.median(r["ratio"] for r in rows) <= a.target,
         "cpu_count": os.cpu_count(),
         "machine": platform.machine(),
         "env": env_note,

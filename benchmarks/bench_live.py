@@ -5,9 +5,11 @@ a frame's arrival to its message (process) and to the page's receipt (glass to a
 receipt times), and the process's memory over the run.
 
     python benchmarks/bench_live.py [--seconds 60] [--modes face,full]
+    python benchmarks/bench_live.py --seconds 30 --modes full,full_vmc --out benchmarks/results/live_vmc.json
 
 Writes benchmarks/results/live.json. Targets: >= 95 % of offered frames tracked, latency median <= 100 ms and
-p95 <= 150 ms, memory growth < 10 %.
+p95 <= 150 ms, memory growth < 10 %. ``full_vmc`` is ``full`` with ``--vmc`` to a python-osc receiver on
+127.0.0.1 (issue 49: the tracking rate unchanged with it, >= 20 bundles a second arriving).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from browser import chromium
+from vmc_receiver import VmcReceiver
 
 from anima.io.assets import asset
 from anima.io.atomic import write_json
@@ -34,11 +37,24 @@ CLIPS = {
     "face": ("liveportrait-examples/assets/examples/driving/d6.mp4", ["--face-only"]),  # 30 fps
     "full": ("gesture-video/pats-crops/oliver1_gt.mp4", []),  # 25 fps, body and hands
     "full1": ("gesture-video/pats-crops/oliver1_gt.mp4", ["--trackers", "1"]),  # one Holistic: lower latency?
+    "full_vmc": ("gesture-video/pats-crops/oliver1_gt.mp4", ["--vmc"]),  # and the VMC protocol to a receiver
 }
 
 
 def run(mode: str, seconds: float) -> dict:
+    if "--vmc" not in CLIPS[mode][1]:
+        return _run(mode, seconds, [])
+    with VmcReceiver(idle_s=15.0) as rx:
+        row = _run(mode, seconds, [f"127.0.0.1:{rx.port}"])
+    t = np.array([f["t"] for f in rx.frames])
+    row["vmc"] = {"bundles": len(t), "fps": round((len(t) - 1) / (t[-1] - t[0]), 2) if len(t) > 1 else 0.0,
+                  "protocol_errors": len(rx.bad)}  # fmt: skip
+    return row
+
+
+def _run(mode: str, seconds: float, more: list[str]) -> dict:
     clip, extra = CLIPS[mode]
+    extra = extra + more
     cmd = [sys.executable, "-m", "anima", "live", str(asset(clip)), "--realtime", "--loop", "--no-browser",
            "--json", "--max-seconds", str(seconds + 30), *extra]  # fmt: skip
     p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,

@@ -114,14 +114,20 @@ def value(path: Path, pointer: str, fmt: str | None) -> str:
 
 
 def table_lines(records: list[dict], cols: list[str] | None = None) -> list[str]:
-    """A markdown table of ``records`` (a benchmark's rows), the columns named by their keys."""
+    """A markdown table of ``records`` (a benchmark's rows), the columns named by their keys (``a/b``: the key
+    ``b`` of the record's ``a``)."""
     cols = cols or list(records[0])
+
+    def get(r, c):
+        for k in c.split("/"):
+            r = r.get(k) if isinstance(r, dict) else None
+        return r
 
     def cell(v):
         return "-" if v is None else format(v, "g") if isinstance(v, float) else str(v).replace("|", "\\|")
 
     out = ["| " + " | ".join(c.replace("_", " ") for c in cols) + " |", "|---" * len(cols) + "|"]
-    return out + ["| " + " | ".join(cell(r.get(c)) for c in cols) + " |" for r in records]
+    return out + ["| " + " | ".join(cell(get(r, c)) for c in cols) + " |" for r in records]
 
 
 def blocks(text: str):

@@ -10,7 +10,8 @@ in one glTF file (``avatar.glb``), the speech beside it (``speech.wav``), and a 
   with the face fit's rotation where the sequence has a face; the legs stand with a weight shift unless the
   clip tracked them; a sequence without a body (a face-only capture, text2face) stands at ease (breathing,
   arms hanging), said in ``info.json``.
-* **Face**: the sequence's 53 expression weights drive the character's morph targets.
+* **Face**: the character's 53 morph weights are chosen per frame so that its lids, brows, mouth corners and
+  lips move as the fitted ICT face's do (:mod:`anima.facemodel.transfer`), not copied by name.
 * **One timeline, one unit**: the animation is sampled at the sequence's frame rate, in metres; the scene's
   ``extras`` carry the frame rate and the frame range (``tools/blender_import.py`` sets Blender's scene from
   them: Blender's own importer keeps them as the scene's custom properties but opens at 24 fps, 250 frames).
@@ -21,6 +22,7 @@ in one glTF file (``avatar.glb``), the speech beside it (``speech.wav``), and a 
 from __future__ import annotations
 
 import subprocess
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -28,11 +30,15 @@ import numpy as np
 from anima.core import rig, world
 from anima.core.contact import TorsoSurface
 from anima.core.contract import EXPR_NAMES, JOINT_NAMES, LEG_JOINTS
+from anima.core.filters import gaussian_smooth
 from anima.core.ground import Picture
 from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
 from anima.errors import InputError
 from anima.export.vrm import character_vrm
-from anima.facemodel.character import fit_shape, load_character, skin, tracked_measures
+from anima.facemodel.character import fit_shape, load_character, skin, tracked_measures, vertex_colors
+from anima.facemodel.ict import load_face_model
+from anima.facemodel.neutral import faded, presented
+from anima.facemodel.transfer import Transfer
 from anima.io.atomic import atomic_path
 from anima.io.gltf import write_character_glb
 from anima.io.sequence import TrackedSequence
@@ -78,7 +84,7 @@ def picture_of(seq: TrackedSequence) -> Picture | None:
     return Picture(seq.width, seq.height, seq.body_image.astype(np.float64), seq.body_joints.astype(np.float64),
                    None if seq.leg_image is None else seq.leg_image.astype(np.float64),
                    None if seq.leg_joints is None else seq.leg_joints.astype(np.float64),
-                   seq.leg_conf, np.cumsum(step[:, :2], 0), np.exp(np.cumsum(step[:, 2])))  # fmt: skip
+                   seq.leg_conf, np.cumsum(step[:, :2], 0))  # fmt: skip
 
 
 def head_rotations(seq: TrackedSequence) -> np.ndarray | None:
@@ -162,6 +168,7 @@ def write_avatar(seq: TrackedSequence, path: str | Path, speech: str | None = No
         scene_extras,
         animated=~rig.LEAVES,
         doc_extensions=_vrm_extension(path),
+        colors=vertex_colors(),
     )
     return {"kind": "character", "joints": rig.N_RIG, "preset": preset, "unit": UNIT, **extras["anima"], **m["report"]}
 
@@ -173,14 +180,27 @@ def _vrm_extension(path: str | Path) -> dict | None:
     return {"VRMC_vrm": character_vrm(rig.N_RIG, {n: j for j, n in enumerate(rig.NAMES)})}
 
 
+@lru_cache(maxsize=1)
+def face_transfer() -> Transfer:
+    """The ICT face to the character's face (:mod:`anima.facemodel.transfer`), built once."""
+    ict, ch = load_face_model(), load_character()
+    return Transfer(ict.neutral, ict.expr_deltas, ict.expr_names, ch.vertices.astype(np.float64), ch.morph_dense(),
+                    EXPR_NAMES)  # fmt: skip
+
+
 def _expression_weights(seq: TrackedSequence) -> np.ndarray:
-    """The sequence's 53 expression weights ``[F, 53]`` in the character's order (0 where no face)."""
+    """The character's 53 morph weights ``[F, 53]`` for the sequence's face (easing to the rest face where it was
+    lost, :func:`anima.facemodel.neutral.faded`): chosen so that its
+    lids, brows, mouth corners and lips move as the fitted face's do (:func:`face_transfer`), not copied by
+    name."""
     W = np.zeros((seq.n_frames, len(EXPR_NAMES)), np.float32)
     if seq.tracked.any():
+        expression = presented(seq)[0]  # a captured clip's face measured from its rest face
         idx = [seq.expr_names.index(n) if n in seq.expr_names else -1 for n in EXPR_NAMES]
         for k, i in enumerate(idx):
             if i >= 0:
-                W[:, k] = np.where(seq.tracked, seq.expression[:, i], 0.0)
+                W[:, k] = np.where(seq.tracked, expression[:, i], 0.0)
+        W = faded(face_transfer()(np.clip(W, 0.0, 1.0)).astype(np.float32), seq.tracked, seq.fps)
     return np.clip(W, 0.0, 1.0)
 
 
@@ -233,5 +253,30 @@ def render_avatar_preview(
             out.append(skin(V, m["rest"], m["global"][f], m["positions"][f], ch))
         return np.stack(out) if out else np.zeros((0, len(ch.vertices), 3))
 
-    render_character_video(path, seq.fps, m["positions"], rig.HEAD, posed, ch.faces, audio=audio, progress=progress)
+    render_character_video(path, seq.fps, m["positions"], rig.HEAD, posed, ch.faces, audio=audio, progress=progress,
+                           face=face_camera(m, ch), colors=vertex_colors())  # fmt: skip
     return Path(path)
+
+
+FACE_CENTRE = np.array([0.0, 0.085, 0.02])
+"""The face's centre in the head joint's frame (metres; the head joint sits where the neck meets the skull)."""
+
+
+def head_triangles(ch) -> np.ndarray:
+    """The character's triangles whose vertices all follow the head or the neck (what a close-up draws)."""
+    main = ch.skin_joints[np.arange(len(ch.vertices)), np.argmax(ch.skin_weights, 1)]
+    head = np.isin(main, [rig.HEAD, rig.IX["Neck"], rig.IX["HeadTop_End"]])
+    return ch.faces[head[ch.faces].all(1)]
+
+
+def face_camera(m: dict, ch) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The close-up's camera per frame: the face's centre ``[F, 3]``, the yaw that turns the face to the camera
+    ``[F]`` (smoothed: the camera follows, it does not shake), and the head's triangles."""
+    G, P = m["global"][:, rig.HEAD], m["positions"][:, rig.HEAD]
+    centre = P + np.einsum("fij,j->fi", G, FACE_CENTRE)
+    fwd = np.einsum("fij,j->fi", G, [0.0, 0.0, 1.0])
+    yaw = -np.unwrap(np.arctan2(fwd[:, 0], fwd[:, 2]))
+    if len(yaw) > 1:
+        yaw = gaussian_smooth(yaw[:, None], 3.0)[:, 0]
+        centre = gaussian_smooth(centre, 1.0)
+    return centre, yaw, head_triangles(ch)

@@ -15,6 +15,7 @@ from anima.export.avatar import character_motion, write_avatar
 from anima.export.fbx import blender, export_fbx
 from anima.export.vrm import arkit_weights, vrm_expressions
 from anima.facemodel.ict import load_face_model
+from anima.facemodel.neutral import presented
 from anima.io.arkit import write_live_link_csv
 from anima.io.bvh import write_bvh
 from anima.io.gltf import write_glb, write_vrma
@@ -26,7 +27,7 @@ from anima.io.validate import MAX_FRAMES
 def export_arkit_csv(seq: TrackedSequence, path: str | Path) -> Path:
     """53 ICT weights as the 52 ARKit columns of a Live Link Face CSV, with head yaw, pitch and roll."""
     ypr = matrix_to_euler(seq.rotation_matrices())
-    return write_live_link_csv(path, seq.expression, seq.expr_names, seq.fps, ypr)
+    return write_live_link_csv(path, presented(seq)[0], seq.expr_names, seq.fps, ypr)
 
 
 def export_glb(seq: TrackedSequence, path: str | Path, animate_head: bool = True) -> Path:
@@ -40,7 +41,7 @@ def export_glb(seq: TrackedSequence, path: str | Path, animate_head: bool = True
         skin.triangles(),
         skin.expr_deltas,
         skin.expr_names,
-        seq.expression,
+        presented(seq)[0],
         seq.fps,
         q,
     )
@@ -79,7 +80,7 @@ def export_vrma(seq: TrackedSequence, path: str | Path) -> Path:
     m = character_motion(seq)
     vrm = rig.CONVENTIONS["vrm"]
     humanoid = {vrm[n]: j for j, n in enumerate(rig.NAMES) if vrm[n]}
-    expr = vrm_expressions(arkit_weights(seq.expression, seq.expr_names) * seq.tracked[:, None])
+    expr = vrm_expressions(arkit_weights(presented(seq)[0], seq.expr_names) * seq.tracked[:, None])
     extras = {"anima": {"fps": seq.fps, "frames": seq.n_frames, "unit": "metre", "body": m["report"]["body"],
                         "expressions": "anima.export.vrm.VRM_PRESETS"}}  # fmt: skip
     return write_vrma(

@@ -13,6 +13,7 @@ import numpy as np
 
 from anima.core.rotations import matrix_to_euler, rotvec_to_matrix
 from anima.errors import InputError
+from anima.facemodel.neutral import presented
 from anima.io.arkit import HEAD_COLUMNS, LIVE_LINK_COLUMNS, ict_to_arkit
 from anima.io.livelink import pack
 from anima.io.sequence import TrackedSequence, read_sequence
@@ -33,7 +34,7 @@ def livelink_rows(expression: np.ndarray, expr_names, rotation: np.ndarray, trac
 
 def livelink_values(seq: TrackedSequence) -> np.ndarray:
     """``[F, 61]``: a sequence's Live Link Face values (:func:`livelink_rows`)."""
-    return livelink_rows(seq.expression, seq.expr_names, seq.rotation, seq.tracked)
+    return livelink_rows(presented(seq)[0], seq.expr_names, seq.rotation, seq.tracked)
 
 
 class Sender:

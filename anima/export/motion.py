@@ -36,6 +36,7 @@ from threadpoolctl import threadpool_limits
 from anima.core.clock import Stopwatch
 from anima.export.avatar import body_of, render_avatar_preview, write_avatar, write_speech
 from anima.export.formats import export_arkit_csv, export_bvh, export_glb
+from anima.facemodel.neutral import presented
 from anima.io.atomic import write_json
 from anima.io.outdir import OutputFolder
 from anima.io.sequence import TrackedSequence, write_sequence
@@ -99,6 +100,10 @@ def write_motion_outputs(
     if info is not None:
         with sw("write"):
             info = {**info, **({"avatar": exported["avatar"]} if exported.get("avatar") else {})}
+            rest = presented(seq)[1]
+            if rest:
+                how = "anima.facemodel.neutral: each channel's 10th percentile over the clip (at most 0.35)"
+                info["rest_face"] = {"channels": rest, "how": how + ", taken out of every animation"}
             files["info"] = write_json(out.file("info.json"), {**info, "files": {k: p.name for k, p in files.items()}})
     return files
 

@@ -35,6 +35,7 @@ from anima.core.rotations import matrix_to_quat
 from anima.errors import InputError, SchemaError
 from anima.export.avatar import body_of, character_motion
 from anima.export.vrm import VRM_PRESETS, arkit_weights, vrm_expressions
+from anima.facemodel.neutral import presented
 from anima.io.arkit import LIVE_LINK_COLUMNS, arkit_name
 from anima.io.atomic import write_json
 from anima.io.gltf import write_with_animation
@@ -542,7 +543,7 @@ def run(result: str | Path, avatar: str | Path, out: str | Path, command: str | 
         }
     else:
         report["body"] = "none in this sequence: the face only (the avatar keeps its rest pose)"
-    arkit = arkit_weights(seq.expression, seq.expr_names) * seq.tracked[:, None]
+    arkit = arkit_weights(presented(seq)[0], seq.expr_names) * seq.tracked[:, None]
     ftracks, report["face"] = face_tracks(g, arkit)
     if not seq.tracked.any():
         report["face"]["note"] = "no face in this sequence: the expressions stay at 0"

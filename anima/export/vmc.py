@@ -32,6 +32,7 @@ from anima.errors import InputError
 from anima.export.avatar import character_motion
 from anima.export.retarget import find_sequence
 from anima.export.vrm import arkit_weights, vrm_expressions
+from anima.facemodel.neutral import presented
 from anima.io.arkit import LIVE_LINK_COLUMNS
 from anima.io.osc import bundle, message
 from anima.io.sequence import read_sequence
@@ -130,7 +131,7 @@ def send(result: str | Path, to: str, loops: int = 1, progress: bool = True) -> 
         raise InputError("--loops: 1 to 1,000,000")
     seq = read_sequence(find_sequence(result), landmarks=False)
     m = character_motion(seq)
-    blends = blend_values(arkit_weights(seq.expression, seq.expr_names) * seq.tracked[:, None])
+    blends = blend_values(arkit_weights(presented(seq)[0], seq.expr_names) * seq.tracked[:, None])
     out = VmcSender(target, m["rest"])
     F, fps = seq.n_frames, seq.fps
     t0 = time.perf_counter()

@@ -13,7 +13,7 @@ import numpy as np
 from anima.core import rig
 from anima.core.contract import EXPR_NAMES
 from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
-from anima.facemodel.character import load_character, skin
+from anima.facemodel.character import load_character, skin, vertex_colors
 from anima.io.arkit import LIVE_LINK_COLUMNS, arkit_name, ict_to_arkit
 from anima.io.gltf import write_character_glb
 from anima.render.raster import vertex_normals
@@ -216,4 +216,5 @@ def write_character_avatar(path: str | Path, shape: str = "mean", pose: str = "T
         animated=~rig.LEAVES,
         rest_rotations=Rw,
         doc_extensions=ext,
+        colors=vertex_colors(),
     )

@@ -214,3 +214,83 @@ def fit_shape(measured: dict[str, float], ch: Character | None = None, prior: fl
         "height_m": round(float(V[:, 1].max() - V[:, 1].min()), 3),
     }
     return c, report
+
+
+def _sphere(V: np.ndarray, cand: np.ndarray, tol: float = 0.0015) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices of ``cand`` that lie on one sphere (least squares, refitted on its inliers), and its
+    centre."""
+    keep = cand.copy()
+    c = V[cand].mean(0)
+    for _ in range(5):
+        X = V[keep]
+        A = np.concatenate([2 * X, np.ones((len(X), 1))], 1)
+        sol = np.linalg.lstsq(A, (X**2).sum(1), rcond=None)[0]
+        c = sol[:3]
+        r = np.sqrt(max(sol[3] + c @ c, 1e-12))
+        keep = cand & (np.abs(np.linalg.norm(V - c, axis=-1) - r) < tol)
+        if keep.sum() < 8:
+            break
+    return keep, c
+
+
+SKIN_RGB = (0.80, 0.64, 0.55)
+COLOURS = {
+    "brow": (0.22, 0.15, 0.11),
+    "lip": (0.66, 0.36, 0.36),
+    "sclera": (0.93, 0.92, 0.88),
+    "iris": (0.28, 0.36, 0.42),
+    "pupil": (0.04, 0.04, 0.05),
+    "lash": (0.15, 0.11, 0.09),
+    "mouth": (0.42, 0.20, 0.20),
+}
+"""The face's colours (linear RGB): what makes it read (brows, lips, eyes with irises and pupils, the lash line,
+the inside of the mouth) on a skin of :data:`SKIN_RGB`."""
+
+
+@lru_cache(maxsize=1)
+def vertex_colors() -> np.ndarray:
+    """The character's colours per vertex ``[V, 3]`` (:data:`COLOURS`), its face's regions found by what its own
+    expressions move (no painted texture in the CC0 assets): the eyeballs are what the eyeLook morphs turn and
+    the blink does not (irises and pupils where they face forward); the brows, the band the brow morphs move
+    above the upper lids; the lash line, the upper lids' edge (what the blink moves most); the lips, what
+    mouthPucker and mouthFunnel move most around the mouth; the inside of the mouth, the head's vertices behind
+    the lips (the tongue)."""
+    from anima.facemodel.transfer import POINTS, face_points  # the same facemodel package: no cycle at import
+
+    ch = load_character()
+    V = ch.vertices.astype(np.float64)
+    D = ch.morph_dense()
+    ix = {n: i for i, n in enumerate(EXPR_NAMES)}
+    mag = lambda *names: np.sum([np.linalg.norm(D[ix[n]], axis=-1) for n in names], 0)
+    pts, size = face_points(V, D, list(EXPR_NAMES))
+    P = {p: V[k] for p, k in zip(POINTS, pts)}
+    out = np.tile(np.asarray(SKIN_RGB, np.float64), (len(V), 1))
+    head = np.isin(ch.skin_joints[np.arange(len(V)), np.argmax(ch.skin_weights, 1)], [RIG_JOINTS.index("Head")])
+    for s in ("L", "R"):
+        blink = mag(f"eyeBlink_{s}")
+        look = np.max([mag(f"eyeLook{d}_{s}") for d in ("Up", "Down", "In", "Out")], 0)
+        cand = (look > 0.5 * look.max()) & (blink < 0.03 * blink.max())
+        ball, c = _sphere(V, cand)  # the eyeball: the still-by-blink, turned-by-look vertices on one sphere
+        front = np.array([0.0, 0.0, 1.0])
+        d = V - c
+        cos = (d @ front) / np.maximum(np.linalg.norm(d, axis=-1) * np.linalg.norm(front), 1e-12)
+        ang = np.degrees(np.arccos(np.clip(cos, -1, 1)))
+        out[ball] = COLOURS["sclera"]
+        out[ball & (ang < 30)] = COLOURS["iris"]
+        out[ball & (ang < 12)] = COLOURS["pupil"]
+        out[(blink > 0.75 * blink.max()) & ~ball] = COLOURS["lash"]
+        brow = mag(f"browInnerUp_{s}", f"browOuterUp_{s}")
+        top = P[f"upper_lid_{s}"][1]
+        band = (V[:, 1] > top + 0.012) & (V[:, 1] < top + 0.030)
+        out[(brow > 0.55 * brow.max()) & band & head & ~ball] = COLOURS["brow"]
+    x0, x1 = sorted((P["corner_L"][0], P["corner_R"][0]))
+    taper = np.sqrt(np.clip(1.0 - ((V[:, 0] - (x0 + x1) / 2) / ((x1 - x0) / 2)) ** 2, 0.0, 1.0))  # 0 at the corners
+    corner_y = (P["corner_L"][1] + P["corner_R"][1]) / 2
+    lo = corner_y + (P["lower_lip"][1] - 0.011 - corner_y) * taper  # a lens: full at the middle, none at the corners
+    hi = corner_y + (P["upper_lip"][1] + 0.010 - corner_y) * taper
+    lip = (V[:, 1] > lo - 0.0015) & (V[:, 1] < hi + 0.0015) & (taper > 0) & head
+    lip &= V[:, 2] > P["upper_lip"][2] - 0.012
+    out[lip] = COLOURS["lip"]
+    inside = (np.abs(V[:, 1] - P["upper_lip"][1]) < 0.02) & (np.abs(V[:, 0] - P["upper_lip"][0]) < 0.025)
+    out[head & inside & (V[:, 2] < P["upper_lip"][2] - 0.015)] = COLOURS["mouth"]
+    return out.astype(np.float32)

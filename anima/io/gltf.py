@@ -128,6 +128,7 @@ def write_character_glb(
     animated: np.ndarray | None = None,
     rest_rotations: np.ndarray | None = None,
     doc_extensions: dict | None = None,
+    colors: np.ndarray | None = None,
 ) -> Path:
     """A skinned character and its motion in one animated glTF 2.0 binary (one timeline):
 
@@ -144,7 +145,9 @@ def write_character_glb(
     * ``rest_rotations [J, 3, 3]``: the joints' rest *world* rotations (default identity: anima's own rig); a
       rig with other rest axes (an A-pose, rolled bones) gets them as its nodes' rest rotations and inverse
       bind matrices, and ``local_quats_xyzw`` are then the nodes' local rotations as glTF has them;
-    * ``doc_extensions``: top-level glTF extensions (e.g. ``VRMC_vrm``; listed in ``extensionsUsed``).
+    * ``doc_extensions``: top-level glTF extensions (e.g. ``VRMC_vrm``; listed in ``extensionsUsed``);
+    * ``colors [V, 3]``: the vertices' colours (linear RGB in [0, 1]), written as ``COLOR_0`` (8-bit,
+      normalised), which the material multiplies (its base colour white).
     """
     J = len(joint_names)
     F = len(root_positions_m)
@@ -237,6 +240,12 @@ def write_character_glb(
         "material": 0,
         "mode": 4,
     }
+    if colors is not None:
+        c8 = np.clip(np.round(np.asarray(colors, np.float64) * 255), 0, 255).astype(np.uint8)
+        c8 = np.concatenate([c8, np.full((len(c8), 1), 255, np.uint8)], 1)
+        acc = buf.add(c8, UBYTE, "VEC4", ARRAY_BUFFER)
+        buf.accessors[acc]["normalized"] = True
+        prim["attributes"]["COLOR_0"] = acc
     if targets:
         prim["targets"] = targets
     gltf = {
@@ -251,7 +260,7 @@ def write_character_glb(
             {
                 "name": "neutral",
                 "pbrMetallicRoughness": {
-                    "baseColorFactor": [0.78, 0.76, 0.74, 1.0],
+                    "baseColorFactor": [0.78, 0.76, 0.74, 1.0] if colors is None else [1.0, 1.0, 1.0, 1.0],
                     "metallicFactor": 0.0,
                     "roughnessFactor": 0.7,
                 },

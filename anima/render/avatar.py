@@ -1,4 +1,5 @@
-"""The avatar preview: the skinned character (:func:`render_character_video`), front and 3/4 views side by side."""
+"""The avatar preview: the skinned character (:func:`render_character_video`), front and 3/4 views side by side,
+and the face close up beside them (a camera that follows the head and looks it in the face)."""
 
 from __future__ import annotations
 
@@ -25,6 +26,8 @@ def _view(
     return (np.asarray(X) - centre) @ R.T * scale + np.array([size / 2 - corner[0], corner[1] - size / 2, 0.0])
 
 
+FACE_M = 0.30
+"""The face close-up's width, metres."""
 LABEL_PX = 30
 """Rows kept free above the figure for the time label."""
 
@@ -70,21 +73,32 @@ def render_character_video(
     audio: str | None = None,
     size: int = 512,
     progress: bool = False,
+    face: tuple | None = None,
+    colors: np.ndarray | None = None,
 ) -> None:
     """The skinned character, front and 3/4 views side by side: ``posed(f0, f1)`` gives the posed vertices
     ``[n, V, 3]`` (metres) of frames ``f0:f1`` and ``positions [F, J, 3]`` its joints (the framing: each view
     cropped to where the figure moves during the clip, :func:`framing`). ``size`` pixels for 2.1 m; the speech
-    ``audio`` muxed in."""
+    ``audio`` muxed in. ``face``: ``(centre [F, 3], yaw [F], tris)``: a close-up of :data:`FACE_M` across,
+    the square of the views' height, centred on ``centre`` and turned by ``yaw`` to face the camera, drawing
+    ``tris`` (the head's triangles) only. ``colors [V, 3]``: the vertices' colours (default: one skin)."""
+    paint = SKIN if colors is None else np.ascontiguousarray(colors, np.float32)
     centre = np.nanmedian(positions[:, 0], axis=0) + np.array([0.0, 0.05, 0.0])
     scale = size / 2.1
     tris = np.ascontiguousarray(tris, np.int64)
     yaws = (0.0, np.deg2rad(-60))
     height, crops = framing(positions, head, 0.16, yaws, size, centre, scale, margin=20)
-    x_at = np.cumsum([0] + [w for _, w, _ in crops])
+    x_at = np.cumsum([0] + [w for _, w, _ in crops] + ([height] if face is not None else []))
     blank = np.full((height, int(x_at[-1]), 3), 28, np.uint8)
-    put_label(blank, "front | 3/4 view", inplace=True, x=8 + label_width("000.00 s  "))
+    put_label(blank, "front | 3/4 view" + (" | face" if face is not None else ""), inplace=True,
+              x=8 + label_width("000.00 s  "))  # fmt: skip
     frame_size = even_size((blank.shape[1], height))
     F = len(positions)
+    if face is not None:
+        fc, fyaw, ftris = face
+        head_v = np.unique(ftris)
+        head_tris = np.ascontiguousarray(np.searchsorted(head_v, ftris), np.int64)
+        head_paint = paint if paint.ndim == 1 else np.ascontiguousarray(paint[head_v])
 
     def frames(chunk: int = 32):
         for f0 in range(0, F, chunk):
@@ -97,7 +111,10 @@ def render_character_video(
         canvas = blank.copy()
         for k, (yaw, (x0, _, y0)) in enumerate(zip(yaws, crops)):
             X = _view(V, size, yaw, centre, scale, (x0, y0))
-            draw_shaded(canvas[:, x_at[k] : x_at[k + 1]], X, tris, SKIN, back_faces=False)
+            draw_shaded(canvas[:, x_at[k] : x_at[k + 1]], X, tris, paint, back_faces=False)
+        if face is not None:  # the head's own vertices only
+            X = _view(V[head_v], height, fyaw[f], fc[f], height / FACE_M)
+            draw_shaded(canvas[:, x_at[-2] : x_at[-1]], X, head_tris, head_paint, back_faces=False)
         put_label(canvas, f"{f / fps:5.2f} s", inplace=True)
         return to_i420(canvas, frame_size)
 

@@ -150,7 +150,7 @@ def _draw_shaded(img, verts, tris, base, cull):
     for v in range(nv):
         lam = min(max(n[v, 2], 0.0), 1.0)
         for c in range(3):
-            colors[v, c] = (0.25 + 0.75 * lam) * base[c]
+            colors[v, c] = (0.25 + 0.75 * lam) * base[v, c]
         uvz[v, 0], uvz[v, 1], uvz[v, 2] = verts[v, 0] - x0, -verts[v, 1] - y0, verts[v, 2]
     h, w = y1 - y0, x1 - x0
     col = np.zeros((h, w, 3), np.float32)
@@ -188,13 +188,17 @@ def _normalize_rows(out):
 
 
 def draw_shaded(img: np.ndarray, verts_cam: np.ndarray, tris: np.ndarray, base: np.ndarray, back_faces: bool = True):
-    """Draw ``verts_cam`` (camera pixels, +y up) as a Lambert-shaded mesh of colour ``base`` (RGB in [0, 1])
-    over the uint8 image ``img`` in place (a view into a larger canvas works); see :func:`_draw_shaded`."""
+    """Draw ``verts_cam`` (camera pixels, +y up) as a Lambert-shaded mesh of colour ``base`` (RGB in [0, 1]: one
+    colour, or one per vertex ``[V, 3]``) over the uint8 image ``img`` in place (a view into a larger canvas
+    works); see :func:`_draw_shaded`."""
+    base = np.asarray(base, np.float32)
+    if base.ndim == 1:
+        base = np.broadcast_to(base, (len(verts_cam), 3))
     _draw_shaded(
         img,
         np.ascontiguousarray(verts_cam, np.float64),
         np.ascontiguousarray(tris, np.int64),
-        np.asarray(base, np.float32),
+        np.ascontiguousarray(base, np.float32),
         0.0 if back_faces else BACK,
     )
     return img

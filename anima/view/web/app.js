@@ -180,7 +180,10 @@ function load3d() {
         const own = !V.avatar; // a user's avatar keeps its materials and draws its morphs on the GPU
         root.traverse((o) => {
           if (o.isMesh) {
-            if (own) o.material = new THREE.MeshLambertMaterial({ color: 0xd9d2cc });
+            // anima's character: its face's colours (eyes, brows, lips) are the vertices' (COLOR_0)
+            if (own) o.material = o.geometry.attributes.color
+              ? new THREE.MeshLambertMaterial({ color: 0xffffff, vertexColors: true })
+              : new THREE.MeshLambertMaterial({ color: 0xd9d2cc });
             o.frustumCulled = false;
             if (o.morphTargetDictionary && (own || !morphMesh)) {
               morphMesh = o;

@@ -1,0 +1,164 @@
+"""Does the character's face read as the person's? (issue 48) The character's face is rendered close up, frame
+by frame, and read back by a face tracker; so is the source video; the two are compared.
+
+    python benchmarks/face_readback.py      # writes benchmarks/results/face_readback.json (a few minutes)
+
+**Clips**: talking and expression clips of the shared data (LivePortrait's d3 frowns, squints and looks
+surprised, d0 smiles and blinks, d9 talks and smiles; FaceGood-free: the Obama and Ng styletalk clips talk),
+captured with ``anima capture --face-only`` (the shipped defaults).
+
+**The character** (what ``avatar.mp4``'s face panel shows): anima's character, its 53 morph weights from the
+capture (:func:`anima.export.avatar._expression_weights`: the rest face taken out, transferred by geometry),
+the head skinned and seen from the front of the face at 384 x 384 (:func:`anima.export.avatar.face_camera`),
+coloured (:func:`anima.facemodel.character.vertex_colors`). **The ceiling**: the fitted ICT face itself (the
+person's identity and the fitted expression, no head turn), rendered the same way in one colour. **The
+baseline**: the character's weights copied by name (no transfer, no rest face), as before issue 48.
+
+**The reader**: MediaPipe's Face Mesh through its own Python API (``mediapipe.solutions.face_mesh``, not anima's
+wrapper), on every frame of each render and of the source video. Per frame: the mouth's opening (the inner
+lips' distance, 13-14) and the brows' height (inner brows 105/334 over the upper lids 159/386), each over the
+face's height (10-152); each eye's opening (upper over lower lid, 159-145 and 386-374, over the eye's width).
+Reported: Pearson's r of each measure between a render and the video, over the frames where both found a face;
+blinks counted on both (the mean eye opening under 60 % of its clip median for at least two frames).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import mediapipe as mp
+import numpy as np
+
+from anima.capture.config import CaptureConfig
+from anima.capture.pipeline import capture_face
+from anima.core.contract import EXPR_NAMES
+from anima.export.avatar import _expression_weights, character_motion, face_camera
+from anima.facemodel.character import load_character, skin, vertex_colors
+from anima.facemodel.ict import load_face_model
+from anima.io.assets import asset
+from anima.io.atomic import write_json
+from anima.io.video import iter_frames, probe_video
+from anima.render.avatar import _view
+from anima.render.face import SKIN
+from anima.render.raster import draw_shaded
+
+CLIPS = (
+    "liveportrait-examples/assets/examples/driving/d3.mp4",
+    "liveportrait-examples/assets/examples/driving/d0.mp4",
+    "liveportrait-examples/assets/examples/driving/d9.mp4",
+    "styletalk-samples/samples/source_video/video/Obama_clip3.mp4",
+    "styletalk-samples/samples/source_video/video/andrew_clip_1.mp4",
+)
+SIZE = 384
+
+
+def read_faces(frames) -> np.ndarray:
+    """MediaPipe Face Mesh (its own API, video mode, refined) on RGB frames: ``[F, 478, 2]`` pixels, NaN
+    where no face."""
+    out = []
+    with mp.solutions.face_mesh.FaceMesh(static_image_mode=False, max_num_faces=1, refine_landmarks=True) as fm:
+        for im in frames:
+            r = fm.process(np.ascontiguousarray(im))
+            if not r.multi_face_landmarks:
+                out.append(np.full((478, 2), np.nan))
+                continue
+            h, w = im.shape[:2]
+            out.append(np.array([(p.x * w, p.y * h) for p in r.multi_face_landmarks[0].landmark]))
+    return np.stack(out)
+
+
+def measures(L: np.ndarray) -> dict[str, np.ndarray]:
+    d = lambda a, b: np.linalg.norm(L[:, a] - L[:, b], axis=-1)
+    face = d(10, 152)
+    return {
+        "mouth": d(13, 14) / face,
+        "eye_L": d(386, 374) / d(362, 263),
+        "eye_R": d(159, 145) / d(33, 133),
+        "brows": (d(105, 159) + d(334, 386)) / 2 / face,
+    }
+
+
+def blinks(eye: np.ndarray) -> int:
+    ok = np.isfinite(eye)
+    if ok.sum() < 5:
+        return 0
+    low = np.where(ok, eye, np.nanmedian(eye)) < 0.6 * np.nanmedian(eye)
+    runs = np.diff(np.concatenate([[0], low.astype(int), [0]]))
+    starts, stops = np.flatnonzero(runs == 1), np.flatnonzero(runs == -1)
+    return int(((stops - starts) >= 2).sum())
+
+
+def render_character(seq, transfer: bool = True) -> list[np.ndarray]:
+    ch = load_character()
+    m = character_motion(seq)
+    if transfer:
+        W = _expression_weights(seq)
+    else:
+        idx = [seq.expr_names.index(n) for n in EXPR_NAMES]
+        W = np.where(seq.tracked[:, None], seq.expression[:, idx], 0.0)
+    centre, yaw, tris = face_camera(m, ch)
+    col = vertex_colors()
+    frames = []
+    for f in range(seq.n_frames):
+        V = skin(ch.expressed(m["vertices"], W[f]), m["rest"], m["global"][f], m["positions"][f], ch)
+        img = np.full((SIZE, SIZE, 3), 28, np.uint8)
+        draw_shaded(img, _view(V, SIZE, yaw[f], centre[f], SIZE / 0.30), tris, col, back_faces=False)
+        frames.append(img)
+    return frames
+
+
+def render_ict(seq) -> list[np.ndarray]:
+    model = load_face_model()
+    tris = np.ascontiguousarray(model.triangles(), np.int64) if callable(getattr(model, "triangles", None)) else None
+    base = model.neutral + np.einsum("k,kvc->vc", seq.identity, model.id_deltas[: len(seq.identity)])
+    order = [list(model.expr_names).index(n) for n in seq.expr_names]
+    D = model.expr_deltas[order]
+    c = base.mean(0)
+    scale = SIZE / (np.ptp(base[:, 0]) * 1.1)
+    frames = []
+    for f in range(seq.n_frames):
+        V = (base + np.einsum("e,evc->vc", seq.expression[f], D) - c) * scale
+        X = V + [SIZE / 2, -SIZE / 2, 0.0]
+        img = np.full((SIZE, SIZE, 3), 28, np.uint8)
+        draw_shaded(img, X, tris, SKIN, back_faces=False)
+        frames.append(img)
+    return frames
+
+
+def compare(video: dict, other: dict) -> dict:
+    out = {}
+    for k in video:
+        ok = np.isfinite(video[k]) & np.isfinite(other[k])
+        out[f"{k}_r"] = round(float(np.corrcoef(video[k][ok], other[k][ok])[0, 1]), 3) if ok.sum() > 5 else None
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "face_readback.json"))
+    ap.add_argument("--clips", nargs="*", default=list(CLIPS))
+    a = ap.parse_args()
+    rows = []
+    for clip in a.clips:
+        path = str(asset(clip))
+        seq = capture_face(path, CaptureConfig(), progress=False)
+        video = measures(read_faces(iter_frames(probe_video(path))))
+        row = {"name": Path(clip).stem, "clip": clip, "frames": seq.n_frames}
+        for name, frames in (("character", render_character(seq)), ("by_name", render_character(seq, False)),
+                             ("ict_ceiling", render_ict(seq))):  # fmt: skip
+            got = measures(read_faces(frames))
+            row[name] = compare(video, got) | {
+                "face_found": round(float(np.isfinite(got["mouth"]).mean()), 3),
+                "blinks": blinks((got["eye_L"] + got["eye_R"]) / 2),
+            }
+        row["video_blinks"] = blinks((video["eye_L"] + video["eye_R"]) / 2)
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    write_json(a.out, {"rows": rows, "protocol": "benchmarks/face_readback.py docstring", "reader":
+                       f"mediapipe.solutions.face_mesh {mp.__version__}"})  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
