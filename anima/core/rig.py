@@ -192,7 +192,7 @@ def _globals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None, fp
     return G
 
 
-LEAN_DEG = 15.0
+LEAN_DEG = 15.0  # contract: not a rate (degrees)
 """The torso's pitch (towards or away from the camera) is what the monocular tracker's depth says least
 reliably: a standing person's spine reads 15 degrees forward, then back. The pitch the character gets is the
 tracked pitch smoothed over :data:`LEAN_SMOOTH_S` and shrunk by ``p - D tanh(p / D)`` with ``D`` this many

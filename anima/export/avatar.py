@@ -129,7 +129,7 @@ def write_avatar(seq: TrackedSequence, path: str | Path, speech: str | None = No
     ch = load_character()
     m = character_motion(seq)
     F = seq.n_frames
-    weights = _expression_weights(seq)
+    weights = character_face(seq)
     extras = {
         "anima": {
             "speech": "speech.wav" if speech else None,
@@ -188,7 +188,7 @@ def face_transfer() -> Transfer:
                     EXPR_NAMES)  # fmt: skip
 
 
-def _expression_weights(seq: TrackedSequence) -> np.ndarray:
+def character_face(seq: TrackedSequence) -> np.ndarray:
     """The character's 53 morph weights ``[F, 53]`` for the sequence's face (easing to the rest face where it was
     lost, :func:`anima.facemodel.neutral.faded`): chosen so that its
     lids, brows, mouth corners and lips move as the fitted face's do (:func:`face_transfer`), not copied by
@@ -243,7 +243,7 @@ def render_avatar_preview(
     """``avatar.mp4``: the character, front and 3/4 views, with the speech."""
     ch = load_character()
     m = character_motion(seq)
-    weights = _expression_weights(seq)
+    weights = character_face(seq)
 
     def posed(f0: int, f1: int) -> np.ndarray:
         """Vertices ``[n, V, 3]`` of frames ``f0:f1``: the expressions on the rest mesh, then skinned."""

@@ -22,6 +22,7 @@ import numpy as np
 
 from anima.core.contract import EXPR_NAMES, JOINT_NAMES, RIG_JOINTS
 from anima.errors import AssetNotFound
+from anima.facemodel.transfer import POINTS, face_points
 from anima.io.assets import package_data
 
 FILENAME = "character.npz"
@@ -255,8 +256,6 @@ def vertex_colors() -> np.ndarray:
     above the upper lids; the lash line, the upper lids' edge (what the blink moves most); the lips, what
     mouthPucker and mouthFunnel move most around the mouth; the inside of the mouth, the head's vertices behind
     the lips (the tongue)."""
-    from anima.facemodel.transfer import POINTS, face_points  # the same facemodel package: no cycle at import
-
     ch = load_character()
     V = ch.vertices.astype(np.float64)
     D = ch.morph_dense()

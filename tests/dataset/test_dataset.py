@@ -11,6 +11,7 @@ import time
 import numpy as np
 import pytest
 
+from anima.core.contract import EXPR_NAMES
 from anima.dataset.annotations import load_annotations
 from anima.dataset.config import FilterConfig
 from anima.dataset.filters import cut_clips
@@ -242,7 +243,12 @@ def test_a_long_video_is_tracked_in_chunks_and_cut_as_one(tmp_path, cli):
     d = np.abs(x - y)
     # measured: first chunk (no warm-up) max 1.3e-4 (the identity, fitted from frames 0-99, and threads);
     # after it mean 8e-4, max 0.009, against a mean |value| of 0.127
-    assert d[:75].max() < 1e-3, d[:75].max()
+    blinks = [EXPR_NAMES.index("eyeBlink_L"), EXPR_NAMES.index("eyeBlink_R")]  # motion = 53 weights + 3 angles
+    rest = np.delete(d[:75], blinks, axis=1)
+    assert rest.max() < 1e-3, (rest.max(), np.unravel_index(np.argmax(rest), rest.shape))
+    # the blinks also by the lids' opening over the clip's open eye (its 90th percentile over every frame,
+    # later chunks' landmarks included: issue 48)
+    assert d[:75, blinks].max() < 5e-3, d[:75, blinks].max()
     assert d.mean() < 0.02 * np.abs(x).mean() and d.max() < 0.05, (d.mean(), d.max())
     a, b = shard(whole, "audio_motion"), shard(chunked, "audio_motion")
     assert a["window_id"].to_pylist() == b["window_id"].to_pylist() and a.num_rows >= 1

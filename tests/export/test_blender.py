@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from anima.core import rig
+from anima.core.contract import EXPR_NAMES
 from anima.io.assets import asset
 from anima.io.sequence import read_sequence
 
@@ -116,7 +117,7 @@ def test_avatar_is_one_skinned_human_with_its_own_timeline_in_blender(results, k
     one skinned human 1.5-1.95 m tall whose scene plays the whole clip at its rate; its joints are where anima
     put them and its 53 face shape keys carry the weights; a workbench render from the front shows a standing
     person (a tall silhouette with a head on top and two legs at the bottom)."""
-    from anima.export.avatar import character_motion
+    from anima.export.avatar import character_face, character_motion
 
     seq = read_sequence(results / kind / name)
     picks = [0, seq.n_frames // 2, seq.n_frames - 1]
@@ -130,10 +131,12 @@ def test_avatar_is_one_skinned_human_with_its_own_timeline_in_blender(results, k
     for f in picks:
         np.testing.assert_allclose(np.array(got["pose_heads"][str(f)]), _blender_from_yup(P[f]), atol=1e-3)
     assert got["shape_keys"] == 54  # Basis + the 53 expressions
+    W = character_face(seq)  # the character's own weights (issue 48: by geometry, from the rest face)
     for f in picks:
-        for i, n in enumerate(seq.expr_names):
-            w = float(np.clip(seq.expression[f, i], 0, 1)) if seq.tracked[f] else 0.0
-            assert got["shape_key_values"][str(f)][n] == pytest.approx(w, abs=1e-5), (f, n)
+        for k, n in enumerate(EXPR_NAMES):
+            assert got["shape_key_values"][str(f)][n] == pytest.approx(float(W[f, k]), abs=1e-5), (f, n)
+    jaw = seq.expression[:, seq.expr_names.index("jawOpen")]  # the mouth goes by name: the fitted jaw itself
+    np.testing.assert_allclose(W[seq.tracked, EXPR_NAMES.index("jawOpen")], np.clip(jaw[seq.tracked], 0, 1), atol=1e-6)
     import cv2
 
     img = cv2.imread(str(tmp_path / "front.png"), cv2.IMREAD_UNCHANGED)

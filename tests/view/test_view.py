@@ -18,6 +18,7 @@ import pytest
 from browser import chromium, console, have_browser, play_and_sample, requests, served, wait_media, wait_ready
 
 from anima.core import rig
+from anima.core.contract import EXPR_NAMES
 from anima.dataset.windows import read_clips
 from anima.io.assets import asset
 from anima.io.sequence import FLAG_LOW_CONFIDENCE, FLAG_NO_FACE, read_sequence
@@ -76,9 +77,9 @@ def assert_head_drawn(b, name: str) -> None:
 
 def test_capture_page_shows_the_artifact(results, browser):
     seq = read_sequence(results / "capture" / "capture.npz")
-    from anima.export.avatar import character_motion
+    from anima.export.avatar import character_face, character_motion
 
-    P = character_motion(seq)["positions"]
+    P, W = character_motion(seq)["positions"], character_face(seq)
     with served(results / "capture") as (url, _):
         browser.get(url)
         wait_ready(browser)
@@ -88,8 +89,8 @@ def test_capture_page_shows_the_artifact(results, browser):
         for f in (0, 17, 41, seq.n_frames - 1):
             s = state(browser, f)
             assert s["frame"] == f
-            for i, n in enumerate(seq.expr_names):
-                assert s["morphs"][n] == pytest.approx(float(seq.expression[f, i]), abs=1e-4), (f, n)
+            for k, n in enumerate(EXPR_NAMES):  # the character's weights (issue 48), as avatar.glb carries them
+                assert s["morphs"][n] == pytest.approx(float(W[f, k]), abs=1e-4), (f, n)
             got = np.array([s["joints"][n] for n in rig.NAMES])
             np.testing.assert_allclose(got, P[f], atol=1e-3)
             for t in s["videoTimes"]:  # the videos show the same frame (seeked to its middle)
@@ -131,14 +132,15 @@ def test_text2face_page_from_disk(results, browser, tmp_path, cli):
     browser.get((out / "index.html").as_uri())  # opened from disk: no server at all
     wait_ready(browser)
     assert "a man smiles" in browser.find_element("id", "prompt").text
-    from anima.export.avatar import character_motion
+    from anima.export.avatar import character_face, character_motion
 
     P = character_motion(seq)["positions"]  # text2face: the character standing at ease (issue 34)
+    W = character_face(seq)
     for f in (0, 23, 59):
         s = state(browser, f)
         np.testing.assert_allclose(np.array([s["joints"][n] for n in rig.NAMES]), P[f], atol=1e-3)
-        for i, n in enumerate(seq.expr_names):
-            assert s["morphs"][n] == pytest.approx(float(seq.expression[f, i]), abs=1e-4), (f, n)
+        for k, n in enumerate(EXPR_NAMES):
+            assert s["morphs"][n] == pytest.approx(float(W[f, k]), abs=1e-4), (f, n)
     jaw = seq.expression[:, seq.expr_names.index("jawOpen")]
     state(browser, int(np.argmax(jaw)))
     assert_head_drawn(browser, "text2face")
@@ -293,11 +295,14 @@ def test_missing_videos_and_an_older_result(results, browser, tmp_path, cli):
     notes = browser.find_element("id", "notes").text
     assert "the 3D plays alone" in notes and "head alone" in notes and "moved" in notes
     assert browser.execute_script("return document.querySelectorAll('video').length") == 0
+    from anima.facemodel.neutral import presented
+
     seq = read_sequence(old / "capture.npz")
+    W = presented(seq)[0]  # the fitted head's own morphs, the face measured from the speaker's rest (issue 48)
     for f in (10, 50):
         s = state(browser, f)
-        for i, n in enumerate(seq.expr_names):
-            assert s["morphs"][n] == pytest.approx(float(seq.expression[f, i]), abs=1e-4), (f, n)
+        for k, n in enumerate(seq.expr_names):
+            assert s["morphs"][n] == pytest.approx(float(W[f, k]), abs=1e-4), (f, n)
     assert_head_drawn(browser, "older_capture")
 
 
