@@ -8,7 +8,7 @@ surprised, d0 smiles and blinks, d9 talks and smiles; FaceGood-free: the Obama a
 captured with ``anima capture --face-only`` (the shipped defaults).
 
 **The character** (what ``avatar.mp4``'s face panel shows): anima's character, its 53 morph weights from the
-capture (:func:`anima.export.avatar._expression_weights`: the rest face taken out, transferred by geometry),
+capture (:func:`anima.export.avatar.character_face`: the rest face taken out, transferred by geometry),
 the head skinned and seen from the front of the face at 384 x 384 (:func:`anima.export.avatar.face_camera`),
 coloured (:func:`anima.facemodel.character.vertex_colors`). **The ceiling**: the fitted ICT face itself (the
 person's identity and the fitted expression, no head turn), rendered the same way in one colour. **The
@@ -34,7 +34,7 @@ import numpy as np
 from anima.capture.config import CaptureConfig
 from anima.capture.pipeline import capture_face
 from anima.core.contract import EXPR_NAMES
-from anima.export.avatar import _expression_weights, character_motion, face_camera
+from anima.export.avatar import character_face, character_motion, face_camera
 from anima.facemodel.character import load_character, skin, vertex_colors
 from anima.facemodel.ict import load_face_model
 from anima.io.assets import asset
@@ -94,7 +94,7 @@ def render_character(seq, transfer: bool = True) -> list[np.ndarray]:
     ch = load_character()
     m = character_motion(seq)
     if transfer:
-        W = _expression_weights(seq)
+        W = character_face(seq)
     else:
         idx = [seq.expr_names.index(n) for n in EXPR_NAMES]
         W = np.where(seq.tracked[:, None], seq.expression[:, idx], 0.0)

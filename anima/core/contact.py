@@ -77,7 +77,9 @@ def hand_contacts(pic: ground.Picture, fps: float) -> np.ndarray:
     centre = quad.mean(1, keepdims=True)
     quad = centre + (1 - SHRINK) * (quad - centre)
     width = np.linalg.norm(px[:, _J["left_shoulder"]] - px[:, _J["right_shoulder"]], axis=-1)
-    torso_z = np.nanmean([P3[:, _J[n], 2] for n in ("left_shoulder", "right_shoulder", "spine", "neck")], 0)
+    Z = np.stack([P3[:, _J[n], 2] for n in ("left_shoulder", "right_shoulder", "spine", "neck")], 0)
+    seen = np.isfinite(Z).sum(0)  # (a frame with none of them seen: NaN, without numpy's empty-mean warning)
+    torso_z = np.where(seen > 0, np.nansum(Z, 0) / np.maximum(seen, 1), np.nan)
     out = np.zeros((pic.n, 2), bool)
     for k, side in enumerate(("left", "right")):
         c = palm(px, side)

@@ -255,8 +255,8 @@ def feet_in_picture(pic: Picture, mpp: np.ndarray, fps: float) -> dict | None:
     for k, side in enumerate(("left", "right")):
         pts = legs[:, [_L[n] for n in _FOOT_POINTS[side]]]
         seen = np.isfinite(pts).all(-1).any(1)
-        with np.errstate(all="ignore"):
-            p = np.where(seen[:, None], np.nanmean(pts, 1), np.nan)
+        n_seen = np.isfinite(pts).all(-1).sum(1)[:, None]  # (no numpy warning on frames with none seen)
+        p = np.where(seen[:, None], np.nansum(pts, 1) / np.maximum(n_seen, 1), np.nan)
         p = np.stack([_fill(p[:, 0]), _fill(p[:, 1])], -1)
         p = gaussian_smooth(p, FOOT_SIGMA_FRAMES) if pic.n > 1 else p  # a pixel of jitter is 25 cm/s at 25 fps
         v = np.linalg.norm(np.gradient(p, axis=0), axis=-1) * mpp * fps if pic.n > 1 else np.zeros(pic.n)

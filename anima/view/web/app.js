@@ -82,12 +82,21 @@ let morphMesh = null;
 let bones = {};
 let headNode = null;
 let skeletonHelper = null;
+// the 3D is drawn when something in it changed (a frame, the camera, the page's size), not on every
+// animation frame: a 25 fps clip on a 60 Hz screen would draw each frame 2.4 times, and without a GPU
+// (SwiftShader) those draws take the time the frames need
+let dirty = true;
+const redraw = () => (dirty = true);
+controls.addEventListener("change", redraw);
 $("skeleton").onchange = () => {
   if (skeletonHelper) skeletonHelper.visible = $("skeleton").checked;
+  redraw();
 };
 let clipIndex = 0;
 
 function resize() {
+  dirty = true;
+  sizeFace();
   const w = canvas.clientWidth;
   const h = canvas.clientHeight;
   renderer.setSize(w, h, false);
@@ -188,6 +197,7 @@ function load3d() {
             if (o.morphTargetDictionary && (own || !morphMesh)) {
               morphMesh = o;
               if (own) setupCpuMorph(o);
+              if (own && o.isSkinnedMesh) setupFaceMesh(o);
             }
           }
           if (o.isBone) bones[o.name] = o;
@@ -265,6 +275,7 @@ function updateMorph() {
   }
   g.attributes.position.needsUpdate = true;
   g.computeVertexNormals();
+  if (faceMesh) copyToFace(g);
 }
 
 // ---- dataset clips ----------------------------------------------------------------------------------------
@@ -421,6 +432,7 @@ function masterTime() {
 }
 function apply(f) {
   api.frame = f;
+  dirty = true;
   if (V.kind === "dataset" && clipWeights && morphMesh) {
     const n = morphMesh.morphTargetInfluences.length;
     for (let k = 0; k < n; k++) morphMesh.morphTargetInfluences[k] = clipWeights[f * n + k];
@@ -464,6 +476,138 @@ function pause() {
   if (audio) audio.pause();
   $("play").textContent = "▶";
 }
+// ---- the face close up (issue 48): an inset in the canvas's top right, a second camera that follows the head
+// of anima's character from in front of its face, so expressions can be judged by eye (a user's VRM: none)
+const faceCam = new THREE.PerspectiveCamera(30, 1, 0.01, 10);
+faceCam.layers.set(1); // it sees the head's own triangles (faceMesh) and the lights, nothing else
+scene.traverse((o) => {
+  if (o.isLight) o.layers.enable(1);
+});
+let faceMesh = null;
+let faceVerts = null; // the main mesh's vertex index of each of faceMesh's vertices
+// the character's head and neck as a second skinned mesh on layer 1: its own small buffers (the vertices that
+// the head or the neck move most, their triangles) on the same bones; the morphed positions and normals are
+// copied over from the body's mesh when they change, so the close-up costs the head's vertices, not the body's
+function setupFaceMesh(o) {
+  const g = o.geometry;
+  const si = g.attributes.skinIndex;
+  const sw = g.attributes.skinWeight;
+  if (!g.index || !si || !sw) return;
+  const keep = new Set(
+    ["Head", "Neck", "HeadTop_End"].map((n) => o.skeleton.bones.findIndex((b) => b.name === n)).filter((i) => i >= 0),
+  );
+  const isHead = new Uint8Array(si.count);
+  for (let v = 0; v < si.count; v++) {
+    let best = -1;
+    let bw = -1;
+    for (let k = 0; k < 4; k++) {
+      const w = sw.getComponent(v, k);
+      if (w > bw) [bw, best] = [w, si.getComponent(v, k)];
+    }
+    isHead[v] = keep.has(best) ? 1 : 0;
+  }
+  const idx = g.index.array;
+  const tris = [];
+  for (let t = 0; t < idx.length; t += 3) {
+    if (isHead[idx[t]] && isHead[idx[t + 1]] && isHead[idx[t + 2]]) tris.push(idx[t], idx[t + 1], idx[t + 2]);
+  }
+  if (!tris.length) return;
+  const verts = Int32Array.from(new Set(tris)).sort();
+  const local = new Map(Array.from(verts, (v, i) => [v, i]));
+  const hg = new THREE.BufferGeometry();
+  for (const [name, a] of Object.entries(g.attributes)) {
+    const n = a.itemSize;
+    const out = new a.array.constructor(verts.length * n);
+    verts.forEach((v, i) => {
+      for (let c = 0; c < n; c++) out[i * n + c] = a.array[v * n + c];
+    });
+    hg.setAttribute(name, new THREE.BufferAttribute(out, n, a.normalized));
+  }
+  hg.setIndex(tris.map((v) => local.get(v)));
+  faceVerts = verts;
+  faceMesh = new THREE.SkinnedMesh(hg, o.material);
+  faceMesh.bind(o.skeleton, o.bindMatrix);
+  faceMesh.frustumCulled = false;
+  faceMesh.layers.set(1);
+  o.add(faceMesh);
+}
+function copyToFace(g) {
+  for (const name of ["position", "normal"]) {
+    const src = g.attributes[name].array;
+    const a = faceMesh.geometry.attributes[name];
+    for (let i = 0; i < faceVerts.length; i++) {
+      const v = 3 * faceVerts[i];
+      a.array[3 * i] = src[v];
+      a.array[3 * i + 1] = src[v + 1];
+      a.array[3 * i + 2] = src[v + 2];
+    }
+    a.needsUpdate = true;
+  }
+}
+const FACE_M = 0.3; // the height of face the inset shows (metres)
+const FACE_INSET = 0.3; // the inset's side, a fraction of the canvas's height
+const facePos = new THREE.Vector3();
+let faceYaw = null;
+function headBone() {
+  if (vrm) return vrm.humanoid.getRawBoneNode("head");
+  return bones.Head || bones["mixamorig:Head"] || bones.head || null;
+}
+// the face's centre and the yaw it faces (world), or null where there is no character's head
+function faceTarget() {
+  const head = faceMesh ? headBone() : null;
+  if (!head) return null;
+  // anima's head joint is the skull's base, the face about 9 cm above it; a VRM's head bone sits about there too
+  const centre = head.localToWorld(new THREE.Vector3(0, 0.085, 0.02));
+  const q = head.getWorldQuaternion(new THREE.Quaternion());
+  const fwd = new THREE.Vector3(0, 0, 1).applyQuaternion(q);
+  return { centre, yaw: Math.atan2(fwd.x, fwd.z) };
+}
+// its own small canvas over the 3D view's top right (a second WebGL context): drawn when the frame or the head
+// changed, at most every FACE_EVERY_MS while playing, so the body's view keeps the clip's frame rate on a
+// software GL (drawn in the body's canvas, the close-up cost every frame a second pass)
+const FACE_EVERY_MS = 80;
+let faceCanvas = null;
+let faceRenderer = null;
+let faceDirty = true;
+let faceDrawnAt = -1e9;
+function setupFaceView() {
+  if (!faceMesh || faceRenderer || location.hash === "#noface") return; // (#noface: the page without it)
+  const wrap = document.createElement("div");
+  wrap.style.position = "relative";
+  canvas.parentNode.insertBefore(wrap, canvas);
+  wrap.appendChild(canvas);
+  faceCanvas = document.createElement("canvas");
+  faceCanvas.id = "face3d";
+  faceCanvas.title = "the face close up";
+  Object.assign(faceCanvas.style, { position: "absolute", top: "4px", right: "4px", outline: "1px solid #333" });
+  wrap.appendChild(faceCanvas);
+  faceRenderer = new THREE.WebGLRenderer({ canvas: faceCanvas, antialias: false });
+  faceRenderer.setPixelRatio(1);
+  sizeFace();
+}
+function sizeFace() {
+  if (!faceRenderer) return;
+  const side = Math.max(64, Math.round(FACE_INSET * canvas.clientHeight));
+  faceRenderer.setSize(side, side, true);
+  faceDirty = true;
+}
+function renderFace(now) {
+  if (!faceRenderer) return;
+  if (api.playing && now - faceDrawnAt < FACE_EVERY_MS) return; // (still dirty: drawn on a later tick)
+  const t = faceTarget();
+  if (!t) return;
+  // the camera follows the face's yaw smoothly (it does not shake with the head)
+  faceYaw = faceYaw === null ? t.yaw : faceYaw + 0.5 * Math.atan2(Math.sin(t.yaw - faceYaw), Math.cos(t.yaw - faceYaw));
+  const dist = (0.5 * FACE_M) / Math.tan((faceCam.fov * Math.PI) / 360);
+  facePos.set(t.centre.x + dist * Math.sin(faceYaw), t.centre.y, t.centre.z + dist * Math.cos(faceYaw));
+  faceCam.position.copy(facePos);
+  faceCam.lookAt(t.centre);
+  faceCam.updateMatrixWorld(true);
+  faceRenderer.render(scene, faceCam);
+  faceDirty = false;
+  faceDrawnAt = now;
+}
+
 let lastFrame = -1;
 function tick() {
   if (api.playing) {
@@ -477,8 +621,13 @@ function tick() {
       syncMedia(t, false);
     }
   }
-  renderer.render(scene, camera);
-  api.rendered += 1;
+  if (dirty) {
+    dirty = false;
+    renderer.render(scene, camera);
+    faceDirty = true;
+    api.rendered += 1;
+  }
+  if (faceDirty) renderFace(performance.now());
   if (api.frame !== lastFrame) {
     api.renderedFrames += 1;
     lastFrame = api.frame;
@@ -557,6 +706,20 @@ api.headOnScreen = () => {
   };
 };
 
+// the face close-up's square on the page (CSS pixels) and the face centre's place in it, or null without one
+api.faceOnScreen = () => {
+  const t = faceCanvas ? faceTarget() : null;
+  if (!t) return null;
+  scene.updateMatrixWorld(true);
+  const b = faceCanvas.getBoundingClientRect();
+  const p = t.centre.clone().project(faceCam);
+  return {
+    square: [b.left, b.top, b.width, b.height],
+    x: b.left + ((p.x + 1) / 2) * b.width,
+    y: b.top + ((1 - p.y) / 2) * b.height,
+  };
+};
+
 // ---- live (`anima live`): each WebSocket message poses the character ---------------------------------------
 // message: {i: source frame, t_cap: its capture time (ms since the epoch), q: [65 x [x, y, z, w]] local rotations
 // in V.rig order, w: [53] expression weights in V.expr order}
@@ -603,6 +766,7 @@ function connectLive() {
     }
     api.frame = m.i;
     api.renderedFrames += 1;
+    dirty = true;
     const recent = L.frames.slice(-30);
     const rate = recent.length > 1 ? (1000 * (recent.length - 1)) / (recent[recent.length - 1][1] - recent[0][1]) : 0;
     const lat = L.latencies.slice(-30).sort((a, b) => a - b);
@@ -619,6 +783,7 @@ load3d()
       for (const id of ["slider", "play", "prev", "next"]) $(id).style.display = "none"; // no timeline: a stream
       connectLive();
     }
+    setupFaceView();
     resize();
     if (V.kind === "dataset") {
       listClips();
