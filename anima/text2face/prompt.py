@@ -28,7 +28,21 @@ from anima.errors import InputError
 EMOTIONS = ("happy", "sad", "angry", "disgusted", "fearful", "surprised", "contempt", "neutral")
 
 # event -> regular expressions (word-boundary anchored, matched on the lower-cased clause)
-_OBJ = r"(?:(?:the|her|his|their|its|one|an?)\s+)?"
+_SCOPE = r"(?:(?:only|just|solely|merely|simply)\s+)?"
+"""Words that restrict an event ("raises only her left eyebrow"): read with the words they govern, whose side
+the clause names."""
+_OBJ = _SCOPE + r"(?:(?:the|her|his|their|its|one|an?)\s+)?"
+_LOOKV = (
+    r"(?:looks?|looking|looked|glanc\w*|peeks?|peeking|peeked|peers?|peering|peered|peeps?|peeping|peeped|"
+    r"glimps\w*|stares?|staring|stared|eyes|eyeing|eyed|checks?|checking|checked)"
+)
+"""Verbs of looking: a short look to one side (:data:`_ASIDE`) is a turn of the head."""
+_ASIDE = (
+    r"(?:(?:to\s+(?:the\s+|one\s+|her\s+|his\s+|their\s+)?)?(?:left|right|away|aside|sideways|side)\b|"
+    r"(?:back\s+)?over\s+(?:(?:her|his|their|the|one)\s+)?shoulder)"
+)
+_LOOKN = r"(?:glance|look|peek|peep|glimpse|sideways\s+look|look\s+around)s?"
+"""Nouns of looking, after a verb that gives one ("casts a glance", "sneaks a peek", "takes a quick look")."""
 _DIR = r"(?:left|right|up|upwards?|down|downwards?)"
 LEXICON: dict[str, list[str]] = {
     "blink": [r"blink\w*", r"bats?\s+" + _OBJ + r"(?:eye)?lash\w*", r"wink\w*", r"flutter\w*\s+" + _OBJ + r"eyes?"],
@@ -89,9 +103,15 @@ LEXICON: dict[str, list[str]] = {
     "turn": [
         r"turn\w*\s+" + _OBJ + r"head",
         r"turn\w*\s+(?:to\s+the\s+)?(?:left|right|away|aside|sideways)",
-        r"looks?\s+(?:to\s+the\s+)?(?:left|right|away|aside|sideways)",
-        r"looking\s+(?:to\s+the\s+)?(?:left|right|away|aside|sideways)",
-        r"glanc\w*\s+(?:to\s+the\s+)?(?:left|right|away|aside|sideways)",
+        _LOOKV + r"\s+(?:\w+\s+)?" + _ASIDE,
+        r"(?:takes?|taking|took|casts?|casting|cast|steals?|stealing|stole|shoots?|shooting|shot|throws?|throwing|"
+        r"threw|sneaks?|sneaking|snuck|gives?|giving|gave|darts?|darting|darted)\s+(?:a\s+|an\s+)?(?:\w+\s+)?"
+        + _LOOKN
+        + r"(?:\s+(?:\w+\s+)?"
+        + _ASIDE
+        + r")?",
+        r"side(?:long|ways)?\s+(?:glance|look)s?",
+        r"(?:whip|swivel|jerk|snap|twist|swing|swung)\w*\s+" + _OBJ + r"head(?:\s+(?:a?round|" + _ASIDE + r"))?",
     ],
     # emotions (each synthesised by its action units, see compose.EMOTION_AUS)
     "happy": [r"happ(?:y|ily|iness)", r"joy\w*", r"cheerful\w*", r"glad", r"delight\w*", r"pleased"],
@@ -308,7 +328,8 @@ GRAMMAR = set(
     by up down out towards toward into from camera speaker actor actress presenter gently softly quite rather
     some something somewhat moderately over around just now after before finally next later afterwards lastly
     end last followed two three four five him them us me give gives giving side quick slow s throughout whole
-    clip begin beginning meanwhile lastly""".split()
+    clip begin beginning meanwhile lastly only solely merely simply single brief briefly furtive furtively swift
+    swiftly""".split()
 )
 SIDE = r"\b(left|right)\b"
 

@@ -146,6 +146,37 @@ def test_gaze_goes_where_the_words_say(lib):
     assert turn[:, IX["eyeLookOut_L"]].max() > 0.3 and turn[:, IX["eyeLookIn_L"]].max() == 0.0
 
 
+def test_verbs_of_looking_and_restricting_words(lib):
+    """Issue 50 items 1-2 (phrasings of our own, not the outsider's): the verbs and nouns English uses for a
+    short look to one side are a turn of the head to that side; a restricting word ("only", "just") keeps the
+    event and its side; words that mean nothing to anima are still reported."""
+    for prompt, side in (
+        ("she peeks to the left", "left"),
+        ("he peers over his shoulder", None),
+        ("she casts a quick glance to the right", "right"),
+        ("he sneaks a peek to the side", None),
+        ("she takes a brief look to the left", "left"),
+        ("he steals a sidelong glance", None),
+        ("she stares to the right", "right"),
+        ("he whips his head around", None),
+    ):
+        plan = parse(prompt)
+        assert [(e.attribute, e.side) for e in plan.events] == [("turn", side)] and not plan.unknown, (prompt, plan)
+    for prompt, side in (
+        ("she raises only her left eyebrow", "left"),
+        ("he lifts just his right eyebrow", "right"),
+        ("she raises her left eyebrow only", "left"),
+    ):
+        plan = parse(prompt)
+        assert [(e.attribute, e.side) for e in plan.events] == [("raise eyebrows", side)], (prompt, plan)
+        assert not plan.unknown, plan.unknown
+    assert parse("he eyes the door").unknown == ["door"]
+    m = _make("she peeks to the left", lib)  # made: the head turns, the eyes lead it the same way
+    assert m[:, IX["eyeLookOut_L"]].max() > 0.3 and np.abs(m[:, -3:]).max() > 0.1
+    m = _make("she raises only her left eyebrow", lib)
+    assert m[:, IX["browOuterUp_L"]].max() > 0.3 > m[:, IX["browOuterUp_R"]].max()
+
+
 def test_the_length_grows_to_fit_the_events(lib):
     m = _make("He nods twice, then smiles, then shakes his head three times.", lib)
     assert len(m) > 90
