@@ -38,7 +38,7 @@ from anima.errors import InputError
 from anima.export.framing import generated_sequence
 from anima.library import builtin
 from anima.text2face.poses import POSES, natural_frames, pose_track, shake_track
-from anima.text2face.prompt import Plan
+from anima.text2face.prompt import FAINT, Plan
 
 _IX = {n: i for i, n in enumerate(EXPR_NAMES)}
 HEAD = "head"
@@ -410,7 +410,7 @@ def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0, avoid: f
             if pose_of(e):  # a keyframed event: its natural length, or the slot when it is held
                 n = L if _holds(e) else min(L, natural_frames(pose_of(e), e.count, fps))
                 a = t + (L - n) // 2
-                placed.append(Placed(e.attribute, a, a + n, gain, [], e.side, pose_of(e), e.count))
+                placed.append(Placed(e.attribute, a, a + n, gain, [], e.side, pose_of(e), e.count, level=level))
                 continue
             if e.attribute == "close eyes" or (e.attribute in HOLDABLE and len(segs) == 1):
                 placed.append(Placed(e.attribute, t, t + L, gain, [(segs[0], t, L)], e.side, level=level))
@@ -508,22 +508,23 @@ def render(
     return out
 
 
-STRENGTH = {0.6: (0.3, 0.6), 1.0: (0.6, 0.9), 1.4: (0.85, 1.0)}
-"""The peak of a captured event's main channels by stated intensity ("slightly" 0.6, plain 1, "very" 1.4): a
+STRENGTH = {0.35: (0.15, 0.3), 0.6: (0.3, 0.6), 1.0: (0.6, 0.9), 1.4: (0.85, 1.0)}
+"""The peak of a captured event's main channels by stated intensity (two softening words 0.35, "slightly"
+0.6, plain 1, "very" 1.4: ``anima.text2face.prompt.FAINT``): a
 segment whose peak falls outside the range is scaled into it (captured faces differ in how far they move;
 a prompt's "smiles" should not depend on whose smile was drawn). Blinks and closed eyes close the eye."""
 STRENGTH_OF = {
-    "blink": {0.6: (0.5, 0.6), 1.0: (0.9, 0.95), 1.4: (0.95, 1.0)},
-    "close eyes": {0.6: (0.5, 0.6), 1.0: (0.9, 0.95), 1.4: (0.95, 1.0)},
+    "blink": {0.35: (0.4, 0.5), 0.6: (0.5, 0.6), 1.0: (0.9, 0.95), 1.4: (0.95, 1.0)},
+    "close eyes": {0.35: (0.4, 0.5), 0.6: (0.5, 0.6), 1.0: (0.9, 0.95), 1.4: (0.95, 1.0)},
     # an open mouth is jawOpen 0.3 (the detector) up to a yawn's 0.45 held a second
-    "mouth open": {0.6: (0.32, 0.36), 1.0: (0.36, 0.44), 1.4: (0.44, 0.6)},
-    "yawn": {0.6: (0.5, 0.6), 1.0: (0.6, 0.8), 1.4: (0.8, 1.0)},
+    "mouth open": {0.35: (0.2, 0.28), 0.6: (0.32, 0.36), 1.0: (0.36, 0.44), 1.4: (0.44, 0.6)},
+    "yawn": {0.35: (0.4, 0.5), 0.6: (0.5, 0.6), 1.0: (0.6, 0.8), 1.4: (0.8, 1.0)},
     # a smile and a frown at full strength on their own channel (issue 37): mouthSmile 0.6 alone, or browDown
     # 0.6 alone, barely changes the face a viewer sees (corners, brows)
     # (the face model's brows move little: even a slight frown needs browDown 0.8 to be seen)
-    "smile": {0.6: (0.55, 0.65), 1.0: (0.7, 0.9), 1.4: (0.9, 1.0)},
-    "frown": {0.6: (0.8, 0.9), 1.0: (0.9, 1.0), 1.4: (1.0, 1.0)},
-    "raise eyebrows": {0.6: (0.5, 0.65), 1.0: (0.7, 0.9), 1.4: (0.9, 1.0)},  # the inner and outer brows' mean
+    "smile": {0.35: (0.25, 0.33), 0.6: (0.55, 0.65), 1.0: (0.7, 0.9), 1.4: (0.9, 1.0)},
+    "frown": {0.35: (0.6, 0.7), 0.6: (0.8, 0.9), 1.0: (0.9, 1.0), 1.4: (1.0, 1.0)},
+    "raise eyebrows": {0.35: (0.35, 0.45), 0.6: (0.5, 0.65), 1.0: (0.7, 0.9), 1.4: (0.9, 1.0)},  # brows' mean
 }
 SYMMETRIC = ("blink", "close eyes", "smile", "frown", "squint", "raise eyebrows")
 """Events made alike on both sides when no side is named: a captured segment's left-right difference is
@@ -606,7 +607,11 @@ def compose(
                 continue
             n_frames = e.need
             placed = plan_layout(plan, lib, n_frames, seed + 1009 * draw, frozenset(avoid))
-        detectable = [p for p in placed if p.attribute in ATTRIBUTES and (p.side is None or p.attribute == "turn")]
+        detectable = [  # (a faint event, asked for, may stay under the detectors' threshold: not made stronger)
+            p
+            for p in placed
+            if p.attribute in ATTRIBUTES and (p.side is None or p.attribute == "turn") and p.level > FAINT
+        ]
         lip_s = LIP_SMOOTH_S
         talking = any(p.attribute == "talk" for p in placed)
         for _ in range(rounds + 1):

@@ -305,14 +305,19 @@ NEGATION = (
 )
 """Words that exclude the next event of their clause: "talks without smiling", "doesn't blink at all",
 "no smile", "never looks up". The excluded event is not made, and the plan says so."""
-INTENSITY = [
-    (r"\b(?:slightly|a\s+little|a\s+bit|subtly|faintly|barely|softly|gently|mildly|a\s+touch|small|faint)\b", 0.6),
-    (
-        r"\b(?:broadly|widely|very|really|extremely|strongly|hugely|big|wide|a\s+lot|hard|deeply|fully|"
-        r"intensely|so)\b",
-        1.4,
-    ),
-]
+SOFTER = (
+    r"\b(?:a\s+(?:little|tiny|wee)\s+bit|a\s+(?:little|tiny)|a\s+bit|slight(?:ly)?|subtl[ey]|faint(?:ly)?|barely|"
+    r"softly|gently|mildly|a\s+touch|small|tiny|hint\s+of|trace\s+of|hardly)\b"
+)
+STRONGER = (
+    r"\b(?:broadly|widely|very|really|extremely|strongly|hugely|big|wide|a\s+lot|hard|deeply|fully|intensely|so)\b"
+)
+INTENSITY = [(SOFTER, 0.6), (STRONGER, 1.4)]
+FAINT = 0.35
+"""Intensity as a dial (issue 50): one softening word (:data:`SOFTER`) is 0.6, two of them ("a slight, faint
+smile", "just a little bit, barely") or a strengthened one ("very slightly") :data:`FAINT`; strengthening
+words alone 1.4; none 1. ``compose.STRENGTH`` turns each level into a peak range per event, the same for the
+built-in library and a dataset."""
 SEQUENCE = (
     r"\b(?:and\s+then|then|after\s+that|afterwards|afterward|next|later|finally|at\s+last|in\s+the\s+end|"
     r"followed\s+by|before\s+that)\b|[;.!?]"
@@ -329,7 +334,7 @@ GRAMMAR = set(
     some something somewhat moderately over around just now after before finally next later afterwards lastly
     end last followed two three four five him them us me give gives giving side quick slow s throughout whole
     clip begin beginning meanwhile lastly only solely merely simply single brief briefly furtive furtively swift
-    swiftly""".split()
+    swiftly hint trace wee""".split()
 )
 SIDE = r"\b(left|right)\b"
 
@@ -392,10 +397,11 @@ def _count(clause: str) -> int | None:
 
 
 def _intensity(clause: str) -> float:
-    for pat, v in INTENSITY:
-        if re.search(pat, clause):
-            return v
-    return 1.0
+    soft = len(re.findall(SOFTER, clause))
+    strong = bool(re.search(STRONGER, clause))
+    if soft >= 2 or (soft and strong):
+        return FAINT
+    return 0.6 if soft else 1.4 if strong else 1.0
 
 
 def _clauses(text: str) -> list[tuple[str, bool]]:
@@ -450,6 +456,8 @@ def parse(prompt: str, encoder=None) -> Plan:
     low = text.lower().replace("’", "'")
     proto = None
     clause_i = -1
+    pending = ""  # intensity words in a clause of their own before the events they grade ("a slight, faint smile")
+    last: tuple[str, list[Event]] = ("", [])  # the previous clause with events, and its events
     for clause, conc in _clauses(low):
         if not conc or clause_i < 0:
             clause_i += 1
@@ -491,9 +499,19 @@ def parse(prompt: str, encoder=None) -> Plan:
         if words:
             plan.unknown.extend(words)
         if not hits:
+            if re.search(SOFTER, clause) or re.search(STRONGER, clause):  # it grades the events next to it
+                if last[1]:
+                    text = last[0] + " " + clause
+                    for e in last[1]:
+                        e.intensity = _intensity(text)
+                    last = (text, last[1])
+                else:
+                    pending += " " + clause
             continue
         count = _count(clause)
-        inten = _intensity(clause)
+        inten = _intensity(pending + " " + clause)
+        pending = ""
+        n_before = len(plan.events)
         side = re.search(SIDE, clause)
         for k, (_, ev, (a, b)) in enumerate(hits):
             # a count attaches to the event it follows (the last one before it in the clause)
@@ -515,6 +533,7 @@ def parse(prompt: str, encoder=None) -> Plan:
             if ev == "gaze":
                 sd = _direction(clause[a:b], clause)
             plan.events.append(Event(ev, max(1, c), inten, sd, clause_i, clause[a:b]))
+        last = (clause, plan.events[n_before:])
     by_clause: dict[int, list[Event]] = {}
     for e in plan.events:
         by_clause.setdefault(e.clause, []).append(e)

@@ -177,6 +177,30 @@ def test_verbs_of_looking_and_restricting_words(lib):
     assert m[:, IX["browOuterUp_L"]].max() > 0.3 > m[:, IX["browOuterUp_R"]].max()
 
 
+def test_intensity_is_a_dial(lib):
+    """Issue 50 item 3: one softening word grades an event down, two of them (in one clause or next to it,
+    "a slight, faint smile") or a strengthened one ("very slightly") grade it down further; a faint event is
+    made faint even where the detectors would not find it (it is not made stronger to be found)."""
+    smile = [IX["mouthSmile_L"], IX["mouthSmile_R"]]
+    peak = {}
+    for prompt, level in (
+        ("she smiles", 1.0),
+        ("she smiles slightly", 0.6),
+        ("she smiles just a little bit, faintly", 0.35),
+        ("she gives a slight, faint smile", 0.35),
+        ("a very slight smile", 0.35),
+        ("he smiles broadly", 1.4),
+    ):
+        plan = parse(prompt)
+        assert [(e.attribute, e.intensity) for e in plan.events] == [("smile", level)] and not plan.unknown, plan
+        peak[prompt] = float(_make(prompt, lib)[:, smile].max())
+    assert peak["she gives a slight, faint smile"] < 0.35 and peak["a very slight smile"] < 0.35
+    assert peak["she gives a slight, faint smile"] < peak["she smiles slightly"] < peak["she smiles"]
+    assert peak["she smiles"] < peak["he smiles broadly"]
+    ev = parse("she smiles, then nods slightly").events  # a grade stays with its own clause's events
+    assert [(e.attribute, e.intensity) for e in ev] == [("smile", 1.0), ("nod", 0.6)]
+
+
 def test_the_length_grows_to_fit_the_events(lib):
     m = _make("He nods twice, then smiles, then shakes his head three times.", lib)
     assert len(m) > 90
