@@ -60,6 +60,7 @@ def cmd_build(a) -> int:
     )
     emit(build_summary(m), a.json)
     notes([f"failed: {e['source']}: {e['error']}" for e in m["videos_failed"]], "warning")
+    notes(m.get("content_groups"), "grouped")  # one recording under two names: one split (anima.dataset.splits)
     return 0
 
 

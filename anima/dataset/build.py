@@ -487,7 +487,11 @@ def build_summary(m: dict) -> dict:
         "compute_s",
         "last_run",
     ]
-    return {k: m[k] for k in keys} | {"videos_failed": len(m["videos_failed"])}
+    return (
+        {k: m[k] for k in keys}
+        | {"videos_failed": len(m["videos_failed"])}
+        | ({"content_groups": m["content_groups"]} if m.get("content_groups") else {})
+    )
 
 
 def build_videos(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_workers, progress, command) -> dict:
@@ -560,6 +564,19 @@ def build_videos(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_wo
     return manifest
 
 
+def content_groups(videos: list[Path], table: dict) -> list[str]:
+    """One line per video that shares content with a video of another source (one recording under two names,
+    a re-cropped or re-encoded copy): they take one split, and the build's report says so."""
+    out = []
+    for p in videos:
+        row = table[str(p.resolve())]
+        for other, how in row.get("grouped_with", {}).items():
+            out.append(
+                f"{row['key_path']} ({row['source']}) is one recording with {other}: {how}; split {row['split']}"
+            )
+    return out
+
+
 def _manifest(out: Path, videos: list[Path], cfg: BuildConfig, status: str, table: dict) -> dict:
     """The dataset's manifest. ``splits`` lists the videos of each split as their rows carry it; ``split_table``
     says why (key path, source, group; :mod:`anima.dataset.splits`); a video whose rows were made under
@@ -591,6 +608,7 @@ def _manifest(out: Path, videos: list[Path], cfg: BuildConfig, status: str, tabl
         "split_rule": splits.rule(),
         "split_table": {video_id(p): table[str(p.resolve())] for p in videos},
         "split_stale": sorted(r["video_id"] for r in results if r["split"] != split_of_result(r, table)),
+        "content_groups": content_groups(videos, table),
         "frames": sum(r["frames"] for r in results),
         "seconds_of_video": round(sum(r["duration_s"] for r in results), 2),
         "compute_s": round(sum(r["seconds"] for r in results), 2),

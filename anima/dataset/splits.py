@@ -8,9 +8,12 @@ A video's split is decided by its *source group*, never by its file alone or its
 2. Its **source key** (the speaker, actor, recording or talk): the first rule of :data:`SOURCE_RULES` whose
    prefix the key path starts with, applied to the file name; a video no rule names gets
    ``<folder>:<file name less a trailing clip/part/take number>``.
-3. **Groups**: videos whose files are byte-identical (sha256) or whose middle frames look the same (a 64-bit
-   difference hash of the frame, :data:`NEAR` bits apart or fewer) join one group, named by its smallest
-   source key; so a clip copied under two folders, or re-encoded, cannot sit on two sides.
+3. **Groups**: videos whose files are byte-identical (sha256), whose middle frames look the same (a 64-bit
+   difference hash of the frame, :data:`NEAR` bits apart or fewer), or that share frames after cropping and
+   scaling (:func:`face_hashes`: a perceptual hash of a face-centred crop at :data:`FACE_FRAMES` points of
+   each video; :data:`FACE_MIN_FRAMES` of one video's crops each within :data:`FACE_NEAR` bits of one of the
+   other's) join one group, named by its smallest source key; so a clip copied under two folders, re-encoded
+   or re-cropped cannot sit on two sides. Each row says why it was grouped (``grouped_with``).
 4. The group's split: a hash of its name against :data:`TEST` and :data:`VAL` (so adding videos never moves
    another video's split).
 
@@ -22,6 +25,7 @@ from __future__ import annotations
 
 import hashlib
 import re
+from contextlib import ExitStack
 from pathlib import Path
 
 from anima.io.assets import data_root
@@ -31,6 +35,16 @@ TEST = 0.2  # fraction of source groups on the test side (by hash of the group's
 VAL = 0.2  # and on the validation side
 SALT = "anima-splits-v2"  # the rule's version: changing it (or TEST / VAL) moves splits; the manifest records it
 NEAR = 4  # difference-hash bits at most between two middle frames of one recording
+FACE_FRAMES = 12  # face-centred crops hashed per video, evenly over its frames
+FACE_NEAR = 2  # perceptual-hash bits at most between two crops of one recording
+FACE_MIN_FRAMES = 2  # crops of one video that must each find such a crop in the other
+"""Chosen on the shared data (102 videos, every pair, crops from each one's first 10 s): the one re-cropped copy
+an audit found (``talking-heads-extra/pose_source1.mp4`` and ``videoretalking-examples/examples/face/3.mp4``)
+has 2 crops within 1 bit; the copies the source table already declares 0-1 bits (2-12 crops), as do one
+CREMA-D actor's sentences (one session, one source already); the nearest crops of two different sources are
+7 bits apart."""
+FACE_CROP = 1.6  # the crop's side, times the face box's longer side
+FACE_SECONDS = 10.0  # the crops come from the video's first seconds (a bounded cost per video)
 
 # (key-path prefix, regular expression on the file name, source key template with {1}.. for its groups).
 # Persons seen in more than one corpus get one key (Obama in StyleTalk and EDTalk's test data).
@@ -46,6 +60,10 @@ SOURCE_RULES: list[tuple[str, str, str]] = [
     ("talking-heads-extra/aniportrait_pose_ref", r"", "person:theresa-may"),  # the frames of May_5s (checked)
     ("talking-heads-extra/expression_source", r"", "styletalk:happyenglish"),  # the happyenglish speaker
     ("talking-heads-extra/RD_Radio", r"^(RD_Radio\d+)_", "hdtf:{1}"),
+    # one interview (same shot, flag, dress, earrings), re-cropped in VideoReTalking's examples: found by the
+    # face crops (issue 52), declared so a build of any subset gives it one split
+    ("talking-heads-extra/pose_source", r"", "recording:pose-source"),
+    ("videoretalking-examples/examples/face/3.mp4", r"", "recording:pose-source"),
     ("talking-heads-misc/Real3DPortrait/", r"^May_", "person:theresa-may"),
     ("styletalk-samples/", r"^(?i:obama)_", "person:obama"),
     ("styletalk-samples/", r"^(?i:andrew)_", "person:andrew-ng"),
@@ -95,8 +113,9 @@ def split_for(path: str | Path, root: Path | None = None) -> str:
     return split_of_group(source_key(key_path(path, root)))
 
 
-def fingerprint(path: str | Path) -> tuple[str, int | None]:
-    """(sha256 of the file, 64-bit difference hash of its middle frame or None where none decodes)."""
+def fingerprint(path: str | Path, detector=None) -> tuple[str, int | None, list[int]]:
+    """(sha256 of the file, 64-bit difference hash of its middle frame or None where none decodes, its
+    :func:`face_hashes`)."""
     import cv2
     import numpy as np
 
@@ -113,14 +132,67 @@ def fingerprint(path: str | Path) -> tuple[str, int | None]:
     finally:
         cap.release()
     if frame is None:
-        return digest, None
+        return digest, None, []
     g = cv2.resize(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), (9, 8), interpolation=cv2.INTER_AREA).astype(np.int16)
     bits = (g[:, 1:] > g[:, :-1]).ravel()
-    return digest, int(sum(int(b) << i for i, b in enumerate(bits)))
+    return digest, int(sum(int(b) << i for i, b in enumerate(bits))), face_hashes(path, detector)
+
+
+def face_hashes(path: str | Path, detector=None, n: int = FACE_FRAMES) -> list[int]:
+    """64-bit perceptual hashes (OpenCV's pHash) of the largest face's crop (:data:`FACE_CROP` times its box,
+    32 x 32 grey) at ``n`` evenly spaced frames of the video's first :data:`FACE_SECONDS` (those where
+    MediaPipe's face detector finds one), read in order (seeking costs more than decoding here).
+    ``detector``: a MediaPipe ``FaceDetection`` to reuse (else one is opened and closed here)."""
+    import cv2
+    import mediapipe as mp
+    import numpy as np
+
+    if detector is None:
+        with mp.solutions.face_detection.FaceDetection(model_selection=1, min_detection_confidence=0.5) as det:
+            return face_hashes(path, det, n)
+    cap = cv2.VideoCapture(str(path))
+    out = []
+    try:
+        fps = cap.get(cv2.CAP_PROP_FPS) or 25.0
+        total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+        last = max(0, min(total - 1, int(FACE_SECONDS * (fps if 1 <= fps <= 240 else 25.0))))
+        want = set(np.linspace(0, last, n).astype(int).tolist())
+        for i in range(last + 1):
+            if i not in want:
+                if not cap.grab():
+                    break
+                continue
+            ok, f = cap.read()
+            if not ok:
+                break
+            h, w = f.shape[:2]
+            found = detector.process(cv2.cvtColor(f, cv2.COLOR_BGR2RGB)).detections
+            if not found:
+                continue
+            b = max((d.location_data.relative_bounding_box for d in found), key=lambda r: r.width)
+            cx, cy = (b.xmin + b.width / 2) * w, (b.ymin + b.height / 2) * h
+            side = FACE_CROP * max(b.width * w, b.height * h)
+            x0, y0 = int(max(0, cx - side / 2)), int(max(0, cy - side / 2))
+            crop = f[y0 : int(min(h, cy + side / 2)), x0 : int(min(w, cx + side / 2))]
+            if crop.size:
+                g = cv2.resize(cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY), (32, 32), interpolation=cv2.INTER_AREA)
+                out.append(int.from_bytes(cv2.img_hash.pHash(g)[0].tobytes(), "little"))
+    finally:
+        cap.release()
+    return out
+
+
+def same_recording(a: list[int], b: list[int]) -> bool:
+    """Whether two videos' :func:`face_hashes` say they share frames (see :data:`FACE_MIN_FRAMES`)."""
+    if not a or not b:
+        return False
+    near = [[bin(x ^ y).count("1") <= FACE_NEAR for y in b] for x in a]
+    return min(sum(map(any, near)), sum(map(any, zip(*near)))) >= FACE_MIN_FRAMES
 
 
 def table(videos: list[str | Path], root: Path | None = None, fingerprints: dict | None = None) -> dict[str, dict]:
-    """Per video (its resolved path as a string): ``{"key_path", "source", "group", "split"}``.
+    """Per video (its resolved path as a string): ``{"key_path", "source", "group", "split", "grouped_with"}``
+    (``grouped_with``: the other sources it was found to share content with, and how).
     ``fingerprints``: precomputed :func:`fingerprint` results by path (else computed here)."""
     paths = [str(Path(v).resolve()) for v in videos]
     keys = {p: key_path(p, root) for p in paths}
@@ -133,38 +205,59 @@ def table(videos: list[str | Path], root: Path | None = None, fingerprints: dict
             s = parent[s]
         return s
 
-    def union(a, b):
+    why: dict[str, dict[str, str]] = {}
+
+    def union(a, b, how):
+        if a != b:
+            why.setdefault(a, {}).setdefault(b, how)
+            why.setdefault(b, {}).setdefault(a, how)
         a, b = find(a), find(b)
         if a != b:
             parent[max(a, b)] = min(a, b)
 
     fps = {}
-    for p in paths:
-        if fingerprints is not None and p in fingerprints:
-            fps[p] = fingerprints[p]
-        elif Path(p).is_file():
-            try:
-                fps[p] = fingerprint(p)
-            except OSError:
-                pass
+    with ExitStack() as stack:
+        det = None
+        for p in paths:
+            if fingerprints is not None and p in fingerprints:
+                fps[p] = fingerprints[p]
+            elif Path(p).is_file():
+                if det is None:
+                    import mediapipe as mp
+
+                    det = stack.enter_context(
+                        mp.solutions.face_detection.FaceDetection(model_selection=1, min_detection_confidence=0.5)
+                    )
+                try:
+                    fps[p] = fingerprint(p, det)
+                except OSError:
+                    pass
     seen_sha: dict[str, str] = {}
     hashes: list[tuple[int, str]] = []
-    for p, (sha, dh) in fps.items():
+    faces: list[tuple[list[int], str]] = []
+    for p, (sha, dh, *rest) in fps.items():
         if sha in seen_sha:
-            union(source[p], seen_sha[sha])
+            union(source[p], seen_sha[sha], "the same file")
         seen_sha.setdefault(sha, source[p])
         if dh is not None:
             for other, s in hashes:
                 if bin(other ^ dh).count("1") <= NEAR:
-                    union(source[p], s)
+                    union(source[p], s, "the same middle frame")
             hashes.append((dh, source[p]))
+        fh = rest[0] if rest else []
+        for other, s in faces:
+            if same_recording(fh, other):
+                union(source[p], s, "the same face crops (re-cropped or scaled)")
+        faces.append((fh, source[p]))
     out = {}
     for p in paths:
         g = find(source[p])
-        out[p] = {"key_path": keys[p], "source": source[p], "group": g, "split": split_of_group(g)}
+        out[p] = {"key_path": keys[p], "source": source[p], "group": g, "split": split_of_group(g),
+                  "grouped_with": dict(sorted(why.get(source[p], {}).items()))}  # fmt: skip
     return out
 
 
 def rule() -> dict:
     """What a manifest records of the rule its splits came from."""
-    return {"salt": SALT, "test": TEST, "val": VAL, "near_bits": NEAR, "module": __name__}
+    return {"salt": SALT, "test": TEST, "val": VAL, "near_bits": NEAR, "face_frames": FACE_FRAMES,
+            "face_near_bits": FACE_NEAR, "face_min_frames": FACE_MIN_FRAMES, "module": __name__}  # fmt: skip

@@ -64,7 +64,8 @@ def test_no_source_or_recording_on_two_sides_of_the_shared_data_and_a_test_side_
     # of any subset of the shared data gives each video the split the full build gives it
     assert all(r["group"] == r["source"] for r in t.values()), [r for r in t.values() if r["group"] != r["source"]]
     assert all(splits.split_for(p) == r["split"] for p, r in t.items())
-    # the cases an audit found on two sides: one CREMA-D actor, Obama in two corpora, one StyleTalk recording
+    # the cases an audit found on two sides: one CREMA-D actor, Obama in two corpora, one StyleTalk recording,
+    # one interview re-cropped in another corpus (issue 52)
     by = {r["key_path"]: r for r in t.values()}
     for group in (
         ["emotion-clips/crema-d/1001_DFA_ANG_XX.flv", "emotion-clips/crema-d/1001_DFA_SAD_XX.flv"],
@@ -77,5 +78,25 @@ def test_no_source_or_recording_on_two_sides_of_the_shared_data_and_a_test_side_
             "talking-heads-extra/expression_source.mp4",
             "styletalk-samples/samples/style_clips/video/happyenglish_clip1.mp4",
         ],
+        ["talking-heads-extra/pose_source1.mp4", "videoretalking-examples/examples/face/3.mp4"],
     ):
         assert len({by[k]["source"] for k in group}) == 1, group
+
+
+def test_one_recording_under_two_names_is_found_by_its_face_crops(tmp_path):
+    """Issue 52: an interview and its re-cropped copy in another corpus (the audit's pair), renamed and moved
+    outside any data root so no declared rule or file hash can tie them: the face crops group them, the row
+    says why and the build's report says so; another speaker stays apart."""
+    from anima.dataset.build import content_groups
+
+    a = _copy(tmp_path / "interviews", ["talking-heads-extra/pose_source1.mp4"])[0].rename(tmp_path / "anchor.mp4")
+    b = _copy(tmp_path / "other", ["videoretalking-examples/examples/face/3.mp4"])[0]
+    c = _copy(tmp_path / "more", ["gesture-video/pats-crops/oliver1_gt.mp4"])[0]
+    t = splits.table([a, b, c], tmp_path / "nowhere")
+    ra, rb, rc = (t[str(p.resolve())] for p in (a, b, c))
+    assert ra["source"] != rb["source"] and ra["group"] == rb["group"] and ra["split"] == rb["split"]
+    assert "face crops" in ra["grouped_with"][rb["source"]] and rc["group"] == rc["source"] and not rc["grouped_with"]
+    lines = content_groups([a, b, c], t)
+    assert len(lines) == 2 and all("one recording" in line for line in lines), lines
+    fa, fb, fc = (splits.face_hashes(p) for p in (a, b, c))
+    assert len(fa) >= 10 and splits.same_recording(fa, fb) and not splits.same_recording(fa, fc)
