@@ -34,17 +34,17 @@ from anima.io.assets import asset
 from anima.io.sequence import TrackedSequence
 from anima.io.video import probe_video
 
-DEFAULT_CLIPS = [  # talking faces of the test split
-    "talking-heads-extra/pose_source2.mp4",
+DEFAULT_CLIPS = [  # talking faces of the test split (issue 52: EDTalk's pose source, one recording with
+    # video-retalking's face 3, is train since the two were found to be one interview)
     "videoretalking-examples/examples/face/5.mp4",
     "liveportrait-examples/assets/examples/driving/d10.mp4",
     "liveportrait-examples/assets/examples/driving/d20.mp4",
     "styletalk-samples/samples/style_clips/video/happyenglish_clip1.mp4",
     "styletalk-samples/samples/style_clips/video/nice_clip1.mp4",
 ]
-VALIDATION_CLIPS = [  # talking faces of the validation split
+VALIDATION_CLIPS = [  # talking faces of the validation split (face 3 went with the interview it copies)
     "talking-heads-misc/MimicTalk/data/raw/examples/German_20s.mp4",
-    "videoretalking-examples/examples/face/3.mp4",
+    "talking-heads-misc/LatentSync/assets/demo2_video.mp4",
     "styletalk-samples/samples/style_clips/video/trump_clip1.mp4",
     "liveportrait-examples/assets/examples/driving/d11.mp4",
 ]

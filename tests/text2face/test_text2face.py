@@ -177,7 +177,11 @@ def test_the_shipped_checkpoint_never_saw_a_validation_or_test_video(shipped):
     from anima.io.assets import data_root
 
     man = json.loads(shipped.path.with_suffix(".json").read_text())
-    assert man["split_rule"] == splits.rule() and len(man["train_videos"]) > 20
+    # the split-deciding parts of the rule (issue 52 added grouping by face crops: it can only move videos, which
+    # the table below checks)
+    same = ("salt", "test", "val", "near_bits", "module")
+    assert {k: man["split_rule"][k] for k in same} == {k: splits.rule()[k] for k in same}
+    assert len(man["train_videos"]) > 20
     table = {r["key_path"]: r["split"] for r in splits.table(expand_videos([str(data_root())])).values()}
     seen = [v for v in man["train_videos"] if table[v] != "train"]
     assert not seen, seen
