@@ -23,6 +23,17 @@ def d0_path() -> Path:
 
 
 @pytest.fixture(scope="session")
+def shared_split_table() -> dict:
+    """The split table of every video of the shared data (``anima.dataset.splits.table``: file and face-crop
+    hashes of 100 videos, about 45 s), made once for the session's tests that check splits against it."""
+    from anima.dataset import splits
+    from anima.dataset.build import expand_videos
+    from anima.io.assets import data_root
+
+    return splits.table(expand_videos([str(data_root().resolve())]), data_root().resolve())
+
+
+@pytest.fixture(scope="session")
 def face_model():
     from anima.facemodel.ict import load_face_model
 

@@ -169,12 +169,10 @@ def test_shipped_checkpoint_is_small_and_carries_its_manifest(shipped):
     assert hashlib.sha256(p.read_bytes()).hexdigest() == man["sha256"]
 
 
-def test_the_shipped_checkpoint_never_saw_a_validation_or_test_video(shipped):
+def test_the_shipped_checkpoint_never_saw_a_validation_or_test_video(shipped, shared_split_table):
     """Its manifest lists the videos it trained on by key path (issue 38), checkable on any copy of the data:
     every one is in the training split of the current rule, and the rule it was trained under is this one."""
     from anima.dataset import splits
-    from anima.dataset.build import expand_videos
-    from anima.io.assets import data_root
 
     man = json.loads(shipped.path.with_suffix(".json").read_text())
     # the split-deciding parts of the rule (issue 52 added grouping by face crops: it can only move videos, which
@@ -182,7 +180,7 @@ def test_the_shipped_checkpoint_never_saw_a_validation_or_test_video(shipped):
     same = ("salt", "test", "val", "near_bits", "module")
     assert {k: man["split_rule"][k] for k in same} == {k: splits.rule()[k] for k in same}
     assert len(man["train_videos"]) > 20
-    table = {r["key_path"]: r["split"] for r in splits.table(expand_videos([str(data_root())])).values()}
+    table = {r["key_path"]: r["split"] for r in shared_split_table.values()}
     seen = [v for v in man["train_videos"] if table[v] != "train"]
     assert not seen, seen
 
