@@ -250,8 +250,74 @@ function setupCpuMorph(mesh) {
     }
     return { idx: Int32Array.from(idx), val: Float32Array.from(val) };
   });
-  cpuMorph = { base: Float32Array.from(base), sparse, last: null };
+  // what a change of weights touches: the vertices the morphs move (moved), the triangles around them, the
+  // vertices whose normals those change (renormal) and every triangle at those (rest): only they are redone
+  // each frame (the body's other 10k vertices keep their rest positions and normals)
+  const moved = new Uint8Array(base.length / 3);
+  for (const { idx } of sparse) for (let j = 0; j < idx.length; j++) moved[idx[j] / 3] = 1;
+  const index = g.index ? g.index.array : null;
+  const T = index ? index.length / 3 : base.length / 9;
+  const tri = (t, k) => (index ? index[3 * t + k] : 3 * t + k);
+  const renormal = new Uint8Array(moved.length);
+  for (let t = 0; t < T; t++) {
+    if (moved[tri(t, 0)] || moved[tri(t, 1)] || moved[tri(t, 2)]) {
+      for (let k = 0; k < 3; k++) renormal[tri(t, k)] = 1;
+    }
+  }
+  const tris = [];
+  for (let t = 0; t < T; t++) {
+    if (renormal[tri(t, 0)] || renormal[tri(t, 1)] || renormal[tri(t, 2)]) tris.push(tri(t, 0), tri(t, 1), tri(t, 2));
+  }
+  const verts = [];
+  for (let v = 0; v < moved.length; v++) if (renormal[v]) verts.push(v);
+  if (!g.attributes.normal) g.computeVertexNormals();
+  cpuMorph = {
+    base: Float32Array.from(base),
+    sparse,
+    last: null,
+    moved: Int32Array.from(verts.filter((v) => moved[v])),
+    renormal: Int32Array.from(verts),
+    tris: Int32Array.from(tris),
+  };
   g.morphAttributes = {}; // the dictionary and the influences stay: the animation drives them, we draw them
+}
+// the normals of the vertices a morph can change, as three.js's computeVertexNormals makes them (the sum of
+// the area-weighted normals of the triangles at a vertex, normalised)
+function renormal(g) {
+  const pos = g.attributes.position.array;
+  const nrm = g.attributes.normal.array;
+  const { renormal: verts, tris } = cpuMorph;
+  for (let j = 0; j < verts.length; j++) {
+    const v = 3 * verts[j];
+    nrm[v] = nrm[v + 1] = nrm[v + 2] = 0;
+  }
+  for (let j = 0; j < tris.length; j += 3) {
+    const a = 3 * tris[j];
+    const b = 3 * tris[j + 1];
+    const c = 3 * tris[j + 2];
+    const e1x = pos[c] - pos[b];
+    const e1y = pos[c + 1] - pos[b + 1];
+    const e1z = pos[c + 2] - pos[b + 2];
+    const e2x = pos[a] - pos[b];
+    const e2y = pos[a + 1] - pos[b + 1];
+    const e2z = pos[a + 2] - pos[b + 2];
+    const nx = e1y * e2z - e1z * e2y;
+    const ny = e1z * e2x - e1x * e2z;
+    const nz = e1x * e2y - e1y * e2x;
+    for (const v of [a, b, c]) {
+      nrm[v] += nx;
+      nrm[v + 1] += ny;
+      nrm[v + 2] += nz;
+    }
+  }
+  for (let j = 0; j < verts.length; j++) {
+    const v = 3 * verts[j];
+    const l = Math.hypot(nrm[v], nrm[v + 1], nrm[v + 2]) || 1;
+    nrm[v] /= l;
+    nrm[v + 1] /= l;
+    nrm[v + 2] /= l;
+  }
+  g.attributes.normal.needsUpdate = true;
 }
 function updateMorph() {
   if (!cpuMorph || !morphMesh) return;
@@ -261,7 +327,13 @@ function updateMorph() {
   cpuMorph.last = key;
   const g = morphMesh.geometry;
   const pos = g.attributes.position.array;
-  pos.set(cpuMorph.base);
+  const base = cpuMorph.base;
+  for (let j = 0; j < cpuMorph.moved.length; j++) {
+    const i = 3 * cpuMorph.moved[j];
+    pos[i] = base[i];
+    pos[i + 1] = base[i + 1];
+    pos[i + 2] = base[i + 2];
+  }
   for (let k = 0; k < cpuMorph.sparse.length; k++) {
     const wk = w[k];
     if (!wk) continue;
@@ -274,7 +346,7 @@ function updateMorph() {
     }
   }
   g.attributes.position.needsUpdate = true;
-  g.computeVertexNormals();
+  renormal(g);
   if (faceMesh) copyToFace(g);
 }
 
