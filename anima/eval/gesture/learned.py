@@ -1,7 +1,7 @@
-"""Rows of the learned gesture models, cross-validated by video: the k-NN + cGAN refiner (§5.3.3), the §4.4
-generator with its baselines (direct regression, LSTM), FGD, the lip error (table 4.3) and the sync
-classifier (table 4.4). Every model is trained by its feature package (``anima.gesture``) on the training
-folds' videos and judged on the held-out fold's windows."""
+"""Rows of the learned gesture models, cross-validated by speaker (issue 52; by video for one speaker): the
+k-NN + cGAN refiner (§5.3.3), the §4.4 generator with its baselines (direct regression, LSTM), FGD, the lip
+error (table 4.3) and the sync classifier (table 4.4). Every model is trained by its feature package
+(``anima.gesture``) on the training folds' videos and judged on the held-out fold's windows."""
 
 from __future__ import annotations
 
@@ -20,10 +20,12 @@ from anima.eval.gesture.metrics import (
     beat_consistency,
     bootstrap_over_groups,
     diversity_cm,
+    fold_count,
     jerk,
     l1_cm,
     lip_error_mm,
     minutes_covered,
+    speaker_folds,
     speaker_of,
     wrist_motion,
 )
@@ -134,7 +136,8 @@ def choose_correction_sigma(db, held: set, videos: list, cfg: RefinerTrainConfig
 def refiner_rows(
     db, kept: dict, ks, folds: int, steps: int | None, progress: bool, cfg: RefinerTrainConfig | None = None
 ) -> dict:
-    """k-NN + cGAN, cross-validated by video: the videos are split into ``folds`` groups; each group's windows
+    """k-NN + cGAN, cross-validated by speaker (:func:`speaker_folds`; by video for one speaker): the videos are
+    split into ``folds`` groups; each group's windows
     are refined by a refiner trained on the other groups' (k-NN, captured) pairs. Clean folds
     (:func:`fold_inputs`): no window, bone length or k-NN synthesis of a held-out video enters the refiner's
     training or its inputs; the judged inputs are k-NN outputs searched in the fold's training videos (their
@@ -146,8 +149,10 @@ def refiner_rows(
         cfg = dataclasses.replace(cfg, steps=steps)
     windows = sorted(kept["outs"])
     videos = sorted({db.source[i][0] for i in windows})
-    folds = max(2, min(folds, len(videos)))
-    fold_of = {v: n % folds for n, v in enumerate(videos)}
+    srcs = [db.source[i][0] for i in windows]
+    by_speaker = len({speaker_of(s) for s in srcs}) > 1  # one speaker (--speaker): the seed's protocol, by video
+    folds = fold_count(srcs, folds, by_speaker)
+    fold_of = speaker_folds(srcs, folds, by_speaker)
     res, base = defaultdict(list), defaultdict(list)
     adherence = {c: {"values": []} for c in ["none"] + list(kept["ctrl"])}
     judged_videos = []
@@ -157,7 +162,9 @@ def refiner_rows(
         held = {v for v in videos if fold_of[v] == f}
         inp = fold_inputs(db, held, ks, list(kept["ctrl"]), cfg, rng, kept["no_repeat"], kept["blend"])
         test = [i for i in inp["test"] if i in kept["outs"]]
-        if not test or inp["pairs"] is None:
+        if not test or inp["pairs"] is None:  # e.g. one training video left: no k-NN pair without its own video
+            why = "no test window" if not test else "no training pair (a training video needs another to search)"
+            logs.append({"fold": f, "held_out_videos": len(held), "skipped": why, "test_windows": 0})
             continue
         bar = tqdm(total=cfg.steps, desc=f"refiner fold {f + 1}/{folds}", disable=not progress, leave=False)
         ref, info = train_refiner(None, cfg, progress=lambda s: bar.update(1), pairs=inp["pairs"])
@@ -205,8 +212,8 @@ def refiner_rows(
                 adherence[c].setdefault("thresholds", []).append(thr)
                 adherence[c].setdefault("videos", []).append(db.source[i][0])
     return {
-        "protocol": f"{folds}-fold cross-validation by video; WGAN-GP, {cfg.critic_steps} critic steps per "
-        f"generator step, {cfg.steps} generator steps, loss weights L1 {cfg.l1} / adversarial {cfg.adv} / "
+        "protocol": f"{folds}-fold cross-validation {fold_words(by_speaker)}; WGAN-GP, {cfg.critic_steps} critic "
+        f"steps per generator step, {cfg.steps} generator steps, loss weights L1 {cfg.l1} / adversarial {cfg.adv} / "
         f"gradient penalty {cfg.gp}, training pairs: "
         + (
             "the seed's k (1 for half, 2..15) from random initial poses"
@@ -225,14 +232,31 @@ def refiner_rows(
         },
         "control_adherence": adherence_table(adherence, T),
         "folds": logs,
+        "windows_judged": len(judged_videos),
+        "fold_speakers": fold_speakers(fold_of, folds),
     }
 
 
+def fold_words(by_speaker: bool) -> str:
+    return (
+        "by speaker (each speaker's videos in one fold)"
+        if by_speaker
+        else "by video within one speaker (the seed's person-specific protocol)"
+    )
+
+
+def fold_speakers(fold_of: dict, folds: int) -> list[list[str]]:
+    """Each fold's speakers (the results say who was judged by models that never saw them)."""
+    return [sorted({speaker_of(v) for v, f in fold_of.items() if f == k}) for k in range(folds)]
+
+
 def sync_rows(db, folds: int, lengths=(16, 32, 64), steps: int = 300) -> dict:
-    """Table 4.4: the discriminator trained as an in-sync / off-sync classifier, cross-validated by video
+    """Table 4.4: the discriminator trained as an in-sync / off-sync classifier, cross-validated by speaker
     (the same folds as the refiner); accuracy on 2 x 200 held-out crops per fold and length (chance 0.5)."""
-    videos = sorted({v for v, _ in db.source})
-    fold = np.array([videos.index(v) % folds for v, _ in db.source])
+    srcs = [v for v, _ in db.source]
+    by_speaker = len({speaker_of(s) for s in srcs}) > 1
+    fold_of = speaker_folds(srcs, folds, by_speaker)
+    fold = np.array([fold_of[v] for v in srcs])
     rows = {}
     for L in lengths:
         accs, ns = [], []
@@ -325,18 +349,24 @@ def generator_rows(
 ) -> dict:
     """The §4.4 generator (adversarial), direct regression (no adversarial term), the LSTM baseline, the
     velocity-adversarial baseline (Ginosar et al.) and the MoGlow-style flow,
-    cross-validated by video with the refiner's folds; FGD for every method; lip error (table 4.3).
+    cross-validated with the refiner's folds (by speaker); FGD for every method; lip error (table 4.3).
     ``w``: every window of the dataset (face-only ones train the face decoder). ``adv_weights``: the §4.4
     generator's adversarial weight is chosen among these in each fold on its own training videos
     (:func:`choose_adv_weight`); ``None``: the config's (0.1) for every fold."""
     T, fps = knn_db.G.shape[1], knn_db.fps
     model = load_face_model()
     key = {(s, round(st, 3)): n for n, (s, st) in enumerate(zip(w.source, w.start_s))}
-    # the refiner's folds over the body videos, then the face-only videos
-    body_videos = sorted({knn_db.source[i][0] for i in kept["outs"]})
-    other = sorted(set(w.source) - set(body_videos))
-    fold_of = {v: n % folds for n, v in enumerate(body_videos)}
-    fold_of.update({v: n % folds for n, v in enumerate(other)})
+    # the refiner's folds over the body videos' speakers, then the face-only videos' other speakers (a speaker's
+    # face-only videos in that speaker's fold)
+    body = [knn_db.source[i][0] for i in sorted(kept["outs"])]
+    by_speaker = len({speaker_of(s) for s in body}) > 1
+    fold_of = speaker_folds(body, folds, by_speaker)
+    if by_speaker:
+        placed = {speaker_of(v): f for v, f in fold_of.items()}
+        fold_of |= speaker_folds([s for s in w.source if s not in fold_of], folds, True, placed)
+    else:
+        other = sorted(set(w.source) - set(fold_of))
+        fold_of |= {v: n % folds for n, v in enumerate(other)}
     fold = np.array([fold_of[s] for s in w.source])
     has_body = w.has_body
     cfg = GeneratorTrainConfig() if steps is None else GeneratorTrainConfig(steps=steps)
@@ -415,7 +445,7 @@ def generator_rows(
         real = np.stack([knn_db.G[i].reshape(T, -1) for i, _ in jf])
         one = {k: net.distance(real, np.stack([gen_windows[k][n].reshape(T, -1) for _, n in jf])) for k in kinds}
         one["knn"] = net.distance(real, np.stack([kept["outs"][i][0].reshape(T, -1) for i, _ in jf]))
-        if refined_outs:
+        if refined_outs and all(i in refined_outs for i, _ in jf):  # a fold the refiner skipped: not in its mean
             one["knn_cgan"] = net.distance(real, np.stack([refined_outs[i].reshape(T, -1) for i, _ in jf]))
         # two random halves of the fold's captured windows against each other: what sampling noise alone gives
         half = len(real) // 2
@@ -424,11 +454,10 @@ def generator_rows(
             net.distance(real[perm[:half]], real[perm[half : 2 * half]]) if half >= 2 else float("nan")
         )
         fgd_folds.append({"fold": f, "windows": len(jf), "train_windows": len(tr_rows), **one})
-    total = sum(x["windows"] for x in fgd_folds)
-    for x in fgd_folds:
-        for k, v in x.items():
-            if k not in ("fold", "windows", "train_windows"):
-                fgd_rows[k] += v * x["windows"] / total
+    for k in {k for x in fgd_folds for k in x} - {"fold", "windows", "train_windows"}:
+        has = [x for x in fgd_folds if k in x]  # the refined row: only the folds the refiner judged
+        total = sum(x["windows"] for x in has)
+        fgd_rows[k] = sum(x[k] * x["windows"] / total for x in has)
     rows = {
         kind: {
             "diversity_cm": 0.0,
@@ -444,8 +473,8 @@ def generator_rows(
         if not h:
             face_only[speaker_of(s_)][s_].append(st)
     return {
-        "protocol": f"{folds}-fold cross-validation by video (the refiner's folds; face-only windows from "
-        f"talking-head clips train the face decoder); {cfg.steps} steps, batch {cfg.batch}, Adam "
+        "protocol": f"{folds}-fold cross-validation {fold_words(by_speaker)} (the refiner's folds; face-only "
+        f"windows from talking-head clips train the face decoder); {cfg.steps} steps, batch {cfg.batch}, Adam "
         f"{cfg.lr}, adversarial weight "
         + (
             f"chosen per fold among {list(adv_weights)} on that fold's own training videos (inner validation; "

@@ -139,3 +139,31 @@ def speaker_of(source: str) -> str:
         if part and part not in generic:
             return part
     return p[-1]
+
+
+def speaker_folds(sources, folds: int, by_speaker: bool = True, fixed: dict | None = None) -> dict[str, int]:
+    """Each video's fold (issue 52, item 5): with ``by_speaker``, all of a speaker's videos (:func:`speaker_of`)
+    in one fold, so a window is judged by models that never saw its speaker; the speakers, most windows first
+    (then by name), each go to the fold with the fewest windows so far (scikit-learn's GroupKFold rule).
+    ``sources``: one entry per window (a video may repeat; its count is the weight). ``fixed``: speakers
+    already placed ({speaker: fold}, their windows counted). Without ``by_speaker`` (one speaker's
+    person-specific protocol): the sorted videos in turn (``n % folds``)."""
+    videos = sorted(set(sources))
+    if not by_speaker:
+        return {v: n % folds for n, v in enumerate(videos)}
+    weight: dict[str, int] = {}
+    for s in sources:
+        weight[speaker_of(s)] = weight.get(speaker_of(s), 0) + 1
+    place = dict(fixed or {})
+    load = [sum(w for sp, w in weight.items() if place.get(sp) == f) for f in range(folds)]
+    for sp in sorted(set(weight) - set(place), key=lambda sp: (-weight[sp], sp)):
+        f = min(range(folds), key=lambda f: (load[f], f))
+        place[sp] = f
+        load[f] += weight[sp]
+    return {v: place[speaker_of(v)] for v in videos}
+
+
+def fold_count(sources, folds: int, by_speaker: bool = True) -> int:
+    """How many folds ``folds`` can be: at least 2, at most the speakers (``by_speaker``) or the videos."""
+    groups = {speaker_of(s) for s in sources} if by_speaker else set(sources)
+    return max(2, min(folds, len(groups)))

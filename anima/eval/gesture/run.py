@@ -1,7 +1,8 @@
 """``anima eval gesture``: seed 004 ch. 4-5 on the dataset's (audio, motion) windows. The k-NN search is
 evaluated leave-one-video-out (each video's windows synthesised from its speech with a database of the other
 videos' windows) and compared with the captured motion; the learned models (k-NN + cGAN refiner, the §4.4
-generator, direct regression, the LSTM baseline, the sync classifier) are cross-validated by video in 3 folds.
+generator, direct regression, the LSTM baseline, the sync classifier) are cross-validated by speaker in 3 folds
+(each speaker's videos in one fold; by video within the speaker with ``--speaker``).
 
 * control adherence (table 5.3): for each control (high / low left-wrist height, high / low left-wrist speed
   at the database's 85th / 15th percentile), the mean and standard deviation of the controlled feature over
@@ -35,6 +36,7 @@ from anima.eval.gesture.metrics import (
     beat_consistency,
     bootstrap_over_groups,
     diversity_cm,
+    fold_count,
     jerk,
     l1_cm,
     minutes_covered,
@@ -173,7 +175,8 @@ def evaluate(
         if refiner_ablation:  # anima's setting before issue 16, on the same folds and windows
             v1 = RefinerTrainConfig.anima_v1()
             out["knn_cgan_anima_v1"] = refiner_rows(db, kept, ks, refiner_folds, refiner_steps, progress, v1)
-        folds = max(2, min(refiner_folds, len(videos)))
+        body = [db.source[i][0] for i in sorted(kept["outs"])]
+        folds = fold_count(body, refiner_folds, len({speaker_of(s) for s in body}) > 1)  # the refiner's folds
         w = read_windows(folder)
         if speaker is not None:
             w = w.select(np.array([speaker_of(s) == speaker for s in w.source]))
