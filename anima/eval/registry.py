@@ -18,6 +18,7 @@ from pathlib import Path
 
 from anima.dataset.storage import check_dataset
 from anima.eval.config import (
+    DEV2_PROMPTS,
     HELDOUT_PROMPTS,
     AnnotationsEval,
     BodyEval,
@@ -112,8 +113,13 @@ def _text2face_rows(c: Context) -> list[tuple[str, object]]:
     q = dict(reps=2, ablations=False, steps=20) if c.quick else {}
     return [
         ("text2face", Text2FaceEval(dataset=c.db, work=str(c.work), **q)),
-        # both judges on both suites (issue 38): the dataset's detectors and the independent one
+        # both judges on every suite (issue 38): the dataset's detectors and the independent one; the two
+        # development suites, then the frozen held-out one (issue 52: run once per release, here)
         ("text2face_prompts", Text2FaceEval(dataset=c.db, prompts="", seeds=seeds, judge=not c.quick)),
+        (
+            "text2face_prompts_dev2",
+            Text2FaceEval(dataset=c.db, prompts=str(DEV2_PROMPTS), seeds=seeds, judge=not c.quick),
+        ),
         (
             "text2face_prompts_heldout",
             Text2FaceEval(dataset=c.db, prompts=str(HELDOUT_PROMPTS), seeds=seeds, judge=not c.quick),

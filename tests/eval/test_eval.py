@@ -185,3 +185,33 @@ def test_a_row_names_a_shipped_suite_by_its_project_path():
     cmd = command_line("text2face", Text2FaceEval(dataset="ds", prompts=str(HELDOUT_PROMPTS)))
     assert "--prompts anima/eval/prompts/text2face_heldout.json" in cmd, cmd
     assert str(HELDOUT_PROMPTS.parents[3]) not in cmd
+
+
+def test_the_held_out_prompts_are_frozen_and_only_eval_all_runs_them():
+    """Issue 52, item 3: the held-out suite is the file whose hash was recorded when it was frozen, and only the
+    registry's row names it (no test, benchmark or tool runs a method on it; its loader may read it)."""
+    import hashlib
+    import subprocess
+
+    from anima.eval.config import HELDOUT_PROMPTS, HELDOUT_SHA256
+    from anima.eval.registry import Context
+    from anima.eval.registry import rows as registry_rows
+    from anima.eval.text2face_prompts import load_suite
+
+    assert hashlib.sha256(HELDOUT_PROMPTS.read_bytes()).hexdigest() == HELDOUT_SHA256
+    assert len(load_suite(HELDOUT_PROMPTS)) == 40
+    rows = {r[1]: r[2] for r in registry_rows(Context("ds", HELDOUT_PROMPTS, HELDOUT_PROMPTS, False))}
+    assert rows["text2face_prompts_heldout"].prompts == str(HELDOUT_PROMPTS)
+    assert "text2face_dev2" in rows["text2face_prompts_dev2"].prompts
+
+    def naming(what):
+        cmd = ["git", "grep", "-l", "-e", what, "--", "*.py", "*.sh", "*.js"]
+        return set(subprocess.run(cmd, cwd=HELDOUT_PROMPTS.parents[3], capture_output=True, text=True).stdout.split())
+
+    assert naming("HELDOUT_PROMPTS") == {"anima/eval/config.py", "anima/eval/registry.py", "tests/eval/test_eval.py"}
+    # the file's name: where it is declared, the suite module's docstring and this test
+    assert naming("text2face_heldout") <= {
+        "anima/eval/config.py",
+        "anima/eval/text2face_prompts.py",
+        "tests/eval/test_eval.py",
+    }
