@@ -1,6 +1,7 @@
 """Fit the independent judge's thresholds (`anima.eval.judge.JudgeConfig`) on real video with human labels,
-never on generated output (issue 38, item 5). Every labelled clip of `anima/eval/labels/attributes` is read in
-two domains:
+never on generated output (issue 38, item 5), and only on the clips of the training and validation splits (issue
+52, item 2: the test clips choose nothing; their scores with the chosen values are reported apart). Every such
+labelled clip of `anima/eval/labels/attributes` is read in two domains:
 
 * **round trip** (the one the judge is used in): the clip is captured (`anima capture --face-only`), its
   expression weights and head rotation are rendered on the face model's neutral head exactly as a generated
@@ -31,6 +32,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from anima.dataset.splits import split_for  # noqa: E402
 from anima.eval.annotations import capture_labelled, load_labels  # noqa: E402
 from anima.eval.judge import JudgeConfig, events, measures, render_motion, track_frames  # noqa: E402
 from anima.io.assets import asset  # noqa: E402
@@ -102,7 +104,9 @@ def fit(labs: list[dict], domain: str) -> tuple[dict, dict]:
             return t
 
         table = {float(v): total(v, clips) for v in grid}
-        best = max(table, key=lambda v: (f1(*table[v]), -abs(v - getattr(base, field))))
+        top = max(f1(*t) for t in table.values())
+        tied = [v for v in table if f1(*table[v]) == top]
+        best = tied[(len(tied) - 1) // 2]  # ties to their median, never towards the shipped value
         loco = np.zeros(3, int)
         for k, held in enumerate(clips):
             rest = clips[:k] + clips[k + 1 :]
@@ -122,9 +126,31 @@ def fit(labs: list[dict], domain: str) -> tuple[dict, dict]:
     return chosen, report
 
 
+def test_scores(labs: list[dict], domain: str, chosen: dict) -> dict:
+    """The test clips' event counts with the values chosen elsewhere (reported, never used to choose)."""
+    cfg = dataclasses.replace(JudgeConfig(), **{k: float(v) for k, v in chosen.items()})
+    out = {}
+    for attr in GRID:
+        clips = [lab for lab in labs if attr in lab["labels"]]
+        if not clips:
+            continue
+        t = np.zeros(3, int)
+        for lab in clips:
+            m, fps = tracked(lab, domain)
+            t += score(events(m, fps, cfg), lab, attr, len(m["eye"]), fps)
+        f = round(f1(*t), 3) if t[0] + t[1] + t[2] else None  # no event labelled and none read: undefined
+        out[attr] = {"clips": len(clips), "hits_false_misses": [int(x) for x in t], "f1": f}
+    return out
+
+
 def main() -> None:
-    labs = load_labels()
+    every = load_labels()
+    side = {lab["name"]: split_for(asset(lab["clip"])) for lab in every}
+    labs = [lab for lab in every if side[lab["name"]] != "test"]
+    test = [lab for lab in every if side[lab["name"]] == "test"]
     out = {
+        "calibration_clips": [lab["name"] for lab in labs],
+        "test_clips": [lab["name"] for lab in test],
         "what": "the judge's thresholds fitted on human-labelled real clips; the judge uses the round-trip values",
         "not_fitted": {
             "shake head, turn": "no labelled example: geometric defaults of JudgeConfig",
@@ -133,7 +159,7 @@ def main() -> None:
     }
     for domain in ("round trip", "video"):
         chosen, report = fit(labs, domain)
-        out[domain] = {"chosen": chosen, "attributes": report}
+        out[domain] = {"chosen": chosen, "attributes": report, "test": test_scores(test, domain, chosen)}
     write_json(Path(__file__).parent / "results" / "judge_calibration.json", out)
 
 

@@ -60,6 +60,16 @@ def test_eval_annotations_is_out_of_sample():
     brows = {b["emotion"]: b for b in emo["landmark_inner_brow_height_iod"]}  # the tracker's own brow evidence
     assert brows["fearful"]["raised"] and brows["fearful"]["clip"] > brows["fearful"]["neutral"] + 0.01
 
+    cal = r["calibration"]  # issue 52: the shipped thresholds come from training/validation clips only
+    from anima.dataset.splits import split_for
+    from anima.io.assets import asset
+
+    side = {lab["name"]: split_for(asset(lab["clip"])) for lab in load_labels()}
+    assert cal["calibration_clips"] and all(side[n] != "test" for n in cal["calibration_clips"])
+    assert cal["test_clips"] == sorted(n for n in side if side[n] == "test")
+    assert cal["shipped_are_calibrated"], cal["knobs"]
+    assert set(cal["test"]["before"]) == set(cal["test"]["calibrated"])
+
     from anima.eval.registry import BY_NAME
 
     assert "leave-one-clip-out" in "\n".join(BY_NAME["annotations"].runner().summary(r))
