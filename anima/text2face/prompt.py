@@ -21,7 +21,7 @@ Pure functions, no I/O: the encoder is passed in.
 from __future__ import annotations
 
 import re
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 from anima.errors import InputError
 
@@ -39,7 +39,7 @@ _LOOKV = (
 """Verbs of looking: a short look to one side (:data:`_ASIDE`) is a turn of the head."""
 _ASIDE = (
     r"(?:(?:to\s+(?:the\s+|one\s+|her\s+|his\s+|their\s+)?)?(?:left|right|away|aside|sideways|side)\b|"
-    r"(?:back\s+)?over\s+(?:(?:her|his|their|the|one)\s+)?shoulder)"
+    r"(?:back\s+)?over\s+(?:(?:her|his|their|the|one)\s+)?(?:left\s+|right\s+)?shoulder)"
 )
 _LOOKN = r"(?:glance|look|peek|peep|glimpse|sideways\s+look|look\s+around)s?"
 """Nouns of looking, after a verb that gives one ("casts a glance", "sneaks a peek", "takes a quick look")."""
@@ -91,6 +91,11 @@ LEXICON: dict[str, list[str]] = {
         r"tells?\b.*",
         r"explain\w*",
         r"reads?\s+aloud",
+        r"mutter\w*",
+        r"murmur\w*",
+        r"mumbl\w*",
+        r"whisper\w*",
+        r"rambl\w*",
     ],
     "nod": [r"nod\w*", r"agrees?", r"bob\w*\s+" + _OBJ + r"head"],
     "shake head": [
@@ -101,7 +106,8 @@ LEXICON: dict[str, list[str]] = {
         r"shak(?:es|ing)\b",
     ],
     "turn": [
-        r"turn\w*\s+" + _OBJ + r"head",
+        r"turn\w*\s+" + _OBJ + r"(?:head|face)",
+        r"cran\w*\s+" + _OBJ + r"neck",
         r"turn\w*\s+(?:to\s+the\s+)?(?:left|right|away|aside|sideways)",
         _LOOKV + r"\s+(?:\w+\s+)?" + _ASIDE,
         r"(?:takes?|taking|took|casts?|casting|cast|steals?|stealing|stole|shoots?|shooting|shot|throws?|throwing|"
@@ -307,10 +313,11 @@ NEGATION = (
 "no smile", "never looks up". The excluded event is not made, and the plan says so."""
 SOFTER = (
     r"\b(?:a\s+(?:little|tiny|wee)\s+bit|a\s+(?:little|tiny)|a\s+bit|slight(?:ly)?|subtl[ey]|faint(?:ly)?|barely|"
-    r"softly|gently|mildly|a\s+touch|small|tiny|hint\s+of|trace\s+of|hardly)\b"
+    r"softly|gently|mildly|a\s+touch|small|tiny|hint\s+of|trace\s+of|hardly|stifl\w*|suppress\w*|restrain\w*)\b"
 )
 STRONGER = (
-    r"\b(?:broadly|widely|very|really|extremely|strongly|hugely|big|wide|a\s+lot|hard|deeply|fully|intensely|so)\b"
+    r"\b(?:broadly|widely|very|really|extremely|strongly|hugely|big|wide|a\s+lot|hard|deeply|fully|intensely|so|"
+    r"from\s+ear\s+to\s+ear)\b"
 )
 INTENSITY = [(SOFTER, 0.6), (STRONGER, 1.4)]
 FAINT = 0.35
@@ -333,6 +340,7 @@ GRAMMAR = set(
     by up down out towards toward into from camera speaker actor actress presenter gently softly quite rather
     some something somewhat moderately over around just now after before finally next later afterwards lastly
     end last followed two three four five him them us me give gives giving side quick slow s throughout whole
+    away breaks bursts ever there
     clip begin beginning meanwhile lastly only solely merely simply single brief briefly furtive furtively swift
     swiftly hint trace wee""".split()
 )
@@ -448,6 +456,23 @@ def _lexicon_matches(clause: str) -> list[tuple[int, str, tuple[int, int]]]:
     return kept
 
 
+def _bind_sides(clause: str, hits) -> dict[int, str]:
+    """Each side word of a clause bound to the event it governs (issue 50: "turns her head to the left and
+    smiles" is a left turn and a plain smile): a side inside an event's words is that event's; one outside any
+    goes to the nearest event before it that takes a side, else to the next one."""
+    out: dict[int, str] = {}
+    for m in re.finditer(SIDE, clause):
+        at = m.start()
+        k = next((k for k, h in enumerate(hits) if h[2][0] <= at < h[2][1]), None)
+        if k is None:
+            before = [k for k, h in enumerate(hits) if h[2][1] <= at and h[1] in SIDED]
+            after = [k for k, h in enumerate(hits) if h[2][0] > at]
+            k = before[-1] if before else (after[0] if after else None)
+        if k is not None:
+            out.setdefault(k, m.group(1))
+    return out
+
+
 def parse(prompt: str, encoder=None) -> Plan:
     """The events a prompt asks for (see the module docstring). ``encoder``: an object with ``encode(list
     of str) -> [N, d]`` unit vectors, used only for clauses the lexicon does not cover."""
@@ -498,6 +523,15 @@ def parse(prompt: str, encoder=None) -> Plan:
                 words = []
         if words:
             plan.unknown.extend(words)
+        only_side = re.fullmatch(
+            r"(?:and\s+|or\s+)?(?:to\s+)?(?:the\s+)?(?:" + _SCOPE + r")?(left|right)", clause.strip()
+        )
+        if not hits and only_side and last[1] and all(e.attribute in SIDED for e in last[1]):
+            # "glances left, then right": the clause's verb is the one before it, with this side
+            for e in last[1]:
+                plan.events.append(replace(e, side=only_side.group(1), clause=clause_i, words=clause.strip()))
+            last = (clause, plan.events[-len(last[1]) :])
+            continue
         if not hits:
             if re.search(SOFTER, clause) or re.search(STRONGER, clause):  # it grades the events next to it
                 if last[1]:
@@ -512,7 +546,7 @@ def parse(prompt: str, encoder=None) -> Plan:
         inten = _intensity(pending + " " + clause)
         pending = ""
         n_before = len(plan.events)
-        side = re.search(SIDE, clause)
+        sides = _bind_sides(clause, hits)
         for k, (_, ev, (a, b)) in enumerate(hits):
             # a count attaches to the event it follows (the last one before it in the clause)
             c = 1
@@ -525,7 +559,7 @@ def parse(prompt: str, encoder=None) -> Plan:
                 plan.notes.append(UNPLACED[ev])
                 plan.unplaced.append(clause[a:b])
                 continue
-            sd = side.group(1) if side and ev in SIDED else None
+            sd = sides.get(k) if ev in SIDED else None
             if ev == "blink" and "wink" in clause[a:b] and sd is None:
                 sd = "left"
             if ev in ONE_SIDED and sd is None and re.search(ONE_SIDED[ev], clause):
