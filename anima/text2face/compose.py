@@ -429,11 +429,27 @@ def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0, avoid: f
     return placed
 
 
+TALK_JAW_STD = 0.05
+"""The jaw's motion in captured talk: the median over the built-in library's talk segments of jawOpen's standard
+deviation (0.05; a test measures it). A talk track below it is scaled up to it (at most 2x), so a dataset
+whose detected talk includes quiet stretches still talks as visibly (issue 50 item 5)."""
+
+
+def talk_energy(lib: Library, seg: Segment) -> float:
+    """jawOpen's standard deviation inside one talk segment (its margins left out)."""
+    core = lib.motion[seg.clip][seg.a + seg.margin : max(seg.a + seg.margin + 1, seg.b - seg.margin)]
+    return float(np.std(core[:, _IX["jawOpen"]]))
+
+
 def _talk_track(lib: Library, n: int, rng: np.random.Generator) -> np.ndarray:
-    """``n`` frames of lip offsets tiled from talk segments (crossfaded over their margins)."""
+    """``n`` frames of lip offsets tiled from talk segments (crossfaded over their margins): the livelier half of
+    the library's talk segments (by :func:`talk_energy`), the track scaled up to :data:`TALK_JAW_STD` where its
+    jaw moves less (at most 2x)."""
     pool = lib.segments.get("talk") or []
     if not pool:
         raise InputError("the library has no captured 'talk' segment")
+    energy = [talk_energy(lib, s) for s in pool]
+    pool = [s for s, e in zip(pool, energy) if e >= np.median(energy)]
     out = np.zeros((n, FACE_DIM), np.float32)
     t = 0
     while t < n:
@@ -442,6 +458,10 @@ def _talk_track(lib: Library, n: int, rng: np.random.Generator) -> np.ndarray:
         k = min(len(o), n - t)
         out[t : t + k] += o[:k]
         t += max(1, len(o) - 2 * s.margin)
+    jaw = float(np.std(out[:, _IX["jawOpen"]]))
+    if 0 < jaw < TALK_JAW_STD:
+        lips = [_IX[c] for c in LIPS]
+        out[:, lips] *= min(2.0, TALK_JAW_STD / jaw)
     return out * _window(n, int(MARGIN_S * lib.fps))[:, None]
 
 
