@@ -37,7 +37,7 @@ from anima.dataset.windows import read_clips
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
 from anima.library import builtin
-from anima.text2face.poses import POSES, natural_frames, pose_track, shake_track
+from anima.text2face.poses import POSES, natural_frames, nod_track, pose_track, shake_track
 from anima.text2face.prompt import FAINT, Plan
 
 _IX = {n: i for i, n in enumerate(EXPR_NAMES)}
@@ -94,6 +94,11 @@ SHAKE_RAD = {0.6: 0.15, 1.0: 0.25, 1.4: 0.3}
 """A head shake's peak yaw (radians) by stated intensity: a plain shake swings 14 degrees either way. Shakes
 are keyframed (:func:`anima.text2face.poses.shake_track`): the captured ones of the shared data (6 in the
 training videos) are slow, one-sided wanders of the head that a viewer does not read as "no" (issue 37)."""
+NOD_RAD = {0.35: 0.14, 0.6: 0.2, 1.0: 0.26, 1.4: 0.33}
+"""A nod's bob (radians, the chin down) by stated intensity: 8, 11.5, 15 and 19 degrees. Nods are keyframed
+(:func:`anima.text2face.poses.nod_track`, issue 50 item 4): one bob each, so "nods twice" is two bobs (the
+captured ones bob two to six times); a single 0.8-s bob of 15 degrees is what the dataset's nod detector reads
+as one nod (a shallower or quicker one it misses)."""
 # Longer holds read as other events to the detectors, which measure against the clip's own rest: an open
 # mouth held over 1 s is a yawn, a raise or a turn held over a quarter of the clip shifts the rest.
 MAX_HOLD_S = {"mouth open": 0.6, "surprise": 0.6, "turn": 0.8, "raise eyebrows": 0.7}
@@ -294,6 +299,8 @@ def pose_of(e) -> str | None:
         return e.attribute
     if e.attribute == "shake head":
         return "shake"
+    if e.attribute == "nod":
+        return "nod"
     if e.side in ("left", "right"):
         return {"blink": "wink", "raise eyebrows": "brow raise", "smile": "half smile"}.get(e.attribute)
     return None
@@ -301,7 +308,7 @@ def pose_of(e) -> str | None:
 
 def _holds(e) -> bool:
     """A keyframed event that stretches to its slot (held), rather than one that happens and is over."""
-    return bool(pose_of(e)) and pose_of(e) not in ("wink", "shake") and e.count == 1
+    return bool(pose_of(e)) and pose_of(e) not in ("wink", "shake", "nod") and e.count == 1
 
 
 def _choose(lib: Library, attr: str, rng: np.random.Generator, k: int, avoid: frozenset = frozenset()) -> list[Segment]:
@@ -489,6 +496,12 @@ def render(
             o = np.zeros((p.end - p.start, FACE_DIM), np.float32)
             peak = min(SHAKE_MAX_RAD, p.gain * SHAKE_RAD[min(SHAKE_RAD, key=lambda k: abs(k - p.level))])
             o[:, N_EXPR + HEAD_AXIS["shake head"]] = shake_track(p.end - p.start, p.count, peak, lib.fps)
+            add(o, p.start, p.end)
+            continue
+        if p.pose == "nod":
+            o = np.zeros((p.end - p.start, FACE_DIM), np.float32)
+            peak = p.gain * NOD_RAD[min(NOD_RAD, key=lambda k: abs(k - p.level))]
+            o[:, N_EXPR + HEAD_AXIS["nod"]] = nod_track(p.end - p.start, p.count, min(peak, 0.4), lib.fps)
             add(o, p.start, p.end)
             continue
         if p.pose:

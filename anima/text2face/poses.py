@@ -76,6 +76,9 @@ POSES: dict[str, Pose] = {
                         "cheekSquint_L": 0.2, "cheekSquint_R": 0.2}, 0.2, 0.9, 0.3, True, "left"),
     # a head shake: no expression channel, the head's yaw (shake_track); its timing here
     "shake": Pose({}, 0.12, 0.9, 0.15, gap_s=0.9),  # repeats further apart than one shake's swings
+    # a nod: the head's pitch (nod_track), one bob down and back up; repeats 0.9 s apart (closer, the dataset's
+    # detectors read two bobs as one nod)
+    "nod": Pose({}, 0.1, 0.6, 0.1, gap_s=0.9),
 }  # fmt: skip
 _SIDE_CHANNELS = {"jawLeft": "left", "jawRight": "right", "mouthLeft": "left", "mouthRight": "right"}
 INTENSITY_RANGE = {0.6: (0.3, 0.6), 1.0: (0.6, 0.9), 1.4: (0.85, 1.0)}
@@ -140,6 +143,16 @@ def shake_track(n: int, count: int, peak: float, fps: float) -> np.ndarray:
     for t, k, env in _repeats("shake", n, count, fps):
         swing = np.sin(np.linspace(0.0, SHAKE_HALF_SWINGS * np.pi, k))
         out[t : t + k] = peak * env * swing / max(float(np.abs(swing).max()), 1e-9)
+    return out
+
+
+def nod_track(n: int, count: int, peak: float, fps: float) -> np.ndarray:
+    """Head pitch offsets ``[n]`` (radians, positive: the chin down): ``count`` nods spread over ``n`` frames,
+    each one bob of ``peak`` down and back up (a raised cosine), so a viewer counts exactly ``count`` (issue 50
+    item 4: captured nod segments bob two to six times)."""
+    out = np.zeros(n, np.float32)
+    for t, k, _ in _repeats("nod", n, count, fps):
+        out[t : t + k] = peak * np.sin(np.linspace(0.0, np.pi, k)) ** 2
     return out
 
 

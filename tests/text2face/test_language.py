@@ -243,3 +243,23 @@ def test_talk_is_as_lively_from_a_library_of_quiet_talk(lib):
     for seed in range(3):
         loud, calm = _make("she talks", lib, seed=seed), _make("she talks", quiet, seed=seed)
         assert np.std(loud[:, jaw]) > 0.8 * TALK_JAW_STD and np.std(calm[:, jaw]) > 0.5 * np.std(loud[:, jaw])
+
+
+def test_nods_are_counted_as_asked(lib):
+    """Issue 50 item 4: a nod is one bob of the head, chin down and back (keyframed; the captured ones bob two to
+    six times), so the pitch has exactly as many dips as the prompt asks, and the dataset's detectors read the
+    same number; a stated intensity grades the bob."""
+    from scipy.signal import find_peaks
+
+    from anima.core.contract import N_EXPR
+
+    depth = {}
+    for prompt, n in (("she nods", 1), ("he nods twice", 2), ("she nods three times", 3), ("he nods 4 times", 4)):
+        m = _make(prompt, lib)
+        pitch = np.degrees(m[:, N_EXPR])
+        dips, _ = find_peaks(pitch, prominence=2.0)  # positive pitch: the chin down
+        assert len(dips) == n and len(find_peaks(-pitch, prominence=2.0)[0]) == n - 1, (prompt, dips)
+        assert sum(a == "nod" for a, _, _ in detect_motion(m)) == n, prompt
+        depth[prompt] = pitch.max()
+    assert 12 < depth["she nods"] < 20
+    assert np.degrees(_make("he nods slightly", lib)[:, N_EXPR]).max() < depth["she nods"]
