@@ -43,8 +43,8 @@ GRID = {
     "blink": ("blink_ratio", np.round(np.arange(0.35, 0.86, 0.05), 3)),
     "smile": ("smile_width", np.round(np.arange(0.02, 0.40, 0.02), 3)),
     "mouth open": ("open_gap", np.round(np.arange(0.04, 0.31, 0.02), 3)),
-    "raise eyebrows": ("brow_up", np.round(np.arange(0.01, 0.101, 0.005), 4)),
-    "frown": ("brow_down", np.round(np.arange(0.005, 0.121, 0.005), 4)),
+    "raise eyebrows": ("brow_up", np.round(np.arange(0.01, 0.251, 0.01), 4)),
+    "frown": ("brow_down", np.round(np.arange(0.01, 0.251, 0.01), 4)),
     "nod": ("nod_swing", np.round(np.arange(0.02, 0.16, 0.01), 3)),
 }
 

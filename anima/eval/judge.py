@@ -40,11 +40,13 @@ LIP_IN = (13, 14)  # inner upper / lower lip
 CORNERS = (61, 291)
 BROWS = ((70, 63, 105, 66, 107), (300, 293, 334, 296, 336))
 NOSE = 1
+FOREHEAD = 151  # the forehead's middle: brows are measured in the height from the eyes to it
 EYE_OUT = (33, 263)
 ATTRIBUTES = ("blink", "smile", "mouth open", "raise eyebrows", "frown", "nod", "shake head", "turn")
 # readings the judge's own calibration does not support (event F1 under 0.5 on the labelled training/validation
 # clips, or no labelled example): shown marked in every table, not to be read as evidence either way
 UNRELIABLE = {
+    "frown": "event F1 0.36 on the labelled training/validation clips (3 labelled frowns, 6 false)",
     "nod": "event F1 0.27 on the labelled training/validation clips (2 labelled nods, 11 false)",
     "shake head": "no labelled example: geometric default",
     "turn": "no labelled example: geometric default",
@@ -55,17 +57,19 @@ UNRELIABLE = {
 class JudgeConfig:
     """Thresholds, in inter-ocular units unless said, fitted through the round trip on the labelled real clips of
     the training and validation splits only (issue 52; module docstring; benchmarks/results/judge_calibration.json
-    lists the clips, event F1 there: blink 0.96, smile 0.67, mouth open 1.0, raised brows 1.0, frown 0.67, nod
-    0.27 (2 labelled nods, 11 false): the nod reading is unreliable; the test clips' scores beside them). Before
-    issue 52, fitted on every labelled clip: smile 0.14, mouth open 0.12, brows up 0.035."""
+    lists the clips, event F1 there: blink 0.96, smile 0.67, mouth open 1.0, raised brows 1.0, frown 0.36, nod
+    0.27 (2 labelled nods, 11 false): the frown and nod readings are unreliable; the test clips' scores beside
+    them). Before issue 52, fitted on every labelled clip: smile 0.14, mouth open 0.12, brows up 0.035 and down
+    0.035 in inter-ocular distances (the brows are now measured in the eyes-to-forehead height, which a nod
+    shortens alike)."""
 
     blink_ratio: float = 0.5  # the lid gap below this share of the open eye (90th percentile) is a blink
     blink_max_s: float = 1.0
     smile_width: float = 0.16  # mouth wider than its rest (20th percentile) by this
     smile_lift: float = 0.02  # and the corners lifted above their rest by this
     open_gap: float = 0.18  # inner-lip gap
-    brow_up: float = 0.045  # brows above their rest (20th percentile)
-    brow_down: float = 0.035  # brows below their rest (80th percentile)
+    brow_up: float = 0.07  # brows above their rest (20th percentile), in eyes-to-forehead heights
+    brow_down: float = 0.04  # brows below their rest (80th percentile), the same units
     nod_swing: float = 0.05  # a vertical swing of the nose (up and back) of this
     shake_swing: float = 0.08  # a horizontal swing, both ways
     turn_offset: float = 0.18  # a sideways offset from the clip's median
@@ -85,17 +89,20 @@ def measures(lm: np.ndarray) -> dict[str, np.ndarray]:
     eye = np.mean([d(u, lo) / d(c0, c1) for u, lo, c0, c1 in EYE.values()], 0)
     centre = (P[:, LIP_IN[0]] + P[:, LIP_IN[1]]) / 2
     corners = (P[:, CORNERS[0]] + P[:, CORNERS[1]]) / 2
+    mid = (P[:, EYE_OUT[0]] + P[:, EYE_OUT[1]]) / 2
+    # brows in the height from the eyes to the forehead's middle, not the inter-ocular distance: a head nodding
+    # down shortens both alike in the picture (brow height over iod fell 20 % at 20 degrees, as much as a frown)
+    tall = mid[:, 1] - P[:, FOREHEAD, 1]
     brow = np.mean(
         [(P[:, c0, 1] + P[:, c1, 1]) / 2 - P[:, list(b), 1].mean(-1) for b, (_, _, c0, c1) in zip(BROWS, EYE.values())],
         0,
-    )  # above the eye corners (which a blink does not move); image y grows down: a positive height
-    mid = (P[:, EYE_OUT[0]] + P[:, EYE_OUT[1]]) / 2
+    ) / np.where(tall > 1e-6, tall, np.nan)  # above the eye corners (which a blink does not move); y grows down
     return {
         "eye": eye,
         "width": d(*CORNERS) / iod,
         "lift": (centre[:, 1] - corners[:, 1]) / iod,
         "gap": d(*LIP_IN) / iod,
-        "brow": brow / iod,
+        "brow": brow,
         "yaw": (P[:, NOSE, 0] - mid[:, 0]) / iod,
         "pitch": (P[:, NOSE, 1] - mid[:, 1]) / iod,
     }
@@ -165,7 +172,8 @@ def events(m: dict[str, np.ndarray], fps: float, cfg: JudgeConfig | None = None)
 
 
 def track_frames(frames) -> np.ndarray:
-    """MediaPipe Face Mesh landmarks ``[F, 478, 2]`` (pixels; NaN where no face) of RGB frames, in order, read
+    """MediaPipe Face Mesh landmarks ``[F, 478, 3]`` (pixels, depth in the same units; NaN where no face) of RGB
+    frames, in order, read
     with MediaPipe's own solution API (issue 52: not anima's capture wrapper, so a change there cannot move the
     judge)."""
     import mediapipe as mp
@@ -175,10 +183,11 @@ def track_frames(frames) -> np.ndarray:
         for f in frames:
             res = mesh.process(np.ascontiguousarray(f))
             if not res.multi_face_landmarks:
-                out.append(np.full((478, 2), np.nan))
-            else:  # normalised -> pixels
+                out.append(np.full((478, 3), np.nan))
+            else:  # normalised -> pixels (MediaPipe's depth is in the image width's scale)
                 lm = res.multi_face_landmarks[0].landmark
-                out.append(np.array([(p.x * f.shape[1], p.y * f.shape[0]) for p in lm], np.float64))
+                w, h = f.shape[1], f.shape[0]
+                out.append(np.array([(p.x * w, p.y * h, p.z * w) for p in lm], np.float64))
     return np.stack(out)
 
 

@@ -25,6 +25,8 @@ def test_the_round_trip_reads_what_the_face_does():
         seen[prompt] = [a for a, _, _ in judge.judge_motion(m, 30.0)]
     assert seen["she blinks twice"].count("blink") == 2, seen
     assert "mouth open" in seen["he opens his mouth"], seen
+    # a nod is one bob, counted as asked, and a head nodding down is not a frown (issue 50 item 4, issue 52)
+    assert seen["he nods twice"] == ["nod", "nod"], seen
     m, _ = compose(parse("she raises her eyebrows"), lib, None, 0)
     assert "raise eyebrows" in [a for a, _, _ in judge.judge_motion(m, 30.0)]
 
@@ -48,3 +50,25 @@ def test_events_from_measures_follow_their_thresholds():
     ev = judge.events(m, 30.0)
     assert [a for a, _, _ in ev] == ["blink", "mouth open"]
     assert judge.events(m, 30.0, judge.JudgeConfig(open_gap=0.25)) == ev[:1]
+
+
+def test_a_nod_does_not_read_as_a_frown():
+    """A head pitched down 20 degrees shortens the brows over the inter-ocular distance in the picture by about
+    40 % of a strong frown (a keyframed nod read as a frown); measured in the height from the eyes to the
+    forehead (which a nod shortens alike) it does not, while a frown and a brow raise still move the measure."""
+    from anima.core.contract import EXPR_NAMES, FACE_DIM, N_EXPR
+
+    m = np.zeros((7, FACE_DIM), np.float32)
+    m[:, N_EXPR] = np.radians([0, 0, 10, 20, 0, 0, 0])
+    m[4, [EXPR_NAMES.index("browDown_L"), EXPR_NAMES.index("browDown_R")]] = 0.9
+    m[5, [EXPR_NAMES.index(f"brow{k}Up_{s}") for k in ("Inner", "Outer") for s in "LR"]] = 0.9
+    lm = judge.track_frames(list(judge.render_motion(m, 30.0)))
+    brow = judge.measures(lm)["brow"]
+    rest = brow[1]
+    frown, raised = rest - brow[4], brow[5] - rest
+    assert frown > 0.05 and raised > 0.04, brow
+    assert np.abs(brow[2:4] - rest).max() < 0.5 * frown, brow  # the chin down 10 and 20 degrees: under half a frown
+    P = lm[..., :2]
+    iod = np.linalg.norm(P[:, judge.EYE_OUT[0]] - P[:, judge.EYE_OUT[1]], axis=-1)
+    over_iod = (brow * (((P[:, 33] + P[:, 263]) / 2)[:, 1] - P[:, judge.FOREHEAD, 1])) / iod
+    assert over_iod[1] - over_iod[3] > 0.35 * (over_iod[1] - over_iod[4])  # over iod, 20 degrees: 40 % of a frown
