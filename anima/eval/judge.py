@@ -73,6 +73,7 @@ class JudgeConfig:
     nod_swing: float = 0.05  # a vertical swing of the nose (up and back) of this
     shake_swing: float = 0.08  # a horizontal swing, both ways
     turn_offset: float = 0.18  # a sideways offset from the clip's median
+    shake_join_s: float = 0.3  # swings closer than this are one shake (each cycle was one before issue 52)
     min_s: float = 0.1  # shortest event
     pad_s: float = 1.0  # first and last frames held this long when percentiles are taken
 
@@ -165,7 +166,13 @@ def events(m: dict[str, np.ndarray], fps: float, cfg: JudgeConfig | None = None)
     turns = _runs(np.abs(yaw) >= cfg.turn_offset, int(0.3 * fps))
     swings = [(a, b) for a, b in _swings(m["yaw"], cfg.shake_swing, fps, pad)]
     half = cfg.shake_swing / 2  # a shake crosses the rest both ways
-    shakes = [(a, b) for a, b in swings if yaw[a:b].max() >= half and yaw[a:b].min() <= -half]
+    shakes: list[tuple[int, int]] = []
+    for a, b in swings:  # swings that follow each other within shake_join_s are one shake (a viewer's "no")
+        if shakes and a - shakes[-1][1] <= cfg.shake_join_s * fps:
+            shakes[-1] = (shakes[-1][0], b)
+        else:
+            shakes.append((a, b))
+    shakes = [(a, b) for a, b in shakes if yaw[a:b].max() >= half and yaw[a:b].min() <= -half]
     add("shake head", shakes)
     add("turn", [(a, b) for a, b in turns if not any(a < d and b > c for c, d in shakes)])
     return sorted(((n, a / fps, b / fps) for n, a, b in out), key=lambda e: e[1])

@@ -27,6 +27,8 @@ def test_the_round_trip_reads_what_the_face_does():
     assert "mouth open" in seen["he opens his mouth"], seen
     # a nod is one bob, counted as asked, and a head nodding down is not a frown (issue 50 item 4, issue 52)
     assert seen["he nods twice"] == ["nod", "nod"], seen
+    m, _ = compose(parse("he shakes his head twice"), lib, None, 0)  # a shake's swings are one shake
+    assert [a for a, _, _ in judge.judge_motion(m, 30.0)] == ["shake head", "shake head"]
     m, _ = compose(parse("she raises her eyebrows"), lib, None, 0)
     assert "raise eyebrows" in [a for a, _, _ in judge.judge_motion(m, 30.0)]
 
