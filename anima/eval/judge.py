@@ -179,9 +179,8 @@ def events(m: dict[str, np.ndarray], fps: float, cfg: JudgeConfig | None = None)
 
 
 def track_frames(frames) -> np.ndarray:
-    """MediaPipe Face Mesh landmarks ``[F, 478, 3]`` (pixels, depth in the same units; NaN where no face) of RGB
-    frames, in order, read
-    with MediaPipe's own solution API (issue 52: not anima's capture wrapper, so a change there cannot move the
+    """MediaPipe Face Mesh landmarks ``[F, 478, 2]`` (pixels; NaN where no face) of RGB frames, in order, read with
+    MediaPipe's own solution API (issue 52: not anima's capture wrapper, so a change there cannot move the
     judge)."""
     import mediapipe as mp
 
@@ -190,11 +189,10 @@ def track_frames(frames) -> np.ndarray:
         for f in frames:
             res = mesh.process(np.ascontiguousarray(f))
             if not res.multi_face_landmarks:
-                out.append(np.full((478, 3), np.nan))
-            else:  # normalised -> pixels (MediaPipe's depth is in the image width's scale)
+                out.append(np.full((478, 2), np.nan))
+            else:  # normalised -> pixels
                 lm = res.multi_face_landmarks[0].landmark
-                w, h = f.shape[1], f.shape[0]
-                out.append(np.array([(p.x * w, p.y * h, p.z * w) for p in lm], np.float64))
+                out.append(np.array([(p.x * f.shape[1], p.y * f.shape[0]) for p in lm], np.float64))
     return np.stack(out)
 
 

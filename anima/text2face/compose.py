@@ -448,15 +448,17 @@ def talk_energy(lib: Library, seg: Segment) -> float:
     return float(np.std(core[:, _IX["jawOpen"]]))
 
 
-def _talk_track(lib: Library, n: int, rng: np.random.Generator) -> np.ndarray:
+def _talk_track(lib: Library, n: int, rng: np.random.Generator, lively: bool = True) -> np.ndarray:
     """``n`` frames of lip offsets tiled from talk segments (crossfaded over their margins): the livelier half of
     the library's talk segments (by :func:`talk_energy`), the track scaled up to :data:`TALK_JAW_STD` where its
-    jaw moves less (at most 2x)."""
+    jaw moves less (at most 2x). ``lively=False``: every talk segment, as captured (before issue 50; for
+    benchmarks/bench_talk_energy.py)."""
     pool = lib.segments.get("talk") or []
     if not pool:
         raise InputError("the library has no captured 'talk' segment")
-    energy = [talk_energy(lib, s) for s in pool]
-    pool = [s for s, e in zip(pool, energy) if e >= np.median(energy)]
+    if lively:
+        energy = [talk_energy(lib, s) for s in pool]
+        pool = [s for s, e in zip(pool, energy) if e >= np.median(energy)]
     out = np.zeros((n, FACE_DIM), np.float32)
     t = 0
     while t < n:
@@ -466,7 +468,7 @@ def _talk_track(lib: Library, n: int, rng: np.random.Generator) -> np.ndarray:
         out[t : t + k] += o[:k]
         t += max(1, len(o) - 2 * s.margin)
     jaw = float(np.std(out[:, _IX["jawOpen"]]))
-    if 0 < jaw < TALK_JAW_STD:
+    if lively and 0 < jaw < TALK_JAW_STD:
         lips = [_IX[c] for c in LIPS]
         out[:, lips] *= min(2.0, TALK_JAW_STD / jaw)
     return out * _window(n, int(MARGIN_S * lib.fps))[:, None]
