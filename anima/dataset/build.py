@@ -432,7 +432,7 @@ def _start_ray(address: str | None, num_workers: int | None):
         check_ray_address(address)
     import ray
 
-    started = False
+    started = False  # connected here (a local instance started, or a cluster joined): disconnected here too
     if not ray.is_initialized():
         kw = dict(
             include_dashboard=False, log_to_driver=False, configure_logging=False, runtime_env={"env_vars": worker_env}
@@ -442,7 +442,7 @@ def _start_ray(address: str | None, num_workers: int | None):
         else:
             ray_guard.start()  # kills this instance's processes if the driver dies without shutting it down
             ray.init(num_cpus=num_workers or os.cpu_count(), **kw)
-            started = True
+        started = True
     return ray, started
 
 
@@ -542,7 +542,10 @@ def build_videos(videos, out: Path, cfg: BuildConfig, ann: dict, address, num_wo
                 futs[assemble_task.remote(str(p), cfg_ref, ann.get(p.stem), split, plan, warm, *parts)] = (n, p)
             nodes = _follow(ray, futs, counter, progress, out)
         finally:
-            if started:  # our own local instance: shut it down on success, error or interrupt
+            # on success, error or interrupt: our own local instance is shut down; from a cluster the driver
+            # disconnects (the cluster runs on), so that Ray's message thread, which would print a node's
+            # death on stdout after the summary, ends here
+            if started:
                 ray.shutdown()
             quiet.__exit__(None, None, None)
     wall = time.perf_counter() - t0

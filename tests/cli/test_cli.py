@@ -235,3 +235,15 @@ def test_exports_replace_only_files_anima_wrote(tmp_path, cli):
         mine.write_bytes(b"my own file")
         r = cli("export", fmt, seq, "--out", mine)
         assert r.returncode == 2 and "anima wrote" in r.stderr and mine.read_bytes() == b"my own file"
+
+
+def test_what_prints_after_the_result_goes_to_stderr():
+    """A library's late words (Ray's message thread, an exit handler) never follow ``--json`` on stdout."""
+    code = (
+        "import atexit, sys; from anima.cli import main as m; "
+        "atexit.register(lambda: print('a late word')); sys.argv = ['anima', '--version']; m.run()"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "a late word" not in r.stdout and "a late word" in r.stderr
+    assert r.stdout.strip().startswith("anima"), r.stdout
