@@ -23,6 +23,7 @@ Attributes without labelled examples (shake head, turn) keep the judge's geometr
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import sys
 import tempfile
 from pathlib import Path
@@ -66,11 +67,25 @@ def f1(tp, fp, fn) -> float:
     return 2 * tp / max(2 * tp + fp + fn, 1)
 
 
+def _judge_code() -> str:
+    """A short hash of the code behind a clip's measures (the judge's renderer, tracker and measures, not its
+    thresholds): a changed render or measure never reads an older cache."""
+    import inspect
+
+    import anima.eval.judge as judge
+    import anima.eval.judge_render as judge_render
+
+    parts = [inspect.getsource(judge_render)]
+    parts += [inspect.getsource(f) for f in (judge.measures, judge.track_frames, judge.render_motion)]
+    text = "".join(parts)
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
 def tracked(lab: dict, domain: str) -> tuple[dict, float]:
     """The clip's landmark measures in ``domain`` ("video" or "round trip") and its frame rate (cached)."""
-    keep = Path(tempfile.gettempdir()) / "anima-judge-calibration"  # reused by a rerun
+    keep = Path(tempfile.gettempdir()) / "anima-judge-calibration"  # reused by a rerun of the same judge code
     keep.mkdir(exist_ok=True)
-    f = keep / f"{lab['name']}-{domain.replace(' ', '_')}.npz"
+    f = keep / f"{lab['name']}-{domain.replace(' ', '_')}-{_judge_code()}.npz"
     if f.is_file():
         with np.load(f) as z:
             return {k: z[k] for k in z.files if k != "fps"}, float(z["fps"])

@@ -8,7 +8,6 @@ from __future__ import annotations
 import argparse
 import atexit
 import importlib
-import io
 import os
 import signal
 import sys
@@ -172,34 +171,28 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _stdout_done() -> None:
-    """The command's result is on stdout: whatever a library's thread or exit handler prints from here on
-    (Ray's farewell, a late warning) goes to stderr, so that ``--json`` output stays one document."""
+    """After the command's result: what a library's thread or exit handler prints (Ray's) goes to stderr."""
     try:
         sys.stdout.flush()
+        sys.stderr.flush()
         os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
-        sys.stdout = sys.stderr
-    except (OSError, ValueError, AttributeError, io.UnsupportedOperation):  # a closed or replaced stream
+    except (OSError, ValueError, AttributeError):  # a closed or replaced stream: nothing more can be said
         pass
 
 
 def run() -> None:
     """The ``anima`` console script: :func:`main`, then the exit. Every file a command writes is complete
     and closed when ``main`` returns, so once the exit handlers have run (Ray's shutdown, temporary folders)
-    and the streams are flushed, the process ends without the interpreter's teardown, which only frees
-    memory and unloads numba's compiled code (0.15-0.2 s of a 3 s ``anima gesture``). With another
-    non-daemon thread still alive it exits the usual way, which waits for it."""
+    the process ends without the interpreter's teardown, which only frees memory and unloads numba's compiled
+    code (0.15-0.2 s of a 3 s ``anima gesture``); with another non-daemon thread alive it exits the usual way."""
     try:
         rc = main()
     finally:  # also after argparse's own exits (--help, --version)
         _stdout_done()
     if any(not t.daemon and t is not threading.main_thread() for t in threading.enumerate()):
         sys.exit(rc)
-    try:
-        sys.stdout.flush()
-        sys.stderr.flush()
-    except (OSError, ValueError):  # a closed pipe: nothing more can be said
-        pass
     atexit._run_exitfuncs()
+    _stdout_done()
     os._exit(rc)
 
 
