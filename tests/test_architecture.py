@@ -127,6 +127,51 @@ def test_the_contract_rule_catches_a_copy(tmp_path):
     assert "TEXT_FPS" in _contract_names() and assigned == ["TEXT_FPS", "x"] and literals == [30.0, 53]
 
 
+def _event_literals(tree: ast.AST, names: set[str]) -> set[str]:
+    return {
+        n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, str) and n.value in names
+    }
+
+
+# the modules that may spell an event's name: the vocabulary itself, the independent judge (its own list and
+# rules, issue 52), the importers of other datasets' words (their annotation keywords), and the exporters'
+# expression names (VRM's "blink" is the avatar's expression, not the event)
+OWN_WORDS = {"core/events.py", "eval/judge.py", "dataset/annotations.py", "dataset/config.py", "export/vrm.py",
+             "export/vmc.py"}  # fmt: skip
+
+
+def test_the_event_vocabulary_is_declared_once():
+    """Issue 46: every facial event (its channels, side, hold, strength and phrases) is declared in
+    anima/core/events.py; the parser, composer, detectors, descriptions and evaluations read it and name events
+    by its constants, so no other module writes a detected event's name as a string."""
+    from anima.core.events import DETECTED, VOCABULARY
+
+    names = set(DETECTED) | {"close eyes"}  # ("neutral" names other things too: a pose, a face)
+    found = {}
+    for path in sorted(PKG.rglob("*.py")):
+        rel = str(path.relative_to(PKG))
+        if rel in OWN_WORDS:
+            continue
+        hits = _event_literals(ast.parse(path.read_text()), names)
+        if hits:
+            found[rel] = sorted(hits)
+    assert found == {}
+    assert sum("raise eyebrows" in p.read_text() for p in PKG.rglob("*.py")) <= 2
+    # every table the parts read is the vocabulary's
+    from anima.dataset import attributes, describe
+    from anima.text2face import compose, prompt
+
+    assert attributes.ATTRIBUTES == list(DETECTED)
+    assert set(prompt.LEXICON) == {n for n, e in VOCABULARY.items() if e.parsed}
+    assert compose.CHANNELS == {n: e.channels for n, e in VOCABULARY.items() if e.channels}
+    assert describe.VERBS == {n: e.verbs for n, e in VOCABULARY.items() if e.verbs}
+
+
+def test_the_vocabulary_rule_catches_a_spelled_event():
+    tree = ast.parse('if e.attribute == "raise eyebrows" or e.pose == "wink":\n    x = {"mouth open": 1}\n')
+    assert _event_literals(tree, {"raise eyebrows", "mouth open"}) == {"raise eyebrows", "mouth open"}
+
+
 def test_cli_is_thin():
     main = PKG / "cli" / "main.py"
     assert len(main.read_text().splitlines()) <= 200

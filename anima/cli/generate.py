@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from anima.cli.common import add_rig, command_line, emit, notes, time_split
 from anima.cli.options import add_options, config_from_args
+from anima.core.events import EMOTIONS, VOCABULARY
 from anima.gesture import run as gesture
 from anima.gesture.config import GestureConfig
 from anima.text2face import run as text2face
@@ -23,6 +24,9 @@ GESTURE_OPTIONS = [
     "blend",
 ]
 
+# the actions a prompt may name (anima.core.events), for --help
+ACTIONS = [n for n, e in VOCABULARY.items() if e.parsed and e.phrases and n not in EMOTIONS and not e.unplaced]
+
 
 def register(sub) -> None:
     tf = sub.add_parser(
@@ -31,10 +35,9 @@ def register(sub) -> None:
         description="Seed 000: a sentence -> 3D facial motion (ICT expression weights + head "
         "rotation, 30 fps). Writes into --out: motion.npz (a tracked sequence: `anima info`, "
         "`anima export`), face.mp4, arkit.csv (Live Link Face), face.glb, info.json and "
-        "manifest.json. By default the timeline method: the prompt is read as events (smile, blink, "
-        "wink, frown, squint, raise eyebrows, surprise, mouth open, yawn, talk, nod, shake head, turn, "
-        "gaze, cheek puff, pout, lip press, and the emotions happy, sad, angry, disgusted, fearful, "
-        "contempt, neutral; 'then', 'while', 'twice', 'slightly', 'left eye', 'without') made from "
+        "manifest.json. By default the timeline method: the prompt is read as events ("
+        f"{', '.join(ACTIONS)}, and the emotions {', '.join(EMOTIONS)}; 'then', 'while', 'twice', "
+        "'slightly', 'left eye', 'without') made from "
         "captured motion: the built-in library (no dataset needed) or --db's; info.json says how the "
         "prompt was read and what was not understood. --method model (or --checkpoint): the seed "
         "model (the shipped checkpoint unless --checkpoint is given).",

@@ -12,24 +12,27 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import median_filter, uniform_filter1d
 
+from anima.core.events import (
+    BLINK,
+    DETECTED,
+    FROWN,
+    LIPS,
+    MOUTH_OPEN,
+    NOD,
+    RAISE_BROWS,
+    SHAKE_HEAD,
+    SMILE,
+    SQUINT,
+    SURPRISE,
+    TALK,
+    TURN,
+    YAWN,
+)  # fmt: skip
 from anima.core.filters import prominent_peaks, valid_runs
 from anima.core.rotations import matrix_to_euler, rotvec_to_matrix
 from anima.dataset.config import DetectorConfig
 
-ATTRIBUTES = [
-    "blink",
-    "smile",
-    "frown",
-    "squint",
-    "raise eyebrows",
-    "surprise",
-    "mouth open",
-    "yawn",
-    "talk",
-    "nod",
-    "shake head",
-    "turn",
-]
+ATTRIBUTES = list(DETECTED)  # the events the detectors label, in this order (anima.core.events)
 
 
 def _mean(seq, names):
@@ -111,41 +114,28 @@ def detect(seq, cfg: DetectorConfig | None = None) -> list[tuple[str, float, flo
     lid = blink
     if cfg.blink_baseline_s:
         lid = blink - median_filter(blink, size=max(3, int(cfg.blink_baseline_s * fps) | 1), mode="nearest")
-    add("blink", hysteresis_events(lid, cfg.blink_on, cfg.blink_on * h, fps, 0.04, cfg.blink_max_s, valid))
+    add(BLINK, hysteresis_events(lid, cfg.blink_on, cfg.blink_on * h, fps, 0.04, cfg.blink_max_s, valid))
     smile = _mean(seq, ["mouthSmile_L", "mouthSmile_R"])
-    add("smile", hysteresis_events(smile, cfg.smile_on, cfg.smile_on * h, fps, cfg.min_s, None, valid))
+    add(SMILE, hysteresis_events(smile, cfg.smile_on, cfg.smile_on * h, fps, cfg.min_s, None, valid))
 
     def rel(x):  # brows and lids sit differently on every face: measure against the clip's own baseline
         return x - (np.percentile(x[valid], cfg.baseline_pct) if valid.any() else 0.0)
 
     up = _mean(seq, ["browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOuterUp_R"])
     frown = rel(_mean(seq, ["browDown_L", "browDown_R"]) - up)
-    add("frown", hysteresis_events(frown, cfg.frown_on, cfg.frown_on * h, fps, cfg.min_s, None, valid))
+    add(FROWN, hysteresis_events(frown, cfg.frown_on, cfg.frown_on * h, fps, cfg.min_s, None, valid))
     squint = rel(_mean(seq, ["eyeSquint_L", "eyeSquint_R"])) * (lid < cfg.blink_on)
-    add("squint", hysteresis_events(squint, cfg.squint_on, cfg.squint_on * h, fps, cfg.min_s, None, valid))
+    add(SQUINT, hysteresis_events(squint, cfg.squint_on, cfg.squint_on * h, fps, cfg.min_s, None, valid))
     brow = rel(_mean(seq, ["browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOuterUp_R"]))
-    add("raise eyebrows", hysteresis_events(brow, cfg.brow_on, cfg.brow_on * h, fps, cfg.min_s, None, valid))
+    add(RAISE_BROWS, hysteresis_events(brow, cfg.brow_on, cfg.brow_on * h, fps, cfg.min_s, None, valid))
     jaw = _mean(seq, ["jawOpen"])
     wide = _mean(seq, ["eyeWide_L", "eyeWide_R"])
     surprise = np.minimum(brow / cfg.brow_on, np.maximum(jaw / cfg.mouth_open_on, wide / 0.3))
-    add("surprise", hysteresis_events(surprise, 1.0, h, fps, cfg.min_s, None, valid))
-    add("mouth open", hysteresis_events(jaw, cfg.mouth_open_on, cfg.mouth_open_on * h, fps, cfg.min_s, None, valid))
-    add("yawn", hysteresis_events(jaw, cfg.yawn_jaw, cfg.yawn_jaw * h, fps, cfg.yawn_min_s, None, valid))
+    add(SURPRISE, hysteresis_events(surprise, 1.0, h, fps, cfg.min_s, None, valid))
+    add(MOUTH_OPEN, hysteresis_events(jaw, cfg.mouth_open_on, cfg.mouth_open_on * h, fps, cfg.min_s, None, valid))
+    add(YAWN, hysteresis_events(jaw, cfg.yawn_jaw, cfg.yawn_jaw * h, fps, cfg.yawn_min_s, None, valid))
     # talk: lip motion, gated by voice activity where there is audio
-    lips = [
-        "jawOpen",
-        "mouthClose",
-        "mouthFunnel",
-        "mouthPucker",
-        "mouthLowerDown_L",
-        "mouthLowerDown_R",
-        "mouthUpperUp_L",
-        "mouthUpperUp_R",
-        "mouthPress_L",
-        "mouthPress_R",
-        "mouthStretch_L",
-        "mouthStretch_R",
-    ]
+    lips = LIPS[:12]  # the lips and jaw, rolls and shrugs left out
     idx = [seq.expr_names.index(n) for n in lips]
     speed = np.abs(np.diff(seq.expression[:, idx], axis=0, prepend=seq.expression[:1, idx])).sum(1) * fps
     motion = uniform_filter1d(speed, size=max(3, int(0.5 * fps)), mode="nearest")
@@ -169,12 +159,12 @@ def detect(seq, cfg: DetectorConfig | None = None) -> list[tuple[str, float, flo
         voiced &= seq.speech_valid
         # where the voice is heard it tells speech from a smile or a yawn: lip motion decides, no reversal count
         talk = np.where(voiced, lip_motion if cfg.talk_voice_decides else talk, 0.0)
-    add("talk", hysteresis_events(talk, 1.0, h, fps, 0.5, None, valid))
+    add(TALK, hysteresis_events(talk, 1.0, h, fps, 0.5, None, valid))
     ypr = head_angles_deg(seq)
-    add("nod", _oscillation_events(ypr[:, 1], fps, cfg.nod_deg, 2))
-    add("shake head", _oscillation_events(ypr[:, 0], fps, cfg.shake_deg, 3))
+    add(NOD, _oscillation_events(ypr[:, 1], fps, cfg.nod_deg, 2))
+    add(SHAKE_HEAD, _oscillation_events(ypr[:, 0], fps, cfg.shake_deg, 3))
     yaw_dev = np.abs(ypr[:, 0] - np.median(ypr[valid, 0])) if valid.any() else np.zeros(len(ypr))
-    add("turn", hysteresis_events(yaw_dev, cfg.turn_deg, cfg.turn_deg * h, fps, cfg.min_s, None, valid))
+    add(TURN, hysteresis_events(yaw_dev, cfg.turn_deg, cfg.turn_deg * h, fps, cfg.min_s, None, valid))
     out = [(n, a / fps, b / fps) for n, a, b in ev]
     return sorted(out, key=lambda e: (e[1], ATTRIBUTES.index(e[0])))
 

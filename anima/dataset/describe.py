@@ -26,41 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.core.events import NEUTRAL, TALK, VOCABULARY
 from anima.dataset.attributes import ATTRIBUTES
 
-# attribute -> (third person singular, plural/base) verb phrases
-VERBS = {
-    "talk": ("talks", "talk"),
-    "gaze": ("gazes", "gaze"),
-    "frown": ("frowns", "frown"),
-    "blink": ("blinks", "blink"),
-    "smile": ("smiles", "smile"),
-    "squint": ("squints", "squint"),
-    "raise eyebrows": ("raises the eyebrows", "raise the eyebrows"),
-    "surprise": ("looks surprised", "look surprised"),
-    "mouth open": ("opens the mouth", "open the mouth"),
-    "yawn": ("yawns", "yawn"),
-    "nod": ("nods", "nod"),
-    "shake head": ("shakes the head", "shake the head"),
-    "turn": ("turns the head", "turn the head"),
-    "head wagging": ("wags the head", "wag the head"),
-    "close eyes": ("closes the eyes", "close the eyes"),
-    "laugh": ("laughs", "laugh"),
-    "sing": ("sings", "sing"),
-    "look around": ("looks around", "look around"),
-    "neutral": ("keeps a neutral face", "keep a neutral face"),
-    # emotions (from imported annotations, or from an emotion clip's file name: anima.dataset.annotations)
-    "happy": ("looks happy", "look happy"),
-    "sad": ("looks sad", "look sad"),
-    "angry": ("looks angry", "look angry"),
-    "disgusted": ("looks disgusted", "look disgusted"),
-    "fearful": ("looks afraid", "look afraid"),
-    "surprised": ("looks surprised", "look surprised"),
-    "contempt": ("looks scornful", "look scornful"),
-}
+# attribute -> (third person singular, plural/base) verb phrases (the vocabulary's, anima.core.events; emotions
+# come from imported annotations or an emotion clip's file name: anima.dataset.annotations)
+VERBS = {n: e.verbs for n, e in VOCABULARY.items() if e.verbs}
 COUNT_WORDS = {2: "twice", 3: "three times", 4: "four times"}
 # events one counts; talking, a state or an emotion is not "twice"
-COUNTABLE = set(ATTRIBUTES) - {"talk"}
+COUNTABLE = set(ATTRIBUTES) - {TALK}
 GENDER_WORDS = {"female": ("woman", "she", False), "male": ("man", "he", False), None: ("person", "they", True)}
 OPENERS = ["To begin with,", "First,", "At first,", "In the beginning,"]
 CONNECTORS = ["then", "after that", "next", "afterwards"]
@@ -98,7 +72,7 @@ def segment_timeline(
         mid = (a + b) / 2
         act = tuple(sorted({n for n, s, e in events if s <= mid < e}, key=lambda n: order[n]))
         if not act and fill_neutral:
-            act = ("neutral",)
+            act = (NEUTRAL,)
         if segs and (segs[-1].attributes == act or b - a < min_len):
             segs[-1] = Segment(segs[-1].start, b, segs[-1].attributes)
         else:
@@ -159,13 +133,13 @@ def describe_short(segments: list[Segment], gender: str | None = None, max_claus
     noun = GENDER_WORDS.get(gender, GENDER_WORDS[None])[0]
     steps: list[list] = []  # [attributes, count]
     for seg in segments:
-        attrs = tuple(a for a in seg.attributes if a != "neutral") or ("neutral",)
+        attrs = tuple(a for a in seg.attributes if a != NEUTRAL) or (NEUTRAL,)
         if steps and steps[-1][0] == attrs:
             continue
         steps.append([attrs, 1])
     merged: list[list] = []
     for attrs, _ in steps:
-        if attrs == ("neutral",) and len(steps) > 1:
+        if attrs == (NEUTRAL,) and len(steps) > 1:
             continue  # pauses before, between and after events are not worth words
         if merged and merged[-1][0] == attrs:
             merged[-1][1] += 1 if set(attrs) & COUNTABLE else 0  # "talks" twice in a row is still "talks"
@@ -183,7 +157,7 @@ def describe_short(segments: list[Segment], gender: str | None = None, max_claus
         for attrs, n in merged:
             for a in attrs:
                 counts[a] = counts.get(a, 0) + n
-        counts.pop("neutral", None)
+        counts.pop(NEUTRAL, None)
         parts = [
             VERBS.get(a, (a + "s", a))[0] + (" several times" if n > 2 and a in COUNTABLE else "")
             for a, n in counts.items()
@@ -233,18 +207,11 @@ def fits_encoder(text: str) -> bool:
 
 
 # other words for the same events (each read back by the prompt parser, anima.text2face.prompt)
-SYNONYMS = {
-    "talk": [("talks", "talk"), ("speaks", "speak")],
-    "smile": [("smiles", "smile"), ("grins", "grin")],
-    "frown": [("frowns", "frown"), ("furrows the brow", "furrow the brow")],
-    "raise eyebrows": [("raises the eyebrows", "raise the eyebrows"), ("lifts the eyebrows", "lift the eyebrows")],
-    "mouth open": [("opens the mouth", "open the mouth"), ("drops the jaw", "drop the jaw")],
-    "squint": [("squints", "squint"), ("narrows the eyes", "narrow the eyes")],
-}
+SYNONYMS = {n: list(e.synonyms) for n, e in VOCABULARY.items() if e.synonyms}
 MAX_STEPS = 8  # events an ordered description names before it summarises the rest
 
 
-ING = {"talk": ["talking", "speaking"]}
+ING = {TALK: ["talking", "speaking"]}
 
 
 def _ing(a: str, rng) -> str:
@@ -258,14 +225,14 @@ def _ing(a: str, rng) -> str:
 def background(segs: list[Segment]) -> tuple[str, ...]:
     """States that last through most of the clip (talking, an emotion): said once ("while talking") instead of
     in every step."""
-    total = sum(s.duration for s in segs if set(s.attributes) - {"neutral"})
+    total = sum(s.duration for s in segs if set(s.attributes) - {NEUTRAL})
     if total <= 0:
         return ()
     cover: dict[str, float] = {}
     for seg in segs:
         for a in seg.attributes:
             cover[a] = cover.get(a, 0.0) + seg.duration
-    return tuple(a for a, c in cover.items() if a not in COUNTABLE and a != "neutral" and c >= 0.6 * total)
+    return tuple(a for a, c in cover.items() if a not in COUNTABLE and a != NEUTRAL and c >= 0.6 * total)
 
 
 def _steps(segs: list[Segment], bg: tuple[str, ...] = ()) -> list[list]:
@@ -273,7 +240,7 @@ def _steps(segs: list[Segment], bg: tuple[str, ...] = ()) -> list[list]:
     event counted, pauses dropped."""
     out: list[list] = []
     for seg in segs:
-        attrs = tuple(a for a in seg.attributes if a != "neutral" and a not in bg)
+        attrs = tuple(a for a in seg.attributes if a != NEUTRAL and a not in bg)
         if not attrs:
             continue
         if out and out[-1][0] == attrs:

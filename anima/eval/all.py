@@ -15,6 +15,7 @@ row failed.
 from __future__ import annotations
 
 import hashlib
+import json
 import multiprocessing
 import os
 import platform
@@ -97,10 +98,6 @@ def _worker_row(ev_name: str, name: str, cfg) -> dict:
     return run_row(ev, name, cfg)
 
 
-# the rows that take most of an ``eval all`` (minutes on 2 cores, measured row by row): started first
-LONG_ROWS = ("text2face", "gesture")
-
-
 def run_rows(
     rows: list[tuple[Evaluation, str, object]],
     progress: Callable[[str], None] | None = None,
@@ -121,7 +118,7 @@ def run_rows(
                 on_row(dict(out))
         return out
     threads = max(1, (os.cpu_count() or 1) // jobs)
-    order = sorted(rows, key=lambda r: (r[1] not in LONG_ROWS, LONG_ROWS.index(r[1]) if r[1] in LONG_ROWS else 0))
+    order = sorted(rows, key=lambda r: not r[0].long)  # the long evaluations' rows first (a stable sort)
     done = {}
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_worker_threads, initargs=(threads,)) as pool:
@@ -159,7 +156,8 @@ def timing_lines(results: dict) -> list[str]:
     lines = [
         f"commit `{p['commit']}`, anima {p['anima_version']}, shared data sha256 `{p['data']['sha256'][:16]}` "
         f"({p['data']['files']} files), dataset manifest sha256 `{(p['dataset']['manifest_sha256'] or '-')[:16]}`, "
-        f"{p['machine']['cores']} cores, {p.get('jobs', 1)} job(s); total {results['wall_s'] / 60:.1f} min.",
+        f"{p['machine']['cores']} cores, {p.get('jobs', 1)} job(s); total {results['wall_s'] / 60:.1f} min"
+        + (f" (resumed: {', '.join(results['resumed'])} from a stopped run of it)." if results.get("resumed") else "."),
         "",
         "| evaluation | status | minutes | command |",
         "|---|---|---|---|",
@@ -185,6 +183,28 @@ def summary_markdown(results: dict, rows: list[tuple[Evaluation, str, object]]) 
     return "\n".join(lines) + "\n"
 
 
+def finished_rows(out: Path, prov: dict, quick: bool) -> tuple[dict, float]:
+    """The rows (name -> entry, status "ok") of a run into ``out`` that stopped, or ended, on the same clean
+    commit, shared data, dataset and ``quick`` as ``prov``, and that run's minutes: what ``--resume`` keeps.
+    Anything else: none."""
+    try:
+        old = json.loads((out / "results.json").read_text())
+        p = old["provenance"]
+        same = (
+            prov["commit"] is not None
+            and not prov["commit"].endswith("-dirty")
+            and p["commit"] == prov["commit"]
+            and p["data"] == prov["data"]
+            and p["dataset"] == prov["dataset"]
+            and old.get("quick") == quick
+        )
+        if not same:
+            return {}, 0.0
+        return {n: e for n, e in old["rows"].items() if e["status"] == "ok"}, float(old.get("wall_s") or 0.0)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return {}, 0.0
+
+
 def run_all(
     db: str,
     out: str | os.PathLike,
@@ -194,6 +214,7 @@ def run_all(
     progress: Callable[[str], None] | None = None,
     command: str | None = None,
     jobs: int = 1,
+    resume: bool = False,
 ) -> dict:
     """Run the rows (``only``: these by name; ``jobs``: side by side, :func:`run_rows`) into ``out``:
     ``results.json`` (provenance, rows, total time)
@@ -212,15 +233,24 @@ def run_all(
         t0 = time.perf_counter()
         prov = provenance(db, jobs)
 
+        kept, before_s = finished_rows(od.path, prov, quick) if resume else ({}, 0.0)
+        kept = {name: kept[name] for _, name, _ in rows if name in kept}
+        before_s = before_s if kept else 0.0  # the stopped run's time is part of this one's
+        if progress and resume:
+            progress(f"resumed: {', '.join(kept) or 'no row'} kept from the stopped run (same commit and data)")
+        todo = [r for r in rows if r[1] not in kept]
+
         def save_partial(done: dict) -> None:  # rows so far, marked incomplete (no manifest until the end)
-            partial = {"provenance": prov, "quick": quick, "complete": False, "rows": done}
-            partial["wall_s"] = round(time.perf_counter() - t0, 1)
+            partial = {"provenance": prov, "quick": quick, "complete": False, "resumed": list(kept)}
+            partial["rows"] = {name: (kept | done)[name] for _, name, _ in rows if name in kept | done}
+            partial["wall_s"] = round(before_s + time.perf_counter() - t0, 1)
             write_json(od.file("results.json"), partial)
             od.journal({"results.json": sha256(od.path / "results.json")})
 
-        results = {"provenance": prov, "quick": quick, "complete": True}
-        results["rows"] = run_rows(rows, progress, jobs, save_partial)
-        results["wall_s"] = round(time.perf_counter() - t0, 1)
+        results = {"provenance": prov, "quick": quick, "complete": True, "resumed": list(kept)}
+        ran = run_rows(todo, progress, jobs, save_partial)
+        results["rows"] = {name: (kept | ran)[name] for _, name, _ in rows}
+        results["wall_s"] = round(before_s + time.perf_counter() - t0, 1)
         results["failed"] = [n for n, e in results["rows"].items() if e["status"].startswith("failed")]
         write_json(od.file("results.json"), results)
         write_text(od.file("summary.md"), summary_markdown(results, rows))

@@ -23,6 +23,7 @@ import numpy as np
 
 from anima.capture.config import CaptureConfig
 from anima.capture.pipeline import capture_video
+from anima.core.events import BLINK, FROWN, MOUTH_OPEN, NOD, RAISE_BROWS, SHAKE_HEAD, SMILE, SQUINT, TALK, TURN, YAWN
 from anima.dataset.attributes import ATTRIBUTES, detect, frame_mask
 from anima.dataset.config import DetectorConfig
 from anima.dataset.splits import split_for
@@ -118,17 +119,17 @@ def score(seqs_and_labels, cfg: DetectorConfig | None = None) -> dict:
 
 # the threshold each attribute's detector is tuned by (surprise follows brow raise and mouth open)
 KNOBS = {
-    "blink": "blink_on",
-    "smile": "smile_on",
-    "frown": "frown_on",
-    "squint": "squint_on",
-    "raise eyebrows": "brow_on",
-    "mouth open": "mouth_open_on",
-    "yawn": "yawn_jaw",
-    "talk": "talk_motion",
-    "nod": "nod_deg",
-    "shake head": "shake_deg",
-    "turn": "turn_deg",
+    BLINK: "blink_on",
+    SMILE: "smile_on",
+    FROWN: "frown_on",
+    SQUINT: "squint_on",
+    RAISE_BROWS: "brow_on",
+    MOUTH_OPEN: "mouth_open_on",
+    YAWN: "yawn_jaw",
+    TALK: "talk_motion",
+    NOD: "nod_deg",
+    SHAKE_HEAD: "shake_deg",
+    TURN: "turn_deg",
 }
 
 
@@ -235,7 +236,7 @@ def calibration(pairs, base: DetectorConfig) -> dict:
                 total,
                 counts(seq, lab, dataclasses.replace(base, blink_baseline_s=w, blink_on=base.blink_on if w else 0.5)),
             )
-        blink_rule[str(w)] = round(_f1(total["blink"]), 4)
+        blink_rule[str(w)] = round(_f1(total[BLINK]), 4)
     return {
         "rule": calibrate.__doc__.split("\n\n")[0].replace("\n    ", " ").strip(),
         "calibration_clips": [lab["name"] for _, lab in fit],
@@ -313,7 +314,7 @@ def talk_on_speech(cfg: DetectorConfig | None = None, clips=None, seconds: float
         voiced = voiced_mask(seq, base) & seq.tracked
         row = {"clip": c, "seconds": round(seq.n_frames / seq.fps, 2), "voiced_s": round(voiced.sum() / seq.fps, 2)}
         for name, k in (("shipped", base), ("before", before)):
-            talk = frame_mask(detect(seq, k), "talk", seq.n_frames, seq.fps)
+            talk = frame_mask(detect(seq, k), TALK, seq.n_frames, seq.fps)
             row[f"talk_s_{name}"] = round(talk.sum() / seq.fps, 2)
             row[f"recall_{name}"] = round(float((talk & voiced).sum() / max(1, voiced.sum())), 3)
         rows.append(row)

@@ -142,3 +142,6 @@ class AllEval:
     jobs: int = field(default=1, metadata={"range": (1, 64)})
     """Rows run side by side in this many processes, the machine's cores shared between them (each row's torch
     threads: cores // jobs); 1: one after another, every core to each row."""
+    resume: bool = False
+    """Keep the rows that a stopped run into OUT finished ("ok") on the same clean commit, shared data, dataset
+    and --quick, and run only the others (results.json lists the kept rows under "resumed")."""

@@ -54,6 +54,7 @@ class Evaluation:
     rows: Callable[[Context], list[tuple[str, object]]]
     check: Callable[[object], None] = lambda cfg: None
     text: bool = False  # a terminal text unless --json (else the result is JSON either way)
+    long: bool = False  # its rows take most of an ``eval all`` (hours on 2 cores): started first with --jobs
 
     def runner(self):
         """The evaluation's module (imported now: it may load torch or MediaPipe)."""
@@ -209,6 +210,7 @@ EVALUATIONS = (
             )
         ],
         check=_check_gesture,
+        long=True,
     ),
     Evaluation(
         "text2face",
@@ -223,6 +225,7 @@ EVALUATIONS = (
         "anima.eval.text2face",
         _text2face_rows,
         check=_check_text2face,
+        long=True,
     ),
 )
 BY_NAME = {e.name: e for e in EVALUATIONS}

@@ -43,6 +43,7 @@ import numpy as np
 from tqdm import tqdm
 
 from anima.core.contract import TEXT_FPS
+from anima.core.events import BLINK, MOUTH_OPEN, RAISE_BROWS, SMILE, SQUINT, SURPRISE, TALK, YAWN
 from anima.dataset.attributes import ATTRIBUTES
 from anima.dataset.windows import read_clips
 from anima.errors import InputError
@@ -56,9 +57,9 @@ from anima.text2face.prompt import parse
 
 SUITE = Path(__file__).parent / "prompts" / "text2face.json"
 IMPLIED = {
-    "surprise": {"raise eyebrows", "mouth open"},
-    "talk": {"mouth open"},
-    "yawn": {"mouth open", "squint"},
+    SURPRISE: {RAISE_BROWS, MOUTH_OPEN},
+    TALK: {MOUTH_OPEN},
+    YAWN: {MOUTH_OPEN, SQUINT},
 }
 EMOTION_CHECKS = {
     "happy": ["mouthSmile"],
@@ -69,7 +70,7 @@ EMOTION_CHECKS = {
     "fearful": ["browInnerUp", "eyeWide"],
     "contempt": ["mouthSmile_L-R"],
 }
-SIDE_WEIGHT = {"blink": "eyeBlink", "raise eyebrows": "browInnerUp", "smile": "mouthSmile"}  # one-sided checks
+SIDE_WEIGHT = {BLINK: "eyeBlink", RAISE_BROWS: "browInnerUp", SMILE: "mouthSmile"}  # one-sided checks
 SAME_MOTION = 0.05  # no weight differs by more than 0.05, no rotation by more than 2.9 degrees
 
 
@@ -107,7 +108,7 @@ def load_suite(path: str | Path | None = None) -> list[dict]:
             clauses and clauses[0] and clauses[0][0].get("side") and clauses[0][0]["attribute"] in SIDE_WEIGHT
         ):
             raise InputError(
-                f"{where}: a one-sided prompt needs a 'side' on its first event (blink, smile, raise eyebrows)"
+                f"{where}: a one-sided prompt needs a 'side' on its first event ({', '.join(SIDE_WEIGHT)})"
             )
     return rows
 
@@ -121,10 +122,10 @@ def allowed(row: dict) -> set[str]:
     out = set(exp)
     for a in exp:
         out |= IMPLIED.get(a, set())
-    if "raise eyebrows" in exp and exp & {"talk", "mouth open"}:
-        out.add("surprise")
+    if RAISE_BROWS in exp and exp & {TALK, MOUTH_OPEN}:
+        out.add(SURPRISE)
     if row.get("emotion") == "surprised":
-        out |= {"surprise"} | IMPLIED["surprise"]
+        out |= {SURPRISE} | IMPLIED[SURPRISE]
     return out
 
 
@@ -199,7 +200,7 @@ def score_runs(
         stems = [stem for s in EMOTION_CHECKS.values() for stem in s]
         base = {stem: float(np.mean([_channel(m, stem).mean() for m in neutral])) for stem in stems}
         for i, r in enumerate(rows):
-            e = r.get("emotion") or ("surprised" if r["kind"] == "emotion" and "surprise" in expected(r) else None)
+            e = r.get("emotion") or ("surprised" if r["kind"] == "emotion" and SURPRISE in expected(r) else None)
             if not e:
                 continue
             for stem in EMOTION_CHECKS[e]:

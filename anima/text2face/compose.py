@@ -32,6 +32,20 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from anima.core.contract import EXPR_NAMES, FACE_DIM, N_EXPR, TEXT_FPS
+from anima.core.events import (
+    BLINK,
+    CLOSE_EYES,
+    FROWN,
+    HEAD,
+    LIPS,
+    NEUTRAL,
+    NOD,
+    SHAKE_HEAD,
+    TALK,
+    TURN,
+    VOCABULARY,
+    both_sides,
+)  # fmt: skip
 from anima.dataset.attributes import ATTRIBUTES, detect
 from anima.dataset.windows import read_clips
 from anima.errors import InputError
@@ -41,54 +55,14 @@ from anima.text2face.poses import POSES, natural_frames, nod_track, pose_track, 
 from anima.text2face.prompt import FAINT, Plan
 
 _IX = {n: i for i, n in enumerate(EXPR_NAMES)}
-HEAD = "head"
-LIPS = [
-    "jawOpen", "mouthClose", "mouthFunnel", "mouthPucker", "mouthLowerDown_L", "mouthLowerDown_R", "mouthUpperUp_L",
-    "mouthUpperUp_R", "mouthPress_L", "mouthPress_R", "mouthStretch_L", "mouthStretch_R", "mouthRollLower",
-    "mouthRollUpper", "mouthShrugLower", "mouthShrugUpper",
-]  # fmt: skip
-
-
-def _both(*stems: str) -> list[str]:
-    return [f"{s}_{k}" for s in stems for k in "LR"]
-
-
-# the channels each event moves (the rest of a captured segment is left out: a blink taken from a talking
-# clip must not bring the talking along)
-CHANNELS: dict[str, list[str]] = {
-    "blink": _both("eyeBlink"),
-    "close eyes": _both("eyeBlink"),
-    "smile": _both("mouthSmile", "cheekSquint", "mouthDimple"),
-    "frown": _both("browDown", "noseSneer"),
-    "squint": _both("eyeSquint", "cheekSquint"),
-    "raise eyebrows": _both("browInnerUp", "browOuterUp"),
-    "surprise": _both("browInnerUp", "browOuterUp", "eyeWide") + LIPS,
-    "mouth open": LIPS,
-    "yawn": LIPS + _both("eyeSquint"),
-    "talk": LIPS,
-    "nod": [HEAD],
-    "shake head": [HEAD],
-    "turn": [HEAD],
-}
-# Emotions as action units in ARKit weights (EMFACS prototypes; the channel sets of issue 19): positive
-# weights pull the match towards the channel, negative ones away from it.
-EMOTION_AUS: dict[str, dict[str, float]] = {
-    "happy": {"mouthSmile_L": 1, "mouthSmile_R": 1, "cheekSquint_L": 0.5, "cheekSquint_R": 0.5},
-    "sad": {"browInnerUp_L": 1, "browInnerUp_R": 1, "mouthFrown_L": 1, "mouthFrown_R": 1, "mouthSmile_L": -1,
-            "mouthSmile_R": -1, "jawOpen": -0.5},
-    "angry": {"browDown_L": 1, "browDown_R": 1, "noseSneer_L": 0.7, "noseSneer_R": 0.7, "mouthPress_L": 0.3,
-              "mouthPress_R": 0.3, "mouthSmile_L": -1, "mouthSmile_R": -1, "browInnerUp_L": -0.5,
-              "browInnerUp_R": -0.5},
-    "disgusted": {"noseSneer_L": 1, "noseSneer_R": 1, "mouthUpperUp_L": 0.7, "mouthUpperUp_R": 0.7,
-                  "browDown_L": 0.5, "browDown_R": 0.5, "mouthSmile_L": -0.5, "mouthSmile_R": -0.5},
-    "fearful": {"browInnerUp_L": 1, "browInnerUp_R": 1, "eyeWide_L": 1, "eyeWide_R": 1, "mouthStretch_L": 0.7,
-                "mouthStretch_R": 0.7, "mouthSmile_L": -0.5, "mouthSmile_R": -0.5},
-    "contempt": {"mouthSmile_L": 1, "mouthDimple_L": 0.7, "mouthSmile_R": -1, "mouthDimple_R": -0.5},
-}  # fmt: skip
-HOLDABLE = {"smile", "frown", "squint", "raise eyebrows", "surprise", "mouth open", "close eyes", "turn"} | set(
-    EMOTION_AUS
-)
-HEAD_AXIS = {"nod": 0, "shake head": 1, "turn": 1}  # rotation-vector component (x: pitch, y: yaw)
+# the vocabulary's (anima.core.events) views the composer reads: the channels each event moves (the rest of a
+# captured segment is left out: a blink taken from a talking clip must not bring the talking along), emotions
+# as action units in ARKit weights (EMFACS prototypes; positive weights pull the match towards the channel,
+# negative ones away from it), the events that can be held
+CHANNELS: dict[str, tuple[str, ...]] = {n: e.channels for n, e in VOCABULARY.items() if e.channels}
+EMOTION_AUS: dict[str, dict[str, float]] = {n: e.action_units for n, e in VOCABULARY.items() if e.action_units}
+HOLDABLE = {n for n, e in VOCABULARY.items() if e.holdable} | set(EMOTION_AUS)
+HEAD_AXIS = {NOD: 0, SHAKE_HEAD: 1, TURN: 1}  # rotation-vector component (x: pitch, y: yaw)
 SHAKE_MAX_RAD = 0.3  # 17 degrees either way (the turn detector fires at 20 degrees from the clip's median)
 SHAKE_RAD = {0.6: 0.15, 1.0: 0.25, 1.4: 0.3}
 """A head shake's peak yaw (radians) by stated intensity: a plain shake swings 14 degrees either way. Shakes
@@ -101,10 +75,10 @@ captured ones bob two to six times); a single 0.8-s bob of 15 degrees is what th
 as one nod (a shallower or quicker one it misses)."""
 # Longer holds read as other events to the detectors, which measure against the clip's own rest: an open
 # mouth held over 1 s is a yawn, a raise or a turn held over a quarter of the clip shifts the rest.
-MAX_HOLD_S = {"mouth open": 0.6, "surprise": 0.6, "turn": 0.8, "raise eyebrows": 0.7}
+MAX_HOLD_S = {n: e.max_hold_s for n, e in VOCABULARY.items() if e.max_hold_s}
 HOLD_MIN_S = 0.8  # a held event's segment is sped up to this (plus margins) when time is short
-NATURAL_S = {"talk": 1.5, "neutral": 0.8, "close eyes": 1.0}
-GAP_S = {"blink": 0.3, "nod": 0.9, "shake head": 0.9}  # between repeats (a nod within 0.8 s is the same nod)
+NATURAL_S = {TALK: 1.5, NEUTRAL: 0.8, CLOSE_EYES: 1.0}
+GAP_S = {BLINK: 0.3, NOD: 0.9, SHAKE_HEAD: 0.9}  # between repeats (a nod within 0.8 s is the same nod)
 REPEAT_GAP_S = 0.5  # between repeats of the other events: the weight falls back below the detectors' "off"
 LEAD_S, BETWEEN_S = 0.25, 0.3
 LIP_SMOOTH_S = 0.2  # sigma of the low-pass on a non-talk event's lip weights (speech moves them at 3-6 Hz)
@@ -265,14 +239,14 @@ def _offset(lib: Library, seg: Segment, side: str | None, lip_smooth_s: float = 
             keep = "_L" if side == "left" else "_R"
             idx = [i for i in idx if not (EXPR_NAMES[i].endswith(("_L", "_R")) and not EXPR_NAMES[i].endswith(keep))]
         out[:, idx] = m[:, idx] - lib.rest[seg.clip][idx]
-        if seg.attribute != "talk":  # an open mouth taken from a talking clip: keep its opening, not the speech
+        if seg.attribute != TALK:  # an open mouth taken from a talking clip: keep its opening, not the speech
             lip = [i for i in idx if EXPR_NAMES[i] in LIPS]
             if lip:
                 out[:, lip] = gaussian_filter1d(out[:, lip], lip_smooth_s * lib.fps, axis=0, mode="nearest")
     if head:  # a nod turns about the x axis (pitch), a shake or turn about y (yaw): the other axes stay still
         ax = N_EXPR + HEAD_AXIS[seg.attribute]
         out[:, ax] = m[:, ax] - m[0, ax]
-        if seg.attribute == "turn" and side in ("left", "right"):
+        if seg.attribute == TURN and side in ("left", "right"):
             j = int(np.abs(out[:, ax]).argmax())
             if np.sign(out[j, ax]) != (1.0 if side == "left" else -1.0):  # +y: the head turns to its left
                 out[:, ax] *= -1.0
@@ -297,24 +271,24 @@ def pose_of(e) -> str | None:
     versions of blink (a wink), raised brows and smile, made at full strength on the named side."""
     if e.attribute in POSES:
         return e.attribute
-    if e.attribute == "shake head":
+    if e.attribute == SHAKE_HEAD:
         return "shake"
-    if e.attribute == "nod":
-        return "nod"
+    if e.attribute == NOD:
+        return NOD
     if e.side in ("left", "right"):
-        return {"blink": "wink", "raise eyebrows": "brow raise", "smile": "half smile"}.get(e.attribute)
+        return VOCABULARY[e.attribute].one_sided_pose if e.attribute in VOCABULARY else None
     return None
 
 
 def _holds(e) -> bool:
     """A keyframed event that stretches to its slot (held), rather than one that happens and is over."""
-    return bool(pose_of(e)) and pose_of(e) not in ("wink", "shake", "nod") and e.count == 1
+    return bool(pose_of(e)) and pose_of(e) not in ("wink", "shake", NOD) and e.count == 1
 
 
 def _choose(lib: Library, attr: str, rng: np.random.Generator, k: int, avoid: frozenset = frozenset()) -> list[Segment]:
     pool = lib.segments.get(attr) or []
-    if attr == "close eyes":
-        pool = lib.segments.get("blink") or []
+    if attr == CLOSE_EYES:
+        pool = lib.segments.get(BLINK) or []
     if not pool:
         raise InputError(f"the library has no captured '{attr}' segment: build the dataset from more clips")
     pool = [s for s in pool if (s.clip, s.a) not in avoid] or pool  # segments that did not read back
@@ -351,21 +325,21 @@ def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0, avoid: f
     clauses: dict[int, list] = {}
     for e in plan.events:
         clauses.setdefault(e.clause, []).append(e)
-    only_talk = all(e.attribute in ("talk", "neutral") for e in plan.events)
+    only_talk = all(e.attribute in (TALK, NEUTRAL) for e in plan.events)
     chosen = []  # per clause: [(event, segments, natural length)]
     slot_len = []
     for c in sorted(clauses):
         row = []
         for e in clauses[c]:
-            if e.attribute in ("talk", "neutral"):
+            if e.attribute in (TALK, NEUTRAL):
                 row.append((e, [], int(NATURAL_S[e.attribute] * fps)))
                 continue
             if pose_of(e):
                 row.append((e, [], natural_frames(pose_of(e), e.count, fps)))
                 continue
-            segs = _choose(lib, "blink" if e.attribute == "close eyes" else e.attribute, rng, e.count, avoid)
-            if e.attribute == "close eyes":
-                row.append((e, segs[:1], int(NATURAL_S["close eyes"] * fps)))
+            segs = _choose(lib, BLINK if e.attribute == CLOSE_EYES else e.attribute, rng, e.count, avoid)
+            if e.attribute == CLOSE_EYES:
+                row.append((e, segs[:1], int(NATURAL_S[CLOSE_EYES] * fps)))
                 continue
             gap = int(GAP_S.get(e.attribute, REPEAT_GAP_S) * fps)
             nat = sum(s.b - s.a for s in segs) - 2 * segs[0].margin * (len(segs) - 1) + gap * (len(segs) - 1)
@@ -373,7 +347,7 @@ def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0, avoid: f
                 nat = min(nat, int((HOLD_MIN_S + 2 * MARGIN_S) * fps))
             row.append((e, segs, nat))
         chosen.append(row)
-        lens = [n for e, _, n in row if e.attribute not in ("talk", "neutral")] or [n for _, _, n in row]
+        lens = [n for e, _, n in row if e.attribute not in (TALK, NEUTRAL)] or [n for _, _, n in row]
         slot_len.append(max(lens))
     lead, between = int(LEAD_S * fps), int(BETWEEN_S * fps)
     need = 2 * lead + sum(slot_len) + between * (len(slot_len) - 1)
@@ -385,7 +359,7 @@ def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0, avoid: f
         )
     slack = n_frames - need
     holdable = [
-        any(e.attribute in HOLDABLE or e.attribute in ("talk", "neutral") or _holds(e) for e, _, _ in r) for r in chosen
+        any(e.attribute in HOLDABLE or e.attribute in (TALK, NEUTRAL) or _holds(e) for e, _, _ in r) for r in chosen
     ]
     grow = int(slack * 0.6) // max(1, sum(holdable)) if any(holdable) else 0
     cap = [
@@ -407,19 +381,19 @@ def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0, avoid: f
         for e, segs, _ in row:
             gain = float(e.intensity)
             level = gain
-            if e.attribute not in HEAD_AXIS and e.attribute != "talk" and not pose_of(e):
+            if e.attribute not in HEAD_AXIS and e.attribute != TALK and not pose_of(e):
                 gain = 1.0  # the stated intensity picks the peak's range (STRENGTH); gain boosts a missed event
-            if e.attribute == "neutral":
+            if e.attribute == NEUTRAL:
                 continue
-            if e.attribute == "talk":
-                placed.append(Placed("talk", t, t + L, gain, []))
+            if e.attribute == TALK:
+                placed.append(Placed(TALK, t, t + L, gain, []))
                 continue
             if pose_of(e):  # a keyframed event: its natural length, or the slot when it is held
                 n = L if _holds(e) else min(L, natural_frames(pose_of(e), e.count, fps))
                 a = t + (L - n) // 2
                 placed.append(Placed(e.attribute, a, a + n, gain, [], e.side, pose_of(e), e.count, level=level))
                 continue
-            if e.attribute == "close eyes" or (e.attribute in HOLDABLE and len(segs) == 1):
+            if e.attribute == CLOSE_EYES or (e.attribute in HOLDABLE and len(segs) == 1):
                 placed.append(Placed(e.attribute, t, t + L, gain, [(segs[0], t, L)], e.side, level=level))
                 continue
             # counted or short events: copies spread over the slot, each at its natural length
@@ -453,7 +427,7 @@ def _talk_track(lib: Library, n: int, rng: np.random.Generator, lively: bool = T
     the library's talk segments (by :func:`talk_energy`), the track scaled up to :data:`TALK_JAW_STD` where its
     jaw moves less (at most 2x). ``lively=False``: every talk segment, as captured (before issue 50; for
     benchmarks/bench_talk_energy.py)."""
-    pool = lib.segments.get("talk") or []
+    pool = lib.segments.get(TALK) or []
     if not pool:
         raise InputError("the library has no captured 'talk' segment")
     if lively:
@@ -491,19 +465,19 @@ def render(
         head[a:b] += o[:, N_EXPR:]
 
     for p in placed:
-        if p.attribute == "talk":
+        if p.attribute == TALK:
             add(p.gain * _talk_track(lib, p.end - p.start, rng), p.start, p.end)
             continue
         if p.pose == "shake":
             o = np.zeros((p.end - p.start, FACE_DIM), np.float32)
             peak = min(SHAKE_MAX_RAD, p.gain * SHAKE_RAD[min(SHAKE_RAD, key=lambda k: abs(k - p.level))])
-            o[:, N_EXPR + HEAD_AXIS["shake head"]] = shake_track(p.end - p.start, p.count, peak, lib.fps)
+            o[:, N_EXPR + HEAD_AXIS[SHAKE_HEAD]] = shake_track(p.end - p.start, p.count, peak, lib.fps)
             add(o, p.start, p.end)
             continue
-        if p.pose == "nod":
+        if p.pose == NOD:
             o = np.zeros((p.end - p.start, FACE_DIM), np.float32)
             peak = p.gain * NOD_RAD[min(NOD_RAD, key=lambda k: abs(k - p.level))]
-            o[:, N_EXPR + HEAD_AXIS["nod"]] = nod_track(p.end - p.start, p.count, min(peak, 0.4), lib.fps)
+            o[:, N_EXPR + HEAD_AXIS[NOD]] = nod_track(p.end - p.start, p.count, min(peak, 0.4), lib.fps)
             add(o, p.start, p.end)
             continue
         if p.pose:
@@ -511,13 +485,13 @@ def render(
             o[:, :N_EXPR] = pose_track(p.pose, p.side, p.end - p.start, p.count, p.gain, lib.fps)
             add(o, p.start, p.end)
             continue
-        if p.attribute == "turn" and p.side in ("left", "right") and p.pieces:  # the eyes lead the head
+        if p.attribute == TURN and p.side in ("left", "right") and p.pieces:  # the eyes lead the head
             o = np.zeros((p.end - p.start, FACE_DIM), np.float32)
             o[:, :N_EXPR] = pose_track("gaze", p.side, p.end - p.start, 1, 0.6, lib.fps)
             add(o, p.start, p.end)
         for seg, t0, L in p.pieces:
             o = _offset(lib, seg, p.side, lip_smooth_s)
-            if p.attribute == "close eyes":  # the blink's closed middle, held
+            if p.attribute == CLOSE_EYES:  # the blink's closed middle, held
                 o = _stretch(o, L, seg.margin)
                 mid = slice(seg.margin, L - seg.margin)
                 o[mid] = np.maximum(o[mid], o[mid].max(0, keepdims=True) * 0.95)
@@ -526,13 +500,13 @@ def render(
             if p.attribute in SYMMETRIC and p.side is None:  # both sides alike (captured ones lean to one)
                 for a, b in _PAIRS[p.attribute]:
                     o[:, a] = o[:, b] = (o[:, a] + o[:, b]) / 2
-            if p.attribute in CHANNELS and p.attribute not in {*HEAD_AXIS, "talk"}:  # emotions: as captured
+            if p.attribute in CHANNELS and p.attribute not in {*HEAD_AXIS, TALK}:  # emotions: as captured
                 o[:, :N_EXPR] *= _strength(o, p.attribute, p.level)
-            if p.attribute == "frown":  # brows drawn down and together wrinkle the nose's root (AU4)
-                for d, n in zip(_both("browDown"), _both("noseSneer")):
+            if p.attribute == FROWN:  # brows drawn down and together wrinkle the nose's root (AU4)
+                for d, n in zip(both_sides("browDown"), both_sides("noseSneer")):
                     o[:, _IX[n]] = np.maximum(o[:, _IX[n]], FROWN_SNEER * o[:, _IX[d]])
             o = p.gain * o
-            if p.attribute == "shake head":  # made stronger or not, a wider shake reads as a turn
+            if p.attribute == SHAKE_HEAD:  # made stronger or not, a wider shake reads as a turn
                 o[:, N_EXPR:] *= min(1.0, SHAKE_MAX_RAD / max(float(np.abs(o[:, N_EXPR:]).max()), 1e-9))
             a, b = max(0, t0), min(n_frames, t0 + L)
             add(o[a - t0 : b - t0], a, b)
@@ -548,20 +522,13 @@ STRENGTH = {0.35: (0.15, 0.3), 0.6: (0.3, 0.6), 1.0: (0.6, 0.9), 1.4: (0.85, 1.0
 0.6, plain 1, "very" 1.4: ``anima.text2face.prompt.FAINT``): a
 segment whose peak falls outside the range is scaled into it (captured faces differ in how far they move;
 a prompt's "smiles" should not depend on whose smile was drawn). Blinks and closed eyes close the eye."""
-STRENGTH_OF = {
-    "blink": {0.35: (0.4, 0.5), 0.6: (0.5, 0.6), 1.0: (0.9, 0.95), 1.4: (0.95, 1.0)},
-    "close eyes": {0.35: (0.4, 0.5), 0.6: (0.5, 0.6), 1.0: (0.9, 0.95), 1.4: (0.95, 1.0)},
-    # an open mouth is jawOpen 0.3 (the detector) up to a yawn's 0.45 held a second
-    "mouth open": {0.35: (0.2, 0.28), 0.6: (0.32, 0.36), 1.0: (0.36, 0.44), 1.4: (0.44, 0.6)},
-    "yawn": {0.35: (0.4, 0.5), 0.6: (0.5, 0.6), 1.0: (0.6, 0.8), 1.4: (0.8, 1.0)},
-    # a smile and a frown at full strength on their own channel (issue 37): mouthSmile 0.6 alone, or browDown
-    # 0.6 alone, barely changes the face a viewer sees (corners, brows)
-    # (the face model's brows move little: even a slight frown needs browDown 0.8 to be seen)
-    "smile": {0.35: (0.25, 0.33), 0.6: (0.55, 0.65), 1.0: (0.7, 0.9), 1.4: (0.9, 1.0)},
-    "frown": {0.35: (0.6, 0.7), 0.6: (0.8, 0.9), 1.0: (0.9, 1.0), 1.4: (1.0, 1.0)},
-    "raise eyebrows": {0.35: (0.35, 0.45), 0.6: (0.5, 0.65), 1.0: (0.7, 0.9), 1.4: (0.9, 1.0)},  # brows' mean
-}
-SYMMETRIC = ("blink", "close eyes", "smile", "frown", "squint", "raise eyebrows")
+STRENGTH_OF = {n: e.strength for n, e in VOCABULARY.items() if e.strength}
+"""Per event, its own ranges (the vocabulary's): blinks and closed eyes close the eye; an open mouth is
+jawOpen 0.3 (the detector) up to a yawn's 0.45 held a second; a smile and a frown at full strength on their
+own channel (issue 37: mouthSmile 0.6 alone, or browDown 0.6 alone, barely changes the face a viewer sees; the
+face model's brows move little, so even a slight frown needs browDown 0.8 to be seen); raised brows on the
+brows' mean."""
+SYMMETRIC = tuple(n for n, e in VOCABULARY.items() if e.symmetric)
 """Events made alike on both sides when no side is named: a captured segment's left-right difference is
 mostly the fit's (head pose) and leaves one brow or one corner weak (issue 37: a frown at full strength)."""
 _PAIRS = {
@@ -571,16 +538,10 @@ _PAIRS = {
 FROWN_SNEER = 0.35
 """A frown's noseSneer at least this fraction of its browDown: the face model's browDown alone lowers the
 brows by less than a tracker sees in a captured frown (issue 37; chosen on the development suite)."""
-PEAK_OF_MEAN = {"raise eyebrows"}
+PEAK_OF_MEAN = {n for n, e in VOCABULARY.items() if e.peak_of_mean}
 """Events whose peak is taken on the mean of their main channels, not the largest: a captured raise lifts
 the inner brows well above the outer ones, and the face model's brows rise visibly only with both."""
-MAIN = {
-    "mouth open": ["jawOpen"],
-    "yawn": ["jawOpen"],
-    "surprise": _both("browInnerUp", "browOuterUp"),
-    "smile": _both("mouthSmile"),
-    "frown": _both("browDown"),
-}
+MAIN = {n: e.main for n, e in VOCABULARY.items() if e.main}
 """The channels whose peak is measured (default: every channel of the event)."""
 
 
@@ -645,17 +606,17 @@ def compose(
         detectable = [  # (a faint event, asked for, may stay under the detectors' threshold: not made stronger)
             p
             for p in placed
-            if p.attribute in ATTRIBUTES and (p.side is None or p.attribute == "turn") and p.level > FAINT
+            if p.attribute in ATTRIBUTES and (p.side is None or p.attribute == TURN) and p.level > FAINT
         ]
         lip_s = LIP_SMOOTH_S
-        talking = any(p.attribute == "talk" for p in placed)
+        talking = any(p.attribute == TALK for p in placed)
         for _ in range(rounds + 1):
             motion = render(placed, lib, n_frames, seed, lip_s)
             events = detect_motion(motion, lib.fps)
             missing = [
                 p for p in detectable if _found(events, p.attribute, p.start, p.end, lib.fps) < len(p.pieces or [1])
             ]
-            false_talk = not talking and any(a == "talk" for a, _, _ in events)
+            false_talk = not talking and any(a == TALK for a, _, _ in events)
             bad = len(missing) + int(false_talk)
             if best is None or bad < best[0]:
                 best = (bad, motion, events, [Placed(**vars(p)) for p in placed], lip_s)

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from anima.core.contract import EXPR_NAMES, N_EXPR
+from anima.core.events import NOD
 
 _IX = {n: i for i, n in enumerate(EXPR_NAMES)}
 
@@ -78,7 +79,7 @@ POSES: dict[str, Pose] = {
     "shake": Pose({}, 0.12, 0.9, 0.15, gap_s=0.9),  # repeats further apart than one shake's swings
     # a nod: the head's pitch (nod_track), one bob down and back up; repeats 0.9 s apart (closer, the dataset's
     # detectors read two bobs as one nod)
-    "nod": Pose({}, 0.1, 0.6, 0.1, gap_s=0.9),
+    NOD: Pose({}, 0.1, 0.6, 0.1, gap_s=0.9),
 }  # fmt: skip
 _SIDE_CHANNELS = {"jawLeft": "left", "jawRight": "right", "mouthLeft": "left", "mouthRight": "right"}
 INTENSITY_RANGE = {0.6: (0.3, 0.6), 1.0: (0.6, 0.9), 1.4: (0.85, 1.0)}
@@ -151,7 +152,7 @@ def nod_track(n: int, count: int, peak: float, fps: float) -> np.ndarray:
     each one bob of ``peak`` down and back up (a raised cosine), so a viewer counts exactly ``count`` (issue 50
     item 4: captured nod segments bob two to six times)."""
     out = np.zeros(n, np.float32)
-    for t, k, _ in _repeats("nod", n, count, fps):
+    for t, k, _ in _repeats(NOD, n, count, fps):
         out[t : t + k] = peak * np.sin(np.linspace(0.0, np.pi, k)) ** 2
     return out
 

@@ -23,265 +23,19 @@ from __future__ import annotations
 import re
 from dataclasses import asdict, dataclass, field, replace
 
+from anima.core.events import BLINK, CONFLICTS, NEUTRAL, SCOPE, VOCABULARY
 from anima.errors import InputError
 
-EMOTIONS = ("happy", "sad", "angry", "disgusted", "fearful", "surprised", "contempt", "neutral")
+# the vocabulary (anima.core.events): event -> its phrases (regular expressions, word-boundary anchored,
+# matched on the lower-cased clause), in the vocabulary's order
+LEXICON: dict[str, list[str]] = {n: e.phrases for n, e in VOCABULARY.items() if e.parsed}
+EVENTS = tuple(n for n in LEXICON if n != "surprised" and VOCABULARY[n].unplaced is None)
+SIDED = {n for n, e in VOCABULARY.items() if e.sided}
+ONE_SIDED = {n: e.one_sided_words for n, e in VOCABULARY.items() if e.one_sided_words}
+UNPLACED = {n: e.unplaced for n, e in VOCABULARY.items() if e.unplaced}
+# one prototype sentence per event, for paraphrases the lexicon does not hold (sentence-encoder match)
+PROTOTYPES = {n: e.prototype for n, e in VOCABULARY.items() if e.prototype}
 
-# event -> regular expressions (word-boundary anchored, matched on the lower-cased clause)
-_SCOPE = r"(?:(?:only|just|solely|merely|simply)\s+)?"
-"""Words that restrict an event ("raises only her left eyebrow"): read with the words they govern, whose side
-the clause names."""
-_OBJ = _SCOPE + r"(?:(?:the|her|his|their|its|one|an?)\s+)?"
-_LOOKV = (
-    r"(?:looks?|looking|looked|glanc\w*|peeks?|peeking|peeked|peers?|peering|peered|peeps?|peeping|peeped|"
-    r"glimps\w*|stares?|staring|stared|eyes|eyeing|eyed|checks?|checking|checked)"
-)
-"""Verbs of looking: a short look to one side (:data:`_ASIDE`) is a turn of the head."""
-_ASIDE = (
-    r"(?:(?:to\s+(?:the\s+|one\s+|her\s+|his\s+|their\s+)?)?(?:left|right|away|aside|sideways|side)\b|"
-    r"(?:back\s+)?over\s+(?:(?:her|his|their|the|one)\s+)?(?:left\s+|right\s+)?shoulder)"
-)
-_LOOKN = r"(?:glance|look|peek|peep|glimpse|sideways\s+look|look\s+around)s?"
-"""Nouns of looking, after a verb that gives one ("casts a glance", "sneaks a peek", "takes a quick look")."""
-_DIR = r"(?:left|right|up|upwards?|down|downwards?)"
-LEXICON: dict[str, list[str]] = {
-    "blink": [r"blink\w*", r"bats?\s+" + _OBJ + r"(?:eye)?lash\w*", r"wink\w*", r"flutter\w*\s+" + _OBJ + r"eyes?"],
-    "smile": [r"smil\w*", r"grin\w*", r"beam\w*", r"smirk\w*"],
-    "frown": [
-        r"frown\w*",
-        r"scowl\w*",
-        r"furrow\w*(?:\s+" + _OBJ + r"brows?)?",
-        r"knit\w*\s+" + _OBJ + r"brows?",
-        r"lower\w*\s+" + _OBJ + r"(?:eye)?brows?",
-    ],
-    "squint": [r"squint\w*", r"narrow\w*\s+" + _OBJ + r"eyes?"],
-    "raise eyebrows": [
-        r"rais\w*\s+" + _OBJ + r"(?:left\s+|right\s+)?(?:eye)?brows?",
-        r"lift\w*\s+" + _OBJ + r"(?:left\s+|right\s+)?(?:eye)?brows?",
-        r"(?:eye)?brows?\s+(?:go(?:es)?\s+|shoot\s+|are\s+)?up",
-        r"arch\w*\s+" + _OBJ + r"(?:eye)?brows?",
-    ],
-    "surprise": [
-        r"surpris\w*",
-        r"astonish\w*",
-        r"amazed",
-        r"amazement",
-        r"shock\w*",
-        r"startl\w*",
-        r"gasp\w*",
-        r"stunned",
-    ],
-    "mouth open": [
-        r"opens?\s+" + _OBJ + r"mouth(?:\s+wide)?",
-        r"opening\s+" + _OBJ + r"mouth",
-        r"mouth\s+(?:is\s+|falls\s+|drops\s+|hangs\s+)?(?:wide\s+)?open",
-        r"drops?\s+" + _OBJ + r"jaw",
-        r"jaw\s+drops?",
-        r"gap\w*",
-    ],
-    "yawn": [r"yawn\w*"],
-    "talk": [
-        r"talk\w*",
-        r"speak\w*",
-        r"says?\b.*",
-        r"saying\b.*",
-        r"chat\w*",
-        r"convers\w*",
-        r"lectur\w*",
-        r"tells?\b.*",
-        r"explain\w*",
-        r"reads?\s+aloud",
-        r"mutter\w*",
-        r"murmur\w*",
-        r"mumbl\w*",
-        r"whisper\w*",
-        r"rambl\w*",
-    ],
-    "nod": [r"nod\w*", r"agrees?", r"bob\w*\s+" + _OBJ + r"head"],
-    "shake head": [
-        r"shak\w*\s+" + _OBJ + r"head",
-        r"head\s+shak\w*",
-        r"shakes?\s+no",
-        r"disagrees?",
-        r"shak(?:es|ing)\b",
-    ],
-    "turn": [
-        r"turn\w*\s+" + _OBJ + r"(?:head|face)",
-        r"cran\w*\s+" + _OBJ + r"neck",
-        r"turn\w*\s+(?:to\s+the\s+)?(?:left|right|away|aside|sideways)",
-        _LOOKV + r"\s+(?:\w+\s+)?" + _ASIDE,
-        r"(?:takes?|taking|took|casts?|casting|cast|steals?|stealing|stole|shoots?|shooting|shot|throws?|throwing|"
-        r"threw|sneaks?|sneaking|snuck|gives?|giving|gave|darts?|darting|darted)\s+(?:a\s+|an\s+)?(?:\w+\s+)?"
-        + _LOOKN
-        + r"(?:\s+(?:\w+\s+)?"
-        + _ASIDE
-        + r")?",
-        r"side(?:long|ways)?\s+(?:glance|look)s?",
-        r"(?:whip|swivel|jerk|snap|twist|swing|swung)\w*\s+" + _OBJ + r"head(?:\s+(?:a?round|" + _ASIDE + r"))?",
-    ],
-    # emotions (each synthesised by its action units, see compose.EMOTION_AUS)
-    "happy": [r"happ(?:y|ily|iness)", r"joy\w*", r"cheerful\w*", r"glad", r"delight\w*", r"pleased"],
-    "sad": [
-        r"sad\w*",
-        r"unhappy",
-        r"sorrow\w*",
-        r"gloom\w*",
-        r"upset",
-        r"depress\w*",
-        r"miserable",
-        r"grie\w*",
-        r"tearful",
-    ],
-    "angry": [
-        r"angr\w*",
-        r"anger",
-        r"mad",
-        r"furious\w*",
-        r"annoy\w*",
-        r"irritat\w*",
-        r"rage\w*",
-        r"enrag\w*",
-        r"cross",
-    ],
-    "disgusted": [r"disgust\w*", r"grossed\s+out", r"revolt\w*", r"repuls\w*", r"sick(?:ened)?"],
-    "fearful": [r"fear\w*", r"afraid", r"scar\w*", r"frighten\w*", r"terrif\w*", r"anxious\w*", r"nervous\w*"],
-    "surprised": [],  # "surprised" reads as the surprise event (the detectors' word)
-    "contempt": [r"contempt\w*", r"scorn\w*", r"disdain\w*", r"sneer\w*"],
-    "close eyes": [
-        r"clos\w*\s+" + _OBJ + r"eyes",
-        r"eyes\s+(?:are\s+|stay\s+|kept\s+)?(?:closed|shut)",
-        r"shut\w*\s+" + _OBJ + r"eyes",
-    ],
-    # keyframed events (anima.text2face.poses): no detector labels them, so they are made, not copied
-    "gaze": [
-        r"eyes?\s+(?:\w+\s+)?(?:dart\w*|shift\w*|mov\w*|flick\w*|drift\w*|go(?:es)?|turn\w*|slid\w*|wander\w*)\s+"
-        r"(?:to\s+(?:the\s+)?)?" + _DIR,
-        r"gaz\w*\s+(?:\w+\s+)?(?:to\s+(?:the\s+)?)?" + _DIR,
-        r"(?:shifts?|shifting|moves?|moving|drops?|dropping|lowers?|lowering|raises?|raising|averts?|averting)\s+"
-        + _OBJ
-        + r"(?:gaze|eyes)(?:\s+(?:to\s+(?:the\s+)?)?"
-        + _DIR
-        + r")?",
-        r"(?:looks?|looking|glanc\w*|peers?|peering|peeks?|peeking|stares?|staring)\s+(?:straight\s+)?(?:up|down)"
-        r"(?:wards?)?",
-        r"looks?\s+(?:to\s+(?:the\s+)?)?(?:left|right)\s+with\s+" + _OBJ + r"eyes",
-        r"looks?\s+(?:down\s+|up\s+)?at\s+(?:the\s+)?(?:floor|ground|sky|ceiling|(?:her|his|their)\s+(?:feet|hands|lap))",
-        r"side[- ]?eye\w*",
-    ],
-    "roll eyes": [r"roll\w*\s+" + _OBJ + r"eyes", r"eye[- ]?roll\w*"],
-    "puff cheeks": [
-        r"puff\w*\s+(?:up\s+|out\s+)?" + _OBJ + r"(?:left\s+|right\s+)?cheeks?(?:\s+out)?",
-        r"cheeks?\s+(?:are\s+)?puff\w*(?:\s+out)?",
-        r"blow\w*\s+(?:out\s+|up\s+)?" + _OBJ + r"cheeks(?:\s+out)?",
-        r"puff\w*\s+(?:up|out)",
-    ],
-    "pout": [r"pout\w*", r"sulk\w*", r"push\w*\s+(?:out\s+)?" + _OBJ + r"(?:lower\s+)?lip(?:\s+out)?"],
-    "pucker": [r"pucker\w*", r"purs\w*\s+" + _OBJ + r"lips", r"(?:blows?|blowing)\s+a\s+kiss", r"kiss\w*"],
-    "press lips": [
-        r"press\w*\s+" + _OBJ + r"lips(?:\s+together)?",
-        r"tighten\w*\s+" + _OBJ + r"(?:lips|mouth)",
-        r"lips\s+(?:are\s+)?(?:pressed|tight\w*|thin\w*)(?:\s+together)?",
-        r"compress\w*\s+" + _OBJ + r"lips",
-        r"(?:thin|tight)\s+lips",
-    ],
-    "roll lips": [
-        r"(?:rolls?|rolling|sucks?|sucking|tucks?|tucking|pulls?|pulling)\s+(?:in\s+)?" + _OBJ + r"lips(?:\s+in)?",
-        r"bit\w*\s+" + _OBJ + r"(?:lower\s+|upper\s+)?lip",
-    ],
-    "shrug": [r"shrug\w*"],
-    "grimace": [r"grimac\w*", r"stretch\w*\s+" + _OBJ + r"lips", r"cring\w*", r"clench\w*\s+" + _OBJ + r"teeth"],
-    "funnel": [r"funnel\w*", r"o[- ]shape\w*", r"whistl\w*", r"(?:mouths?|forms?|makes?)\s+an?\s+[\"']?oh?\b[\"']?"],
-    "bare teeth": [r"bar\w*\s+" + _OBJ + r"teeth", r"shows?\s+" + _OBJ + r"teeth", r"snarl\w*"],
-    "wrinkle nose": [
-        r"wrinkl\w*\s+" + _OBJ + r"nose",
-        r"nose\s+wrinkl\w*",
-        r"scrunch\w*\s+(?:up\s+)?" + _OBJ + r"(?:nose|face)(?:\s+up)?",
-    ],
-    "widen eyes": [
-        r"widen\w*\s+" + _OBJ + r"eyes",
-        r"eyes\s+(?:go\s+|are\s+|grow\s+)?wide",
-        r"wide[- ]eyed",
-        r"opens?\s+" + _OBJ + r"eyes\s+wide",
-    ],
-    "jaw forward": [
-        r"(?:juts?|jutting|thrusts?|pushes|pushing|sticks?)\s+(?:out\s+)?"
-        + _OBJ
-        + r"(?:jaw|chin)(?:\s+(?:forward|out))?"
-    ],
-    "jaw side": [
-        r"(?:moves?|shifts?|slides?|pushes)\s+" + _OBJ + r"jaw\s+(?:to\s+(?:the\s+)?)?(?:left|right|sideways)"
-    ],
-    "mouth side": [
-        r"(?:moves?|shifts?|pulls?|twists?|purses?)\s+"
-        + _OBJ
-        + r"mouth\s+(?:to\s+(?:the\s+|one\s+)?)?(?:left|right|side)",
-        r"twist\w*\s+" + _OBJ + r"mouth",
-    ],
-    "tongue": [
-        r"(?:sticks?\s+(?:out\s+)?" + _OBJ + r")?tongue\w*(?:\s+out)?"
-    ],  # reported: the face model has no tongue
-    "neutral": [
-        r"neutral(?:\s+face|\s+expression)?",
-        r"calm\w*",
-        r"expressionless",
-        r"blank\s+(?:face|expression|stare)",
-        r"straight\s+face",
-        r"(?:stays?|keeps?|remains?|sits?)\s+still",
-        r"relax\w*",
-        r"poker\s+face",
-    ],
-}
-EVENTS = tuple(k for k in LEXICON if k not in ("surprised", "tongue"))
-SIDED = {"blink", "raise eyebrows", "smile", "squint", "turn", "puff cheeks", "press lips", "bare teeth",
-         "wrinkle nose", "jaw side", "mouth side"}  # fmt: skip
-ONE_SIDED = {  # words that make an event one-sided when no side is named (the left, by convention)
-    "smile": r"\b(?:smirk\w*|half[- ]smil\w*|lopsided|crooked|one[- ]sided|half\s+of)\b",
-    "raise eyebrows": r"\b(?:one|an|a\s+single|single)\s+(?:eye)?brow\b",
-}
-UNPLACED = {"tongue": "tongue: the face model has no tongue (ICT-FaceKit's 53 expressions), not made"}
-# One prototype sentence per event, for paraphrases the lexicon does not hold (sentence-encoder match).
-PROTOTYPES = {
-    "blink": "a person blinks their eyes",
-    "smile": "a person smiles",
-    "frown": "a person frowns with lowered eyebrows",
-    "squint": "a person squints their eyes",
-    "raise eyebrows": "a person raises their eyebrows",
-    "surprise": "a person looks surprised",
-    "mouth open": "a person opens their mouth",
-    "yawn": "a person yawns",
-    "talk": "a person talks",
-    "nod": "a person nods their head",
-    "shake head": "a person shakes their head",
-    "turn": "a person turns their head to the side",
-    "happy": "a person looks happy",
-    "sad": "a person looks sad",
-    "angry": "a person looks angry",
-    "disgusted": "a person looks disgusted",
-    "fearful": "a person looks afraid",
-    "contempt": "a person looks at someone with contempt",
-    "close eyes": "a person closes their eyes",
-    "neutral": "a person keeps a neutral face",
-    "gaze": "a person looks up with their eyes",
-    "roll eyes": "a person rolls their eyes",
-    "puff cheeks": "a person puffs out their cheeks",
-    "pout": "a person pouts",
-    "press lips": "a person presses their lips together",
-    "grimace": "a person grimaces",
-    "wrinkle nose": "a person wrinkles their nose",
-    "widen eyes": "a person widens their eyes",
-}
-# events that cannot happen at the same moment: the second is moved to follow the first (with a note)
-CONFLICTS = [
-    {"close eyes", "blink"},
-    {"close eyes", "squint"},
-    {"close eyes", "surprise"},
-    {"yawn", "talk"},
-    {"nod", "shake head"},
-    {"smile", "sad"},
-    {"happy", "sad"},
-    {"happy", "angry"},
-    {"smile", "angry"},
-]
 PARAPHRASE_MIN = 0.55
 
 COUNTS = [
@@ -489,8 +243,8 @@ def parse(prompt: str, encoder=None) -> Plan:
         hits = _lexicon_matches(clause)
         # "surprised" the emotion and "surprise" the event are one thing; a neutral face while talking is talk
         names = [h[1] for h in hits]
-        if "neutral" in names and len(names) > 1:
-            hits = [h for h in hits if h[1] != "neutral"]
+        if NEUTRAL in names and len(names) > 1:
+            hits = [h for h in hits if h[1] != NEUTRAL]
         used = set()
         for pats in LEXICON.values():  # every vocabulary word is understood, repeated ones included
             for p in pats:
@@ -524,7 +278,7 @@ def parse(prompt: str, encoder=None) -> Plan:
         if words:
             plan.unknown.extend(words)
         only_side = re.fullmatch(
-            r"(?:and\s+|or\s+)?(?:to\s+)?(?:the\s+)?(?:" + _SCOPE + r")?(left|right)", clause.strip()
+            r"(?:and\s+|or\s+)?(?:to\s+)?(?:the\s+)?(?:" + SCOPE + r")?(left|right)", clause.strip()
         )
         if not hits and only_side and last[1] and all(e.attribute in SIDED for e in last[1]):
             # "glances left, then right": the clause's verb is the one before it, with this side
@@ -560,7 +314,7 @@ def parse(prompt: str, encoder=None) -> Plan:
                 plan.unplaced.append(clause[a:b])
                 continue
             sd = sides.get(k) if ev in SIDED else None
-            if ev == "blink" and "wink" in clause[a:b] and sd is None:
+            if ev == BLINK and "wink" in clause[a:b] and sd is None:
                 sd = "left"
             if ev in ONE_SIDED and sd is None and re.search(ONE_SIDED[ev], clause):
                 sd = "left"
@@ -572,9 +326,9 @@ def parse(prompt: str, encoder=None) -> Plan:
     for e in plan.events:
         by_clause.setdefault(e.clause, []).append(e)
     for c, evs in by_clause.items():
-        if len(evs) > 1 and any(e.attribute == "neutral" for e in evs):
-            plan.events = [e for e in plan.events if not (e.clause == c and e.attribute == "neutral")]
-            evs[:] = [e for e in evs if e.attribute != "neutral"]
+        if len(evs) > 1 and any(e.attribute == NEUTRAL for e in evs):
+            plan.events = [e for e in plan.events if not (e.clause == c and e.attribute == NEUTRAL)]
+            evs[:] = [e for e in evs if e.attribute != NEUTRAL]
         for i, e in enumerate(evs):
             if any({e.attribute, f.attribute} in CONFLICTS for f in evs[:i] if f.clause == c):
                 plan.notes.append(f"'{e.words}' cannot happen together with the events before it: it follows them")

@@ -28,7 +28,10 @@ def check_ship(dest: str | Path, inputs=()) -> Path:
     return dest
 
 
-def ship(checkpoint: str | Path, dest: str | Path, evaluate: Callable[[Path], dict]) -> list[Path]:
+def ship(
+    checkpoint: str | Path, dest: str | Path, evaluate: Callable[[Path], dict], chosen: dict | None = None
+) -> list[Path]:
+    """``chosen``: how its step count was chosen (recorded in the manifest as ``steps_chosen``)."""
     from anima.text2face.train import TrainConfig, load_checkpoint, save_checkpoint  # lazy: torch
 
     dest = check_ship(dest, inputs=[checkpoint])
@@ -69,6 +72,7 @@ def ship(checkpoint: str | Path, dest: str | Path, evaluate: Callable[[Path], di
         "params": sum(p.numel() for p in ck["model"].parameters()),
         "model_config": ck["model_config"],
         "heldout_metrics": metrics,
+        **({"steps_chosen": chosen} if chosen else {}),
     }
     man = write_json(dest.with_suffix(".json"), manifest)
     return [dest, man]

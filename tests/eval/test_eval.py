@@ -149,7 +149,14 @@ def test_eval_all_writes_one_results_file_with_provenance(gesture_ds, cli, tmp_p
     summary = (out / "summary.md").read_text()
     assert "ict_original" in summary and "| landmarks |" in summary
     assert set(json.loads((out / "manifest.json").read_text())["files"]) == {"results.json", "summary.md"}
-    assert res["complete"] is True
+    assert res["complete"] is True and res["resumed"] == []
+    # --resume: the finished row is kept when the commit is clean (CI's clone), run again otherwise
+    r = cli("eval", "all", "--db", gesture_ds, "--out", out, "--only", "landmarks", "--resume", "--json")
+    assert r.returncode == 0, r.stderr[-1000:]
+    again = json.loads((out / "results.json").read_text())
+    clean = p["commit"] is not None and not p["commit"].endswith("-dirty")
+    assert again["resumed"] == (["landmarks"] if clean else [])
+    assert (again["rows"]["landmarks"] == res["rows"]["landmarks"]) == clean
 
 
 def test_eval_all_saves_each_row_as_it_ends(gesture_ds, tmp_path):
@@ -163,6 +170,28 @@ def test_eval_all_saves_each_row_as_it_ends(gesture_ds, tmp_path):
     seen = []
     out = run_rows(rows, on_row=lambda done: seen.append(dict(done)))
     assert seen == [out] and out["landmarks"]["status"] == "ok"
+
+
+def test_a_resumed_run_keeps_only_rows_of_the_same_clean_commit_and_data(tmp_path):
+    """`eval all --resume` keeps a stopped run's finished rows only when the code (a clean commit), the shared
+    data, the dataset and --quick are the ones of the new run; a failed row, or anything else, runs again."""
+    import json
+
+    from anima.eval.all import finished_rows
+
+    prov = {"commit": "a" * 40, "data": {"sha256": "d"}, "dataset": {"manifest_sha256": "m"}}
+    ok = {"command": "anima eval landmarks --json", "status": "ok", "wall_s": 3.0, "result": {"x": 1}}
+    rows = {"landmarks": ok, "pose": {**ok, "status": "failed: KeyError"}}
+    (tmp_path / "results.json").write_text(json.dumps({"provenance": prov, "quick": False, "rows": rows, "wall_s": 9}))
+    assert finished_rows(tmp_path, prov, False) == ({"landmarks": ok}, 9.0)
+    assert finished_rows(tmp_path, prov, True) == ({}, 0.0)
+    for change in ({"commit": "b" * 40}, {"data": {"sha256": "e"}}, {"dataset": {"manifest_sha256": "n"}}):
+        assert finished_rows(tmp_path, {**prov, **change}, False) == ({}, 0.0)
+    dirty = {**prov, "commit": "a" * 40 + "-dirty"}
+    (tmp_path / "results.json").write_text(json.dumps({"provenance": dirty, "quick": False, "rows": rows}))
+    assert finished_rows(tmp_path, dirty, False) == ({}, 0.0)  # uncommitted code: nothing is known to be the same
+    (tmp_path / "results.json").write_text("{not json")
+    assert finished_rows(tmp_path, prov, False) == ({}, 0.0)
 
 
 def test_eval_all_trains_the_pose_ablation_in_its_work_folder(tmp_path):

@@ -162,7 +162,11 @@ def test_shipped_checkpoint_is_small_and_carries_its_manifest(shipped):
     p = shipped.path
     assert p.stat().st_size < 8e6
     man = json.loads(p.with_suffix(".json").read_text())
-    assert man["command"].startswith("anima train text2face") and len(man["data_fingerprint"]) == 16
+    assert man["command"].startswith("python tools/ship_text2face.py") and len(man["data_fingerprint"]) == 16
+    # issue 52: trained at the step count the validation windows chose (recorded with their MAE per count)
+    chosen = man["steps_chosen"]
+    val = {int(k): v for k, v in chosen["validation_mae_mm"].items()}
+    assert man["steps"] == chosen["value"] == min(val, key=val.get) and "validation" in chosen["chosen_on"]
     assert man["heldout_metrics"]["mae_mm"]["mean"] > 0 and man["train_wall_s"] < 1800
     import hashlib
 
