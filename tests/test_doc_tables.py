@@ -60,5 +60,91 @@ def test_a_range_in_the_prose_is_reduced_from_every_row_of_a_result(tmp_path):
     f.write_text('{"rows": [{"v": {"n": 0.0374}}, {"v": {"n": 0.0385}}, {"v": {"n": 0.0380}}], "a": {"x": 1}}')
     assert tool.lookup({"a": {"x": 1, "y": 2}}, "/a/*") == [1, 2]
     assert tool.lookup({"a": {"x": {"l": [1, 2]}, "y": {"l": [3]}}}, "/a/*/l/*") == [1, 2, 3]
-    got = [tool.value(f, "/rows/*/v/n", fmt) for fmt in ("min.2%", "max.2%", "median.4f", "len")]
-    assert got == ["3.74%", "3.85%", "0.0380", "3"]
+    got = [tool.value(f, "/rows/*/v/n", fmt) for fmt in ("min.2%", "max.2%", "median.4f", "mean.4f", "len")]
+    assert got == ["3.74%", "3.85%", "0.0380", "0.0380", "3"]
+
+
+def test_no_result_is_typed_in_the_docs():
+    """Issue 52: outside generated blocks and values every number that reads as a result is listed as a setting,
+    a criterion or a quotation (``TYPED_OK``, each with why); none is typed."""
+    tool = _tool()
+    assert [t for d in tool.documents() for t in tool.typed_results(d)] == []
+    assert all(why for why in tool.TYPED_OK.values())
+
+
+def test_a_typed_result_is_caught_and_a_bound_is_not(tmp_path):
+    tool = _tool()
+    doc = tmp_path / "x.md"
+    for typed in (
+        "the mouth reads r 0.84 on it",
+        "MAE 3.37 mm on test",
+        "1.7x less encode time",
+        "9 ms a frame",
+        "recall 100 % on d3",
+        "the ratio was 1.46 beside it",
+    ):
+        doc.write_text(f"Intro.\n\n{typed}.\n")
+        assert len(tool.typed_results(doc)) == 1, typed
+    for fine in (
+        "targets r >= 0.8 for the mouth",
+        "fit NME > 5 % is flagged",
+        "F1 at 1.0 (sigma)",
+        "MAE <!--v r.json /a .2f-->3.37<!--/v--> mm",
+        "the command `x --ratio 1.5`",
+        "n 100 frames",
+    ):
+        doc.write_text(f"{fine}.\n")
+        assert tool.typed_results(doc) == [], fine
+
+
+EVAL_ALL = "benchmarks/results/eval_all/results.json"
+
+
+def test_the_docs_render_every_evaluation_number_from_the_one_run():
+    """Issue 52: `anima eval all`'s results.json is the one evaluation result the docs render from: every block and
+    inline number that names a file under benchmarks/results/eval_all/ names that one file, the folder holds only
+    it and its summary, and the run is complete, every registered row ok, on a clean commit."""
+    import json
+
+    from anima.eval.registry import Context, rows
+
+    tool = _tool()
+    named = set()
+    for d in tool.documents():
+        text = d.read_text()
+        named |= {m.group(3) for m in tool.BLOCK.finditer(text)} | {m.group(2) for m in tool.VALUE.finditer(text)}
+    assert {n for n in named if "eval_all" in n} == {EVAL_ALL}
+    folder = ROOT / "benchmarks" / "results" / "eval_all"
+    assert sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file()) == [
+        "results.json",
+        "summary.md",
+    ]
+    res = json.loads((ROOT / EVAL_ALL).read_text())
+    registered = [name for _, name, _ in rows(Context("ds", Path("evals"), Path("work"), False))]
+    assert res["complete"] is True and res["quick"] is False and res["failed"] == []
+    assert list(res["rows"]) == registered and all(e["status"] == "ok" for e in res["rows"].values())
+    commit = res["provenance"]["commit"]
+    assert commit and not commit.endswith("-dirty")
+
+
+def test_the_one_run_stands_on_the_code_of_this_checkout():
+    """anima/ unchanged since the run's commit: its numbers are this code's (issue 52)."""
+    import json
+    import subprocess
+
+    import pytest
+
+    commit = json.loads((ROOT / EVAL_ALL).read_text())["provenance"]["commit"]
+    known = subprocess.run(["git", "-C", str(ROOT), "cat-file", "-e", f"{commit}^{{commit}}"], capture_output=True)
+    if known.returncode != 0:
+        pytest.skip(f"the run's commit {commit[:12]} is not in this clone's history (a shallow clone)")
+    diff = subprocess.run(
+        ["git", "-C", str(ROOT), "diff", "--stat", commit, "--", "anima"], capture_output=True, text=True, check=True
+    )
+    assert diff.stdout == "", f"anima/ changed since the run behind the docs ({commit[:12]}):\n{diff.stdout}"
+
+
+def test_the_one_run_rule_catches_a_block_pointing_elsewhere():
+    tool = _tool()
+    text = "<!-- results: pose benchmarks/results/eval_all/rerun_pose/results.json -->\nx\n<!-- /results -->\n"
+    assert [m.group(3) for m in tool.BLOCK.finditer(text)] == ["benchmarks/results/eval_all/rerun_pose/results.json"]

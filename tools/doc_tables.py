@@ -20,10 +20,17 @@ A number in the prose is generated the same way, inline::
 where ``POINTER`` is a JSON pointer into ``FILE`` (``/rows/annotations/result/capture_emotions/neutral_mouth_smile``;
 ``%20`` for a space in a key) and ``FORMAT`` a Python format spec (``.3f``, ``.0%``, ``,d``; default ``g``)
 or ``len`` (how many items a list holds); ``*`` in the pointer takes every item of a list, and ``min``,
-``max`` or ``median`` before the spec (``min.2%``) reduce them to one number.
+``max``, ``median`` or ``mean`` before the spec (``min.2%``) reduce them to one number.
+
+A result is never typed (issue 52): :func:`typed_results` finds a number in the prose (outside blocks, inline
+values and code) that reads as a measurement (after a metric word such as r, F1, MAE, SSIM, recall, mean or
+took; "1.7x faster"; "9 ms a frame"), unless a comparison or bound precedes it (a target or a threshold);
+``TYPED_OK`` lists the few left that are settings, criteria or numbers quoted from a seed or an issue, each
+with why. ``--check`` fails on any other.
 
     .venv/bin/python tools/doc_tables.py           # rewrite every block
-    .venv/bin/python tools/doc_tables.py --check   # exit 1 when a block differs from its JSON (a test runs it)
+    .venv/bin/python tools/doc_tables.py --check   # exit 1 when a block differs from its JSON or a result is
+                                                   # typed (a test runs it)
 """
 
 from __future__ import annotations
@@ -43,6 +50,41 @@ from anima.io.atomic import write_text  # noqa: E402
 
 BLOCK = re.compile(r"(<!-- results: (\S+) (\S+) -->\n)(.*?)(<!-- /results -->)", re.S)
 VALUE = re.compile(r"(<!--v (\S+) (\S+?)(?: (\S+?))?-->)(.*?)(<!--/v-->)")
+
+_NUM = r"\d+\.\d+(?:\s?%|x\b)?|\d+(?:\s?%|x\b| ?ms\b| ?mm\b| ?fps\b)"
+TYPED = re.compile(
+    r"\b(?:r|F1|MAE|RMSE|SSIM|LPIPS|NME|MPJPE|PCK|AUC|recall|precision|accuracy|scored?|reads?|measured|took|"
+    r"takes|costs?|median|mean|ratio|found in|sliding|error)\b([^.;:()]{0,12}?)(?<![\w.])(" + _NUM + ")"
+    r"|()(?<![\w.])(\d+(?:\.\d+)?x) (?:less|more|slower|faster)"
+    r"|()(?<![\w.])(\d+(?:\.\d+)? ?ms) a frame"
+)
+BOUND = re.compile(r"(?:[<>=]|\bwithin|\bbelow|\bunder|\bover|\bat least|\bat most|\bat|\bby construction)\s*$")
+# (document, number, words on its line) -> why it is typed: settings, criteria and quoted numbers, not results
+TYPED_OK = {
+    ("dataset.md", "1.0", "precision and recall are both"): "the selection rule (both are 1)",
+    ("gesture.md", "0.61", "The reference the issue gives"): "quoted from the issue (its reference clip)",
+    ("pose3d.md", "150 mm", "PCK@150 mm"): "the metric's name (PCK at 150 mm)",
+    ("rig.md", "0.8", "eye aspect ratio from open 0.8"): "a setting: the lid opening's open level",
+    ("rig.md", "0.2", "clip median to shut 0.2"): "a setting: the lid opening's shut level",
+    ("rig.md", "1.77", "gets the mean adult"): "a setting: the default character's height",
+    ("text2face.md", "95 %", "95 % confidence interval"): "the interval's level",
+}
+
+
+def typed_results(doc: Path) -> list[str]:
+    """Numbers in ``doc``'s prose that read as typed results and are not listed in ``TYPED_OK``."""
+    text = BLOCK.sub(lambda m: m.group(1) + "\n" * m.group(4).count("\n") + m.group(5), doc.read_text())
+    text = VALUE.sub("<v>", text)
+    text = re.sub(r"```.*?```", lambda m: "\n" * m.group(0).count("\n"), text, flags=re.S)
+    text = re.sub(r"`[^`\n]*`", "<c>", text)
+    found = []
+    for i, line in enumerate(text.splitlines(), 1):
+        for m in TYPED.finditer(line):
+            gap, num = next((m.group(k), m.group(k + 1)) for k in (1, 3, 5) if m.group(k + 1))
+            if BOUND.search(gap or "") or any(d == doc.name and n == num and words in line for d, n, words in TYPED_OK):
+                continue
+            found.append(f"{doc.name}:{i}: typed result {num!r} in: {line.strip()[:100]}")
+    return found
 
 
 def documents(root: Path = ROOT) -> list[Path]:
@@ -98,12 +140,12 @@ def _walk(node, keys: list[str]):
     return node
 
 
-REDUCE = {"min": min, "max": max, "median": statistics.median_high}
+REDUCE = {"min": min, "max": max, "median": statistics.median_high, "mean": statistics.fmean}
 
 
 def value(path: Path, pointer: str, fmt: str | None) -> str:
     """The number (or text) at JSON ``pointer`` of ``path``, formatted; ``len`` counts a list's items, and
-    ``min``/``max``/``median`` followed by a format spec (``min.2%``) reduce a list (a ``*`` pointer) first."""
+    ``min``/``max``/``median``/``mean`` followed by a format spec (``min.2%``) reduce a list (a ``*`` pointer) first."""
     node = lookup(json.loads(path.read_text()), pointer)
     if fmt == "len":  # how many items a list (or keys a record) holds
         return str(len(node))
@@ -168,7 +210,10 @@ def main(argv=None) -> int:
             write_text(doc, text)
     for s in stale:
         print(("stale: " if args.check else "rewrote: ") + s)
-    return 1 if stale and args.check else 0
+    typed = [t for doc in documents() for t in typed_results(doc)]
+    for t in typed:
+        print(t)
+    return 1 if (stale and args.check) or typed else 0
 
 
 if __name__ == "__main__":
