@@ -127,8 +127,58 @@ def test_the_docs_render_every_evaluation_number_from_the_one_run():
     assert commit and not commit.endswith("-dirty")
 
 
+# What the one run's commands could execute: `anima dataset build` and `anima eval ...` (the CLI loads only the
+# named command's module), every module the registry names, and everything those import, at any depth.
+RUN_ENTRIES = ("anima.cli.main", "anima.cli.dataset", "anima.cli.evaluate", "anima.eval.all", "anima.eval.registry")
+RUN_FILES = ("pyproject.toml", "requirements.txt", "requirements-nodeps.txt")  # the installed libraries
+
+
+def run_reach(root: Path) -> tuple[set[str], set[str]]:
+    """``(module files, data files)`` under ``root/anima`` that the one run's commands can reach: the closure of
+    :data:`RUN_ENTRIES` over every ``anima`` import (module top or inside a function) and every string naming an
+    ``anima.`` module; a data file is reached when a reached module's source names it (its file name, or a folder
+    of it below its package other than a generic ``data``). Static and conservative: a module that might run
+    counts."""
+    import ast
+    import re
+
+    from anima.architecture import imports, modules, resolve
+
+    known = modules(root / "anima")
+    named = re.compile(r"^anima(\.[A-Za-z_][A-Za-z0-9_]*)+")
+    seen: set[str] = set()
+    todo = list(RUN_ENTRIES)
+    while todo:
+        m = todo.pop()
+        if m in seen or m not in known:
+            continue
+        seen.add(m)
+        parts = m.split(".")
+        todo += [".".join(parts[:i]) for i in range(2, len(parts))]  # parent packages run their __init__
+        todo += [resolve(t, n, known) for t, _, _, n in imports(known[m])]
+        for node in ast.walk(ast.parse(known[m].read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and named.match(node.value):
+                name = named.match(node.value).group(0)
+                while name not in known and "." in name:
+                    name = name.rsplit(".", 1)[0]
+                todo.append(name)
+    files = {str(known[m].relative_to(root)) for m in seen}
+    text = "\n".join(known[m].read_text(encoding="utf-8") for m in seen)
+    data = set()
+    for f in (root / "anima").rglob("*"):
+        if not f.is_file() or f.suffix in (".py", ".pyc"):
+            continue
+        rel = f.relative_to(root)
+        folders = [d for d in rel.parts[2:-1] if d != "data"]
+        if f.name in text or any(f'"{d}"' in text or f"/{d}/" in text or f"'{d}'" in text for d in folders):
+            data.add(str(rel))
+    return files, data
+
+
 def test_the_one_run_stands_on_the_code_of_this_checkout():
-    """anima/ unchanged since the run's commit: its numbers are this code's (issue 52)."""
+    """No file the one run could execute or read changed since its commit (issue 52): its numbers are this
+    code's. Changes elsewhere in anima/ (the live package, the viewer, the character's look, exports) leave
+    them standing; a changed dependency pin does not."""
     import json
     import subprocess
 
@@ -139,9 +189,37 @@ def test_the_one_run_stands_on_the_code_of_this_checkout():
     if known.returncode != 0:
         pytest.skip(f"the run's commit {commit[:12]} is not in this clone's history (a shallow clone)")
     diff = subprocess.run(
-        ["git", "-C", str(ROOT), "diff", "--stat", commit, "--", "anima"], capture_output=True, text=True, check=True
+        ["git", "-C", str(ROOT), "diff", "--name-only", commit, "--", "anima", *RUN_FILES],
+        capture_output=True,
+        text=True,
+        check=True,
     )
-    assert diff.stdout == "", f"anima/ changed since the run behind the docs ({commit[:12]}):\n{diff.stdout}"
+    changed = {line for line in diff.stdout.splitlines() if "__pycache__" not in line}
+    files, data = run_reach(ROOT)
+    gone = {c for c in changed if c.endswith(".py") and not (ROOT / c).exists()}  # moved or removed: reached before?
+    reached = sorted(changed & (files | data | set(RUN_FILES)) | gone)
+    assert reached == [], f"changed since the run behind the docs ({commit[:12]}), and the run reaches them: {reached}"
+
+
+def test_the_run_reach_follows_imports_strings_and_data(tmp_path):
+    """The reach rule on a made-up package: a function-level import, a module named in a string and a data file
+    named by a reached module are reached; a module nothing reaches, and its data, are not."""
+    pkg = tmp_path / "anima"
+    for d in ("cli", "eval", "live", "eval/prompts", "live/data"):
+        (pkg / d).mkdir(parents=True, exist_ok=True)
+        (pkg / d / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "cli" / "main.py").write_text("def f():\n    from anima.eval import all\n")
+    (pkg / "eval" / "all.py").write_text('MODULE = "anima.eval.rows"\n')
+    (pkg / "eval" / "rows.py").write_text('SUITE = "prompts/suite.json"\n')
+    (pkg / "eval" / "prompts" / "suite.json").write_text("{}")
+    (pkg / "eval" / "prompts" / "__init__.py").unlink()
+    (pkg / "live" / "run.py").write_text('ASSET = "look.npz"\n')
+    (pkg / "live" / "data" / "look.npz").write_text("")
+    files, data = run_reach(tmp_path)
+    assert {"anima/eval/rows.py", "anima/eval/all.py", "anima/cli/main.py"} <= files
+    assert "anima/live/run.py" not in files and "anima/live/__init__.py" not in files
+    assert data == {"anima/eval/prompts/suite.json"}
 
 
 def test_the_one_run_rule_catches_a_block_pointing_elsewhere():
