@@ -246,13 +246,14 @@ def render_avatar_preview(
     m = character_motion(seq)
     weights = character_face(seq)
 
+    D = ch.morph_dense().reshape(len(EXPR_NAMES), -1)  # [53, V * 3]: a chunk's expressions in one product
+
     def posed(f0: int, f1: int) -> np.ndarray:
         """Vertices ``[n, V, 3]`` of frames ``f0:f1``: the expressions on the rest mesh, then skinned."""
-        out = []
-        for f in range(f0, f1):
-            V = ch.expressed(m["vertices"], weights[f])
-            out.append(skin(V, m["rest"], m["global"][f], m["positions"][f], ch))
-        return np.stack(out) if out else np.zeros((0, len(ch.vertices), 3))
+        if f1 <= f0:
+            return np.zeros((0, len(ch.vertices), 3))
+        V = m["vertices"] + (weights[f0:f1].astype(np.float32) @ D).reshape(f1 - f0, -1, 3)
+        return skin(V, m["rest"], m["global"][f0:f1], m["positions"][f0:f1], ch)
 
     render_character_video(path, seq.fps, m["positions"], rig.HEAD, posed, ch.faces, audio=audio, progress=progress,
                            face=face_camera(m, ch), colors=vertex_colors())  # fmt: skip

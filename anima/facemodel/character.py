@@ -19,6 +19,7 @@ import json
 from dataclasses import dataclass, field
 from functools import lru_cache
 
+import numba as nb
 import numpy as np
 
 from anima.core.contract import EXPR_NAMES, JOINT_NAMES, RIG_JOINTS
@@ -116,16 +117,38 @@ def load_character() -> Character:
     )
 
 
+@nb.njit(cache=True, nogil=True)
+def _lbs(V, rest, G, P, idx, w, out):  # pragma: no cover - numba
+    """``out[n, v] = sum_k w[v, k] (G[n, b] (V[n or 0, v] - rest[b]) + P[n, b])``, ``b = idx[v, k]``."""
+    for n in range(G.shape[0]):
+        m = n if V.shape[0] > 1 else 0
+        for v in range(V.shape[1]):
+            x = y = z = 0.0
+            for k in range(idx.shape[1]):
+                wk = w[v, k]
+                if wk == 0.0:
+                    continue
+                b = idx[v, k]
+                lx, ly, lz = V[m, v, 0] - rest[b, 0], V[m, v, 1] - rest[b, 1], V[m, v, 2] - rest[b, 2]
+                x += wk * (G[n, b, 0, 0] * lx + G[n, b, 0, 1] * ly + G[n, b, 0, 2] * lz + P[n, b, 0])
+                y += wk * (G[n, b, 1, 0] * lx + G[n, b, 1, 1] * ly + G[n, b, 1, 2] * lz + P[n, b, 1])
+                z += wk * (G[n, b, 2, 0] * lx + G[n, b, 2, 1] * ly + G[n, b, 2, 2] * lz + P[n, b, 2])
+            out[n, v, 0], out[n, v, 1], out[n, v, 2] = x, y, z
+
+
 def skin(V: np.ndarray, rest_joints: np.ndarray, G: np.ndarray, P: np.ndarray, ch: Character) -> np.ndarray:
-    """Linear blend skinning: rest vertices ``V [V, 3]`` (joints ``rest_joints [J, 3]``) posed by global joint
-    rotations ``G [..., J, 3, 3]`` about the rest joints, moved to the posed joints ``P [..., J, 3]``."""
-    idx, w = ch.skin_joints, ch.skin_weights
-    out = np.zeros(G.shape[:-3] + V.shape, np.float64)
-    for k in range(idx.shape[1]):
-        b = idx[:, k]
-        local = V - rest_joints[b]  # [V, 3]
-        out += w[:, k, None] * (np.einsum("...vij,vj->...vi", G[..., b, :, :], local) + P[..., b, :])
-    return out
+    """Linear blend skinning: rest vertices ``V [V, 3]`` (or one set per pose, ``[..., V, 3]``; joints
+    ``rest_joints [J, 3]``) posed by global joint rotations ``G [..., J, 3, 3]`` about the rest joints, moved to
+    the posed joints ``P [..., J, 3]``."""
+    lead = G.shape[:-3]
+    Gf = np.ascontiguousarray(np.asarray(G, np.float64).reshape(-1, *G.shape[-3:]))
+    Pf = np.ascontiguousarray(np.asarray(P, np.float64).reshape(-1, *P.shape[-2:]))
+    Vf = np.ascontiguousarray(np.asarray(V, np.float64).reshape(-1, *V.shape[-2:]))
+    if len(Vf) not in (1, len(Gf)):
+        raise ValueError(f"{len(Vf)} vertex sets for {len(Gf)} poses")
+    out = np.empty((len(Gf), Vf.shape[1], 3), np.float64)
+    _lbs(Vf, np.ascontiguousarray(rest_joints, np.float64), Gf, Pf, ch.skin_joints, ch.skin_weights, out)
+    return out.reshape(lead + out.shape[1:])
 
 
 # ---- the person's proportions ---------------------------------------------------------------------------

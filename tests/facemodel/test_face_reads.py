@@ -202,3 +202,33 @@ def test_the_close_up_reads_back_as_the_video():
         ok = np.isfinite(video[k]) & np.isfinite(char[k])
         r = np.corrcoef(video[k][ok], char[k][ok])[0, 1]
         assert r >= r_min, (k, r)
+
+
+def test_skinning_is_linear_blend_skinning():
+    """:func:`anima.facemodel.character.skin` (a numba kernel) against the formula written out in numpy, for one
+    pose, a batch of poses, and one vertex set per pose."""
+    from anima.core.rotations import rotvec_to_matrix
+    from anima.facemodel.character import skin
+
+    ch = load_character()
+    rng = np.random.default_rng(0)
+    G = rotvec_to_matrix(rng.normal(0, 0.5, (3, len(ch.joints), 3)))
+    P = ch.joints + rng.normal(0, 0.05, (3, len(ch.joints), 3))
+    Vs = ch.vertices + rng.normal(0, 0.01, (3, *ch.vertices.shape))
+
+    def reference(V, G, P):
+        out = 0.0
+        for k in range(ch.skin_joints.shape[1]):
+            b = ch.skin_joints[:, k]
+            local = V - ch.joints[b]
+            out = out + ch.skin_weights[:, k, None] * (np.einsum("vij,vj->vi", G[b], local) + P[b])
+        return out
+
+    assert np.allclose(skin(ch.vertices, ch.joints, G[0], P[0], ch), reference(ch.vertices, G[0], P[0]), atol=1e-12)
+    batch = skin(ch.vertices, ch.joints, G, P, ch)
+    assert batch.shape == (3, len(ch.vertices), 3)
+    assert np.allclose(batch[2], reference(ch.vertices, G[2], P[2]), atol=1e-12)
+    per_pose = skin(Vs, ch.joints, G, P, ch)
+    assert np.allclose(per_pose[1], reference(Vs[1], G[1], P[1]), atol=1e-12)
+    rest = skin(ch.vertices, ch.joints, np.tile(np.eye(3), (len(ch.joints), 1, 1)), ch.joints, ch)
+    assert np.allclose(rest, ch.vertices, atol=1e-12)  # the rest pose leaves the mesh where it is
