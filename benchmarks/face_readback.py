@@ -40,7 +40,7 @@ from anima.facemodel.ict import load_face_model
 from anima.io.assets import asset
 from anima.io.atomic import write_json
 from anima.io.video import iter_frames, probe_video
-from anima.render.avatar import _view
+from anima.render.avatar import head_view
 from anima.render.face import SKIN
 from anima.render.raster import draw_shaded
 
@@ -98,13 +98,13 @@ def render_character(seq, transfer: bool = True) -> list[np.ndarray]:
     else:
         idx = [seq.expr_names.index(n) for n in EXPR_NAMES]
         W = np.where(seq.tracked[:, None], seq.expression[:, idx], 0.0)
-    centre, yaw, tris = face_camera(m, ch)
+    centre, rot, tris = face_camera(m, ch)
     col = vertex_colors()
     frames = []
     for f in range(seq.n_frames):
         V = skin(ch.expressed(m["vertices"], W[f]), m["rest"], m["global"][f], m["positions"][f], ch)
         img = np.full((SIZE, SIZE, 3), 28, np.uint8)
-        draw_shaded(img, _view(V, SIZE, yaw[f], centre[f], SIZE / 0.30), tris, col, back_faces=False)
+        draw_shaded(img, head_view(V, SIZE, rot[f], centre[f], SIZE / 0.30), tris, col, back_faces=False)
         frames.append(img)
     return frames
 

@@ -1,5 +1,5 @@
 """The avatar preview: the skinned character (:func:`render_character_video`), front and 3/4 views side by side,
-and the face close up beside them (a camera that follows the head and looks it in the face)."""
+and the face close up beside them (a camera mounted on the head, looking it in the face)."""
 
 from __future__ import annotations
 
@@ -24,6 +24,13 @@ def _view(
     c, s = np.cos(yaw), np.sin(yaw)
     R = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
     return (np.asarray(X) - centre) @ R.T * scale + np.array([size / 2 - corner[0], corner[1] - size / 2, 0.0])
+
+
+def head_view(X: np.ndarray, size: int, head: np.ndarray, centre: np.ndarray, scale: float) -> np.ndarray:
+    """Metre-space points ``[..., 3]`` seen by a camera mounted in front of a head whose rotation is ``head
+    [3, 3]`` (columns: its axes in the world; its +z the way the face looks) -> pixels as :func:`_view` gives
+    them, ``centre`` at the middle of the ``size`` square."""
+    return (np.asarray(X) - centre) @ np.asarray(head) * scale + np.array([size / 2, -size / 2, 0.0])
 
 
 FACE_M = 0.30
@@ -79,9 +86,10 @@ def render_character_video(
     """The skinned character, front and 3/4 views side by side: ``posed(f0, f1)`` gives the posed vertices
     ``[n, V, 3]`` (metres) of frames ``f0:f1`` and ``positions [F, J, 3]`` its joints (the framing: each view
     cropped to where the figure moves during the clip, :func:`framing`). ``size`` pixels for 2.1 m; the speech
-    ``audio`` muxed in. ``face``: ``(centre [F, 3], yaw [F], tris)``: a close-up of :data:`FACE_M` across,
-    the square of the views' height, centred on ``centre`` and turned by ``yaw`` to face the camera, drawing
-    ``tris`` (the head's triangles) only. ``colors [V, 3]``: the vertices' colours (default: one skin)."""
+    ``audio`` muxed in. ``face``: ``(centre [F, 3], head [F, 3, 3], tris)``: a close-up of :data:`FACE_M`
+    across, the square of the views' height, centred on ``centre`` and seen from in front of the head (its
+    rotation ``head``, :func:`head_view`), drawing ``tris`` (the head's triangles) only. ``colors [V, 3]``: the
+    vertices' colours (default: one skin)."""
     paint = SKIN if colors is None else np.ascontiguousarray(colors, np.float32)
     centre = np.nanmedian(positions[:, 0], axis=0) + np.array([0.0, 0.05, 0.0])
     scale = size / 2.1
@@ -95,7 +103,7 @@ def render_character_video(
     frame_size = even_size((blank.shape[1], height))
     F = len(positions)
     if face is not None:
-        fc, fyaw, ftris = face
+        fc, frot, ftris = face
         head_v = np.unique(ftris)
         head_tris = np.ascontiguousarray(np.searchsorted(head_v, ftris), np.int64)
         head_paint = paint if paint.ndim == 1 else np.ascontiguousarray(paint[head_v])
@@ -113,7 +121,7 @@ def render_character_video(
             X = _view(V, size, yaw, centre, scale, (x0, y0))
             draw_shaded(canvas[:, x_at[k] : x_at[k + 1]], X, tris, paint, back_faces=False)
         if face is not None:  # the head's own vertices only
-            X = _view(V[head_v], height, fyaw[f], fc[f], height / FACE_M)
+            X = head_view(V[head_v], height, frot[f], fc[f], height / FACE_M)
             draw_shaded(canvas[:, x_at[-2] : x_at[-1]], X, head_tris, head_paint, back_faces=False)
         put_label(canvas, f"{f / fps:5.2f} s", inplace=True)
         return to_i420(canvas, frame_size)

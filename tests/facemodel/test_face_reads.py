@@ -232,3 +232,31 @@ def test_skinning_is_linear_blend_skinning():
     assert np.allclose(per_pose[1], reference(Vs[1], G[1], P[1]), atol=1e-12)
     rest = skin(ch.vertices, ch.joints, np.tile(np.eye(3), (len(ch.joints), 1, 1)), ch.joints, ch)
     assert np.allclose(rest, ch.vertices, atol=1e-12)  # the rest pose leaves the mesh where it is
+
+
+def test_the_close_up_is_mounted_on_the_head(d0_capture):
+    """The close-up's camera rides on the head like a face-capture rig's helmet camera (issue 48): on d0, where
+    the head turns and tilts, the face's still points (the nose's tip, the eyes' corners, the forehead) stay
+    within half a pixel of their place in a 384-pixel close-up on every frame, so only the expression moves;
+    a camera that followed only the head's yaw let them wander (the brows read against the lids moved)."""
+    from anima.core import rig
+    from anima.export.avatar import character_motion, face_camera
+    from anima.facemodel.character import skin
+    from anima.render.avatar import _view, head_view
+
+    ch = load_character()
+    m = character_motion(d0_capture)
+    centre, head, _ = face_camera(m, ch)
+    G = m["global"][:, rig.HEAD]
+    turned = np.degrees(np.arccos(np.clip((np.einsum("fij,ij->f", G, G[0]) - 1) / 2, -1, 1)))
+    assert turned.max() > 1.5, turned.max()  # the head does turn (2 degrees)
+    V = skin(ch.vertices, m["rest"], m["global"], m["positions"], ch)  # no expression: only the pose moves them
+    main = ch.skin_joints[np.arange(len(ch.vertices)), np.argmax(ch.skin_weights, 1)]
+    still = np.flatnonzero((main == rig.HEAD) & (ch.skin_weights.max(1) > 0.999))
+    assert len(still) > 100
+    px = np.stack([head_view(V[f, still], 384, head[f], centre[f], 384 / 0.30)[:, :2] for f in range(len(V))])
+    assert np.abs(px - px[0]).max() < 0.5, np.abs(px - px[0]).max()
+    fwd = np.einsum("fij,j->fi", G, [0.0, 0.0, 1.0])
+    yaw = -np.arctan2(fwd[:, 0], fwd[:, 2])
+    by_yaw = np.stack([_view(V[f, still], 384, yaw[f], centre[f], 384 / 0.30)[:, :2] for f in range(len(V))])
+    assert np.abs(by_yaw - by_yaw[0]).max() > 2  # the yaw-only camera: the same points wander

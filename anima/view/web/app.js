@@ -548,8 +548,8 @@ function pause() {
   if (audio) audio.pause();
   $("play").textContent = "▶";
 }
-// ---- the face close up (issue 48): an inset in the canvas's top right, a second camera that follows the head
-// of anima's character from in front of its face, so expressions can be judged by eye (a user's VRM: none)
+// ---- the face close up (issue 48): an inset in the canvas's top right, a second camera mounted on the head
+// of anima's character, in front of its face, so expressions can be judged by eye (a user's VRM: none)
 const faceCam = new THREE.PerspectiveCamera(30, 1, 0.01, 10);
 faceCam.layers.set(1); // it sees the head's own triangles (faceMesh) and the lights, nothing else
 scene.traverse((o) => {
@@ -619,7 +619,6 @@ function copyToFace(g) {
 const FACE_M = 0.3; // the height of face the inset shows (metres)
 const FACE_INSET = 0.3; // the inset's side, a fraction of the canvas's height
 const facePos = new THREE.Vector3();
-let faceYaw = null;
 function headBone() {
   if (vrm) return vrm.humanoid.getRawBoneNode("head");
   return bones.Head || bones["mixamorig:Head"] || bones.head || null;
@@ -630,9 +629,7 @@ function faceTarget() {
   if (!head) return null;
   // anima's head joint is the skull's base, the face about 9 cm above it; a VRM's head bone sits about there too
   const centre = head.localToWorld(new THREE.Vector3(0, 0.085, 0.02));
-  const q = head.getWorldQuaternion(new THREE.Quaternion());
-  const fwd = new THREE.Vector3(0, 0, 1).applyQuaternion(q);
-  return { centre, yaw: Math.atan2(fwd.x, fwd.z) };
+  return { centre, q: head.getWorldQuaternion(new THREE.Quaternion()) };
 }
 // its own small canvas over the 3D view's top right (a second WebGL context): drawn when the frame or the head
 // changed, at most every FACE_EVERY_MS while playing, so the body's view keeps the clip's frame rate on a
@@ -668,11 +665,12 @@ function renderFace(now) {
   if (api.playing && now - faceDrawnAt < FACE_EVERY_MS) return; // (still dirty: drawn on a later tick)
   const t = faceTarget();
   if (!t) return;
-  // the camera follows the face's yaw smoothly (it does not shake with the head)
-  faceYaw = faceYaw === null ? t.yaw : faceYaw + 0.5 * Math.atan2(Math.sin(t.yaw - faceYaw), Math.cos(t.yaw - faceYaw));
+  // the camera rides on the head like a helmet camera: the face seen from straight in front on every frame, only
+  // the expression moves (the body's view shows where the head turns; export/avatar.py's face_camera says why)
   const dist = (0.5 * FACE_M) / Math.tan((faceCam.fov * Math.PI) / 360);
-  facePos.set(t.centre.x + dist * Math.sin(faceYaw), t.centre.y, t.centre.z + dist * Math.cos(faceYaw));
+  facePos.set(0, 0, dist).applyQuaternion(t.q).add(t.centre);
   faceCam.position.copy(facePos);
+  faceCam.up.set(0, 1, 0).applyQuaternion(t.q);
   faceCam.lookAt(t.centre);
   faceCam.updateMatrixWorld(true);
   faceRenderer.render(scene, faceCam);
