@@ -82,6 +82,7 @@ def render_character_video(
     progress: bool = False,
     face: tuple | None = None,
     colors: np.ndarray | None = None,
+    lod: tuple | None = None,
 ) -> None:
     """The skinned character, front and 3/4 views side by side: ``posed(f0, f1)`` gives the posed vertices
     ``[n, V, 3]`` (metres) of frames ``f0:f1`` and ``positions [F, J, 3]`` its joints (the framing: each view
@@ -89,7 +90,9 @@ def render_character_video(
     ``audio`` muxed in. ``face``: ``(centre [F, 3], head [F, 3, 3], tris)``: a close-up of :data:`FACE_M`
     across, the square of the views' height, centred on ``centre`` and seen from in front of the head (its
     rotation ``head``, :func:`head_view`), drawing ``tris`` (the head's triangles) only. ``colors [V, 3]``: the
-    vertices' colours (default: one skin)."""
+    vertices' colours (default: one skin). ``lod``: ``(A [n, V] sparse, tris [t, 3])`` from
+    :func:`anima.render.lod.cluster_mean`: the front and 3/4 views draw the decimated mesh ``A @ V`` (the figure
+    is a few hundred pixels tall there), the close-up the full head."""
     paint = SKIN if colors is None else np.ascontiguousarray(colors, np.float32)
     centre = np.nanmedian(positions[:, 0], axis=0) + np.array([0.0, 0.05, 0.0])
     scale = size / 2.1
@@ -107,6 +110,10 @@ def render_character_video(
         head_v = np.unique(ftris)
         head_tris = np.ascontiguousarray(np.searchsorted(head_v, ftris), np.int64)
         head_paint = paint if paint.ndim == 1 else np.ascontiguousarray(paint[head_v])
+    body_tris, body_paint, A = tris, paint, None
+    if lod is not None:
+        A, body_tris = lod[0], np.ascontiguousarray(lod[1], np.int64)
+        body_paint = paint if paint.ndim == 1 else np.ascontiguousarray(A @ paint, np.float32)
 
     def frames(chunk: int = 32):
         for f0 in range(0, F, chunk):
@@ -117,9 +124,10 @@ def render_character_video(
     def frame(item) -> np.ndarray:
         f, V = item
         canvas = blank.copy()
+        B = V if A is None else A @ V
         for k, (yaw, (x0, _, y0)) in enumerate(zip(yaws, crops)):
-            X = _view(V, size, yaw, centre, scale, (x0, y0))
-            draw_shaded(canvas[:, x_at[k] : x_at[k + 1]], X, tris, paint, back_faces=False)
+            X = _view(B, size, yaw, centre, scale, (x0, y0))
+            draw_shaded(canvas[:, x_at[k] : x_at[k + 1]], X, body_tris, body_paint, back_faces=False)
         if face is not None:  # the head's own vertices only
             X = head_view(V[head_v], height, frot[f], fc[f], height / FACE_M)
             draw_shaded(canvas[:, x_at[-2] : x_at[-1]], X, head_tris, head_paint, back_faces=False)

@@ -176,3 +176,32 @@ def test_avatar_preview_frames_the_figure_on_real_motion(tmp_path):
     for x0, x1 in ((0, crops[0][1]), (crops[0][1], crops[0][1] + crops[1][1])):  # a standing figure in each view
         ys, xs = np.nonzero(drawn[40:, x0 : min(x1, drawn.shape[1])])
         assert len(ys) > 5000 and np.ptp(ys) > 0.7 * (drawn.shape[0] - 40) and np.ptp(ys) > 1.5 * np.ptp(xs)
+
+
+def test_avatar_body_views_at_their_level_of_detail_look_the_same(captures):
+    """``avatar.mp4``'s front and 3/4 views draw the character decimated to ``BODY_VIEW_TRIANGLES`` (cluster
+    means of the posed mesh and its colours): on a real capture's frames, drawn as the preview draws them, the
+    figure's silhouette and its colours agree with the full mesh's (IoU >= 0.97, mean colour within 6 of 255
+    where both draw)."""
+    from anima.export.avatar import BODY_VIEW_TRIANGLES, character_motion
+    from anima.facemodel.character import load_character, skin, vertex_colors
+    from anima.render.avatar import _view
+    from anima.render.lod import cluster_mean
+    from anima.render.raster import draw_shaded
+
+    ch = load_character()
+    m = character_motion(captures["oliver1"])
+    A, lod_tris = cluster_mean(ch.vertices, ch.faces, BODY_VIEW_TRIANGLES)
+    assert len(lod_tris) <= 1.02 * BODY_VIEW_TRIANGLES < 0.5 * len(ch.faces)
+    col = vertex_colors()
+    centre = np.nanmedian(m["positions"][:, 0], axis=0) + np.array([0.0, 0.05, 0.0])
+    for f in (0, 45, 89):
+        V = skin(m["vertices"], m["rest"], m["global"][f], m["positions"][f], ch)
+        for yaw in (0.0, np.deg2rad(-60)):
+            full, dec = (np.full((512, 512, 3), 28, np.uint8) for _ in range(2))
+            draw_shaded(full, _view(V, 512, yaw, centre, 512 / 2.1), ch.faces, col, back_faces=False)
+            draw_shaded(dec, _view(A @ V, 512, yaw, centre, 512 / 2.1), lod_tris,
+                        np.ascontiguousarray(A @ col, np.float32), back_faces=False)  # fmt: skip
+            a, b = (np.abs(x.astype(int) - 28).max(-1) > 0 for x in (full, dec))
+            assert (a & b).sum() / (a | b).sum() >= 0.97, (f, yaw)
+            assert np.abs(full[a & b].astype(int) - dec[a & b]).mean() <= 6, (f, yaw)
