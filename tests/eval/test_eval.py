@@ -114,7 +114,8 @@ def test_bootstrap_over_videos_resamples_whole_videos():
 def test_tof_is_the_l2_norm_of_the_flow_difference():
     """Seed 001 eq. 2.9 on eight real frames of a talking head: 0 against itself; against a frozen output (no
     motion) it is the mean per-pixel L2 length of the truth's flow, not |dx| + |dy|."""
-    from anima.eval.reenact import OBAMA, flow, temporal_flow_error
+    from anima.eval.reenact.metrics import flow, temporal_flow_error
+    from anima.eval.reenact.run import OBAMA
     from anima.io.video import read_video
 
     frames = np.stack(read_video(asset(OBAMA[0]), max_frames=8)[0])[:, 100:356, 100:356].copy()
@@ -225,7 +226,7 @@ def test_the_held_out_prompts_are_frozen_and_only_eval_all_runs_them():
     from anima.eval.config import HELDOUT_PROMPTS, HELDOUT_SHA256
     from anima.eval.registry import Context
     from anima.eval.registry import rows as registry_rows
-    from anima.eval.text2face_prompts import load_suite
+    from anima.eval.text2face.prompts import load_suite
 
     assert hashlib.sha256(HELDOUT_PROMPTS.read_bytes()).hexdigest() == HELDOUT_SHA256
     assert len(load_suite(HELDOUT_PROMPTS)) == 40
@@ -241,6 +242,6 @@ def test_the_held_out_prompts_are_frozen_and_only_eval_all_runs_them():
     # the file's name: where it is declared, the suite module's docstring and this test
     assert naming("text2face_heldout") <= {
         "anima/eval/config.py",
-        "anima/eval/text2face_prompts.py",
+        "anima/eval/text2face/prompts.py",
         "tests/eval/test_eval.py",
     }
