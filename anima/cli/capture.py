@@ -41,6 +41,13 @@ def register(sub) -> None:
         default=None,
         help="separate WAV/MP3/FLAC for the speech features (default: the video's own audio track)",
     )
+    c.add_argument(
+        "--neutral",
+        default=None,
+        metavar="REST",
+        help="a clip (or its capture.npz) of the same person with a relaxed face: its face is the rest taken out "
+        "of every animation (default: estimated from VIDEO itself, which eats an expression held all clip long)",
+    )
     add_rig(c)
     add_json_quiet(c)
     c.set_defaults(func=cmd_capture)
@@ -123,6 +130,7 @@ def cmd_capture(a) -> int:
         command=command_line(a),
         audio_optional=a.audio_optional,
         preset=a.rig,
+        neutral=a.neutral,
     )
     return emit(s, a.json, summary_table)
 
