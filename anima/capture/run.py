@@ -15,18 +15,25 @@ from anima.core.world import LOST_S, lost_runs
 from anima.errors import InputError
 from anima.export.avatar import body_of, legs_of
 from anima.export.motion import write_motion_outputs
+from anima.facemodel.neutral import is_captured, reference_rest
 from anima.io.outdir import OutputFolder
+from anima.io.sequence import read_sequence
 from anima.io.validate import input_file
 from anima.io.video import probe_video
 from anima.pose3d.config import default_checkpoint
 
+MIN_REST_S = 0.5
+"""A ``--neutral`` clip needs a face on at least this long."""
+
 
 def check_capture_inputs(
-    cfg: CaptureConfig, video: str, audio: str | None = None, audio_optional: bool = False
+    cfg: CaptureConfig, video: str, audio: str | None = None, audio_optional: bool = False, neutral: str | None = None
 ) -> None:
-    """Fail before tracking on what would fail after it: an unreadable video or ``--audio`` (unless
-    ``audio_optional``), a lifter run without a body, a bad checkpoint."""
+    """Fail before tracking on what would fail after it: an unreadable video, ``--audio`` (unless
+    ``audio_optional``) or ``--neutral`` clip, a lifter run without a body, a bad checkpoint."""
     probe_video(input_file(video, "video"))
+    if neutral is not None:
+        _neutral_source(neutral)
     if audio is not None and not audio_optional:
         try:
             read_audio(input_file(audio, "--audio file"), sr=8000)
@@ -38,6 +45,35 @@ def check_capture_inputs(
         from anima.pose3d.train import load_checkpoint  # lazy: torch
 
         load_checkpoint(Path(cfg.pose_model) if cfg.pose_model else default_checkpoint())
+
+
+def _neutral_source(path: str):
+    """``--neutral``'s clip checked (a readable video) or read (a captured sequence file): the sequence, or None
+    for a video."""
+    p = input_file(path, "--neutral clip")
+    if p.suffix.lower() == ".npz":
+        seq = read_sequence(p, landmarks=False)
+        if not is_captured(seq.meta):
+            raise InputError(f"--neutral: {p} is a generated sequence; give a clip (or capture.npz) of the person")
+        return seq
+    try:
+        probe_video(p)
+    except InputError as e:
+        raise InputError(f"--neutral: {e}") from None
+    return None
+
+
+def neutral_reference(path: str, cfg: CaptureConfig, progress: bool = True) -> dict[str, float]:
+    """The person's rest face from ``path``, a clip (captured here with ``cfg``'s trackers, no files written)
+    or a ``capture.npz`` of them at rest: :func:`anima.facemodel.neutral.reference_rest`. A clip with under
+    :data:`MIN_REST_S` of face is refused."""
+    seq = _neutral_source(path)
+    if seq is None:
+        seq = capture_video(path, cfg, progress=progress)
+    if seq.tracked.sum() < MIN_REST_S * seq.fps:
+        raise InputError(f"--neutral: no face in {path} (a face on {int(seq.tracked.sum())} frames; it needs "
+                         f"{MIN_REST_S:g} s)")  # fmt: skip
+    return reference_rest(seq.expression, list(seq.expr_names), seq.tracked)
 
 
 def lost_warnings(seq) -> list[str]:
@@ -63,18 +99,23 @@ def run(
     command: str | None = None,
     audio_optional: bool = False,
     preset: str = "anima",
+    neutral: str | None = None,
 ) -> dict:
     """Capture ``video`` into ``out``; returns the sequence summary with the capture speed, the total time,
-    the files written and the warnings."""
+    the files written and the warnings. ``neutral``: a clip (or ``capture.npz``) of the same person at rest,
+    whose face is taken as the rest (:func:`neutral_reference`) instead of the clip's own estimate."""
     cfg = cfg or CaptureConfig()
-    od = OutputFolder(out, kind="capture", command=command, inputs=[video, audio, cfg.pose_model])
-    check_capture_inputs(cfg, video, audio, audio_optional)
+    od = OutputFolder(out, kind="capture", command=command, inputs=[video, audio, cfg.pose_model, neutral])
+    check_capture_inputs(cfg, video, audio, audio_optional, neutral)
+    rest = None if neutral is None else neutral_reference(neutral, cfg, progress)
     sw = Stopwatch()
     with od:
         tm = Timings()
         t0 = time.perf_counter()
         with sw("capture"):
             seq = capture_video(video, cfg, audio=audio, progress=progress, timings=tm)
+        if rest is not None:
+            seq.meta["rest_face"] = {"channels": rest, "from": str(neutral)}
         s = seq.summary()
         s["capture_fps"] = round(tm.frames / max(tm.decode_track_s + tm.fit_s, 1e-9), 1)
         s["warnings"] = seq.meta.get("source", {}).get("warnings", []) + lost_warnings(seq)

@@ -35,6 +35,9 @@ class CaptureOut:
     """if --audio cannot be read, capture the motion without speech features (default: refuse)"""
     audio: str | None = field(default=None, metadata={"metavar": "AUDIO"})
     """separate WAV/MP3/FLAC for the speech features (default: the video's own audio track)"""
+    neutral: str | None = field(default=None, metadata={"metavar": "REST"})
+    """a clip (or its capture.npz) of the same person with a relaxed face: its face is the rest taken out of every
+    animation (default: estimated from VIDEO itself, which eats an expression held all clip long)"""
 
 
 @dataclass
@@ -153,6 +156,7 @@ def cmd_capture(a) -> int:
         command=command_line(a),
         audio_optional=a.audio_optional,
         preset=a.rig,
+        neutral=a.neutral,
     )
     return emit(s, a.json, summary_table)
 

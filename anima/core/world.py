@@ -157,6 +157,12 @@ def solve(
     L, root = mo["local"], mo["root"].copy()
     F = len(L)
     report = dict(mo["report"])
+    never = [rig.IX[n] for n in report.get("joints_never_seen", [])]
+    if never:  # an arm the clip never shows hangs at ease (the rig's rest would hold it out in a T)
+        idle = rig.solve(None, rest, fps, head_rot, image=None, seed=seed, frames=F)["local"]
+        L = L.copy()
+        L[:, never] = idle[:, never]
+        report["never_seen"] = "the idle body's pose (arms hanging at ease)"
     leg_seen = np.asarray(mo.get("leg_seen", np.zeros(F, bool)), bool)
     mpp = ground.metres_per_pixel(picture, fps) if picture is not None else None
     feet = ground.feet_in_picture(picture, mpp, fps) if mpp is not None else None

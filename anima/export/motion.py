@@ -103,8 +103,13 @@ def write_motion_outputs(
         with sw("write"):
             info = {**info, **({"avatar": exported["avatar"]} if exported.get("avatar") else {})}
             rest = presented(seq)[1]
-            if rest:
-                how = "anima.facemodel.neutral: each channel's 10th percentile over the clip (at most 0.35)"
+            ref = (seq.meta.get("rest_face") or {}).get("from")
+            if rest or ref:
+                how = "anima.facemodel.neutral: each channel's " + (
+                    f"median over the rest clip {ref} (--neutral)"
+                    if ref
+                    else "10th percentile over the clip (at most 0.35)"
+                )
                 info["rest_face"] = {"channels": rest, "how": how + ", taken out of every animation"}
             covered = hand_over_face(seq) & seq.tracked
             if covered.any():

@@ -8,6 +8,11 @@ expressions a face shape can imitate), the :data:`REST_PERCENTILE`-th percentile
 :data:`MAX_REST` (a clip-long smile keeps most of itself), on clips of at least :data:`MIN_SECONDS`; the
 channel is then measured from it: ``(w - rest) / (1 - rest)``, clipped to [0, 1].
 
+A clip-long expression (an angry take's lowered brows) is eaten by that estimate; a clip of the same person at
+rest names the rest instead (``anima capture CLIP --neutral REST``): each channel's median over the rest clip's
+tracked frames (:func:`reference_rest`), stored in the sequence's ``meta["rest_face"]`` and taken in place of
+the clip's own estimate.
+
 ``capture.npz`` keeps the fit as it is (the dataset's detectors measure their own baselines); every animation
 made from a capture (the character, ``arkit.csv``, ``face.glb``, Live Link, VMC, FBX) is made from the face
 measured from its rest (:func:`presented`), and ``info.json`` says the rest it took.
@@ -56,6 +61,30 @@ def rest_face(expression: np.ndarray, names: list[str], tracked: np.ndarray, fps
     return out
 
 
+def reference_rest(expression: np.ndarray, names: list[str], tracked: np.ndarray) -> dict[str, float]:
+    """``{channel: rest value}`` from a clip of the person at rest: each :data:`REST_CHANNELS` channel's median
+    over the tracked frames (values over 0.01 kept; no cap: the clip is the rest by the user's word)."""
+    tracked = np.asarray(tracked, bool)
+    out = {}
+    for n in REST_CHANNELS:
+        if n in names and tracked.any():
+            r = float(np.median(expression[tracked, names.index(n)]))
+            if r > 0.01:
+                out[n] = round(min(r, 0.95), 4)
+    return out
+
+
+def stored_rest(meta: dict) -> dict[str, float] | None:
+    """The rest face a sequence's ``meta`` names (``meta["rest_face"]["channels"]``, set by ``--neutral``), or
+    None; channels outside :data:`REST_CHANNELS` and values outside [0, 0.95] are not taken."""
+    rf = meta.get("rest_face")
+    if not isinstance(rf, dict) or not isinstance(rf.get("channels"), dict):
+        return None
+    ok = {n: float(v) for n, v in rf["channels"].items()
+          if n in REST_CHANNELS and isinstance(v, (int, float)) and 0.0 <= v <= 0.95}  # fmt: skip
+    return ok
+
+
 def from_rest(expression: np.ndarray, names: list[str], rest: dict[str, float]) -> np.ndarray:
     """The expression measured from ``rest`` (a copy)."""
     out = np.array(expression, np.float32, copy=True)
@@ -72,10 +101,13 @@ def is_captured(meta: dict) -> bool:
 
 def presented(seq) -> tuple[np.ndarray, dict[str, float]]:
     """The face an animation shows for a tracked sequence ``seq``: a captured clip's expression measured from its
-    rest face, a generated one's as it is. Returns (``[F, E]``, the rest taken)."""
+    rest face (the one ``--neutral`` stored, else the clip's own estimate), a generated one's as it is. Returns
+    (``[F, E]``, the rest taken)."""
     if not is_captured(seq.meta):
         return np.asarray(seq.expression, np.float32), {}
-    rest = rest_face(seq.expression, list(seq.expr_names), seq.tracked, seq.fps)
+    rest = stored_rest(seq.meta)
+    if rest is None:
+        rest = rest_face(seq.expression, list(seq.expr_names), seq.tracked, seq.fps)
     return from_rest(seq.expression, list(seq.expr_names), rest), rest
 
 

@@ -688,6 +688,10 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
         add(f"capture face-only video {k}", "capture", files[k], "--out", out / f"cf_{k}", "--face-only", "--quiet")
     for k in ("missing", "dir", "empty", "random", "text", "png", "novideo_audio"):
         add(f"capture --audio {k}", "capture", d0, "--out", out / f"ca_{k}", "--audio", files[k], "--quiet")
+    neutral = {k: files[k] for k in ("missing", "dir", "empty", "random", "text", "png", "noface")}
+    neutral |= {"generated sequence": base, "damaged sequence": npz["zeros"], "meta_nan": npz["meta_nan"]}
+    for k, f in neutral.items():  # the rest clip: refused before the capture, or once its face is found missing
+        add(f"capture --neutral {k}", "capture", d0, "--out", out / "c_neutral", "--neutral", f, "--quiet")
     for opt in ("--sigma", "--max-frames", "--max-gap"):
         for v in NUM_BAD:
             if v == "0" and opt in ("--sigma", "--max-gap"):  # valid: no smoothing, no gap filling

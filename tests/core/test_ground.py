@@ -168,3 +168,22 @@ def test_a_hand_on_the_chest_is_put_on_it_and_a_gesturing_hand_is_not(s13, captu
     d = m["positions"][frames, rig.IX["LeftHand"]] - free["positions"][frames, rig.IX["LeftHand"]]
     assert np.abs(d[:, :2]).max() < 0.02 and np.abs(d[:, 2]).max() > 0.05
     assert not character_motion(captures["oliver1"])["hand_contact"].any()
+
+
+def test_an_arm_the_clip_never_shows_hangs_at_ease():
+    """CREMA-D's actor 1001 (a head-and-shoulders take): his left arm never enters the picture, so the rig's rest
+    would hold it out in a T at shoulder height; it hangs at ease instead, the hand well below the shoulder and
+    beside the hip on every frame, and the report still names the joints the clip never showed."""
+    from anima.capture.config import CaptureConfig
+    from anima.capture.pipeline import capture_video
+    from anima.export.avatar import character_motion
+
+    seq = capture_video(str(asset("emotion-clips/crema-d/1001_DFA_ANG_XX.flv")), CaptureConfig(), progress=False)
+    m = character_motion(seq)
+    never = m["report"]["joints_never_seen"]
+    assert "LeftArm" in never and "LeftHand" in never, never
+    P = m["positions"]
+    drop = P[:, rig.IX["LeftArm"], 1] - P[:, rig.IX["LeftHand"], 1]
+    assert drop.min() > 0.35, drop.min()  # a T-posed hand: at the shoulder's height (0)
+    out = np.abs(P[:, rig.IX["LeftHand"], 0] - P[:, rig.HIPS, 0])
+    assert out.max() < 0.35, out.max()  # beside the hip, not held out sideways

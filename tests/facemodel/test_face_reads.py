@@ -299,3 +299,40 @@ def test_a_hand_over_the_mouth_eases_the_mouth_to_rest_and_says_so(tmp_path):
     assert np.abs(W[settled][:, MOUTH]).max() == 0.0  # at rest under the hands (the fit reads 1.0 there)
     info = json.loads((out / "info.json").read_text())
     assert info["mouth_covered"]["frames"] == int(covered.sum())
+
+
+def test_a_neutral_reference_keeps_a_clip_long_expression(tmp_path):
+    """CREMA-D actor 1001 (development clips, 2 s each): the angry take lowers its brows for the whole clip, so
+    the clip's own rest estimate takes most of it out (the character's browDown reads as the neutral take's);
+    with the same speaker's neutral take as ``--neutral`` the angry brows stay down, the neutral take reads near
+    zero, and info.json says where the rest came from. The rest clip is given as a video, then as a capture."""
+    import json
+
+    from anima.capture.config import CaptureConfig
+    from anima.capture.run import run
+    from anima.core.contract import EXPR_NAMES
+    from anima.export.avatar import character_face
+    from anima.io.assets import asset
+    from anima.io.sequence import read_sequence
+
+    clip = "emotion-clips/crema-d/1001_DFA_{}_XX.flv"
+    neu, ang = tmp_path / "neutral", tmp_path / "angry"
+    run(str(asset(clip.format("NEU"))), neu, CaptureConfig(), render=False, progress=False,
+        neutral=str(asset(clip.format("NEU"))))  # fmt: skip
+    run(str(asset(clip.format("ANG"))), ang, CaptureConfig(), render=False, progress=False,
+        neutral=str(neu / "capture.npz"))  # fmt: skip
+
+    def mean(seq, base, own=False):
+        if own:  # the clip's own estimate, as without --neutral
+            seq.meta.pop("rest_face")
+        k = [i for i, n in enumerate(EXPR_NAMES) if n.startswith(base + "_")]
+        return float(character_face(seq)[seq.tracked][:, k].mean())
+
+    N, A = (read_sequence(d / "capture.npz", landmarks=False) for d in (neu, ang))
+    assert mean(N, "mouthSmile") < 0.1 and mean(N, "browDown") < 0.1
+    assert mean(A, "browDown") > mean(N, "browDown") + 0.05  # measured 0.137 against 0.052
+    assert mean(A, "browDown") > mean(A, "browDown", own=True) + 0.03  # its own estimate: 0.088 (neutral's 0.091)
+    said = {d.name: json.loads((d / "info.json").read_text())["rest_face"] for d in (neu, ang)}
+    assert "1001_DFA_NEU_XX.flv (--neutral)" in said["neutral"]["how"]
+    assert f"{neu / 'capture.npz'} (--neutral)" in said["angry"]["how"]
+    assert said["angry"]["channels"] == pytest.approx(said["neutral"]["channels"])  # the same rest, both ways

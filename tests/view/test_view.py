@@ -125,13 +125,16 @@ def test_capture_page_shows_the_artifact(results, browser):
         played = play_and_sample(browser, 2.5)
         playing = [s for s in played["samples"] if s[3] and 2 < s[0] < seq.n_frames - 2]
         assert len(playing) >= 10, played
-        # the frame each video shows, against the frame the 3D view last drew: within one frame, except where a
-        # sample falls on a late animation frame of the software-rendered page (two; three for at most one
-        # sample in twenty: a draw that took 100 ms on a busy machine, seen once in five runs here; how often that
-        # happens is the page's speed on this machine, which benchmarks/bench_view.py measures: a clean CI run saw
-        # 16 % of samples at two frames where runs here see under 10 %)
-        gaps = np.array([abs(int(t * seq.fps + 1e-6) - frame) for frame, vts, _, _, _ in playing for t in vts])
-        assert gaps.max() <= 3 and np.mean(gaps >= 3) <= 0.05 and np.median(gaps) <= 1, (gaps.tolist(), played)
+        # the 3D view shows the frame the videos showed when the page's clock chose it: each video's time less the
+        # frame's age (the time since the choice) within one frame of it; a following video may drift a frame
+        # before it is re-seeked, so two at most. How late the drawing itself is (the software-rendered page draws
+        # 16 to 25 frames a second on a 2-core machine) is the page's speed, which benchmarks/bench_view.py
+        # measures: here only that the view never stalls (a frame chosen over 0.25 s before, in 1 sample of 20)
+        assert all(s[5] is not None for s in playing), played
+        gaps = np.array([abs(int((t - age) * seq.fps + 1e-6) - f) for f, vts, _, _, _, age in playing for t in vts])
+        assert gaps.max() <= 2 and np.median(gaps) <= 1, (gaps.tolist(), played)
+        ages = np.array([s[5] for s in playing])
+        assert np.mean(ages > 0.25) <= 0.05, (ages.tolist(), played)
         # at the clip's rate, not as fast as it can: the frame follows the clock (the frame rate the page
         # reaches is measured by benchmarks/bench_view.py)
         frame, wall = np.array([(s[0], s[4]) for s in playing]).T

@@ -688,6 +688,7 @@ function tick() {
       apply(frames - 1);
     } else if (f !== api.frame) {
       apply(f);
+      api.chosenAt = performance.now(); // when the clock said this frame (the tests measure sync from here)
       syncMedia(t, false);
     }
   }
@@ -744,6 +745,8 @@ api.state = () => {
     joints,
     videoTimes: videos.map((v) => v.currentTime),
     audioTime: audio ? audio.currentTime : null,
+    // seconds since the clock chose the frame shown: the videos' times less this are their times at that moment
+    frameAge: api.playing && api.chosenAt ? (performance.now() - api.chosenAt) / 1000 : null,
     clip: V.kind === "dataset" ? V.clips[clipIndex].id : null,
   };
 };
