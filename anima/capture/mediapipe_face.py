@@ -14,9 +14,7 @@ os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
 import numpy as np
 
-from anima.core.contract import N_FACE_LANDMARKS
-
-N_LANDMARKS = N_FACE_LANDMARKS
+N_LANDMARKS = 478
 
 
 class FaceMeshTracker:
