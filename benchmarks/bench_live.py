@@ -7,11 +7,16 @@ receipt times), and the process's memory over the run.
     python benchmarks/bench_live.py [--seconds 60] [--modes face,full]
     python benchmarks/bench_live.py --seconds 30 --modes full,full_vmc,full_vmc_no_page \
         --out benchmarks/results/live_vmc.json
+    python benchmarks/bench_live.py --seconds 30 --modes full_no_page,full_vmc_no_page --repeats 3 \
+        --out benchmarks/results/live_vmc_cost.json
 
 Writes benchmarks/results/live.json. Targets: >= 95 % of offered frames tracked, latency median <= 100 ms and
 p95 <= 150 ms, memory growth < 10 %. ``full_vmc`` is ``full`` with ``--vmc`` to a python-osc receiver on
 127.0.0.1 (issue 49: the tracking rate unchanged with it, >= 20 bundles a second arriving); ``full_vmc_no_page``
-the same with anima's page not open (a VTuber app draws the avatar from the VMC stream).
+the same with anima's page not open (a VTuber app draws the avatar from the VMC stream), and ``full_no_page``
+its like without ``--vmc``. ``--repeats N`` runs the modes interleaved N times (A B A B ...: a noisy machine's
+drift falls on every mode alike) and adds, per mode, the median of its runs, and the ratio of each ``*vmc*``
+mode's tracking rate to the same mode without VMC where both ran: what ``--vmc`` costs, measured side by side.
 """
 
 from __future__ import annotations
@@ -41,8 +46,10 @@ CLIPS = {
     "full1": ("gesture-video/pats-crops/oliver1_gt.mp4", ["--trackers", "1"]),  # one Holistic: lower latency?
     "full_vmc": ("gesture-video/pats-crops/oliver1_gt.mp4", ["--vmc"]),  # and the VMC protocol to a receiver
     "full_vmc_no_page": ("gesture-video/pats-crops/oliver1_gt.mp4", ["--vmc"]),  # a VTuber app shows it: no page
+    "full_no_page": ("gesture-video/pats-crops/oliver1_gt.mp4", []),  # full_vmc_no_page's like, without VMC
 }
-NO_PAGE = {"full_vmc_no_page"}  # modes run without anima's page open (the receiver draws the avatar)
+NO_PAGE = {"full_vmc_no_page", "full_no_page"}  # modes run without anima's page open (a receiver draws the avatar)
+WITHOUT_VMC = {"full_vmc": "full", "full_vmc_no_page": "full_no_page"}  # each VMC mode's like without it
 
 
 def run(mode: str, seconds: float) -> dict:
@@ -106,14 +113,43 @@ def _run(mode: str, seconds: float, more: list[str]) -> dict:
     }
 
 
+def repeated(runs: dict[str, list[dict]]) -> dict:
+    """Every run of each mode, the median tracking rate (and VMC bundles a second), and each VMC mode's rate
+    over its like without VMC (the medians', and run by run: run k of both modes ran side by side)."""
+    med = {}
+    for m, rs in runs.items():
+        med[m] = {"tracking_fps": [r["tracking_fps"] for r in rs],
+                  "tracking_fps_median": float(np.median([r["tracking_fps"] for r in rs]))}  # fmt: skip
+        if all("vmc" in r for r in rs):
+            med[m]["vmc_fps"] = [r["vmc"]["fps"] for r in rs]
+            med[m]["vmc_fps_median"] = float(np.median(med[m]["vmc_fps"]))
+            med[m]["protocol_errors"] = sum(r["vmc"]["protocol_errors"] for r in rs)
+    ratios = {}
+    for m, base in WITHOUT_VMC.items():
+        if m in runs and base in runs:
+            pairs = [a["tracking_fps"] / b["tracking_fps"] for a, b in zip(runs[m], runs[base]) if b["tracking_fps"]]
+            of_medians = med[m]["tracking_fps_median"] / med[base]["tracking_fps_median"]
+            ratios[f"{m}/{base}"] = {"of_medians": round(of_medians, 3), "per_run": [round(x, 3) for x in pairs]}
+    return {"repeats": len(next(iter(runs.values()))), "runs": runs, "medians": med, "vmc_cost_ratios": ratios}
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--modes", default="face,full,full1")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "live.json"))
+    ap.add_argument("--repeats", type=int, default=1, help="run the modes interleaved this many times")
     a = ap.parse_args()
-    rows = {m: run(m, a.seconds) for m in a.modes.split(",")}
-    write_json(a.out, {"machine": "2 cores, no GPU; headless Chromium (SwiftShader) on the same cores", **rows})
+    modes = a.modes.split(",")
+    runs: dict[str, list[dict]] = {m: [] for m in modes}
+    for _ in range(a.repeats):
+        for m in modes:
+            runs[m].append(run(m, a.seconds))
+    rows = {m: r[0] for m, r in runs.items()}
+    doc = {"machine": "2 cores, no GPU; headless Chromium (SwiftShader) on the same cores", **rows}
+    if a.repeats > 1:
+        doc = {**doc, **repeated(runs)}
+    write_json(a.out, doc)
     for m, r in rows.items():
         pg = r["page"]
         page = (f"page {pg['fps']} fps, glass to avatar {pg['glass_to_avatar_ms']['median']} / "
