@@ -140,6 +140,8 @@ def main() -> int:
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "live.json"))
     ap.add_argument("--repeats", type=int, default=1, help="run the modes interleaved this many times")
     a = ap.parse_args()
+    if a.repeats < 1:
+        ap.error("--repeats: 1 or more")
     modes = a.modes.split(",")
     runs: dict[str, list[dict]] = {m: [] for m in modes}
     for _ in range(a.repeats):
