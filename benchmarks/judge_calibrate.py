@@ -1,4 +1,4 @@
-"""Fit the independent judge's thresholds (`anima.eval.judge.JudgeConfig`) on real video with human labels,
+"""Fit the independent judge's thresholds (`anima.eval.text2face.judge.JudgeConfig`) on real video with human labels,
 never on generated output (issue 38, item 5), and only on the clips of the training and validation splits (issue
 52, item 2: the test clips choose nothing; their scores with the chosen values are reported apart). Every such
 labelled clip of `anima/eval/labels/attributes` is read in two domains:
@@ -35,7 +35,7 @@ sys.path.insert(0, str(ROOT))
 
 from anima.dataset.splits import split_for  # noqa: E402
 from anima.eval.annotations import capture_labelled, load_labels  # noqa: E402
-from anima.eval.judge import JudgeConfig, events, measures, render_motion, track_frames  # noqa: E402
+from anima.eval.text2face.judge import JudgeConfig, events, measures, render_motion, track_frames  # noqa: E402
 from anima.io.assets import asset  # noqa: E402
 from anima.io.atomic import write_json  # noqa: E402
 from anima.io.video import read_video  # noqa: E402
@@ -72,8 +72,8 @@ def _judge_code() -> str:
     thresholds): a changed render or measure never reads an older cache."""
     import inspect
 
-    import anima.eval.judge as judge
-    import anima.eval.judge_render as judge_render
+    import anima.eval.text2face.judge as judge
+    import anima.eval.text2face.judge_render as judge_render
 
     parts = [inspect.getsource(judge_render)]
     parts += [inspect.getsource(f) for f in (judge.measures, judge.track_frames, judge.render_motion)]

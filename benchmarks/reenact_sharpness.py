@@ -15,7 +15,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from anima.eval.reenact import OBAMA, sharpness_ablation  # noqa: E402
+from anima.eval.reenact.run import OBAMA, sharpness_ablation  # noqa: E402
 from anima.io.atomic import write_json  # noqa: E402
 
 

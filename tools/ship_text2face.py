@@ -27,7 +27,7 @@ def main() -> int:
     a = ap.parse_args()
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS"):
         os.environ[var] = "1"  # as a row of `anima eval all --jobs 2` on 2 cores, before torch loads
-    from anima.eval.text2face import (
+    from anima.eval.text2face.run import (
         SELECTED,
         STEP_GRID,
         FaceGeometry,

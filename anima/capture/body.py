@@ -60,14 +60,13 @@ def _to_anima(p: np.ndarray) -> np.ndarray:
     return p * np.array([1.0, -1.0, -1.0])
 
 
-def _image_joints(pose: np.ndarray, left, right, width: int, height: int) -> np.ndarray:
-    """Pixel positions ``[55, 2]`` of the joints (same construction as the 3D joints)."""
-    uv = np.full((N_JOINTS, 2), np.nan)
-    px = pose[:, :2].astype(np.float64) * [width, height]
-    g = {k: px[i] for k, i in MP_POSE.items()}
+def _body_points(g: dict) -> dict:
+    """The rig's trunk joints from MediaPipe's named pose landmarks ``g`` (pixels or metres alike): the pelvis
+    between the hips, the neck between the shoulders, the spine halfway between them, the head between the
+    ears; the hips and the nose as they are."""
     pelvis = (g["left_hip"] + g["right_hip"]) / 2
     neck = (g["left_shoulder"] + g["right_shoulder"]) / 2
-    pos = {
+    return {
         "pelvis": pelvis,
         "left_hip": g["left_hip"],
         "right_hip": g["right_hip"],
@@ -76,6 +75,14 @@ def _image_joints(pose: np.ndarray, left, right, width: int, height: int) -> np.
         "head": (g["left_ear"] + g["right_ear"]) / 2,
         "nose": g["nose"],
     }
+
+
+def _image_joints(pose: np.ndarray, left, right, width: int, height: int) -> np.ndarray:
+    """Pixel positions ``[55, 2]`` of the joints (same construction as the 3D joints)."""
+    uv = np.full((N_JOINTS, 2), np.nan)
+    px = pose[:, :2].astype(np.float64) * [width, height]
+    g = {k: px[i] for k, i in MP_POSE.items()}
+    pos = _body_points(g)
     for i, n in enumerate(BODY_JOINTS):
         uv[i] = pos.get(n, g.get(n))
     for hand, sl in ((left, LEFT_HAND), (right, RIGHT_HAND)):
@@ -101,17 +108,7 @@ def assemble_frame(
     vis = pose_world[:, 3].astype(np.float64)
     g = {k: W[i] for k, i in MP_POSE.items()}
     v = {k: vis[i] for k, i in MP_POSE.items()}
-    pelvis = (g["left_hip"] + g["right_hip"]) / 2
-    neck = (g["left_shoulder"] + g["right_shoulder"]) / 2
-    pos = {
-        "pelvis": pelvis,
-        "left_hip": g["left_hip"],
-        "right_hip": g["right_hip"],
-        "spine": (pelvis + neck) / 2,
-        "neck": neck,
-        "head": (g["left_ear"] + g["right_ear"]) / 2,
-        "nose": g["nose"],
-    }
+    pos = _body_points(g)
     cf = {
         "pelvis": min(v["left_hip"], v["right_hip"]),
         "left_hip": v["left_hip"],
@@ -126,7 +123,7 @@ def assemble_frame(
             pos[f"{side}_{part}"] = g[f"{side}_{part}"]
             cf[f"{side}_{part}"] = v[f"{side}_{part}"]
     for i, n in enumerate(BODY_JOINTS):
-        J[i] = pos[n] - pelvis
+        J[i] = pos[n] - pos["pelvis"]
         C[i] = cf[n]
     # metres per pixel: image-plane extent of the upper-body landmarks in the world vs in the image
     # (MediaPipe's image-space depth is too noisy to enter the scale; world axes are camera-aligned)

@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from anima.core.contract import N_FACE_LANDMARKS
+
 
 @dataclass
 class HolisticFrame:
@@ -49,7 +51,7 @@ class HolisticTracker:
             rgb = np.repeat(rgb[..., None], 3, -1)
         r = self._h.process(np.ascontiguousarray(rgb))
         face = _arr(r.face_landmarks)
-        if face is not None and face.shape[0] != 478:
+        if face is not None and face.shape[0] != N_FACE_LANDMARKS:
             face = None
         return HolisticFrame(
             face,

@@ -14,7 +14,9 @@ os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
 import numpy as np
 
-N_LANDMARKS = 478
+from anima.core.contract import N_FACE_LANDMARKS
+
+N_LANDMARKS = N_FACE_LANDMARKS
 
 
 class FaceMeshTracker:

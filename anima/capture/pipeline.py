@@ -17,7 +17,7 @@ from anima.capture.camera_motion import BackgroundMotion
 from anima.capture.config import CaptureConfig
 from anima.capture.fit import FrameFit, LandmarkBasis, choose_keyframes, fit_frames, fit_identity, landmark_error
 from anima.capture.holistic import HolisticTracker
-from anima.capture.mediapipe_face import FaceMeshTracker
+from anima.capture.mediapipe_face import N_LANDMARKS, FaceMeshTracker
 from anima.core.camera import mediapipe_to_camera
 from anima.core.filters import gaussian_smooth
 from anima.core.rotations import matrix_to_rotvec
@@ -31,6 +31,7 @@ from anima.pose3d.config import default_checkpoint
 from anima.pose3d.infer import lift_frames, replace_body
 
 MIN_SIZE = 32  # px; smaller videos cannot hold a trackable face
+NO_FACE = np.full((N_LANDMARKS, 3), np.nan, np.float32)  # a frame's landmarks where no face was found
 
 
 @dataclass
@@ -38,6 +39,23 @@ class Timings:
     decode_track_s: float = 0.0
     fit_s: float = 0.0
     frames: int = 0
+
+
+def _each_frame(info: VideoInfo, tracker, max_frames, progress: bool, warnings_out, on_progress):
+    """``(image, tracker(image))`` for each decoded frame of ``info`` (at most ``max_frames``), with a progress
+    bar and ``on_progress(1)`` after the caller has used each; the decoder's warnings go to ``warnings_out``."""
+    total = info.n_frames if max_frames is None else min(info.n_frames, max_frames)
+    errs: list[str] = []
+    with tqdm(total=total, desc="track", unit="fr", disable=not progress, leave=False) as bar:
+        for i, image in enumerate(iter_frames(info, errors=errs)):
+            if max_frames is not None and i >= max_frames:
+                break
+            yield image, tracker(image)
+            if on_progress is not None:
+                on_progress(1)
+            bar.update(1)
+    if warnings_out is not None:
+        warnings_out.extend(errs)
 
 
 def track_landmarks(
@@ -51,25 +69,12 @@ def track_landmarks(
     """Run MediaPipe face mesh over the video; ``[F, 478, 3]`` normalised landmarks, NaN where no face.
     ``on_frame(landmarks)`` is called after each frame (used to fit while tracking), ``on_progress(1)`` too
     (a build's frame counter)."""
-    total = info.n_frames if max_frames is None else min(info.n_frames, max_frames)
     out = []
-    errs: list[str] = []
-    with (
-        FaceMeshTracker(static_image_mode=False) as tracker,
-        tqdm(total=total, desc="track", unit="fr", disable=not progress, leave=False) as bar,
-    ):
-        for i, frame in enumerate(iter_frames(info, errors=errs)):
-            if max_frames is not None and i >= max_frames:
-                break
-            lm = tracker(frame)
-            out.append(np.full((478, 3), np.nan, np.float32) if lm is None else lm)
+    with FaceMeshTracker(static_image_mode=False) as tracker:
+        for _, lm in _each_frame(info, tracker, max_frames, progress, warnings_out, on_progress):
+            out.append(NO_FACE.copy() if lm is None else lm)
             if on_frame is not None:
                 on_frame(out[-1])
-            if on_progress is not None:
-                on_progress(1)
-            bar.update(1)
-    if warnings_out is not None:
-        warnings_out.extend(errs)
     if not out:
         raise InputError(f"no frame could be decoded from {info.path}")
     return np.stack(out)
@@ -219,7 +224,7 @@ def fit_landmark_sequence(
             "version": _mp_version(),
             "refine_landmarks": True,
             "mode": "video",
-            "landmarks": 478,
+            "landmarks": N_LANDMARKS,
         },
         face_model={
             "name": "ICT-FaceKit light",
@@ -305,28 +310,15 @@ def track_holistic(
 ):
     """Run MediaPipe Holistic over the video. Returns (face landmarks ``[F, 478, 3]`` NaN where no face,
     list of :class:`HolisticFrame`). ``on_progress(1)`` is called after each frame."""
-    total = info.n_frames if max_frames is None else min(info.n_frames, max_frames)
     lms, frames = [], []
-    errs: list[str] = []
     background = BackgroundMotion()
-    with (
-        HolisticTracker() as tracker,
-        tqdm(total=total, desc="track", unit="fr", disable=not progress, leave=False) as bar,
-    ):
-        for i, image in enumerate(iter_frames(info, errors=errs)):
-            if max_frames is not None and i >= max_frames:
-                break
-            fr = tracker(image)
+    with HolisticTracker() as tracker:
+        for image, fr in _each_frame(info, tracker, max_frames, progress, warnings_out, on_progress):
             fr.camera_step = background(image, fr.pose)
             frames.append(fr)
-            lms.append(np.full((478, 3), np.nan, np.float32) if fr.face is None else fr.face)
+            lms.append(NO_FACE.copy() if fr.face is None else fr.face)
             if on_face is not None:
                 on_face(lms[-1])
-            if on_progress is not None:
-                on_progress(1)
-            bar.update(1)
-    if warnings_out is not None:
-        warnings_out.extend(errs)
     if not frames:
         raise InputError(f"no frame could be decoded from {info.path}")
     return np.stack(lms), frames
@@ -362,10 +354,10 @@ def track_holistic_range(
             if k < start:
                 continue
             frames.append(fr)
-            lms.append(np.full((478, 3), np.nan, np.float32) if fr.face is None else fr.face)
+            lms.append(NO_FACE.copy() if fr.face is None else fr.face)
             if on_progress is not None:
                 on_progress(1)
-    lm = np.stack(lms) if lms else np.zeros((0, 478, 3), np.float32)
+    lm = np.stack(lms) if lms else np.zeros((0, N_LANDMARKS, 3), np.float32)
     return Tracked(lm, frames, errs)
 
 
@@ -380,7 +372,7 @@ def join_chunks(parts: list[Tracked], plan: list[tuple[int, int]], warmup: int) 
         if part.warnings and (a, b) != plan[-1]:  # decoding stopped inside this chunk
             warns.append(f"decoding stopped between frames {a} and {b - 1}: the video ends there")
             break
-    out = np.concatenate(lm) if lm else np.zeros((0, 478, 3), np.float32)
+    out = np.concatenate(lm) if lm else np.zeros((0, N_LANDMARKS, 3), np.float32)
     return Tracked(
         out, frames, warns, {"chunks": len(plan), "frames": [list(ab) for ab in plan], "warmup_frames": warmup}
     )
@@ -402,7 +394,7 @@ def empty_face_sequence(n: int, width: int, height: int, fps: float, meta: dict)
         fit_error_px=nan,
         fit_nme=nan.copy(),
         flags=np.full(n, FLAG_NO_FACE, np.uint8),
-        landmarks=np.full((n, 478, 3), np.nan, np.float32),
+        landmarks=np.full((n, N_LANDMARKS, 3), np.nan, np.float32),
         expr_names=list(model.expr_names),
         meta=meta,
     )

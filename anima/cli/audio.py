@@ -2,10 +2,23 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 from anima.audio.features import write_speech_features
-from anima.cli.common import emit, group, notes
-from anima.cli.options import number, positive_int
+from anima.cli.common import Json, add_args, emit, group, notes
 from anima.core.contract import TEXT_FPS
+
+
+@dataclass
+class FeaturesIn:
+    file: str = field(default="", metadata={"positional": True, "metavar": "file"})
+    """audio (WAV/MP3/FLAC) or a video"""
+    fps: float = field(default=TEXT_FPS, metadata={"range": (1.0, 240.0), "metavar": "FPS"})
+    """motion frame rate, 1-240"""
+    frames: int | None = field(default=None, metadata={"range": (1, None), "metavar": "FRAMES"})
+    """number of motion frames (default: the audio's length; at most 2 x the audio's length)"""
+    out: str | None = field(default=None, metadata={"metavar": "OUT"})
+    """output .npz (default: FILE.speech.npz)"""
 
 
 def register(sub) -> None:
@@ -16,21 +29,7 @@ def register(sub) -> None:
         description="Read the audio of FILE (WAV/MP3/FLAC or a video), normalise loudness, and "
         "compute 28 speech features per motion frame, centred on the frame times i/fps.",
     )
-    af.add_argument("file")
-    af.add_argument(
-        "--fps",
-        type=number(float, 1.0, 240.0),
-        default=TEXT_FPS,
-        help=f"motion frame rate, 1-240 (default {TEXT_FPS:g})",
-    )
-    af.add_argument(
-        "--frames",
-        type=positive_int,
-        default=None,
-        help="number of motion frames (default: the audio's length; at most 2 x the audio's length)",
-    )
-    af.add_argument("--out", default=None, help="output .npz (default: FILE.speech.npz)")
-    af.add_argument("--json", action="store_true")
+    add_args(af, FeaturesIn, Json)
     af.set_defaults(func=cmd_features)
 
 

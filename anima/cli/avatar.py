@@ -2,8 +2,20 @@
 
 from __future__ import annotations
 
-from anima.cli.common import add_json_quiet, command_line, emit
+from dataclasses import dataclass, field
+
+from anima.cli.common import Json, add_args, command_line, emit
 from anima.export import retarget
+
+
+@dataclass
+class RetargetIn:
+    result: str = field(default="", metadata={"positional": True, "metavar": "result"})
+    """result folder or sequence file (capture.npz, gesture.npz, motion.npz)"""
+    avatar: str = field(default="", metadata={"required": True, "metavar": "AVATAR"})
+    """the avatar: .vrm (VRM 1.0) or .glb (skinned glTF binary)"""
+    out: str = field(default="", metadata={"required": True, "metavar": "OUT"})
+    """output .vrm or .glb (its report beside it as OUT.json)"""
 
 
 def register(sub) -> None:
@@ -17,10 +29,7 @@ def register(sub) -> None:
         "channels found a home. Rest-pose aware: T-pose, A-pose and rolled bone axes are measured, not assumed "
         "(docs/rig.md).",
     )
-    r.add_argument("result", help="result folder or sequence file (capture.npz, gesture.npz, motion.npz)")
-    r.add_argument("--avatar", required=True, help="the avatar: .vrm (VRM 1.0) or .glb (skinned glTF binary)")
-    r.add_argument("--out", required=True, help="output .vrm or .glb (its report beside it as OUT.json)")
-    add_json_quiet(r, quiet=False)
+    add_args(r, RetargetIn, Json)
     r.set_defaults(func=cmd_retarget)
 
 

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 from anima.capture import run as capture
 from anima.capture.config import CaptureConfig
-from anima.cli.common import add_json_quiet, add_rig, command_line, emit, notes, time_split
-from anima.cli.options import add_options, config_from_args, number
+from anima.cli.common import JsonQuiet, Rig, add_args, command_line, emit, notes, time_split
+from anima.cli.options import add_options, config_from_args
 from anima.errors import InputError
 from anima.export import livelink, vmc
 from anima.export.fbx import UNITS
@@ -13,6 +15,69 @@ from anima.export.formats import EXPORTS, FORMATS, export
 from anima.io.sequence import read_sequence
 
 CAPTURE_OPTIONS = ["max_frames", "smooth_sigma", "face_only", "max_gap", "fixed_bones", "body_3d", "pose_model"]
+
+
+@dataclass
+class CaptureIn:
+    video: str = field(default="", metadata={"positional": True, "metavar": "video"})
+    """input video (mp4/mov/mkv/webm; H.264, HEVC, VP9...)"""
+    out: str = field(default="", metadata={"required": True, "metavar": "OUT"})
+    """output folder (created; checked before any work)"""
+
+
+@dataclass
+class CaptureOut:
+    no_smooth: bool = False
+    """disable temporal smoothing (--sigma 0)"""
+    no_render: bool = False
+    """skip the videos"""
+    audio_optional: bool = False
+    """if --audio cannot be read, capture the motion without speech features (default: refuse)"""
+    audio: str | None = field(default=None, metadata={"metavar": "AUDIO"})
+    """separate WAV/MP3/FLAC for the speech features (default: the video's own audio track)"""
+    neutral: str | None = field(default=None, metadata={"metavar": "REST"})
+    """a clip (or its capture.npz) of the same person with a relaxed face: its face is the rest taken out of every
+    animation (default: estimated from VIDEO itself, which eats an expression held all clip long)"""
+
+
+@dataclass
+class InfoArgs:
+    file: str = field(default="", metadata={"positional": True, "metavar": "file"})
+    json: bool = False
+    """print JSON"""
+
+
+@dataclass
+class ExportArgs:
+    format: str = field(default="", metadata={"positional": True, "choices": FORMATS})
+    file: str = field(default="", metadata={"positional": True, "metavar": "file"})
+    out: str = field(default="", metadata={"required": True, "metavar": "OUT"})
+    """the file to write"""
+    fps: float | None = field(default=None, metadata={"range": (1.0, 240.0), "metavar": "FPS"})
+    """BVH only: resample to this rate (1-240), e.g. 15 for gesture work"""
+    units: str = field(default="m", metadata={"choices": UNITS})
+    """FBX only: the file's unit, m (default: Unity 1:1, Unreal converts) or cm (Maya, MotionBuilder scenes)"""
+
+
+@dataclass
+class LiveLinkArgs:
+    file: str = field(default="", metadata={"positional": True, "metavar": "file"})
+    to: str = field(default="", metadata={"required": True, "metavar": "TO"})
+    """HOST:PORT of the machine running Unreal (e.g. 127.0.0.1:11111)"""
+    subject: str = field(default="anima", metadata={"metavar": "SUBJECT"})
+    """the Live Link subject name (default: anima)"""
+    loops: int = field(default=1, metadata={"range": (1, 10_000), "metavar": "LOOPS"})
+    """play it this many times"""
+
+
+@dataclass
+class VmcArgs:
+    result: str = field(default="", metadata={"positional": True, "metavar": "result"})
+    """result folder or sequence file (capture.npz, gesture.npz, motion.npz)"""
+    to: str = field(default="", metadata={"required": True, "metavar": "TO"})
+    """HOST:PORT of the receiver (e.g. 127.0.0.1:39539)"""
+    loop: bool = False
+    """play it again and again until Ctrl-C"""
 
 
 def register(sub) -> None:
@@ -26,30 +91,9 @@ def register(sub) -> None:
         "arkit.csv (Live Link Face), face.glb (morph-target animation), body.bvh, overlay.mp4, "
         "mesh.mp4, skeleton videos, info.json and manifest.json (written last).",
     )
-    c.add_argument("video", help="input video (mp4/mov/mkv/webm; H.264, HEVC, VP9...)")
-    c.add_argument("--out", required=True, help="output folder (created; checked before any work)")
+    add_args(c, CaptureIn)
     add_options(c, CaptureConfig, CAPTURE_OPTIONS)
-    c.add_argument("--no-smooth", action="store_true", help="disable temporal smoothing (--sigma 0)")
-    c.add_argument("--no-render", action="store_true", help="skip the videos")
-    c.add_argument(
-        "--audio-optional",
-        action="store_true",
-        help="if --audio cannot be read, capture the motion without speech features (default: refuse)",
-    )
-    c.add_argument(
-        "--audio",
-        default=None,
-        help="separate WAV/MP3/FLAC for the speech features (default: the video's own audio track)",
-    )
-    c.add_argument(
-        "--neutral",
-        default=None,
-        metavar="REST",
-        help="a clip (or its capture.npz) of the same person with a relaxed face: its face is the rest taken out "
-        "of every animation (default: estimated from VIDEO itself, which eats an expression held all clip long)",
-    )
-    add_rig(c)
-    add_json_quiet(c)
+    add_args(c, CaptureOut, Rig, JsonQuiet)
     c.set_defaults(func=cmd_capture)
 
     i = sub.add_parser(
@@ -58,8 +102,7 @@ def register(sub) -> None:
         description="Frames, fps, tracked fraction, mean fit error (px and NME), body and hands "
         "tracked, speech of FILE (capture.npz, motion.npz, gesture.npz).",
     )
-    i.add_argument("file")
-    i.add_argument("--json", action="store_true", help="print JSON")
+    add_args(i, InfoArgs)
     i.set_defaults(func=cmd_info)
 
     x = sub.add_parser(
@@ -71,19 +114,9 @@ def register(sub) -> None:
         "a BVH of the character's skeleton (bvh: metres, T-pose rest, docs/rig.md) or a VRM Animation "
         "(vrma: plays on any VRM in three-vrm, UniVRM, VRoid apps; the face as VRM expression presets).",
     )
-    x.add_argument("format", choices=FORMATS, help="; ".join(f"{k}: {v.help}" for k, v in EXPORTS.items()))
-    x.add_argument("file")
-    x.add_argument("--out", required=True, help="the file to write (" + ", ".join(
-        f"{k} {'/'.join(v.suffixes)}" for k, v in EXPORTS.items()) + ")")  # fmt: skip
-    x.add_argument(
-        "--fps",
-        type=number(float, 1.0, 240.0),
-        default=None,
-        help="BVH only: resample to this rate (1-240), e.g. 15 for gesture work",
-    )
-    x.add_argument("--units", choices=UNITS, default="m", help="FBX only: the file's unit, m (default: Unity 1:1, "
-                   "Unreal converts) or cm (Maya, MotionBuilder scenes)")  # fmt: skip
-    add_rig(x)
+    formats = "; ".join(f"{k}: {v.help}" for k, v in EXPORTS.items())
+    suffixes = "(" + ", ".join(f"{k} {'/'.join(v.suffixes)}" for k, v in EXPORTS.items()) + ")"
+    add_args(x, ExportArgs, Rig, help_extra={"format": formats, "out": suffixes})
     x.set_defaults(func=cmd_export)
 
     ll = sub.add_parser(
@@ -94,11 +127,7 @@ def register(sub) -> None:
         "and eye rotations (the values of arkit.csv). In Unreal: Live Link > Source > Live Link Face, port "
         "11111; the subject appears under --subject. Layout: docs/artifacts.md.",
     )
-    ll.add_argument("file")
-    ll.add_argument("--to", required=True, help="HOST:PORT of the machine running Unreal (e.g. 127.0.0.1:11111)")
-    ll.add_argument("--subject", default="anima", help="the Live Link subject name (default: anima)")
-    ll.add_argument("--loops", type=number(int, 1, 10_000), default=1, help="play it this many times")
-    add_json_quiet(ll)
+    add_args(ll, LiveLinkArgs, JsonQuiet)
     ll.set_defaults(func=cmd_livelink)
 
     v = sub.add_parser(
@@ -109,10 +138,7 @@ def register(sub) -> None:
         "names, left-handed, relative to the T-pose), the 52 ARKit blend values (perfect sync names) and the VRM "
         "presets. In VSeeFace: General settings > OSC/VMC receiver, port 39539 (docs/live.md).",
     )
-    v.add_argument("result", help="result folder or sequence file (capture.npz, gesture.npz, motion.npz)")
-    v.add_argument("--to", required=True, help="HOST:PORT of the receiver (e.g. 127.0.0.1:39539)")
-    v.add_argument("--loop", action="store_true", help="play it again and again until Ctrl-C")
-    add_json_quiet(v)
+    add_args(v, VmcArgs, JsonQuiet)
     v.set_defaults(func=cmd_vmc)
 
 

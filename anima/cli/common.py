@@ -3,9 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import shlex
 import sys
+from dataclasses import dataclass, field
+
+from anima.cli.options import add_options
+from anima.core.rig import PRESETS as RIG_PRESETS  # the conventions' one table
 
 
 def command_line(a: argparse.Namespace) -> str:
@@ -38,24 +43,40 @@ def group(sub, name: str, help_: str, dest: str, metavar: str):
     return p.add_subparsers(dest=dest, metavar=metavar, parser_class=type(p))
 
 
-RIG_PRESETS = ("anima", "mixamo", "vrm", "unreal")  # anima.core.rig.PRESETS (the CLI does not load the rig)
+@dataclass
+class Rig:
+    rig: str = field(default="anima", metadata={"choices": RIG_PRESETS})
+    """joint names of body.bvh and avatar.glb: anima (Mixamo-style, no prefix), mixamo (mixamorig:), vrm (VRM 1.0
+    humanoid) or unreal (UE mannequin); the same skeleton (docs/rig.md)"""
+
+
+@dataclass
+class Json:
+    json: bool = False
+    """print the result as JSON"""
+
+
+@dataclass
+class JsonQuiet(Json):
+    quiet: bool = False
+    """no progress bars"""
+
+
+def add_args(p, *classes, help_extra: dict | None = None) -> None:
+    """The options of every field of ``classes`` (a command's own arguments, declared as dataclasses like the
+    features' configs: :mod:`anima.cli.options`), in their order; ``help_extra``: text added to a field's help
+    (what is known only when the parser is built, e.g. a table's entries)."""
+    for cls in classes:
+        add_options(p, cls, [f.name for f in dataclasses.fields(cls)], help_extra)
 
 
 def add_rig(p) -> None:
     """``--rig``: the naming of the skeleton's joints in body.bvh and avatar.glb."""
-    p.add_argument(
-        "--rig",
-        choices=RIG_PRESETS,
-        default="anima",
-        help="joint names of body.bvh and avatar.glb: anima (Mixamo-style, no prefix), mixamo (mixamorig:), "
-        "vrm (VRM 1.0 humanoid) or unreal (UE mannequin); the same skeleton (docs/rig.md)",
-    )
+    add_args(p, Rig)
 
 
 def add_json_quiet(p, quiet: bool = True) -> None:
-    p.add_argument("--json", action="store_true", help="print the result as JSON")
-    if quiet:
-        p.add_argument("--quiet", action="store_true", help="no progress bars")
+    add_args(p, JsonQuiet if quiet else Json)
 
 
 def time_split(t: dict) -> str:

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
-from anima.cli.common import add_json_quiet, command_line, emit, group, notes
-from anima.cli.options import add_options, config_from_args, number
+from dataclasses import dataclass, field
+
+from anima.cli.common import JsonQuiet, add_args, command_line, emit, group, notes
+from anima.cli.options import add_options, config_from_args
 from anima.dataset import run as dataset
 from anima.dataset.build import build_summary
 from anima.dataset.config import BuildConfig, FilterConfig
@@ -11,6 +13,28 @@ from anima.dataset.report import write_report
 
 FILTER_OPTIONS = ["min_s", "max_s", "emotion_min_s", "max_yaw_deg", "max_fit_nme"]
 BUILD_OPTIONS = ["n_descriptions", "seed", "max_frames", "chunk_s", "chunk_warmup_s"]
+
+
+@dataclass
+class BuildIn:
+    videos: list = field(default_factory=list, metadata={"positional": True, "nargs": "+", "metavar": "videos"})
+    """video files, folders (searched recursively) or glob patterns"""
+    out: str = field(default="", metadata={"required": True, "metavar": "OUT"})
+    """dataset folder"""
+    annotations: str | None = field(default=None, metadata={"metavar": "ANNOTATIONS"})
+    """CelebV-Text style JSON (see anima/dataset/annotations.py)"""
+    address: str | None = field(default=None, metadata={"metavar": "ADDRESS"})
+    """Ray cluster address (default: a local Ray instance)"""
+    workers: int | None = field(default=None, metadata={"range": (1, 256), "metavar": "WORKERS"})
+    """local Ray workers (default: all cores)"""
+
+
+@dataclass
+class ReportIn:
+    dataset: str = field(default="", metadata={"positional": True, "metavar": "dataset"})
+    """a dataset folder from `anima dataset build`"""
+    sheets: int = field(default=3, metadata={"range": (0, 100), "metavar": "SHEETS"})
+    """contact sheets to draw (0-100)"""
 
 
 def register(sub) -> None:
@@ -26,14 +50,10 @@ def register(sub) -> None:
         "(imported or automatic), describe, and write Parquet shards. Resumable: rerun the same "
         "command after an interruption and finished videos are skipped.",
     )
-    db.add_argument("videos", nargs="+", help="video files, folders (searched recursively) or glob patterns")
-    db.add_argument("--out", required=True, help="dataset folder")
-    db.add_argument("--annotations", default=None, help="CelebV-Text style JSON (see anima/dataset/annotations.py)")
-    db.add_argument("--address", default=None, help="Ray cluster address (default: a local Ray instance)")
-    db.add_argument("--workers", type=number(int, 1, 256), default=None, help="local Ray workers (default: all cores)")
+    add_args(db, BuildIn)
     add_options(db, FilterConfig, FILTER_OPTIONS)
     add_options(db, BuildConfig, BUILD_OPTIONS)
-    add_json_quiet(db)  # --quiet: no progress bars (the summary is still printed)
+    add_args(db, JsonQuiet)  # --quiet: no progress bars (the summary is still printed)
     db.set_defaults(func=cmd_build)
     dr = dsub.add_parser(
         "report",
@@ -41,8 +61,7 @@ def register(sub) -> None:
         description="Write DATASET/report/report.md and report.html: clips removed per rule, "
         "attribute distribution, clip lengths, example descriptions, contact sheets.",
     )
-    dr.add_argument("dataset")
-    dr.add_argument("--sheets", type=number(int, 0, 100), default=3, help="contact sheets to draw (0-100)")
+    add_args(dr, ReportIn)
     dr.set_defaults(func=cmd_report)
 
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from anima.cli.common import add_rig, command_line, emit, notes, time_split
+from dataclasses import dataclass, field
+
+from anima.cli.common import Json, Rig, add_args, command_line, emit, notes, time_split
 from anima.cli.options import add_options, config_from_args
 from anima.core.events import EMOTIONS, VOCABULARY
 from anima.gesture import run as gesture
@@ -28,6 +30,45 @@ GESTURE_OPTIONS = [
 ACTIONS = [n for n, e in VOCABULARY.items() if e.parsed and e.phrases and n not in EMOTIONS and not e.unplaced]
 
 
+@dataclass
+class PromptIn:
+    prompt: str = field(default="", metadata={"positional": True, "metavar": "prompt"})
+    '''e.g. "a woman smiles, then blinks"'''
+    out: str = field(default="", metadata={"required": True, "metavar": "OUT"})
+    """output folder"""
+
+
+@dataclass
+class PromptMore:
+    checkpoint: str | None = field(default=None, metadata={"metavar": "CHECKPOINT"})
+    """a checkpoint from `anima train text2face` (--method model)"""
+    db: str | None = field(default=None, metadata={"metavar": "DB"})
+    """dataset folder from `anima dataset build`: the timeline method's captured motion, instead of the built-in
+    library's (with --with-builtin, as well)"""
+    no_video: bool = False
+    """skip the MP4 render"""
+
+
+@dataclass
+class SpeechIn:
+    speech: str = field(default="", metadata={"positional": True, "metavar": "speech"})
+    """speech audio (WAV/MP3/FLAC or a video's audio; resampled to 16 kHz)"""
+    db: str | None = field(default=None, metadata={"metavar": "DB"})
+    """dataset folder from `anima dataset build` (k-NN search); default: the built-in motion library"""
+    generator: str | None = field(default=None, metadata={"metavar": "GENERATOR"})
+    """instead of the search: a section 4.4 generator checkpoint from `anima train gesture --model generator`"""
+    out: str = field(default="", metadata={"required": True, "metavar": "OUT"})
+    """output folder"""
+
+
+@dataclass
+class SpeechMore:
+    refiner: str | None = field(default=None, metadata={"metavar": "REFINER"})
+    """cGAN refiner checkpoint from `anima train gesture`"""
+    no_render: bool = False
+    """skip the videos"""
+
+
 def register(sub) -> None:
     tf = sub.add_parser(
         "text2face",
@@ -42,19 +83,9 @@ def register(sub) -> None:
         "prompt was read and what was not understood. --method model (or --checkpoint): the seed "
         "model (the shipped checkpoint unless --checkpoint is given).",
     )
-    tf.add_argument("prompt", help='e.g. "a woman smiles, then blinks"')
-    tf.add_argument("--out", required=True, help="output folder")
+    add_args(tf, PromptIn)
     add_options(tf, PromptConfig, PROMPT_OPTIONS)
-    tf.add_argument("--checkpoint", default=None, help="a checkpoint from `anima train text2face` (--method model)")
-    tf.add_argument(
-        "--db",
-        default=None,
-        help="dataset folder from `anima dataset build`: the timeline method's captured motion, instead of "
-        "the built-in library's (with --with-builtin, as well)",
-    )
-    tf.add_argument("--no-video", action="store_true", help="skip the MP4 render")
-    add_rig(tf)
-    tf.add_argument("--json", action="store_true")
+    add_args(tf, PromptMore, Rig, Json)
     tf.set_defaults(func=cmd_text2face)
 
     ge = sub.add_parser(
@@ -68,23 +99,9 @@ def register(sub) -> None:
         "avatar.glb (the rig), speech.wav, avatar.mp4 (with the speech), with the generator also "
         "arkit.csv, face.glb, face.mp4; info.json and manifest.json. --json adds the time per stage.",
     )
-    ge.add_argument("speech", help="speech audio (WAV/MP3/FLAC or a video's audio; resampled to 16 kHz)")
-    ge.add_argument(
-        "--db",
-        default=None,
-        help="dataset folder from `anima dataset build` (k-NN search); default: the built-in motion library",
-    )
-    ge.add_argument(
-        "--generator",
-        default=None,
-        help="instead of the search: a §4.4 generator checkpoint from `anima train gesture --model generator`",
-    )
-    ge.add_argument("--out", required=True)
+    add_args(ge, SpeechIn)
     add_options(ge, GestureConfig, GESTURE_OPTIONS)
-    ge.add_argument("--refiner", default=None, help="cGAN refiner checkpoint from `anima train gesture`")
-    ge.add_argument("--no-render", action="store_true", help="skip the videos")
-    add_rig(ge)
-    ge.add_argument("--json", action="store_true")
+    add_args(ge, SpeechMore, Rig, Json)
     ge.set_defaults(func=cmd_gesture)
 
 

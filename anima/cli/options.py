@@ -102,7 +102,13 @@ def add_options(parser: argparse.ArgumentParser, cls, names: list[str], help_ext
         if md.get("positional"):
             is_list = base.startswith("list")
             nargs = md.get("nargs", "*" if is_list else None)
-            kw = {"nargs": nargs, "metavar": md.get("metavar", name.upper()), "help": help_}
+            kw = {
+                "nargs": nargs,
+                "metavar": md.get("metavar", None if "choices" in md else name.upper()),
+                "help": help_,
+            }
+            if "choices" in md:
+                kw["choices"] = md["choices"]
             if is_list:
                 kw["default"] = []
             parser.add_argument(name, **{k: v for k, v in kw.items() if v is not None})

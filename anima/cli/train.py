@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from anima.cli.common import add_json_quiet, command_line, emit, group
-from anima.cli.options import SEED_RANGE, add_options, config_from_args, number
+from anima.cli.common import JsonQuiet, add_args, command_line, emit, group
+from anima.cli.options import add_options, config_from_args
 from anima.dataset.storage import check_dataset
-from anima.gesture.config import MODELS
+from anima.gesture.config import GestureTrainConfig
 from anima.io.outdir import check_out_dir, check_out_file
 from anima.pose3d.config import TrainConfig as PoseTrainConfig
 from anima.pose3d.config import default_cache, default_checkpoint
@@ -17,6 +18,54 @@ from anima.text2face.ship import check_ship, ship
 
 POSE_OPTIONS = ["steps", "batch", "seed", "wild", "projection", "latent_2d", "bone"]
 FACE_OPTIONS = ["kind", "preset", "scheme", "steps", "batch", "lr", "seed", "encoder", "tf_drop"]
+
+
+GESTURE_OPTIONS = ["model", "steps", "seed", "all_splits"]
+
+
+@dataclass
+class PoseRun:
+    out: str | None = field(default=None, metadata={"metavar": "OUT"})
+    """checkpoint"""
+
+
+@dataclass
+class PoseRunMore:
+    width: int = field(default=1024, metadata={"range": (8, 8192), "metavar": "WIDTH"})
+    """f_3D width (seed: 1024)"""
+    no_resume: bool = False
+    """start over even if --out exists"""
+    cache: str | None = field(default=None, metadata={"metavar": "CACHE"})
+    """MediaPipe detection cache"""
+
+
+@dataclass
+class FaceRun:
+    dataset: str = field(default="", metadata={"positional": True, "metavar": "dataset"})
+    """dataset folder"""
+    out: str = field(default="runs/text2face", metadata={"metavar": "OUT"})
+    """run folder (checkpoint.pt is written there)"""
+
+
+@dataclass
+class FaceRunMore:
+    codebook: int | None = field(default=None, metadata={"range": (2, 65_536), "metavar": "CODEBOOK"})
+    """N_emb (codebook entries)"""
+    emb_dim: int | None = field(default=None, metadata={"range": (2, 8192), "metavar": "EMB_DIM"})
+    """D_emb (codebook entry size)"""
+    style: bool = False
+    """ablation: add a random style vector to the decoder input"""
+    ship: str | None = field(default=None, metadata={"metavar": "PATH"})
+    """also write a compact (float16, no optimizer) copy and its manifest (command, data fingerprint, held-out
+    metrics) to PATH"""
+
+
+@dataclass
+class GestureRun:
+    db: str = field(default="", metadata={"required": True, "metavar": "DB"})
+    """dataset folder from `anima dataset build`"""
+    out: str = field(default="", metadata={"required": True, "metavar": "OUT"})
+    """checkpoint path (.pt)"""
 
 
 def register(sub) -> None:
@@ -30,12 +79,9 @@ def register(sub) -> None:
         "same command after an interruption. Never trains on S9/S11. The checkpoint carries its "
         "config; Human3.6M terms forbid redistributing it.",
     )
-    tp.add_argument("--out", default=None, help=f"checkpoint (default: {default_checkpoint()})")
+    add_args(tp, PoseRun, help_extra={"out": f"(default: {default_checkpoint()})"})
     add_options(tp, PoseTrainConfig, POSE_OPTIONS)
-    tp.add_argument("--width", type=number(int, 8, 8192), default=1024, help="f_3D width (seed: 1024)")
-    tp.add_argument("--no-resume", action="store_true", help="start over even if --out exists")
-    tp.add_argument("--cache", default=None, help=f"MediaPipe detection cache (default: {default_cache()})")
-    add_json_quiet(tp)
+    add_args(tp, PoseRunMore, JsonQuiet, help_extra={"cache": f"(default: {default_cache()})"})
     tp.set_defaults(func=cmd_pose)
 
     tt = trsub.add_parser(
@@ -46,20 +92,9 @@ def register(sub) -> None:
         "face model, teacher forcing (seed 000 ch. 6-7). Resumable: rerun the same command. "
         "The checkpoint carries its config and normalisation.",
     )
-    tt.add_argument("dataset", help="dataset folder")
-    tt.add_argument("--out", default="runs/text2face", help="run folder (checkpoint.pt is written there)")
+    add_args(tt, FaceRun)
     add_options(tt, FaceTrainConfig, FACE_OPTIONS)
-    tt.add_argument("--codebook", type=number(int, 2, 65_536), default=None, help="N_emb (codebook entries)")
-    tt.add_argument("--emb-dim", type=number(int, 2, 8192), default=None, help="D_emb (codebook entry size)")
-    tt.add_argument("--style", action="store_true", help="ablation: add a random style vector to the decoder input")
-    tt.add_argument(
-        "--ship",
-        default=None,
-        metavar="PATH",
-        help="also write a compact (float16, no optimizer) copy and its manifest (command, data "
-        "fingerprint, held-out metrics) to PATH",
-    )
-    add_json_quiet(tt)
+    add_args(tt, FaceRunMore, JsonQuiet)
     tt.set_defaults(func=cmd_text2face)
 
     tg = trsub.add_parser(
@@ -76,18 +111,9 @@ def register(sub) -> None:
         "difference discriminator without speech); moglow: a MoGlow-style normalising flow (Henter et al. "
         "2020), trained by likelihood on the windows with a body. Use those with `anima gesture --generator`.",
     )
-    tg.add_argument("--db", required=True, help="dataset folder from `anima dataset build`")
-    tg.add_argument("--out", required=True, help="checkpoint path (.pt)")
-    tg.add_argument("--model", default="refiner", choices=MODELS)
-    tg.add_argument(
-        "--steps",
-        type=number(int, 1, 10_000_000),
-        default=None,
-        help="generator steps (default 600 refiner, 1000 others)",
-    )
-    tg.add_argument("--seed", type=number(int, *SEED_RANGE), default=0)
-    tg.add_argument("--all-splits", action="store_true", help="train on all splits (default: train only)")
-    add_json_quiet(tg)
+    add_args(tg, GestureRun)
+    add_options(tg, GestureTrainConfig, GESTURE_OPTIONS)
+    add_args(tg, JsonQuiet)
     tg.set_defaults(func=cmd_gesture)
 
 
@@ -109,7 +135,7 @@ def cmd_text2face(a) -> int:
     if a.ship:
         check_ship(a.ship, inputs=[a.dataset])  # before the training it would come after
     check_dataset(a.dataset)  # before torch loads
-    from anima.eval.text2face import quick_metrics  # lazy: torch
+    from anima.eval.text2face.run import quick_metrics  # lazy: torch
     from anima.text2face.train import train  # lazy: torch
 
     model = {
@@ -134,9 +160,8 @@ def cmd_gesture(a) -> int:
     check_dataset(a.db)  # before torch loads
     from anima.gesture.train import train_from_dataset  # lazy: torch
 
-    msg = train_from_dataset(
-        a.db, a.out, a.model, a.steps, a.seed, a.all_splits, progress=not a.quiet, command=command_line(a)
-    )
+    cfg = config_from_args(GestureTrainConfig, a, GESTURE_OPTIONS)
+    msg = train_from_dataset(a.db, a.out, cfg, progress=not a.quiet, command=command_line(a))
     return emit(
         msg, a.json, lambda m: "\n".join(f"{k}: {json.dumps(v) if isinstance(v, dict) else v}" for k, v in m.items())
     )

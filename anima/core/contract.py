@@ -26,6 +26,7 @@ the magic numbers ``30.0``, ``15.0``, ``53`` or ``56``): import them.
 from __future__ import annotations
 
 N_IDENTITY = 100
+N_FACE_LANDMARKS = 478  # MediaPipe Face Mesh's refined landmarks (the tracked sequence's landmarks)
 N_EXPR = 53
 HEAD_ROT_DIM = 3
 FACE_DIM = N_EXPR + HEAD_ROT_DIM  # 56

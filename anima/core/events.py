@@ -8,7 +8,7 @@ their order), and how the timeline method makes it (:mod:`anima.text2face.compos
 its side, its hold, the strength range of each stated intensity. Events are named by the constants below
 (``RAISE_BROWS`` ...) where code refers to one.
 
-The independent judge (:mod:`anima.eval.judge`) keeps its own list and rules: it must not share the
+The independent judge (:mod:`anima.eval.text2face.judge`) keeps its own list and rules: it must not share the
 generator's.
 
 Pure data, no I/O.

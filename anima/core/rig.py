@@ -537,6 +537,9 @@ CONVENTIONS = {k: {n: _convention(n, k) for n in NAMES} for k in ("anima", "mixa
 """``{convention: {rig joint: its name there}}`` ("" where the convention has no such joint: the end joints in
 VRM and Unreal)."""
 PRESETS = tuple(CONVENTIONS)
+NAME_SEARCH = ("mixamo", "unreal", "vrm", "anima")
+"""The order a user's skeleton is matched against the conventions by bone name (the one with most matches wins,
+a tie goes to the earlier): the exporters' conventions first, anima's own last."""
 
 
 def preset_names(preset: str) -> list[str]:

@@ -13,13 +13,22 @@ from __future__ import annotations
 
 import numpy as np
 
-from anima.core.contract import BODY_JOINTS, HAND_JOINTS, JOINT_NAMES, JOINT_PARENTS, LEG_JOINTS, N_JOINTS
+from anima.core.contract import (
+    BODY_JOINTS,
+    HAND_JOINTS,
+    JOINT_NAMES,
+    JOINT_PARENTS,
+    LEG_JOINTS,
+    N_BODY_JOINTS,
+    N_HAND_JOINTS,
+    N_JOINTS,
+)  # fmt: skip
 
 PARENTS = np.array(JOINT_PARENTS, np.int64)
 __all__ = ["BODY_JOINTS", "HAND_JOINTS", "JOINT_NAMES", "LEG_JOINTS", "N_JOINTS", "PARENTS"]
-LEFT_HAND = slice(13, 34)
-RIGHT_HAND = slice(34, 55)
-BODY = slice(0, 13)
+BODY = slice(0, N_BODY_JOINTS)  # the layout of the 55 joints: body, then the left hand, then the right
+LEFT_HAND = slice(N_BODY_JOINTS, N_BODY_JOINTS + N_HAND_JOINTS)
+RIGHT_HAND = slice(N_BODY_JOINTS + N_HAND_JOINTS, N_JOINTS)
 
 # MediaPipe Pose (33 landmarks) indices used to build the body joints
 MP_POSE = {

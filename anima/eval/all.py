@@ -64,12 +64,29 @@ def data_fingerprint(root: Path | None = None) -> dict:
     return {"root": shown_path(root), "files": n, "bytes": size, "sha256": h.hexdigest()}
 
 
+BUILD_TIMING = ("compute_s", "last_run")
+"""A dataset manifest's fields that say how a build ran (its seconds, its workers), not what it holds."""
+
+
 def dataset_fingerprint(folder: str | os.PathLike) -> dict:
+    """The manifest's sha256, and ``content_sha256``: the sha256 of the manifest without :data:`BUILD_TIMING`
+    (keys sorted), equal for two builds of the same data by the same code (what ``--resume`` compares)."""
     m = Path(folder) / "manifest.json"
-    return {
-        "folder": str(folder),
-        "manifest_sha256": hashlib.sha256(m.read_bytes()).hexdigest() if m.is_file() else None,
-    }
+    if not m.is_file():
+        return {"folder": str(folder), "manifest_sha256": None, "content_sha256": None}
+    raw = m.read_bytes()
+    try:
+        held = {k: v for k, v in json.loads(raw).items() if k not in BUILD_TIMING}
+        content = hashlib.sha256(json.dumps(held, sort_keys=True).encode()).hexdigest()
+    except (ValueError, AttributeError):
+        content = None
+    return {"folder": str(folder), "manifest_sha256": hashlib.sha256(raw).hexdigest(), "content_sha256": content}
+
+
+def _same_dataset(a: dict, b: dict) -> bool:
+    if a.get("content_sha256") and b.get("content_sha256"):
+        return a["content_sha256"] == b["content_sha256"] and a.get("folder") == b.get("folder")
+    return a == b
 
 
 def run_row(ev: Evaluation, name: str, cfg) -> dict:
@@ -185,7 +202,8 @@ def summary_markdown(results: dict, rows: list[tuple[Evaluation, str, object]]) 
 
 def finished_rows(out: Path, prov: dict, quick: bool) -> tuple[dict, float]:
     """The rows (name -> entry, status "ok") of a run into ``out`` that stopped, or ended, on the same clean
-    commit, shared data, dataset and ``quick`` as ``prov``, and that run's minutes: what ``--resume`` keeps.
+    commit, shared data, dataset (its content: a rebuild that took other seconds is the same) and ``quick`` as
+    ``prov``, and that run's minutes: what ``--resume`` keeps.
     Anything else: none."""
     try:
         old = json.loads((out / "results.json").read_text())
@@ -195,7 +213,7 @@ def finished_rows(out: Path, prov: dict, quick: bool) -> tuple[dict, float]:
             and not prov["commit"].endswith("-dirty")
             and p["commit"] == prov["commit"]
             and p["data"] == prov["data"]
-            and p["dataset"] == prov["dataset"]
+            and _same_dataset(p["dataset"], prov["dataset"])
             and old.get("quick") == quick
         )
         if not same:

@@ -122,7 +122,7 @@ class Text2FaceEval:
     """With --prompts: seeds per prompt."""
     judge: bool = False
     """With --prompts: also score every method's seed-0 motion with the independent judge (rendered, tracked
-    with MediaPipe, events from landmark geometry: anima/eval/judge.py; about 2 s a prompt and method), and
+    with MediaPipe, events from landmark geometry: anima/eval/text2face/judge.py; about 2 s a prompt and method), and
     list where the two judges disagree."""
 
 

@@ -104,7 +104,7 @@ def _check_gesture(cfg: GestureEval) -> None:
 def _check_text2face(cfg: Text2FaceEval) -> None:
     check_dataset(cfg.dataset)
     if cfg.prompts is not None:
-        from anima.eval.text2face_prompts import load_suite
+        from anima.eval.text2face.prompts import load_suite
 
         load_suite(cfg.prompts or None)  # a bad suite fails before any model loads
 
@@ -176,7 +176,7 @@ EVALUATIONS = (
         "HumanEva-I validation from ground-truth 2D; with --ablation DIR, trains (resumable) and evaluates the "
         "rows of seed table 3.6.",
         PoseEval,
-        "anima.eval.pose",
+        "anima.eval.pose.run",
         lambda c: [  # the ablation's lifters are trained in the run (no lifter ships: Human3.6M's terms)
             ("pose", PoseEval(ablation=str(c.work / "pose_ablation"), ablation_steps=20 if c.quick else 8000))
         ],
@@ -188,7 +188,7 @@ EVALUATIONS = (
         "against n; method 1 vs 2; n-best L2 curves with and without the actor->target expression mapping. "
         "--out DIR also writes plots and side-by-side frames.",
         ReenactEval,
-        "anima.eval.reenact",
+        "anima.eval.reenact.run",
         lambda c: [("reenact", ReenactEval(out=str(c.out / "reenact")))],
     ),
     Evaluation(
@@ -222,7 +222,7 @@ EVALUATIONS = (
         "intervals; attribute recall with the dataset's detectors; R-precision with a contrastive text-motion "
         "evaluator. With --prompts: the prompt suite instead.",
         Text2FaceEval,
-        "anima.eval.text2face",
+        "anima.eval.text2face.run",
         _text2face_rows,
         check=_check_text2face,
         long=True,

@@ -31,6 +31,7 @@ from anima.core import rig, world
 from anima.core.contact import TorsoSurface
 from anima.core.contract import EXPR_NAMES, JOINT_NAMES, LEG_JOINTS
 from anima.core.ground import Picture
+from anima.core.occlusion import hand_over_face
 from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
 from anima.errors import InputError
 from anima.export.vrm import character_vrm
@@ -189,9 +190,13 @@ def face_transfer() -> Transfer:
                     ch.morph_dense()[:, :nb], EXPR_NAMES)  # fmt: skip
 
 
+MOUTH = [k for k, n in enumerate(EXPR_NAMES) if n.startswith(("jaw", "mouth", "cheekPuff"))]
+"""The mouth's channels: under a hand (:func:`anima.core.occlusion.hand_over_face`) they have no evidence."""
+
+
 def character_face(seq: TrackedSequence) -> np.ndarray:
     """The character's 53 morph weights ``[F, 53]`` for the sequence's face (easing to the rest face where it was
-    lost, :func:`anima.facemodel.neutral.faded`): chosen so that its
+    lost, :func:`anima.facemodel.neutral.faded`, and the mouth alone where a hand covers it): chosen so that its
     lids, brows, mouth corners and lips move as the fitted face's do (:func:`face_transfer`), not copied by
     name."""
     W = np.zeros((seq.n_frames, len(EXPR_NAMES)), np.float32)
@@ -202,6 +207,9 @@ def character_face(seq: TrackedSequence) -> np.ndarray:
             if i >= 0:
                 W[:, k] = np.where(seq.tracked, expression[:, i], 0.0)
         W = faded(face_transfer()(np.clip(W, 0.0, 1.0)).astype(np.float32), seq.tracked, seq.fps)
+        covered = hand_over_face(seq)
+        if covered.any():  # no evidence under the hand: the mouth eases to its rest and back, never frozen
+            W[:, MOUTH] = faded(W[:, MOUTH], seq.tracked & ~covered, seq.fps)
     return np.clip(W, 0.0, 1.0)
 
 

@@ -13,7 +13,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from anima.core.contract import HEAD_ROT_DIM, N_EXPR
+from anima.core.contract import HEAD_ROT_DIM, N_EXPR, N_FACE_LANDMARKS
 from anima.core.skeleton import JOINT_NAMES, PARENTS
 from anima.facemodel.ict import load_face_model
 from anima.io.sequence import FLAG_NO_FACE, TrackedSequence
@@ -64,7 +64,7 @@ def generated_sequence(
         fit_error_px=np.zeros(F, np.float32) if face is not None else np.full(F, np.nan, np.float32),
         fit_nme=np.zeros(F, np.float32) if face is not None else np.full(F, np.nan, np.float32),
         flags=flags,
-        landmarks=np.full((F, 478, 3), np.nan, np.float32),
+        landmarks=np.full((F, N_FACE_LANDMARKS, 3), np.nan, np.float32),
         expr_names=list(names),
         meta=meta,
     )

@@ -31,9 +31,11 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+import numpy as np
 from threadpoolctl import threadpool_limits
 
 from anima.core.clock import Stopwatch
+from anima.core.occlusion import hand_over_face
 from anima.export.avatar import body_of, render_avatar_preview, write_avatar, write_speech
 from anima.export.formats import export_arkit_csv, export_bvh, export_glb
 from anima.facemodel.neutral import presented
@@ -109,6 +111,14 @@ def write_motion_outputs(
                     else "10th percentile over the clip (at most 0.35)"
                 )
                 info["rest_face"] = {"channels": rest, "how": how + ", taken out of every animation"}
+            covered = hand_over_face(seq) & seq.tracked
+            if covered.any():
+                info["mouth_covered"] = {
+                    "frames": int(covered.sum()),
+                    "first_s": round(float(np.flatnonzero(covered)[0] / seq.fps), 2),
+                    "how": "a hand over the lower face (anima.core.occlusion): the character's mouth eases to its "
+                    "rest over 0.25 s and back, as for a lost face (the fit has no evidence there)",
+                }
             files["info"] = write_json(out.file("info.json"), {**info, "files": {k: p.name for k, p in files.items()}})
     return files
 

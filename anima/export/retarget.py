@@ -83,7 +83,7 @@ def find_humanoid(g: Gltf) -> Humanoid:
         joints = {j for s in g.doc.get("skins", []) for j in s.get("joints", []) if isinstance(j, int)}
         cand = sorted(joints) if joints else range(len(g.nodes))
         best = Humanoid({}, "none")
-        for conv in ("mixamo", "unreal", "vrm", "anima"):
+        for conv in rig.NAME_SEARCH:
             table = {_norm(v): k for k, v in rig.CONVENTIONS[conv].items() if v}
             nodes = {}
             for i in cand:

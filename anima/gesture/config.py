@@ -35,3 +35,18 @@ class GestureConfig:
     control_ends_only: bool = False
     """Check a control on the first and last frame of each 8-frame step only, as the seed does (default: on
     every frame, so the frames between them keep the control too)."""
+
+
+@dataclass
+class GestureTrainConfig:
+    """What ``anima train gesture`` trains (:func:`anima.gesture.train.train_from_dataset`)."""
+
+    model: str = field(default="refiner", metadata={"choices": MODELS})
+    """refiner: the cGAN refiner of k-NN gestures (section 5.3.3); generator, regression, lstm,
+    velocity_adversarial, moglow: the section 4.4 generator and its baselines."""
+    steps: int | None = field(default=None, metadata={"range": (1, 10_000_000)})
+    """generator steps (default 600 refiner, 1000 others)"""
+    seed: int = 0
+    """random seed"""
+    all_splits: bool = False
+    """train on all splits (default: train only)"""

@@ -19,7 +19,7 @@ from tqdm import tqdm
 
 from anima.dataset.windows import read_windows
 from anima.errors import InputError
-from anima.gesture.config import MODELS, GestureConfig
+from anima.gesture.config import MODELS, GestureConfig, GestureTrainConfig
 from anima.gesture.database import from_dataset
 from anima.gesture.features import N_STEP
 from anima.gesture.generator import GeneratorConfig, GeneratorTrainConfig, save_generator, train_generator
@@ -31,14 +31,14 @@ from anima.io.outdir import check_out_file
 def train_from_dataset(
     db: str | Path,
     out: str | Path,
-    model: str = "refiner",
-    steps: int | None = None,
-    seed: int = 0,
-    all_splits: bool = False,
+    cfg: GestureTrainConfig | None = None,
     progress: bool = True,
     command: str | None = None,
 ) -> dict:
-    """Train ``model`` on the training split of ``db`` (every split with ``all_splits``); returns a summary."""
+    """Train ``cfg.model`` on the training split of ``db`` (every split with ``cfg.all_splits``); returns a
+    summary."""
+    cfg = cfg or GestureTrainConfig()
+    model, steps, seed, all_splits = cfg.model, cfg.steps, cfg.seed, cfg.all_splits
     if not Path(db).exists():
         raise InputError(f"no dataset at {db}")
     if model not in MODELS:

@@ -114,7 +114,8 @@ def test_bootstrap_over_videos_resamples_whole_videos():
 def test_tof_is_the_l2_norm_of_the_flow_difference():
     """Seed 001 eq. 2.9 on eight real frames of a talking head: 0 against itself; against a frozen output (no
     motion) it is the mean per-pixel L2 length of the truth's flow, not |dx| + |dy|."""
-    from anima.eval.reenact import OBAMA, flow, temporal_flow_error
+    from anima.eval.reenact.metrics import flow, temporal_flow_error
+    from anima.eval.reenact.run import OBAMA
     from anima.io.video import read_video
 
     frames = np.stack(read_video(asset(OBAMA[0]), max_frames=8)[0])[:, 100:356, 100:356].copy()
@@ -194,6 +195,27 @@ def test_a_resumed_run_keeps_only_rows_of_the_same_clean_commit_and_data(tmp_pat
     assert finished_rows(tmp_path, prov, False) == ({}, 0.0)
 
 
+def test_a_rebuilt_dataset_is_the_same_dataset_to_resume(tmp_path):
+    """Two builds of the same data by the same code differ in how long they took (``compute_s``, ``last_run``),
+    not in what they hold: their content fingerprints are equal (a stopped run resumes on a rebuild), a changed
+    count or split is not."""
+    import json
+
+    from anima.eval.all import _same_dataset, dataset_fingerprint
+
+    man = {"schema": "anima.dataset", "clips_kept": 118, "splits": {"train": 76}, "compute_s": 1188.3,
+           "last_run": {"wall_s": 606.9, "videos_per_node": {"a1": ["d0"]}}}  # fmt: skip
+    prints = []
+    for k, edit in enumerate(({}, {"compute_s": 2318.8, "last_run": {"wall_s": 1181.5}}, {"clips_kept": 117})):
+        (tmp_path / str(k)).mkdir()
+        (tmp_path / str(k) / "manifest.json").write_text(json.dumps({**man, **edit}))
+        prints.append({**dataset_fingerprint(tmp_path / str(k)), "folder": "ds"})
+    assert prints[0]["manifest_sha256"] != prints[1]["manifest_sha256"]
+    assert _same_dataset(prints[0], prints[1]) and not _same_dataset(prints[0], prints[2])
+    assert not _same_dataset(prints[0], {**prints[1], "folder": "other"})
+    assert dataset_fingerprint(tmp_path / "none")["content_sha256"] is None
+
+
 def test_eval_all_trains_the_pose_ablation_in_its_work_folder(tmp_path):
     """No lifter ships (Human3.6M's terms), so eval all's pose row trains the ablation's lifters in the run's
     work folder rather than skipping the row: the docs' pose table comes from eval all's results."""
@@ -225,7 +247,7 @@ def test_the_held_out_prompts_are_frozen_and_only_eval_all_runs_them():
     from anima.eval.config import HELDOUT_PROMPTS, HELDOUT_SHA256
     from anima.eval.registry import Context
     from anima.eval.registry import rows as registry_rows
-    from anima.eval.text2face_prompts import load_suite
+    from anima.eval.text2face.prompts import load_suite
 
     assert hashlib.sha256(HELDOUT_PROMPTS.read_bytes()).hexdigest() == HELDOUT_SHA256
     assert len(load_suite(HELDOUT_PROMPTS)) == 40
@@ -241,6 +263,6 @@ def test_the_held_out_prompts_are_frozen_and_only_eval_all_runs_them():
     # the file's name: where it is declared, the suite module's docstring and this test
     assert naming("text2face_heldout") <= {
         "anima/eval/config.py",
-        "anima/eval/text2face_prompts.py",
+        "anima/eval/text2face/prompts.py",
         "tests/eval/test_eval.py",
     }

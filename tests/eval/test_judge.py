@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.eval import judge
+from anima.eval.text2face import judge
 from anima.text2face.compose import Library, compose
 from anima.text2face.prompt import parse
 
@@ -21,7 +21,7 @@ def _imports(module) -> set:
 def test_the_judge_shares_no_code_with_the_dataset_detectors_nor_the_previews():
     """Issue 52 item 4: not the detectors, not the generator, not anima's face tracker, and a render by its own
     path (not ``anima.render`` / ``anima.export``, which draw the previews)."""
-    from anima.eval import judge_render
+    from anima.eval.text2face import judge_render
 
     mods = _imports(judge) | _imports(judge_render)
     banned = ("anima.dataset", "anima.text2face", "anima.capture", "anima.render", "anima.export")
@@ -33,7 +33,7 @@ def test_the_judges_render_is_a_face_and_moves_with_the_motion():
     an open jaw opens a dark mouth, a turned head moves the nose; back faces are culled (the render of the
     head turned 180 degrees is the back of the head, not the face seen through it)."""
     from anima.core.contract import EXPR_NAMES, FACE_DIM, N_EXPR
-    from anima.eval import judge_render
+    from anima.eval.text2face import judge_render
 
     m = np.zeros((4, FACE_DIM), np.float32)
     m[1, EXPR_NAMES.index("jawOpen")] = 0.9

@@ -145,6 +145,7 @@ def test_the_cli_presets_are_the_rigs():
     from anima.cli.common import RIG_PRESETS
 
     assert set(RIG_PRESETS) == set(rig.PRESETS)
+    assert sorted(rig.NAME_SEARCH) == sorted(rig.PRESETS)  # a user's skeleton is matched against every one
 
 
 def test_a_missing_or_damaged_character_is_one_line_with_the_install_step(monkeypatch, tmp_path):

@@ -262,6 +262,45 @@ def test_the_close_up_is_mounted_on_the_head(d0_capture):
     assert np.abs(by_yaw - by_yaw[0]).max() > 2  # the yaw-only camera: the same points wander
 
 
+def test_a_hand_over_the_mouth_eases_the_mouth_to_rest_and_says_so(tmp_path):
+    """A real talking clip (d0, 1.2 s) followed by the shared photo of hands over a face (2 s): under the hands
+    the fit has no evidence for the mouth, so the character's mouth eases to its rest within 0.25 s (never a
+    frozen mid-word mouth) while the eyes and brows keep following; capture's info.json names the covered
+    frames."""
+    import json
+    import subprocess
+
+    import imageio_ffmpeg
+
+    from anima.capture.config import CaptureConfig
+    from anima.capture.run import run
+    from anima.core.occlusion import hand_over_face
+    from anima.export.avatar import MOUTH, character_face
+    from anima.io.assets import asset
+    from anima.io.sequence import read_sequence
+
+    ff = imageio_ffmpeg.get_ffmpeg_exe()
+    talk, hands, both = tmp_path / "talk.mp4", tmp_path / "hands.mp4", tmp_path / "both.mp4"
+    scale = ["-vf", "scale=512:512,setsar=1,fps=25,format=yuv420p"]
+    subprocess.run([ff, "-v", "error", "-y", "-i", str(asset("liveportrait-examples/assets/examples/driving/d0.mp4")),
+                    "-t", "1.2", "-an", *scale, str(talk)], check=True)  # fmt: skip
+    subprocess.run([ff, "-v", "error", "-y", "-loop", "1", "-i", str(asset("hand-images/hands_over_face.jpg")),
+                    "-t", "2", *scale, str(hands)], check=True)  # fmt: skip
+    subprocess.run([ff, "-v", "error", "-y", "-i", str(talk), "-i", str(hands), "-filter_complex",
+                    "[0:v][1:v]concat=n=2:v=1[v]", "-map", "[v]", str(both)], check=True)  # fmt: skip
+    out = tmp_path / "out"
+    run(str(both), out, CaptureConfig(), render=False, progress=False)
+    seq = read_sequence(out / "capture.npz")
+    covered = hand_over_face(seq) & seq.tracked
+    assert covered[40:].mean() > 0.8 and covered[:25].sum() == 0, covered.astype(int).tolist()
+    W = character_face(seq)
+    start = int(np.flatnonzero(covered)[0])
+    settled = [f for f in np.flatnonzero(covered) if f - start > 0.25 * seq.fps]
+    assert np.abs(W[settled][:, MOUTH]).max() == 0.0  # at rest under the hands (the fit reads 1.0 there)
+    info = json.loads((out / "info.json").read_text())
+    assert info["mouth_covered"]["frames"] == int(covered.sum())
+
+
 def test_a_neutral_reference_keeps_a_clip_long_expression(tmp_path):
     """CREMA-D actor 1001 (development clips, 2 s each): the angry take lowers its brows for the whole clip, so
     the clip's own rest estimate takes most of it out (the character's browDown reads as the neutral take's);

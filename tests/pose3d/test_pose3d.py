@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from anima.eval.pose_metrics import align_procrustes, pose_metrics
+from anima.eval.pose.metrics import align_procrustes, pose_metrics
 from anima.io.assets import asset
 from anima.pose3d import data as pdata
 from anima.pose3d.joints import BONES, FLIP, H36M_PARENTS, K, mediapipe_matrix, mediapipe_to_h36m

@@ -162,7 +162,7 @@ def test_database_on_a_real_clip(obama_db, tmp_path):
 def test_self_reenactment_colours_never_read_the_truth_frames(obama_db):
     """Issue 38 / seed 001 §4.2.1: in self-re-enactment the truth frames are kept out of the database, and the
     colour target (the target video's skin) is computed from the database's frames alone."""
-    from anima.eval.reenact import video_skin
+    from anima.eval.reenact.run import video_skin
     from anima.reenact.database import build_database
     from anima.reenact.pipeline import Reenactor
     from anima.reenact.synth import skin_stats

@@ -313,7 +313,7 @@ def test_steps_are_chosen_on_validation_windows_from_snapshots_of_one_run(ds, tm
     the lowest validation MAE, recorded with every candidate's score."""
     import dataclasses
 
-    from anima.eval.text2face import choose_steps, model_method, validation_mae
+    from anima.eval.text2face.run import choose_steps, model_method, validation_mae
     from anima.text2face.data import FaceGeometry, eval_items
     from anima.text2face.encoders import encode_cached
     from anima.text2face.train import TrainConfig, load_checkpoint, prepare, train
@@ -375,7 +375,7 @@ def test_text2face_command_writes_its_files_and_refuses_bad_input(tmp_path, cli)
 def test_held_out_errors_get_intervals_over_videos_per_split():
     """Per split, a mean per-window error with a 95 % interval that resamples whole videos (and the counts);
     a split with one video has nothing to resample."""
-    from anima.eval.text2face import over_videos
+    from anima.eval.text2face.run import over_videos
     from anima.text2face.data import Item
 
     rng = np.random.default_rng(0)
@@ -397,7 +397,7 @@ def test_held_out_errors_get_intervals_over_videos_per_split():
 def test_headline_metrics_are_on_the_test_windows_and_validation_is_apart():
     """Issue 38: MAE, RMSE and Diversity in the headline come from the test windows only; the validation
     windows (which chose the steps) are reported apart. A method exact on test and off on validation shows it."""
-    from anima.eval.text2face import EVAL_LEN, Method, score
+    from anima.eval.text2face.run import EVAL_LEN, Method, score
     from anima.text2face.data import FaceGeometry, Item
 
     rng = np.random.default_rng(0)
@@ -449,7 +449,7 @@ def test_prompt_parser_reads_order_counts_intensity_side_and_reports_unknown_wor
 
 def test_prompt_parser_agrees_with_every_annotated_prompt_of_the_suite():
     """The 114 prompts of the suite: the parser finds each prompt's events in its clauses with its counts."""
-    from anima.eval.text2face_prompts import load_suite
+    from anima.eval.text2face.prompts import load_suite
     from anima.text2face.prompt import parse
 
     rows = load_suite()
@@ -549,7 +549,7 @@ def test_text2face_timeline_command_and_its_refusals(ds, tmp_path, cli):
 def test_prompt_suite_scores_follow_their_definitions():
     """The scorer on hand-made motions: a blink where one is asked is a hit, a smile where none is asked a
     false alarm, and two prompts with the same motion are counted as such."""
-    from anima.eval.text2face_prompts import score_runs
+    from anima.eval.text2face.prompts import score_runs
 
     rows = [
         {"prompt": "blink", "kind": "single", "clauses": [[{"attribute": "blink", "count": 1}]]},

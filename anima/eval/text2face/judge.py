@@ -3,7 +3,7 @@ read by a judge that shares no code or threshold with the dataset's detectors (`
 which also choose the timeline method's segments)?
 
 The round trip: each generated motion is rendered (the face model's mesh, by the judge's own renderer,
-:mod:`anima.eval.judge_render`, not the path that draws ``face.mp4``), the rendering is tracked with MediaPipe
+:mod:`anima.eval.text2face.judge_render`, not the path that draws ``face.mp4``), the rendering is tracked with MediaPipe
 Face Mesh (478 image landmarks per frame), and events are read from geometric measures of the tracked
 landmarks, in units of the inter-ocular distance (:func:`measures`):
 
@@ -31,8 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from anima.core.contract import HEAD_ROT_DIM, N_EXPR
-from anima.eval.judge_render import render_frames
+from anima.core.contract import HEAD_ROT_DIM, N_EXPR, N_FACE_LANDMARKS
+from anima.eval.text2face.judge_render import render_frames
 
 # MediaPipe Face Mesh indices (the canonical face mesh topology)
 EYE = {"L": (159, 145, 33, 133), "R": (386, 374, 362, 263)}  # upper lid, lower lid, corners
@@ -60,7 +60,7 @@ class JudgeConfig:
     the training and validation splits only (issue 52; module docstring; benchmarks/results/judge_calibration.json
     lists the clips, event F1 there: blink 0.93, smile 0.80, mouth open 1.0, raised brows 0.80, frown 0.29, nod
     0.50 (2 labelled nods; leave-one-clip-out 0.33): the frown and nod readings are unreliable; the test clips'
-    scores beside them), with the judge's own renderer (:mod:`anima.eval.judge_render`). Before it, on the
+    scores beside them), with the judge's own renderer (:mod:`anima.eval.text2face.judge_render`). Before it, on the
     previews' renderer: blink 0.5, mouth open 0.18, brows up 0.07, nod 0.05; before issue 52, fitted on every
     labelled clip: smile 0.14, mouth open 0.12, brows up 0.035 and down 0.035 in inter-ocular distances (the
     brows are now measured in the eyes-to-forehead height, which a nod shortens alike)."""
@@ -191,7 +191,7 @@ def track_frames(frames) -> np.ndarray:
         for f in frames:
             res = mesh.process(np.ascontiguousarray(f))
             if not res.multi_face_landmarks:
-                out.append(np.full((478, 2), np.nan))
+                out.append(np.full((N_FACE_LANDMARKS, 2), np.nan))
             else:  # normalised -> pixels
                 lm = res.multi_face_landmarks[0].landmark
                 out.append(np.array([(p.x * f.shape[1], p.y * f.shape[0]) for p in lm], np.float64))
@@ -200,8 +200,8 @@ def track_frames(frames) -> np.ndarray:
 
 def render_motion(motion: np.ndarray, fps: float):
     """The frames of generated face motion ``[F, 56]`` on the face model's neutral head, drawn by the judge's own
-    renderer (:mod:`anima.eval.judge_render`: not the previews' path; 512 x 512). ``fps`` is unused: a frame per
-    motion frame."""
+    renderer (:mod:`anima.eval.text2face.judge_render`: not the previews' path; 512 x 512). ``fps`` is unused:
+    a frame per motion frame."""
     motion = np.asarray(motion)
     return render_frames(motion[:, :N_EXPR], motion[:, N_EXPR : N_EXPR + HEAD_ROT_DIM])
 

@@ -1,7 +1,7 @@
 """``anima eval pose``: the lifter against MediaPipe's own 3D on real Human3.6M S9 images and on HumanEva-I
 (seed 004 §3.4.1), and the ablation of table 3.6.
 
-Protocols, metrics: :mod:`anima.eval.pose_metrics` (17 H36M joints, root-relative; HumanEva: its 15 joints).
+Protocols, metrics: :mod:`anima.eval.pose.metrics` (17 H36M joints, root-relative; HumanEva: its 15 joints).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 
 from anima.errors import InputError
 from anima.eval.config import PoseEval
-from anima.eval.pose_metrics import PROTOCOLS, pose_metrics
+from anima.eval.pose.metrics import PROTOCOLS, pose_metrics
 from anima.io.outdir import claim_folder
 from anima.pose3d.config import TrainConfig, default_cache, default_checkpoint
 from anima.pose3d.data import humaneva_validation, s9_image_evidence

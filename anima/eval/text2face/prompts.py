@@ -47,15 +47,15 @@ from anima.core.events import BLINK, MOUTH_OPEN, RAISE_BROWS, SMILE, SQUINT, SUR
 from anima.dataset.attributes import ATTRIBUTES
 from anima.dataset.windows import read_clips
 from anima.errors import InputError
-from anima.eval.judge import ATTRIBUTES as READS
-from anima.eval.judge import UNRELIABLE, JudgeConfig, judge_motion
+from anima.eval.text2face.judge import ATTRIBUTES as READS
+from anima.eval.text2face.judge import UNRELIABLE, JudgeConfig, judge_motion
 from anima.io.assets import shown_path
 from anima.io.validate import read_json
 from anima.text2face.compose import EXPR_NAMES, Library, compose, detect_motion
 from anima.text2face.encoders import encode_cached
 from anima.text2face.prompt import parse
 
-SUITE = Path(__file__).parent / "prompts" / "text2face.json"
+SUITE = Path(__file__).parents[1] / "prompts" / "text2face.json"
 IMPLIED = {
     SURPRISE: {RAISE_BROWS, MOUTH_OPEN},
     TALK: {MOUTH_OPEN},
@@ -356,11 +356,12 @@ def _suite_name(suite: str | Path | None) -> str:
 
 
 def judge_runs(rows: list[dict], runs: dict, captured_max: dict, progress: bool = True) -> dict:
-    """Every method's seed-0 motions scored by the independent judge (:mod:`anima.eval.judge`) and by the
+    """Every method's seed-0 motions scored by the independent judge (:mod:`anima.eval.text2face.judge`) and by the
     dataset's detectors under the same definitions, and the prompts where the two disagree on whether the
     expected events were all found."""
     cfg = JudgeConfig()
-    out = {"what": "seed 0 of every prompt; render -> MediaPipe Face Mesh -> landmark geometry (anima/eval/judge.py)",
+    out = {"what": "seed 0 of every prompt; render -> MediaPipe Face Mesh -> landmark geometry "
+                   "(anima/eval/text2face/judge.py)",
            "reads": list(READS), "unreliable": UNRELIABLE, "config": vars(cfg), "methods": {},
            "detectors_on_seed_0": {}, "disagree": {}}  # fmt: skip
     for name, rr in runs.items():
