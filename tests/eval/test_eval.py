@@ -157,7 +157,8 @@ def test_eval_all_writes_one_results_file_with_provenance(gesture_ds, cli, tmp_p
     again = json.loads((out / "results.json").read_text())
     clean = p["commit"] is not None and not p["commit"].endswith("-dirty")
     assert again["resumed"] == (["landmarks"] if clean else [])
-    assert (again["rows"]["landmarks"] == res["rows"]["landmarks"]) == clean
+    if clean:  # kept as it was (a dirty tree's rerun may give the same row, to its wall time's last digit)
+        assert again["rows"]["landmarks"] == res["rows"]["landmarks"]
 
 
 def test_eval_all_saves_each_row_as_it_ends(gesture_ds, tmp_path):
