@@ -34,7 +34,7 @@ from anima.export.retarget import find_sequence
 from anima.export.vrm import arkit_weights, vrm_expressions
 from anima.facemodel.neutral import presented
 from anima.io.arkit import LIVE_LINK_COLUMNS
-from anima.io.osc import bundle, message
+from anima.io.osc import FloatMessages, bundle, message
 from anima.io.sequence import read_sequence
 from anima.io.udp import parse_address, udp_socket
 
@@ -80,19 +80,23 @@ def blend_values(arkit: np.ndarray) -> np.ndarray:
     return np.concatenate([arkit, np.stack([ex[k] for k in VRM0_PRESETS], 1)], 1)
 
 
+_ROOT = message("/VMC/Ext/Root/Pos", "root", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+_BONES = FloatMessages([("/VMC/Ext/Bone/Pos", name) for name in UNITY_BONES.values()], 7)
+_BONE_JOINTS = np.array(list(UNITY_BONES))
+_BLENDS = FloatMessages([("/VMC/Ext/Blend/Val", name) for name in BLEND_NAMES], 1)
+_APPLY = message("/VMC/Ext/Blend/Apply")
+
+
 def frame_bundle(local: np.ndarray, hips: np.ndarray, offsets: np.ndarray, blends: np.ndarray, t: float,
                  tracked: bool = True) -> bytes:  # fmt: skip
     """One frame: rig local rotations ``[65, 3, 3]``, the hips' position ``[3]`` (metres, the character's
     space), the rig's rest offsets ``[65, 3]``, blend values ``[64]`` (:func:`blend_values`), time ``t``."""
-    q = to_unity_rotation(matrix_to_quat(local))
-    msgs = [message("/VMC/Ext/Root/Pos", "root", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)]
-    for j, name in UNITY_BONES.items():
-        p = to_unity_position(hips if j == rig.HIPS else offsets[j])
-        msgs.append(message("/VMC/Ext/Bone/Pos", name, *map(float, p), *map(float, q[j])))
-    msgs += [message("/VMC/Ext/Blend/Val", n, float(v)) for n, v in zip(BLEND_NAMES, blends)]
-    msgs += [message("/VMC/Ext/Blend/Apply"), message("/VMC/Ext/OK", 1, 3, 0, int(bool(tracked))),
-             message("/VMC/Ext/T", float(t))]  # fmt: skip
-    return bundle(msgs)
+    q = to_unity_rotation(matrix_to_quat(local[_BONE_JOINTS]))
+    p = np.array(offsets, np.float64)[_BONE_JOINTS]
+    p[_BONE_JOINTS == rig.HIPS] = hips
+    bones = _BONES.encode(np.concatenate([to_unity_position(p), q], 1))
+    return bundle([_ROOT, *bones, *_BLENDS.encode(blends), _APPLY, message("/VMC/Ext/OK", 1, 3, 0, int(bool(tracked))),
+                   message("/VMC/Ext/T", float(t))])  # fmt: skip
 
 
 def parse_vmc(to: str, flag: str = "--vmc") -> tuple[str, int]:

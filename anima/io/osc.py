@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import struct
 
+import numpy as np
+
 _BUNDLE = b"#bundle\0"
 IMMEDIATELY = 1  # the OSC time tag meaning "now"
 
@@ -36,6 +38,24 @@ def message(address: str, *args) -> bytes:
             tags += "f"
             data += struct.pack(">f", float(a))
     return _string(address) + _string(tags) + data
+
+
+class FloatMessages:
+    """Messages whose address and leading arguments never change and whose last ``n`` arguments are floats:
+    each head encoded once by :func:`message`, the floats of all of them packed per call in one numpy pass
+    (a VMC frame's bones and blend values at a fraction of :func:`message`'s cost; the same bytes)."""
+
+    def __init__(self, heads: list[tuple], n: int):
+        if n < 1:
+            raise ValueError("FloatMessages needs at least one float argument")
+        self.n = n
+        self.heads = [message(*h, *[0.0] * n)[: -4 * n] for h in heads]
+
+    def encode(self, values) -> list[bytes]:
+        """``values [len(heads), n]`` -> the encoded messages, in the heads' order."""
+        k = 4 * self.n
+        b = np.asarray(values, np.float64).reshape(len(self.heads), self.n).astype(">f4").tobytes()
+        return [h + b[i * k : (i + 1) * k] for i, h in enumerate(self.heads)]
 
 
 def bundle(messages: list[bytes], timetag: int = IMMEDIATELY) -> bytes:

@@ -83,3 +83,20 @@ def test_a_frame_bundle_is_one_udp_packet():
     b = frame_bundle(np.tile(np.eye(3), (rig.N_RIG, 1, 1)), rest[0], rig.rest_offsets(rest), np.zeros(64), 0.0)
     assert len(b) < 65_000
     assert matrix_to_quat(np.eye(3)).tolist() == [0.0, 0.0, 0.0, 1.0]
+
+
+def test_a_frame_bundle_is_the_bytes_message_by_message_gives(captures):
+    """The pre-encoded frame (:class:`anima.io.osc.FloatMessages`) is byte for byte the bundle of one
+    :func:`message` per bone and blend value, on a real capture's frame."""
+    m = character_motion(captures["oliver1"])
+    k = len(m["local"]) // 2
+    local, hips, offsets = m["local"][k], m["root"][k], rig.rest_offsets(m["rest"])
+    blends = np.random.default_rng(1).random(64)
+    q = to_unity_rotation(matrix_to_quat(local))
+    msgs = [message("/VMC/Ext/Root/Pos", "root", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)]
+    for j, name in UNITY_BONES.items():
+        p = to_unity_position(hips if j == rig.HIPS else offsets[j])
+        msgs.append(message("/VMC/Ext/Bone/Pos", name, *map(float, p), *map(float, q[j])))
+    msgs += [message("/VMC/Ext/Blend/Val", n, float(v)) for n, v in zip(BLEND_NAMES, blends)]
+    msgs += [message("/VMC/Ext/Blend/Apply"), message("/VMC/Ext/OK", 1, 3, 0, 1), message("/VMC/Ext/T", 2.5)]
+    assert frame_bundle(local, hips, offsets, blends, 2.5) == bundle(msgs)
