@@ -35,43 +35,50 @@ def _messages(data: bytes) -> list:
 
 
 class VmcReceiver:
-    """``with VmcReceiver() as rx:`` then ``rx.port``; after the block ``rx.frames`` holds one dict per bundle:
-    ``t`` (arrival), ``bones`` {name: (pos [3], quat [4])}, ``blend`` {name: value}, ``ok``, ``time``; ``rx.bad``
-    lists what broke the protocol (an unknown address, wrong types, an unknown bone, a quaternion off unit)."""
+    """``with VmcReceiver() as rx:`` then ``rx.port``; after the block (packets are parsed when it ends)
+    ``rx.frames`` holds one dict per bundle: ``t`` (arrival), ``bones`` {name: (pos [3], quat [4])}, ``blend``
+    {name: value}, ``ok``, ``time``; ``rx.bad`` lists what broke the protocol (an unknown address, wrong types,
+    an unknown bone, a quaternion off unit)."""
 
     def __init__(self, idle_s: float = 5.0):
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
         self.sock.settimeout(idle_s)
         self.port = self.sock.getsockname()[1]
+        self.raw: list = []
         self.frames: list = []
         self.bad: list = []
 
     def _listen(self) -> None:
+        """Arrival times and packets only while the sender runs (parsing with python-osc costs about three times
+        what anima spends writing a bundle, and would share the sender's cores); parsed when the block ends."""
         while True:
             try:
                 data = self.sock.recvfrom(65536)[0]
             except TimeoutError:
                 return
-            f = {"t": time.perf_counter(), "bones": {}, "blend": {}, "ok": None, "time": None, "applied": False}
-            for addr, types, args in _messages(data):
-                if TYPES.get(addr) != types:
-                    self.bad.append(f"{addr} {types}")
-                    continue
-                if addr == "/VMC/Ext/Bone/Pos":
-                    q = np.array(args[4:8])
-                    if args[0] not in UNITY_HUMAN_BONES or abs(np.linalg.norm(q) - 1) > 1e-3:
-                        self.bad.append(f"bone {args[0]} |q| {np.linalg.norm(q):.4f}")
-                    f["bones"][args[0]] = (np.array(args[1:4]), q)
-                elif addr == "/VMC/Ext/Blend/Val":
-                    f["blend"][args[0]] = args[1]
-                elif addr == "/VMC/Ext/Blend/Apply":
-                    f["applied"] = True
-                elif addr == "/VMC/Ext/OK":
-                    f["ok"] = args
-                elif addr == "/VMC/Ext/T":
-                    f["time"] = args[0]
-            self.frames.append(f)
+            self.raw.append((time.perf_counter(), data))
+
+    def _frame(self, t: float, data: bytes) -> dict:
+        f = {"t": t, "bones": {}, "blend": {}, "ok": None, "time": None, "applied": False}
+        for addr, types, args in _messages(data):
+            if TYPES.get(addr) != types:
+                self.bad.append(f"{addr} {types}")
+                continue
+            if addr == "/VMC/Ext/Bone/Pos":
+                q = np.array(args[4:8])
+                if args[0] not in UNITY_HUMAN_BONES or abs(np.linalg.norm(q) - 1) > 1e-3:
+                    self.bad.append(f"bone {args[0]} |q| {np.linalg.norm(q):.4f}")
+                f["bones"][args[0]] = (np.array(args[1:4]), q)
+            elif addr == "/VMC/Ext/Blend/Val":
+                f["blend"][args[0]] = args[1]
+            elif addr == "/VMC/Ext/Blend/Apply":
+                f["applied"] = True
+            elif addr == "/VMC/Ext/OK":
+                f["ok"] = args
+            elif addr == "/VMC/Ext/T":
+                f["time"] = args[0]
+        return f
 
     def __enter__(self):
         self.th = threading.Thread(target=self._listen, daemon=True)
@@ -81,6 +88,7 @@ class VmcReceiver:
     def __exit__(self, *exc):
         self.th.join()
         self.sock.close()
+        self.frames = [self._frame(t, data) for t, data in self.raw]
 
     def moving(self) -> tuple[int, int]:
         """(bones whose rotation moves by more than 1 degree, blend values that move by more than 0.01)."""
