@@ -14,6 +14,7 @@ moves the numbers about as far as another seed does, run-to-run differences of t
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -90,5 +91,6 @@ def main() -> None:
 if __name__ == "__main__":
     try:
         main()
-    except AnimaError as e:  # a missing or empty dataset: its message, not a traceback
-        raise SystemExit(f"{Path(__file__).name}: {e}") from None
+    except AnimaError as e:  # a missing or empty dataset: one line, exit 2, not a traceback
+        print(f"{Path(__file__).name}: {e}", file=sys.stderr)
+        raise SystemExit(2) from None
