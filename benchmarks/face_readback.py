@@ -8,7 +8,8 @@ surprised, d0 smiles and blinks, d9 talks and smiles; FaceGood-free: the Obama a
 captured with ``anima capture --face-only`` (the shipped defaults).
 
 **The character** (what ``avatar.mp4``'s face panel shows): anima's character, its 53 morph weights from the
-capture (:func:`anima.export.avatar.character_face`: the rest face taken out, transferred by geometry),
+capture (:func:`anima.export.avatar.character_face`: the rest face taken out, transferred by geometry, the lids
+set from the landmarks' eye opening),
 the head skinned and seen from the front of the face at 384 x 384 (:func:`anima.export.avatar.face_camera`),
 coloured (:func:`anima.facemodel.character.vertex_colors`). **The ceiling**: the fitted ICT face itself (the
 person's identity and the fitted expression, no head turn), rendered the same way in one colour. **The

@@ -37,8 +37,8 @@ from anima.errors import InputError
 from anima.export.vrm import character_vrm
 from anima.facemodel.character import fit_shape, load_character, skin, tracked_measures, vertex_colors
 from anima.facemodel.ict import load_face_model
-from anima.facemodel.neutral import faded, presented
-from anima.facemodel.transfer import Transfer
+from anima.facemodel.neutral import faded, is_captured, presented
+from anima.facemodel.transfer import Transfer, eye_opening
 from anima.io.atomic import atomic_path
 from anima.io.gltf import write_character_glb
 from anima.io.sequence import TrackedSequence
@@ -206,7 +206,11 @@ def character_face(seq: TrackedSequence) -> np.ndarray:
         for k, i in enumerate(idx):
             if i >= 0:
                 W[:, k] = np.where(seq.tracked, expression[:, i], 0.0)
-        W = faded(face_transfer()(np.clip(W, 0.0, 1.0)).astype(np.float32), seq.tracked, seq.fps)
+        tr = face_transfer()
+        W = tr(np.clip(W, 0.0, 1.0))
+        if is_captured(seq.meta) and seq.landmarks is not None and len(seq.landmarks):  # the lids as the video shows
+            W = tr.follow_lids(W, eye_opening(seq.landmarks, seq.tracked, seq.width, seq.height), EXPR_NAMES)
+        W = faded(W.astype(np.float32), seq.tracked, seq.fps)
         covered = hand_over_face(seq)
         if covered.any():  # no evidence under the hand: the mouth eases to its rest and back, never frozen
             W[:, MOUTH] = faded(W[:, MOUTH], seq.tracked & ~covered, seq.fps)

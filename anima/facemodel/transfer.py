@@ -21,6 +21,11 @@ move as the same twelve points of the fitted face do:
   close-up render by a face tracker (``benchmarks/face_readback.py``), the mouth followed the video better by
   name (r 0.70-0.98 against 0.59-0.94 with the lips in the match, on five clips), the brows better by geometry
   (Obama's r 0.53 by name, 0.74 matched).
+* **The lids as the video shows them** (:meth:`Transfer.follow_lids`, for a captured clip): the fitted face's
+  lids follow Face Mesh's lid landmarks loosely (read back on d0, the fitted face's eye opening has r 0.23 / 0.43
+  with the video's), so the character's lids are set from the landmarks themselves: each eye's opening over the
+  clip's open eye (:func:`eye_opening`) scales the character's lid gap, by eyeBlink or eyeWide. Read back on
+  the same five clips, the eyes' r rose from 0.37-0.95 to 0.87-0.97 (``benchmarks/face_readback.py``).
 """
 
 from __future__ import annotations
@@ -37,6 +42,41 @@ TRANSFERRED = tuple(f"{b}_{s}" for b in ("browDown", "browInnerUp", "browOuterUp
 MATCHED = ("upper_lid_L", "lower_lid_L", "upper_lid_R", "lower_lid_R", "brow_in_L", "brow_out_L", "brow_in_R",
            "brow_out_R")  # fmt: skip
 """The points the match uses (the brows' and the lids')."""
+
+
+EYES = {"L": (386, 374, 362, 263), "R": (159, 145, 33, 133)}
+"""MediaPipe Face Mesh's points of each eye, the person's left and right: (upper lid, lower lid, corner, corner)."""
+
+
+OPEN_PERCENTILE = 90
+"""The eye's open opening over a clip: this percentile of its frames (capture's blink rule,
+:data:`anima.capture.pipeline.BLINK_OPEN`, takes the same open eye). The median (50) let a clip of long squints
+count its open eyes as wide, and the character's lids pinned at their widest read back as extra blinks (d3: 7
+against the video's 5; 90: 5); chosen on the five development clips of ``benchmarks/face_readback.py``."""
+
+
+def eye_opening(landmarks: np.ndarray, tracked: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Each eye's opening ``[F, 2]`` (left, right) as Face Mesh's landmarks ``[F, 478, 2+]`` (normalised image
+    coordinates) show it: the lids' distance over the eye's width, divided by the clip's open eye (its
+    :data:`OPEN_PERCENTILE` over the frames ``tracked``); NaN where no face was seen. Which eye is the person's
+    left is read off the picture (the one on the picture's right, as a mirrored video would swap them)."""
+    px = np.asarray(landmarks, np.float64)[..., :2] * [width, height]
+    tracked = np.asarray(tracked, bool) & np.isfinite(px).all((-1, -2))
+    out = np.full((len(px), 2), np.nan)
+    if tracked.sum() < 10:
+        return out
+    ratio = {}
+    for s, (up, lo, a, b) in EYES.items():
+        o = np.linalg.norm(px[:, up] - px[:, lo], axis=-1) / np.maximum(
+            np.linalg.norm(px[:, a] - px[:, b], axis=-1), 1e-6
+        )
+        ratio[s] = np.where(tracked, o, np.nan)
+    mirrored = np.nanmean(px[tracked][:, EYES["L"][2], 0]) < np.nanmean(px[tracked][:, EYES["R"][2], 0])
+    for k, s in enumerate(("R", "L") if mirrored else ("L", "R")):
+        rest = np.nanpercentile(ratio[s], OPEN_PERCENTILE)
+        if np.isfinite(rest) and rest > 0:
+            out[:, k] = ratio[s] / rest
+    return out
 
 
 def face_points(V: np.ndarray, D: np.ndarray, names: list[str]) -> tuple[np.ndarray, float]:
@@ -84,6 +124,11 @@ class Transfer:
         self.pull = pull
         self.solve = np.linalg.inv(B @ B.T + pull * np.eye(len(B)))
         self.B = B
+        r = np.asarray(char_rest, np.float64)
+        self.rest_gap = {
+            s: float(r[pc[POINTS.index(f"upper_lid_{s}")], 1] - r[pc[POINTS.index(f"lower_lid_{s}")], 1]) / sc
+            for s in ("L", "R")
+        }
 
     def targets(self, W: np.ndarray) -> np.ndarray:
         """The ICT face's point displacements ``[F, 12, 3]`` (face sizes) for weights ``W [F, 53]``."""
@@ -102,3 +147,37 @@ class Transfer:
         out = W.copy()
         out[:, self.free] = (T @ self.B.T + self.pull * W[:, self.free]) @ self.solve.T
         return np.clip(out, 0.0, 1.0)
+
+    def lid_gaps(self, Wc: np.ndarray) -> np.ndarray:
+        """The character's lid gaps ``[F, 2]`` (left, right; face sizes, upper lid over lower) for its weights
+        ``Wc [F, 53]``; zero weights give its rest face's gaps."""
+        out = []
+        for s in ("L", "R"):
+            up, lo = POINTS.index(f"upper_lid_{s}"), POINTS.index(f"lower_lid_{s}")
+            dy = self.Bc[:, up, 1] - self.Bc[:, lo, 1]  # [53]: each weight's change of the gap
+            out.append(self.rest_gap[s] + np.asarray(Wc, np.float64) @ dy)
+        return np.stack(out, -1)
+
+    def follow_lids(self, Wc: np.ndarray, opening: np.ndarray, names) -> np.ndarray:
+        """The character's weights ``Wc [F, 53]`` (named ``names``) with each eye's lids set to the person's
+        opening: ``opening [F, 2]`` (left, right) is each eye's opening over its open eye (:func:`eye_opening`:
+        1 open, 0 shut; NaN where not seen, left as it is). The gap of the character's lids is its rest gap
+        times that, by eyeBlink (closing) or eyeWide (opening wider), the other channels kept."""
+        out = np.array(Wc, np.float64)
+        ix = {n: i for i, n in enumerate(names)}
+        for k, s in enumerate(("L", "R")):
+            up, lo = POINTS.index(f"upper_lid_{s}"), POINTS.index(f"lower_lid_{s}")
+            dy = self.Bc[:, up, 1] - self.Bc[:, lo, 1]
+            b, w = ix[f"eyeBlink_{s}"], ix[f"eyeWide_{s}"]
+            rel = opening[:, k]
+            seen = np.isfinite(rel)
+            others = out.copy()
+            others[:, [b, w]] = 0.0
+            need = self.rest_gap[s] * np.clip(np.nan_to_num(rel, nan=1.0), 0.0, 1.5) - (
+                self.rest_gap[s] + others @ dy
+            )  # what eyeBlink / eyeWide must add to the gap
+            blink = np.clip(need / dy[b], 0.0, 1.0) if dy[b] < 0 else np.zeros(len(out))
+            wide = np.clip(need / dy[w], 0.0, 1.0) if dy[w] > 0 else np.zeros(len(out))
+            out[:, b] = np.where(seen, np.where(need < 0, blink, 0.0), out[:, b])
+            out[:, w] = np.where(seen, np.where(need > 0, wide, 0.0), out[:, w])
+        return out

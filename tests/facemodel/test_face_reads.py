@@ -177,6 +177,34 @@ def test_the_head_has_teeth_and_lashes_that_move_with_it():
 
 
 @pytest.mark.slow
+def test_the_characters_lids_open_as_the_video_shows(d0_capture):
+    """The lids from the landmarks (:meth:`Transfer.follow_lids`): an eye's opening over its open eye scales the
+    character's lid gap (1 keeps the rest gap, 0.5 halves it, 1.2 opens it wider by eyeWide; an eye not seen
+    keeps its weights); on d0 (a blink, looks to the side) the character's lid gaps follow the landmarks'
+    opening frame by frame (r >= 0.95), and its lids shut where the video's do."""
+    from anima.export.avatar import character_face
+    from anima.facemodel.transfer import eye_opening
+
+    t = _transfer()
+    rest = t.lid_gaps(np.zeros((1, 53)))[0]
+    W = np.zeros((4, 53))
+    W[:, EXPR_NAMES.index("eyeSquint_L")] = 0.3  # another channel moving the lid is taken into account
+    opening = np.array([[1.0, 1.0], [0.5, 0.5], [1.2, 0.0], [np.nan, np.nan]])
+    got = t.follow_lids(W, opening, EXPR_NAMES)
+    gaps = t.lid_gaps(got)
+    np.testing.assert_allclose(gaps[:3] / rest, [[1.0, 1.0], [0.5, 0.5], [1.2, 0.0]], atol=0.02)
+    np.testing.assert_array_equal(got[3], W[3])
+    assert got[2, EXPR_NAMES.index("eyeWide_L")] > 0 and got[2, EXPR_NAMES.index("eyeBlink_L")] == 0
+
+    seq = d0_capture
+    seen = eye_opening(seq.landmarks, seq.tracked, seq.width, seq.height)
+    char = t.lid_gaps(character_face(seq)) / rest
+    for k in range(2):
+        assert np.corrcoef(seen[:, k], char[:, k])[0, 1] >= 0.95, k
+        shut = int(np.argmin(seen[:, k]))
+        assert seen[shut, k] < 0.3 and char[shut, k] < 0.35, (k, seen[shut, k], char[shut, k])
+
+
 def test_the_close_up_reads_back_as_the_video():
     """The character's face close up (as ``avatar.mp4``'s face panel draws it) read back by Face Mesh on d3's
     first 6 s (a frown, a squint, talking): the mouth's and the eyes' opening follow the video's (r >= 0.8),
