@@ -2,6 +2,10 @@
 by frame, and read back by a face tracker; so is the source video; the two are compared.
 
     python benchmarks/face_readback.py      # writes benchmarks/results/face_readback.json (a few minutes)
+    python benchmarks/face_readback.py --clips styletalk-samples/samples/source_video/video/KristiNoem.mp4 \
+        styletalk-samples/samples/source_video/video/feifeili_clip1.mp4 \
+        styletalk-samples/samples/source_video/video/reagan_clip1.mp4 talking-heads-extra/RD_Radio10_0_clip_0.mp4 \
+        --out benchmarks/results/face_readback_fresh.json   # four talking clips the lids were not chosen on
 
 **Clips**: talking and expression clips of the shared data (LivePortrait's d3 frowns, squints and looks
 surprised, d0 smiles and blinks, d9 talks and smiles; FaceGood-free: the Obama and Ng styletalk clips talk),
@@ -13,7 +17,8 @@ set from the landmarks' eye opening),
 the head skinned and seen from the front of the face at 384 x 384 (:func:`anima.export.avatar.face_camera`),
 coloured (:func:`anima.facemodel.character.vertex_colors`). **The ceiling**: the fitted ICT face itself (the
 person's identity and the fitted expression, no head turn), rendered the same way in one colour. **The
-baseline**: the character's weights copied by name (no transfer, no rest face), as before issue 48.
+baseline**: the character's weights copied by name (no transfer, no rest face), as before issue 48; and
+``lids_by_transfer``: the character with its lids by the transfer alone (not set from the landmarks).
 
 **The reader**: MediaPipe's Face Mesh through its own Python API (``mediapipe.solutions.face_mesh``, not anima's
 wrapper), on every frame of each render and of the source video. Per frame: the mouth's opening (the inner
@@ -91,11 +96,11 @@ def blinks(eye: np.ndarray) -> int:
     return int(((stops - starts) >= 2).sum())
 
 
-def render_character(seq, transfer: bool = True) -> list[np.ndarray]:
+def render_character(seq, transfer: bool = True, lids: bool = True) -> list[np.ndarray]:
     ch = load_character()
     m = character_motion(seq)
     if transfer:
-        W = character_face(seq)
+        W = character_face(seq, lids)
     else:
         idx = [seq.expr_names.index(n) for n in EXPR_NAMES]
         W = np.where(seq.tracked[:, None], seq.expression[:, idx], 0.0)
@@ -148,6 +153,7 @@ def main() -> None:
         video = measures(read_faces(iter_frames(probe_video(path))))
         row = {"name": Path(clip).stem, "clip": clip, "frames": seq.n_frames}
         for name, frames in (("character", render_character(seq)), ("by_name", render_character(seq, False)),
+                             ("lids_by_transfer", render_character(seq, lids=False)),
                              ("ict_ceiling", render_ict(seq))):  # fmt: skip
             got = measures(read_faces(frames))
             row[name] = compare(video, got) | {

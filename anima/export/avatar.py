@@ -22,6 +22,7 @@ in one glTF file (``avatar.glb``), the speech beside it (``speech.wav``), and a 
 from __future__ import annotations
 
 import subprocess
+from collections import deque
 from functools import lru_cache
 from pathlib import Path
 
@@ -37,8 +38,8 @@ from anima.errors import InputError
 from anima.export.vrm import character_vrm
 from anima.facemodel.character import fit_shape, load_character, skin, tracked_measures, vertex_colors
 from anima.facemodel.ict import load_face_model
-from anima.facemodel.neutral import faded, is_captured, presented
-from anima.facemodel.transfer import Transfer, eye_opening
+from anima.facemodel.neutral import faded, from_rest, is_captured, presented, rest_face
+from anima.facemodel.transfer import OPEN_PERCENTILE, Transfer, eye_opening, eye_ratios
 from anima.io.atomic import atomic_path
 from anima.io.gltf import write_character_glb
 from anima.io.sequence import TrackedSequence
@@ -194,11 +195,12 @@ MOUTH = [k for k, n in enumerate(EXPR_NAMES) if n.startswith(("jaw", "mouth", "c
 """The mouth's channels: under a hand (:func:`anima.core.occlusion.hand_over_face`) they have no evidence."""
 
 
-def character_face(seq: TrackedSequence) -> np.ndarray:
+def character_face(seq: TrackedSequence, lids: bool = True) -> np.ndarray:
     """The character's 53 morph weights ``[F, 53]`` for the sequence's face (easing to the rest face where it was
     lost, :func:`anima.facemodel.neutral.faded`, and the mouth alone where a hand covers it): chosen so that its
     lids, brows, mouth corners and lips move as the fitted face's do (:func:`face_transfer`), not copied by
-    name."""
+    name; a captured clip's lids then open as its landmarks show (``lids=False``: by the transfer alone, the
+    read-back benchmark's comparison)."""
     W = np.zeros((seq.n_frames, len(EXPR_NAMES)), np.float32)
     if seq.tracked.any():
         expression = presented(seq)[0]  # a captured clip's face measured from its rest face
@@ -208,13 +210,60 @@ def character_face(seq: TrackedSequence) -> np.ndarray:
                 W[:, k] = np.where(seq.tracked, expression[:, i], 0.0)
         tr = face_transfer()
         W = tr(np.clip(W, 0.0, 1.0))
-        if is_captured(seq.meta) and seq.landmarks is not None and len(seq.landmarks):  # the lids as the video shows
+        if lids and is_captured(seq.meta) and seq.landmarks is not None and len(seq.landmarks):  # as the video shows
             W = tr.follow_lids(W, eye_opening(seq.landmarks, seq.tracked, seq.width, seq.height), EXPR_NAMES)
         W = faded(W.astype(np.float32), seq.tracked, seq.fps)
         covered = hand_over_face(seq)
         if covered.any():  # no evidence under the hand: the mouth eases to its rest and back, never frozen
             W[:, MOUTH] = faded(W[:, MOUTH], seq.tracked & ~covered, seq.fps)
     return np.clip(W, 0.0, 1.0)
+
+
+class LiveCharacterFace:
+    """:func:`character_face` for a stream (``anima live``'s page), one frame at a time: the fitted weights
+    measured from a running rest face (:func:`anima.facemodel.neutral.rest_face` over the faces of the last
+    :attr:`WINDOW_S` seconds, once it holds :data:`~anima.facemodel.neutral.MIN_SECONDS` of them), transferred by
+    geometry, and the lids set from the frame's landmarks over a running open eye (the same percentile as a
+    clip's, :data:`anima.facemodel.transfer.OPEN_PERCENTILE`). The rest is re-estimated every :attr:`EVERY`
+    frames. A frame without a face gives None (the caller holds or rests the face)."""
+
+    WINDOW_S = 30.0
+    EVERY = 15
+
+    def __init__(self):
+        self.transfer = face_transfer()
+        self.t: deque[float] = deque()
+        self.expr: deque[np.ndarray] = deque()
+        self.eyes: deque[np.ndarray] = deque()
+        self.rest: dict[str, float] = {}
+        self.open_eye = None
+        self.n = 0
+
+    def __call__(self, expression: np.ndarray, landmarks: np.ndarray | None, size: tuple[int, int], t: float):
+        """The character's weights ``[53]`` for one seen face: ``expression [53]`` (the fit, EXPR_NAMES order),
+        its Face Mesh ``landmarks [478, 2+]`` (normalised; None: lids by the transfer alone), the image
+        ``size`` (H, W) and the frame's time ``t`` (seconds)."""
+        H, W = size
+        self.t.append(float(t))
+        self.expr.append(np.asarray(expression, np.float32))
+        ratio = eye_ratios(landmarks[None], W, H)[0] if landmarks is not None else np.full(2, np.nan)
+        self.eyes.append(ratio)
+        while self.t[-1] - self.t[0] > self.WINDOW_S:
+            for q in (self.t, self.expr, self.eyes):
+                q.popleft()
+        if self.n % self.EVERY == 0:
+            span = self.t[-1] - self.t[0]
+            fps = (len(self.t) - 1) / span if span > 0 else 0.0
+            X = np.stack(self.expr)
+            self.rest = rest_face(X, list(EXPR_NAMES), np.ones(len(X), bool), fps) if fps > 0 else {}
+            E = np.stack(self.eyes)
+            ok = np.isfinite(E).all(-1)
+            self.open_eye = np.percentile(E[ok], OPEN_PERCENTILE, axis=0) if ok.sum() >= 10 else None
+        self.n += 1
+        w = self.transfer(np.clip(from_rest(np.asarray(expression)[None], list(EXPR_NAMES), self.rest), 0.0, 1.0))
+        if self.open_eye is not None and np.isfinite(ratio).all() and (self.open_eye > 0).all():
+            w = self.transfer.follow_lids(w, (ratio / self.open_eye)[None], EXPR_NAMES)
+        return np.clip(w[0], 0.0, 1.0).astype(np.float32)
 
 
 def write_speech(source: str, path: str | Path) -> Path:

@@ -55,27 +55,30 @@ count its open eyes as wide, and the character's lids pinned at their widest rea
 against the video's 5; 90: 5); chosen on the five development clips of ``benchmarks/face_readback.py``."""
 
 
-def eye_opening(landmarks: np.ndarray, tracked: np.ndarray, width: int, height: int) -> np.ndarray:
-    """Each eye's opening ``[F, 2]`` (left, right) as Face Mesh's landmarks ``[F, 478, 2+]`` (normalised image
-    coordinates) show it: the lids' distance over the eye's width, divided by the clip's open eye (its
-    :data:`OPEN_PERCENTILE` over the frames ``tracked``); NaN where no face was seen. Which eye is the person's
-    left is read off the picture (the one on the picture's right, as a mirrored video would swap them)."""
+def eye_ratios(landmarks: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Each eye's opening ``[F, 2]`` (the person's left, right) in Face Mesh's landmarks ``[F, 478, 2+]``
+    (normalised image coordinates): the lids' distance over the eye's width. Which eye is the person's left is
+    read off each frame's picture (the one on the picture's right; a mirrored video swaps them)."""
     px = np.asarray(landmarks, np.float64)[..., :2] * [width, height]
-    tracked = np.asarray(tracked, bool) & np.isfinite(px).all((-1, -2))
-    out = np.full((len(px), 2), np.nan)
-    if tracked.sum() < 10:
-        return out
-    ratio = {}
+    o = {}
     for s, (up, lo, a, b) in EYES.items():
-        o = np.linalg.norm(px[:, up] - px[:, lo], axis=-1) / np.maximum(
-            np.linalg.norm(px[:, a] - px[:, b], axis=-1), 1e-6
-        )
-        ratio[s] = np.where(tracked, o, np.nan)
-    mirrored = np.nanmean(px[tracked][:, EYES["L"][2], 0]) < np.nanmean(px[tracked][:, EYES["R"][2], 0])
-    for k, s in enumerate(("R", "L") if mirrored else ("L", "R")):
-        rest = np.nanpercentile(ratio[s], OPEN_PERCENTILE)
-        if np.isfinite(rest) and rest > 0:
-            out[:, k] = ratio[s] / rest
+        w = np.maximum(np.linalg.norm(px[:, a] - px[:, b], axis=-1), 1e-6)
+        o[s] = np.linalg.norm(px[:, up] - px[:, lo], axis=-1) / w
+    mirrored = px[:, EYES["L"][2], 0] < px[:, EYES["R"][2], 0]
+    return np.stack([np.where(mirrored, o["R"], o["L"]), np.where(mirrored, o["L"], o["R"])], -1)
+
+
+def eye_opening(landmarks: np.ndarray, tracked: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Each eye's opening ``[F, 2]`` (left, right; :func:`eye_ratios`) over the clip's open eye (its
+    :data:`OPEN_PERCENTILE` over the frames ``tracked``); NaN where no face was seen."""
+    ratio = eye_ratios(landmarks, width, height)
+    ok = np.asarray(tracked, bool) & np.isfinite(ratio).all(-1)
+    out = np.full(ratio.shape, np.nan)
+    if ok.sum() < 10:
+        return out
+    open_eye = np.percentile(ratio[ok], OPEN_PERCENTILE, axis=0)
+    good = open_eye > 0
+    out[ok[:, None] & good] = (ratio / np.where(good, open_eye, 1.0))[ok[:, None] & good]
     return out
 
 

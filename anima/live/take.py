@@ -49,6 +49,7 @@ class LiveFrame:
     local: np.ndarray | None  # [65, 3, 3] the rig's local rotations (None when read back from a part)
     legs: np.ndarray | None = None  # [8, 3] knees, ankles, heels, toes (LEG_JOINTS), pelvis-relative, NaN unseen
     root: np.ndarray | None = None  # [3] the hips where the legs stand them (the stream's, not recorded)
+    character: np.ndarray | None = None  # [53] the character's face (LiveCharacterFace; the stream's, not recorded)
 
 
 class Journal:

@@ -23,6 +23,7 @@ from anima.core import rig
 from anima.core.camera import mediapipe_to_camera
 from anima.core.contract import JOINT_NAMES, LEG_JOINTS, N_EXPR, N_JOINTS
 from anima.core.rotations import matrix_to_quat, matrix_to_rotvec
+from anima.export.avatar import LiveCharacterFace
 from anima.export.retarget import LiveRetarget
 from anima.facemodel.character import load_character
 from anima.facemodel.correspondence import load_correspondence
@@ -54,6 +55,7 @@ class LiveTracker:
         self.idle = rig.idle_body(1, self.rest, 30.0)[0]  # contract: not (one still frame)
         self.held = np.tile(np.eye(3), (rig.N_RIG, 1, 1))
         self.rotation = np.zeros(3)
+        self.character = LiveCharacterFace()
 
     def landmarks(self, rgb: np.ndarray, k: int = 0):
         """``(face landmarks [478, 3] or None, body joints [55, 3] or None, leg joints [8, 3] or None)`` of one
@@ -102,8 +104,9 @@ class LiveTracker:
                 left_hip=body[JOINT_NAMES.index("left_hip")], right_hip=body[JOINT_NAMES.index("right_hip")]
             )
         self.held = rig.frame_locals(frame_body, self.rest, R, self.held, leg_dict)
+        character = self.character(expr, lm, size, t_capture) if face else None
         return LiveFrame(index, t_capture, face, expr, self.rotation.copy(), body, self.held.copy(), legs,
-                         self.standing_root(self.held))  # fmt: skip
+                         self.standing_root(self.held), character)  # fmt: skip
 
     def standing_root(self, L: np.ndarray) -> np.ndarray:
         """The hips' position ``[3]`` that stands this frame's legs on the floor (the lowest foot point at its
@@ -207,8 +210,10 @@ def tracked(reader: PacedReader, tracker: LiveTracker, deadline: float | None, m
 
 def message(f: LiveFrame, avatar: LiveRetarget | None = None) -> str:
     """The page's message for one frame (JSON: ``i``, ``t_cap`` ms, ``t_sent`` ms, ``face``, ``q`` [65 x
-    (x, y, z, w)], ``w`` [53]; with ``--avatar``, ``a``: the avatar's own node rotations, hips and morph
-    weights (:meth:`anima.export.retarget.LiveRetarget.frame`))."""
+    (x, y, z, w)], ``w`` [53]: the character's face (:class:`anima.export.avatar.LiveCharacterFace`: from the
+    rest, by geometry, the lids from the landmarks) where a face was seen, else the fit's weights; with
+    ``--avatar``, ``a``: the avatar's own node rotations, hips and morph weights from the fit's ARKit weights
+    (:meth:`anima.export.retarget.LiveRetarget.frame`))."""
     q = np.round(matrix_to_quat(f.local), 4)
     m = {
         "i": f.index,
@@ -216,7 +221,7 @@ def message(f: LiveFrame, avatar: LiveRetarget | None = None) -> str:
         "face": f.face,
         "body": f.body is not None,
         "q": q.tolist(),
-        "w": np.round(f.expression, 3).tolist(),
+        "w": np.round(f.expression if f.character is None else f.character, 3).tolist(),
     }
     if avatar is not None:
         m["a"] = avatar.frame(f.local, f.expression, f.face)

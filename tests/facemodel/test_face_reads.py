@@ -205,6 +205,26 @@ def test_the_characters_lids_open_as_the_video_shows(d0_capture):
         assert seen[shut, k] < 0.3 and char[shut, k] < 0.35, (k, seen[shut, k], char[shut, k])
 
 
+def test_the_live_face_is_the_clips_face_one_frame_at_a_time(d0_capture):
+    """``anima live``'s page gets :class:`LiveCharacterFace`: d0 streamed frame by frame (its fit and Face Mesh
+    landmarks, at 25 fps): the lids follow the landmarks' opening from the first frames on (r >= 0.95 once
+    the running open eye holds ten frames), and at the last frame, the running rest and open eye having seen
+    the whole clip, its weights are the clip's own (:func:`character_face`) within 0.05."""
+    from anima.export.avatar import LiveCharacterFace, character_face
+    from anima.facemodel.transfer import eye_opening
+
+    seq = d0_capture
+    X = seq.expression[:, [seq.expr_names.index(n) for n in EXPR_NAMES]]
+    live = LiveCharacterFace()
+    out = np.stack([live(X[f], seq.landmarks[f], (seq.height, seq.width), f / seq.fps) for f in range(seq.n_frames)])
+    t = _transfer()
+    seen = eye_opening(seq.landmarks, seq.tracked, seq.width, seq.height)
+    gaps = t.lid_gaps(out)
+    for k in range(2):
+        assert np.corrcoef(seen[15:, k], gaps[15:, k])[0, 1] >= 0.95, k
+    np.testing.assert_allclose(out[-1], character_face(seq)[-1], atol=0.05)
+
+
 def test_the_close_up_reads_back_as_the_video():
     """The character's face close up (as ``avatar.mp4``'s face panel draws it) read back by Face Mesh on d3's
     first 6 s (a frown, a squint, talking): the mouth's and the eyes' opening follow the video's (r >= 0.8),
