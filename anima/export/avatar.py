@@ -227,7 +227,7 @@ class LiveCharacterFace:
     clip's, :data:`anima.facemodel.transfer.OPEN_PERCENTILE`). The rest is re-estimated every :attr:`EVERY`
     frames. A frame without a face gives None (the caller holds or rests the face)."""
 
-    WINDOW_S = 30.0
+    WINDOW_S = 30.0  # contract: not (a span of seconds)
     EVERY = 15
 
     def __init__(self):
