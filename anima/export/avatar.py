@@ -225,7 +225,7 @@ class LiveCharacterFace:
     :attr:`WINDOW_S` seconds, once it holds :data:`~anima.facemodel.neutral.MIN_SECONDS` of them), transferred by
     geometry, and the lids set from the frame's landmarks over a running open eye (the same percentile as a
     clip's, :data:`anima.facemodel.transfer.OPEN_PERCENTILE`). The rest is re-estimated every :attr:`EVERY`
-    frames. A frame without a face gives None (the caller holds or rests the face)."""
+    frames. Called for seen faces only."""
 
     WINDOW_S = 30.0  # contract: not (a span of seconds)
     EVERY = 15
@@ -239,10 +239,13 @@ class LiveCharacterFace:
         self.open_eye = None
         self.n = 0
 
-    def __call__(self, expression: np.ndarray, landmarks: np.ndarray | None, size: tuple[int, int], t: float):
-        """The character's weights ``[53]`` for one seen face: ``expression [53]`` (the fit, EXPR_NAMES order),
-        its Face Mesh ``landmarks [478, 2+]`` (normalised; None: lids by the transfer alone), the image
-        ``size`` (H, W) and the frame's time ``t`` (seconds)."""
+    def __call__(
+        self, expression: np.ndarray, landmarks: np.ndarray | None, size: tuple[int, int], t: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``(the character's weights [53], the fit measured from the rest [53])`` for one seen face:
+        ``expression [53]`` (the fit, EXPR_NAMES order), its Face Mesh ``landmarks [478, 2+]`` (normalised;
+        None: lids by the transfer alone), the image ``size`` (H, W) and the frame's time ``t`` (seconds). The
+        second is what ARKit outputs send (as a capture's ``arkit.csv`` is measured from its rest)."""
         H, W = size
         self.t.append(float(t))
         self.expr.append(np.asarray(expression, np.float32))
@@ -260,10 +263,11 @@ class LiveCharacterFace:
             ok = np.isfinite(E).all(-1)
             self.open_eye = np.percentile(E[ok], OPEN_PERCENTILE, axis=0) if ok.sum() >= 10 else None
         self.n += 1
-        w = self.transfer(np.clip(from_rest(np.asarray(expression)[None], list(EXPR_NAMES), self.rest), 0.0, 1.0))
+        presented = np.clip(from_rest(np.asarray(expression)[None], list(EXPR_NAMES), self.rest), 0.0, 1.0)
+        w = self.transfer(presented)
         if self.open_eye is not None and np.isfinite(ratio).all() and (self.open_eye > 0).all():
             w = self.transfer.follow_lids(w, (ratio / self.open_eye)[None], EXPR_NAMES)
-        return np.clip(w[0], 0.0, 1.0).astype(np.float32)
+        return np.clip(w[0], 0.0, 1.0).astype(np.float32), presented[0].astype(np.float32)
 
 
 def write_speech(source: str, path: str | Path) -> Path:

@@ -29,7 +29,7 @@ class LiveLinkSink:
 
     def send(self, f: LiveFrame, fps: float) -> None:
         try:
-            self.out.send(f.index, fps, livelink_rows(f.expression[None], EXPR_NAMES, f.rotation[None], [f.face])[0])
+            self.out.send(f.index, fps, livelink_rows(f.shown[None], EXPR_NAMES, f.rotation[None], [f.face])[0])
             self.sent += 1
         except OSError:
             self.unsent += 1
@@ -53,7 +53,7 @@ class VmcSink:
         self.hips = rest[rig.HIPS]
 
     def send(self, f: LiveFrame, fps: float) -> None:
-        arkit = arkit_weights(f.expression[None], list(EXPR_NAMES)) * float(f.face)
+        arkit = arkit_weights(f.shown[None], list(EXPR_NAMES)) * float(f.face)
         hips = self.hips if f.root is None else f.root
         self.out.send(f.local, hips, blend_values(arkit)[0], f.face or f.body is not None)
 

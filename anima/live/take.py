@@ -50,6 +50,13 @@ class LiveFrame:
     legs: np.ndarray | None = None  # [8, 3] knees, ankles, heels, toes (LEG_JOINTS), pelvis-relative, NaN unseen
     root: np.ndarray | None = None  # [3] the hips where the legs stand them (the stream's, not recorded)
     character: np.ndarray | None = None  # [53] the character's face (LiveCharacterFace; the stream's, not recorded)
+    presented: np.ndarray | None = None  # [53] the fit measured from the running rest face (the stream's)
+
+    @property
+    def shown(self) -> np.ndarray:
+        """The ARKit weights the outputs send (Live Link, VMC, ``--avatar``): measured from the running rest face
+        where there is one, else the fit's."""
+        return self.expression if self.presented is None else self.presented
 
 
 class Journal:

@@ -104,9 +104,9 @@ class LiveTracker:
                 left_hip=body[JOINT_NAMES.index("left_hip")], right_hip=body[JOINT_NAMES.index("right_hip")]
             )
         self.held = rig.frame_locals(frame_body, self.rest, R, self.held, leg_dict)
-        character = self.character(expr, lm, size, t_capture) if face else None
+        character, presented = self.character(expr, lm, size, t_capture) if face else (None, None)
         return LiveFrame(index, t_capture, face, expr, self.rotation.copy(), body, self.held.copy(), legs,
-                         self.standing_root(self.held), character)  # fmt: skip
+                         self.standing_root(self.held), character, presented)  # fmt: skip
 
     def standing_root(self, L: np.ndarray) -> np.ndarray:
         """The hips' position ``[3]`` that stands this frame's legs on the floor (the lowest foot point at its
@@ -212,8 +212,8 @@ def message(f: LiveFrame, avatar: LiveRetarget | None = None) -> str:
     """The page's message for one frame (JSON: ``i``, ``t_cap`` ms, ``t_sent`` ms, ``face``, ``q`` [65 x
     (x, y, z, w)], ``w`` [53]: the character's face (:class:`anima.export.avatar.LiveCharacterFace`: from the
     rest, by geometry, the lids from the landmarks) where a face was seen, else the fit's weights; with
-    ``--avatar``, ``a``: the avatar's own node rotations, hips and morph weights from the fit's ARKit weights
-    (:meth:`anima.export.retarget.LiveRetarget.frame`))."""
+    ``--avatar``, ``a``: the avatar's own node rotations, hips and morph weights from the ARKit weights measured
+    from the rest face (:attr:`LiveFrame.shown`, :meth:`anima.export.retarget.LiveRetarget.frame`))."""
     q = np.round(matrix_to_quat(f.local), 4)
     m = {
         "i": f.index,
@@ -224,6 +224,6 @@ def message(f: LiveFrame, avatar: LiveRetarget | None = None) -> str:
         "w": np.round(f.expression if f.character is None else f.character, 3).tolist(),
     }
     if avatar is not None:
-        m["a"] = avatar.frame(f.local, f.expression, f.face)
+        m["a"] = avatar.frame(f.local, f.shown, f.face)
     m["t_sent"] = round(time.time() * 1e3, 1)
     return json.dumps(m, separators=(",", ":"))

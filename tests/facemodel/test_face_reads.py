@@ -209,20 +209,26 @@ def test_the_live_face_is_the_clips_face_one_frame_at_a_time(d0_capture):
     """``anima live``'s page gets :class:`LiveCharacterFace`: d0 streamed frame by frame (its fit and Face Mesh
     landmarks, at 25 fps): the lids follow the landmarks' opening from the first frames on (r >= 0.95 once
     the running open eye holds ten frames), and at the last frame, the running rest and open eye having seen
-    the whole clip, its weights are the clip's own (:func:`character_face`) within 0.05."""
+    the whole clip, its weights are the clip's own (:func:`character_face`) within 0.05, and the ARKit weights
+    the outputs send are the clip's measured from its rest."""
     from anima.export.avatar import LiveCharacterFace, character_face
     from anima.facemodel.transfer import eye_opening
 
     seq = d0_capture
     X = seq.expression[:, [seq.expr_names.index(n) for n in EXPR_NAMES]]
     live = LiveCharacterFace()
-    out = np.stack([live(X[f], seq.landmarks[f], (seq.height, seq.width), f / seq.fps) for f in range(seq.n_frames)])
+    both = [live(X[f], seq.landmarks[f], (seq.height, seq.width), f / seq.fps) for f in range(seq.n_frames)]
+    out, shown = np.stack([b[0] for b in both]), np.stack([b[1] for b in both])
     t = _transfer()
     seen = eye_opening(seq.landmarks, seq.tracked, seq.width, seq.height)
     gaps = t.lid_gaps(out)
     for k in range(2):
         assert np.corrcoef(seen[15:, k], gaps[15:, k])[0, 1] >= 0.95, k
     np.testing.assert_allclose(out[-1], character_face(seq)[-1], atol=0.05)
+    # what Live Link and VMC send: the fit measured from the rest face, as a capture's arkit.csv is
+    np.testing.assert_allclose(shown[-1], presented(seq)[0][-1][[seq.expr_names.index(n) for n in EXPR_NAMES]],
+                               atol=0.05)  # fmt: skip
+    np.testing.assert_allclose(shown[:50], np.clip(X[:50], 0, 1), atol=1e-6)  # no rest before 2 s of faces
 
 
 def test_the_close_up_reads_back_as_the_video():
