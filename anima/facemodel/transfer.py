@@ -25,7 +25,7 @@ move as the same twelve points of the fitted face do:
   lids follow Face Mesh's lid landmarks loosely (read back on d0, the fitted face's eye opening has r 0.23 / 0.43
   with the video's), so the character's lids are set from the landmarks themselves: each eye's opening over the
   clip's open eye (:func:`eye_opening`) scales the character's lid gap, by eyeBlink or eyeWide. Read back on
-  the same five clips, the eyes' r rose from 0.37-0.95 to 0.87-0.97 (``benchmarks/face_readback.py``).
+  the same five clips, the eyes' r rose from 0.37-0.95 to 0.90-0.98 (``benchmarks/face_readback.py``).
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ EYES = {"L": (386, 374, 362, 263), "R": (159, 145, 33, 133)}
 
 
 OPEN_PERCENTILE = 90
-"""The eye's open opening over a clip: this percentile of its frames (capture's blink rule,
+"""The open eye's opening over a clip: this percentile of its frames (capture's blink rule,
 :data:`anima.capture.pipeline.BLINK_OPEN`, takes the same open eye). The median (50) let a clip of long squints
 count its open eyes as wide, and the character's lids pinned at their widest read back as extra blinks (d3: 7
 against the video's 5; 90: 5); chosen on the five development clips of ``benchmarks/face_readback.py``."""
@@ -151,15 +151,16 @@ class Transfer:
         out[:, self.free] = (T @ self.B.T + self.pull * W[:, self.free]) @ self.solve.T
         return np.clip(out, 0.0, 1.0)
 
+    def _gap_change(self, side: str) -> np.ndarray:
+        """Each character weight's change ``[53]`` of the ``side`` eye's lid gap (face sizes)."""
+        up, lo = POINTS.index(f"upper_lid_{side}"), POINTS.index(f"lower_lid_{side}")
+        return self.Bc[:, up, 1] - self.Bc[:, lo, 1]
+
     def lid_gaps(self, Wc: np.ndarray) -> np.ndarray:
         """The character's lid gaps ``[F, 2]`` (left, right; face sizes, upper lid over lower) for its weights
         ``Wc [F, 53]``; zero weights give its rest face's gaps."""
-        out = []
-        for s in ("L", "R"):
-            up, lo = POINTS.index(f"upper_lid_{s}"), POINTS.index(f"lower_lid_{s}")
-            dy = self.Bc[:, up, 1] - self.Bc[:, lo, 1]  # [53]: each weight's change of the gap
-            out.append(self.rest_gap[s] + np.asarray(Wc, np.float64) @ dy)
-        return np.stack(out, -1)
+        Wc = np.asarray(Wc, np.float64)
+        return np.stack([self.rest_gap[s] + Wc @ self._gap_change(s) for s in ("L", "R")], -1)
 
     def follow_lids(self, Wc: np.ndarray, opening: np.ndarray, names) -> np.ndarray:
         """The character's weights ``Wc [F, 53]`` (named ``names``) with each eye's lids set to the person's
@@ -169,8 +170,7 @@ class Transfer:
         out = np.array(Wc, np.float64)
         ix = {n: i for i, n in enumerate(names)}
         for k, s in enumerate(("L", "R")):
-            up, lo = POINTS.index(f"upper_lid_{s}"), POINTS.index(f"lower_lid_{s}")
-            dy = self.Bc[:, up, 1] - self.Bc[:, lo, 1]
+            dy = self._gap_change(s)
             b, w = ix[f"eyeBlink_{s}"], ix[f"eyeWide_{s}"]
             rel = opening[:, k]
             seen = np.isfinite(rel)
