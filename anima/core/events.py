@@ -134,6 +134,8 @@ _EVENTS = [
         phrases=[
             r"frown\w*",
             r"scowl\w*",
+            r"glower\w*",
+            r"glar(?:e|es|ed|ing)\b",
             r"furrow\w*(?:\s+" + _OBJ + r"brows?)?",
             r"knit\w*\s+" + _OBJ + r"brows?",
             r"lower\w*\s+" + _OBJ + r"(?:eye)?brows?",
@@ -167,7 +169,7 @@ _EVENTS = [
             r"rais\w*\s+" + _OBJ + r"(?:left\s+|right\s+)?(?:eye)?brows?",
             r"lift\w*\s+" + _OBJ + r"(?:left\s+|right\s+)?(?:eye)?brows?",
             r"(?:eye)?brows?\s+(?:go(?:es)?\s+|shoot\s+|are\s+)?up",
-            r"arch\w*\s+" + _OBJ + r"(?:eye)?brows?",
+            r"arch\w*\s+" + _OBJ + r"(?:left\s+|right\s+)?(?:eye)?brows?",
         ],
         prototype="a person raises their eyebrows",
         verbs=("raises the eyebrows", "raise the eyebrows"),
@@ -242,9 +244,24 @@ _EVENTS = [
             r"chat\w*",
             r"convers\w*",
             r"lectur\w*",
-            r"tells?\b.*",
+            r"tell(?:s|ing)?\b.*",
             r"explain\w*",
-            r"reads?\s+aloud",
+            r"read(?:s|ing)?\s+(?:\w+\s+)?(?:aloud|out\s+loud|the\s+news|a\s+(?:story|poem|speech|script|passage))",
+            r"speech(?:es)?",
+            r"narrat\w*",
+            r"recit\w*",
+            r"announc\w*",
+            r"discuss\w*",
+            r"describ\w*",
+            r"gossip\w*",
+            r"babbl\w*",
+            r"jabber\w*",
+            r"prattl\w*",
+            r"interview(?:s|ed|ing)\b",
+            r"answer\w*",
+            r"ask(?:s|ed|ing)?\s+(?:\w+\s+)?questions?",
+            r"pronounc\w*",
+            r"present(?:s|ed|ing)\b",
             r"mutter\w*",
             r"murmur\w*",
             r"mumbl\w*",
@@ -284,6 +301,7 @@ _EVENTS = [
         phrases=[
             r"turn\w*\s+" + _OBJ + r"(?:head|face)",
             r"cran\w*\s+" + _OBJ + r"neck",
+            r"rubberneck\w*",
             r"turn\w*\s+(?:to\s+the\s+)?(?:left|right|away|aside|sideways)",
             _LOOKV + r"\s+(?:\w+\s+)?" + _ASIDE,
             r"(?:takes?|taking|took|casts?|casting|cast|steals?|stealing|stole|shoots?|shooting|shot|throws?|throwing|"
@@ -305,7 +323,17 @@ _EVENTS = [
     Event(
         "happy",
         emotion=True,
-        phrases=[r"happ(?:y|ily|iness)", r"joy\w*", r"cheerful\w*", r"glad", r"delight\w*", r"pleased"],
+        phrases=[
+            r"happ(?:y|ily|iness)",
+            r"joy\w*",
+            r"cheerful\w*",
+            r"glad",
+            r"delight\w*",
+            r"pleased",
+            r"laugh\w*",
+            r"chuckl\w*",
+            r"giggl\w*",
+        ],
         prototype="a person looks happy",
         verbs=("looks happy", "look happy"),
         action_units={"mouthSmile_L": 1, "mouthSmile_R": 1, "cheekSquint_L": 0.5, "cheekSquint_R": 0.5},
@@ -438,11 +466,9 @@ _EVENTS = [
             r"eyes?\s+(?:\w+\s+)?(?:dart\w*|shift\w*|mov\w*|flick\w*|drift\w*|go(?:es)?|turn\w*|slid\w*|wander\w*)\s+"
             r"(?:to\s+(?:the\s+)?)?" + _DIR,
             r"gaz\w*\s+(?:\w+\s+)?(?:to\s+(?:the\s+)?)?" + _DIR,
-            r"(?:shifts?|shifting|moves?|moving|drops?|dropping|lowers?|lowering|raises?|raising|averts?|averting)\s+"
-            + _OBJ
-            + r"(?:gaze|eyes)(?:\s+(?:to\s+(?:the\s+)?)?"
-            + _DIR
-            + r")?",
+            r"(?:shifts?|shifting|moves?|moving|drops?|dropping|lowers?|lowering|raises?|raising|averts?|averting|"
+            r"darts?|darting|darted|flicks?|flicking|flicked|cuts?|cutting|slides?|sliding|slid|turns?|turning|"
+            r"turned|casts?|casting)\s+" + _OBJ + r"(?:gaze|eyes)(?:\s+(?:to\s+(?:the\s+)?)?" + _DIR + r")?",
             r"(?:looks?|looking|glanc\w*|peers?|peering|peeks?|peeking|stares?|staring)\s+(?:straight\s+)?(?:up|down)"
             r"(?:wards?)?",
             r"looks?\s+(?:to\s+(?:the\s+)?)?(?:left|right)\s+with\s+" + _OBJ + r"eyes",

@@ -34,9 +34,9 @@ from anima.io.assets import shown_path
 
 @dataclass(frozen=True)
 class Context:
-    """What ``anima eval all`` gives every evaluation: the dataset, the result folder, the text2face work
-    folder (also where the pose ablation trains), and whether this is a quick run (a few training steps: a
-    check that everything runs)."""
+    """What ``anima eval all`` gives every evaluation: the dataset, the result folder (the pose ablation trains
+    in its ``pose_ablation`` folder), the text2face work folder, and whether this is a quick run (a few
+    training steps: a check that everything runs)."""
 
     db: str
     out: Path
@@ -178,7 +178,7 @@ EVALUATIONS = (
         PoseEval,
         "anima.eval.pose.run",
         lambda c: [  # the ablation's lifters are trained in the run (no lifter ships: Human3.6M's terms)
-            ("pose", PoseEval(ablation=str(c.work / "pose_ablation"), ablation_steps=20 if c.quick else 8000))
+            ("pose", PoseEval(ablation=str(c.out / "pose_ablation"), ablation_steps=20 if c.quick else 8000))
         ],
     ),
     Evaluation(

@@ -42,7 +42,6 @@ from anima.facemodel.neutral import presented
 from anima.io.atomic import write_json
 from anima.io.outdir import OutputFolder
 from anima.io.sequence import TrackedSequence, write_sequence
-from anima.render.skeleton import render_skeleton_videos
 from anima.render.videos import render_videos
 
 
@@ -70,28 +69,30 @@ def write_motion_outputs(
     body = body_of(seq) is not None
     exported: dict = {}
     jobs = [({}, lambda: exported.update(_write_exports(seq, out, speech, info is not None, preset)))]
-    if render and face:
-        if source_video is not None:
-            ov, me = out.file("overlay.mp4"), out.file("mesh.mp4")
+    if render and source_video is not None:  # one pass over the source: the fit over it, alone, the skeleton over it
+        roles = {}
+        if face:
+            roles |= {"overlay_video": out.file("overlay.mp4"), "mesh_video": out.file("mesh.mp4")}
+        if body and seq.body_image is not None:
+            roles["skeleton_overlay_video"] = out.file("skeleton_overlay.mp4")
+        if roles:
             jobs.append(
                 (
-                    {"overlay_video": ov, "mesh_video": me},
-                    lambda: render_videos(seq, source_video, ov, me, progress=progress, audio=audio),
+                    roles,
+                    lambda: render_videos(
+                        seq,
+                        source_video,
+                        roles.get("overlay_video"),
+                        roles.get("mesh_video"),
+                        progress=progress,
+                        audio=audio,
+                        skeleton_path=roles.get("skeleton_overlay_video"),
+                    ),
                 )
             )
-        else:
-            fv = out.file("face.mp4")
-            jobs.append(
-                ({"face_video": fv}, lambda: render_videos(seq, None, None, fv, progress=progress, audio=audio))
-            )
-    if render and body and source_video is not None and seq.body_image is not None:
-        so = out.file("skeleton_overlay.mp4")
-        jobs.append(
-            (
-                {"skeleton_overlay_video": so},
-                lambda: render_skeleton_videos(seq, source_video, so, None, progress=progress, audio=audio),
-            )
-        )
+    elif render and face:
+        fv = out.file("face.mp4")
+        jobs.append(({"face_video": fv}, lambda: render_videos(seq, None, None, fv, progress=progress, audio=audio)))
     if render:
         av = out.file("avatar.mp4")
         jobs.append(({"avatar_video": av}, lambda: render_avatar_preview(seq, av, audio=speech, progress=progress)))

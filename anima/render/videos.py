@@ -1,4 +1,5 @@
-"""Videos people look at: the fitted mesh over the input, and the fitted mesh alone."""
+"""Videos people look at: the fitted mesh over the input, the fitted mesh alone, and the tracked skeleton over
+the input, all from one pass over the source."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from anima.facemodel.ict import load_face_model
 from anima.io.sequence import FLAG_NO_FACE, TrackedSequence
 from anima.io.video import VideoWriter, iter_frames, probe_video
 from anima.render.face import compose, put_label, raster_mesh
+from anima.render.skeleton import draw_skeleton
 
 
 class SequenceMesh:
@@ -38,33 +40,43 @@ def render_videos(
     progress: bool = True,
     alpha: float = 0.55,
     audio: str | None = None,
+    skeleton_path: str | Path | None = None,
 ) -> None:
-    """Write the overlay (mesh over the input frames, needs ``video``) and/or the mesh-only render.
-    The source's audio track, if any (else ``audio``, e.g. the speech a face was generated from), is muxed
-    into both."""
-    mesh = SequenceMesh(seq)
+    """Write the overlay (mesh over the input frames, needs ``video``), the mesh-only render and/or the
+    skeleton overlay (the tracked 2D joints over the input frames: needs ``video`` and ``seq.body_image``),
+    decoding the source once for all three. The mesh-only video is drawn frames (flat background, one shaded
+    mesh) and is encoded as such (:data:`anima.io.video.DRAWN`). The source's audio track, if any (else
+    ``audio``, e.g. the speech a face was generated from), is muxed into each."""
     size = (seq.width, seq.height)
     frames = None
     if video is not None:
         info = probe_video(video)
         audio = video if info.has_audio else audio
         frames = iter_frames(info)
+    face = (overlay_path is not None and frames is not None) or mesh_path is not None
+    mesh = SequenceMesh(seq) if face else None
+    skeleton = skeleton_path is not None and frames is not None and seq.body_image is not None
     with ExitStack() as stack:
         if frames is not None:
             stack.callback(frames.close)
-        w_over = (
-            stack.enter_context(VideoWriter(overlay_path, seq.fps, size, audio))
-            if overlay_path and frames is not None
-            else None
-        )
-        w_mesh = stack.enter_context(VideoWriter(mesh_path, seq.fps, size, audio)) if mesh_path else None
+
+        def writer(path, on: bool, drawn: bool = False):
+            return stack.enter_context(VideoWriter(path, seq.fps, size, audio, drawn=drawn)) if on else None
+
+        w_over = writer(overlay_path, bool(overlay_path) and frames is not None)
+        w_mesh = writer(mesh_path, bool(mesh_path), drawn=True)
+        w_skel = writer(skeleton_path, skeleton)
         for f in tqdm(range(seq.n_frames), desc="render", unit="fr", disable=not progress, leave=False):
             frame = next(frames, None) if frames is not None else None
             no_face = bool(seq.flags[f] & FLAG_NO_FACE)
-            r = raster_mesh(mesh.camera_vertices(f), mesh.tris, size)  # once for both videos
+            # once for both videos; the skin's back faces are left out: the mouth and the eye sockets show what is
+            # behind them (the person's own mouth and eyes in the overlay), at half the raster's work
+            r = raster_mesh(mesh.camera_vertices(f), mesh.tris, size, back_faces=False) if face else None
             if w_over is not None and frame is not None:
                 img = frame if no_face else compose(r, size, background=frame, alpha=alpha)
                 w_over.write(put_label(img, "no face" if no_face else f"fit {seq.fit_error_px[f]:.1f}px"))
             if w_mesh is not None:
                 img = compose(r, size)
                 w_mesh.write(put_label(img, "no face (interpolated)") if no_face else img)
+            if w_skel is not None and frame is not None:
+                w_skel.write(draw_skeleton(frame, seq.body_image[f], max(2, seq.width // 256)))

@@ -48,7 +48,7 @@ COUNTS = [
     (r"\b(?:five|5)\s+times\b", 5),
     (r"\ba\s+couple\s+of\s+times\b", 2),
     (r"\b(?:a\s+few|several)\s+times\b", 3),
-    (r"\brepeatedly\b", 3),
+    (r"\b(?:repeatedly|rapidly|over\s+and\s+over|in\s+(?:quick\s+|rapid\s+)?succession)\b", 3),
     (r"\b(?:\d+)\s+times\b", None),  # a number the table does not name: read it
     # quantities before the event's noun: "a couple of quick blinks", "a few nods", "two winks"
     (r"\ba\s+couple\s+(?:of\s+)?(?=(?:\w+\s+){0,2}?(?:blinks|winks|nods|smiles|shakes|yawns)\b)", 2),
@@ -67,18 +67,21 @@ NEGATION = (
 "no smile", "never looks up". The excluded event is not made, and the plan says so."""
 SOFTER = (
     r"\b(?:a\s+(?:little|tiny|wee)\s+bit|a\s+(?:little|tiny)|a\s+bit|slight(?:ly)?|subtl[ey]|faint(?:ly)?|barely|"
-    r"softly|gently|mildly|a\s+touch|small|tiny|hint\s+of|trace\s+of|hardly|stifl\w*|suppress\w*|restrain\w*)\b"
+    r"softly|gently|mildly|a\s+touch|small|tiny|hint\s+of|trace\s+of|hardly|stifl\w*|suppress\w*|restrain\w*|"
+    r"somewhat|a\s+tad|kind\s+of|sort\s+of|half[- ]?hearted\w*|weakly|muted|lightly)\b"
 )
+SOFTEST = r"\b(?:slightest|faintest|smallest|tiniest|weakest|least|ghost\s+of)\b"
+"""A superlative of softening ("the slightest smile", "the ghost of a smile"): :data:`FAINT` on its own."""
 STRONGER = (
     r"\b(?:broadly|widely|very|really|extremely|strongly|hugely|big|wide|a\s+lot|hard|deeply|fully|intensely|so|"
     r"from\s+ear\s+to\s+ear)\b"
 )
-INTENSITY = [(SOFTER, 0.6), (STRONGER, 1.4)]
 FAINT = 0.35
+INTENSITY = [(SOFTER, 0.6), (SOFTEST, FAINT), (STRONGER, 1.4)]
 """Intensity as a dial (issue 50): one softening word (:data:`SOFTER`) is 0.6, two of them ("a slight, faint
-smile", "just a little bit, barely") or a strengthened one ("very slightly") :data:`FAINT`; strengthening
-words alone 1.4; none 1. ``compose.STRENGTH`` turns each level into a peak range per event, the same for the
-built-in library and a dataset."""
+smile", "just a little bit, barely"), a strengthened one ("very slightly") or a superlative (:data:`SOFTEST`)
+:data:`FAINT`; strengthening words alone 1.4; none 1. ``compose.STRENGTH`` turns each level into a peak range per
+event, the same for the built-in library and a dataset."""
 SEQUENCE = (
     r"\b(?:and\s+then|then|after\s+that|afterwards|afterward|next|later|finally|at\s+last|in\s+the\s+end|"
     r"followed\s+by|before\s+that)\b|[;.!?]"
@@ -96,7 +99,7 @@ GRAMMAR = set(
     end last followed two three four five him them us me give gives giving side quick slow s throughout whole
     away breaks bursts ever there
     clip begin beginning meanwhile lastly only solely merely simply single brief briefly furtive furtively swift
-    swiftly hint trace wee""".split()
+    swiftly hint trace wee alone""".split()
 )
 SIDE = r"\b(left|right)\b"
 
@@ -161,7 +164,7 @@ def _count(clause: str) -> int | None:
 def _intensity(clause: str) -> float:
     soft = len(re.findall(SOFTER, clause))
     strong = bool(re.search(STRONGER, clause))
-    if soft >= 2 or (soft and strong):
+    if soft >= 2 or (soft and strong) or re.search(SOFTEST, clause):
         return FAINT
     return 0.6 if soft else 1.4 if strong else 1.0
 
@@ -227,6 +230,22 @@ def _bind_sides(clause: str, hits) -> dict[int, str]:
     return out
 
 
+ONLY_SIDE = (
+    r"(?:and\s+|or\s+)?(?:back\s+)?(?:to\s+)?(?:the\s+)?(?:" + SCOPE + r")?(left|right|up|down)(?:wards?)?"
+    r"(?:\s+(?:at|to|towards?|over|across)\s+.*)?"
+)
+"""A clause that only names a side or a direction ("..., then right", "..., then down at the floor")."""
+
+
+def _takes_side(events: list[Event], side: str) -> bool:
+    """Whether every event of the clause before takes ``side`` (up and down: only a gaze)."""
+    if not events:
+        return False
+    if side in ("up", "down"):
+        return all(e.attribute == "gaze" for e in events)
+    return all(e.attribute in SIDED or e.attribute == "gaze" for e in events)
+
+
 def parse(prompt: str, encoder=None) -> Plan:
     """The events a prompt asks for (see the module docstring). ``encoder``: an object with ``encode(list
     of str) -> [N, d]`` unit vectors, used only for clauses the lexicon does not cover."""
@@ -275,19 +294,19 @@ def parse(prompt: str, encoder=None) -> Plan:
                 hits = [(0, proto[0][j], (0, len(clause)))]
                 plan.paraphrased.append({"words": clause, "as": proto[0][j], "cosine": round(float(sims[j]), 3)})
                 words = []
-        if words:
-            plan.unknown.extend(words)
-        only_side = re.fullmatch(
-            r"(?:and\s+|or\s+)?(?:to\s+)?(?:the\s+)?(?:" + SCOPE + r")?(left|right)", clause.strip()
-        )
-        if not hits and only_side and last[1] and all(e.attribute in SIDED for e in last[1]):
-            # "glances left, then right": the clause's verb is the one before it, with this side
+        only_side = re.fullmatch(ONLY_SIDE, clause.strip())
+        if not hits and only_side and _takes_side(last[1], only_side.group(1)):
+            # "glances left, then right", "looks up at the sky, then down at the floor": the clause's verb is the
+            # one before it, with this side or direction
             for e in last[1]:
-                plan.events.append(replace(e, side=only_side.group(1), clause=clause_i, words=clause.strip()))
+                side = _direction(clause, clause) if e.attribute == "gaze" else only_side.group(1)
+                plan.events.append(replace(e, side=side, clause=clause_i, words=clause.strip()))
             last = (clause, plan.events[-len(last[1]) :])
             continue
+        if words:
+            plan.unknown.extend(words)
         if not hits:
-            if re.search(SOFTER, clause) or re.search(STRONGER, clause):  # it grades the events next to it
+            if any(re.search(p, clause) for p, _ in INTENSITY):  # it grades the events next to it
                 if last[1]:
                     text = last[0] + " " + clause
                     for e in last[1]:
