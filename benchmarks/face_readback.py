@@ -1,24 +1,34 @@
 """Does the character's face read as the person's? (issue 48) The character's face is rendered close up, frame
 by frame, and read back by a face tracker; so is the source video; the two are compared.
 
-    python benchmarks/face_readback.py      # writes benchmarks/results/face_readback.json (a few minutes)
-    python benchmarks/face_readback.py --clips styletalk-samples/samples/source_video/video/KristiNoem.mp4 \
-        styletalk-samples/samples/source_video/video/feifeili_clip1.mp4 \
-        styletalk-samples/samples/source_video/video/reagan_clip1.mp4 talking-heads-extra/RD_Radio10_0_clip_0.mp4 \
-        --out benchmarks/results/face_readback_fresh.json   # four talking clips the lids were not chosen on
+    python benchmarks/face_readback.py      # writes benchmarks/results/face_readback.json (about 10 minutes)
+    python benchmarks/face_readback.py --clips videoretalking-examples/examples/face/{1,2,3,4,5}.mp4 \
+        talking-heads-misc/LatentSync/assets/demo{1,2,3}_video.mp4 \
+        talking-heads-misc/MimicTalk/data/raw/examples/German_20s.mp4 \
+        talking-heads-misc/Real3DPortrait/data/raw/examples/May_5s.mp4 \
+        --out benchmarks/results/face_readback_fresh.json   # ten talking clips nothing was chosen on
+    python benchmarks/face_readback.py --calibrate   # the character's lips as read back: lip_calibration.json
 
-**Clips**: talking and expression clips of the shared data (LivePortrait's d3 frowns, squints and looks
-surprised, d0 smiles and blinks, d9 talks and smiles; FaceGood-free: the Obama and Ng styletalk clips talk),
-captured with ``anima capture --face-only`` (the shipped defaults).
+**Clips** (the default): talking and expression clips of the shared data, every one looked at while building
+the face (development clips): LivePortrait's d3 frowns, squints and looks surprised, d0 smiles and blinks, d9
+talks and smiles with closed lips; the Obama, Ng, Noem, Li and Reagan styletalk clips and a 2.4-s radio clip
+talk. The fresh clips (the second command) were run once, after every choice. All are captured with ``anima
+capture --face-only`` (the shipped defaults).
 
 **The character** (what ``avatar.mp4``'s face panel shows): anima's character, its 53 morph weights from the
 capture (:func:`anima.export.avatar.character_face`: the rest face taken out, transferred by geometry, the lids
-set from the landmarks' eye opening),
+set from the landmarks' eye opening and the lips from their lip opening),
 the head skinned and seen from the front of the face at 384 x 384 (:func:`anima.export.avatar.face_camera`),
 coloured (:func:`anima.facemodel.character.vertex_colors`). **The ceiling**: the fitted ICT face itself (the
 person's identity and the fitted expression, no head turn), rendered the same way in one colour. **The
-baseline**: the character's weights copied by name (no transfer, no rest face), as before issue 48; and
-``lids_by_transfer``: the character with its lids by the transfer alone (not set from the landmarks).
+baseline**: the character's weights copied by name (no transfer, no rest face), as before issue 48;
+``lids_by_transfer`` and ``lips_by_transfer``: the character with its lids, or its lips, by the transfer alone
+(not set from the landmarks).
+
+**The lips' calibration** (``--calibrate``, :data:`anima.facemodel.transfer.LIP_SHOWN`): the character alone, its
+jaw opened from rest to 0.6 in 31 steps (each pose held for three frames, the last read), drawn and read back
+as above; the mouth's opening against the character's lip gap (face sizes above rest), a least-squares line
+over the gaps of 0.04 and more (under that the reader's hold on nearly closed lips wavers).
 
 **The reader**: MediaPipe's Face Mesh through its own Python API (``mediapipe.solutions.face_mesh``, not anima's
 wrapper), on every frame of each render and of the source video. Per frame: the mouth's opening (the inner
@@ -56,6 +66,10 @@ CLIPS = (
     "liveportrait-examples/assets/examples/driving/d9.mp4",
     "styletalk-samples/samples/source_video/video/Obama_clip3.mp4",
     "styletalk-samples/samples/source_video/video/andrew_clip_1.mp4",
+    "styletalk-samples/samples/source_video/video/KristiNoem.mp4",
+    "styletalk-samples/samples/source_video/video/feifeili_clip1.mp4",
+    "styletalk-samples/samples/source_video/video/reagan_clip1.mp4",
+    "talking-heads-extra/RD_Radio10_0_clip_0.mp4",
 )
 SIZE = 384
 
@@ -96,23 +110,46 @@ def blinks(eye: np.ndarray) -> int:
     return int(((stops - starts) >= 2).sum())
 
 
-def render_character(seq, transfer: bool = True, lids: bool = True) -> list[np.ndarray]:
+def render_character(seq, transfer=True, lids=True, lips=True, W=None) -> list[np.ndarray]:
+    """The character's close-up, frame by frame: its weights from the sequence (or ``W [F, 53]``, every one
+    drawn on the sequence's first frame's head)."""
     ch = load_character()
     m = character_motion(seq)
-    if transfer:
-        W = character_face(seq, lids)
+    given = W is not None
+    if given:
+        pass
+    elif transfer:
+        W = character_face(seq, lids, lips)
     else:
         idx = [seq.expr_names.index(n) for n in EXPR_NAMES]
         W = np.where(seq.tracked[:, None], seq.expression[:, idx], 0.0)
     centre, rot, tris = face_camera(m, ch)
     col = vertex_colors()
     frames = []
-    for f in range(seq.n_frames):
-        V = skin(ch.expressed(m["vertices"], W[f]), m["rest"], m["global"][f], m["positions"][f], ch)
+    for f in range(len(W)):
+        f0 = 0 if given else f
+        V = skin(ch.expressed(m["vertices"], W[f]), m["rest"], m["global"][f0], m["positions"][f0], ch)
         img = np.full((SIZE, SIZE, 3), 28, np.uint8)
-        draw_shaded(img, head_view(V, SIZE, rot[f], centre[f], SIZE / 0.30), tris, col, back_faces=False)
+        draw_shaded(img, head_view(V, SIZE, rot[f0], centre[f0], SIZE / 0.30), tris, col, back_faces=False)
         frames.append(img)
     return frames
+
+
+def calibrate_lips(seq, steps: int = 31, hold: int = 3) -> dict:
+    """The character's lips as read back (the module docstring): ``{"offset", "slope", "points"}``; ``seq``
+    only places the head (its first frame)."""
+    from anima.export.avatar import face_transfer
+
+    W = np.zeros((steps, len(EXPR_NAMES)))
+    W[:, EXPR_NAMES.index("jawOpen")] = np.linspace(0.0, 0.6, steps)
+    held = np.repeat(W, hold, axis=0)
+    frames = render_character(seq, W=held)
+    read = measures(read_faces(frames))["mouth"][hold - 1 :: hold]
+    gap = face_transfer().lip_gaps(W)
+    ok = (gap >= 0.04) & np.isfinite(read)
+    slope, offset = np.polyfit(gap[ok], read[ok], 1)
+    return {"offset": round(float(offset), 4), "slope": round(float(slope), 3),
+            "points": [[round(float(g), 4), round(float(r), 4)] for g, r in zip(gap, read)]}  # fmt: skip
 
 
 def render_ict(seq) -> list[np.ndarray]:
@@ -145,17 +182,27 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "face_readback.json"))
     ap.add_argument("--clips", nargs="*", default=list(CLIPS))
+    ap.add_argument("--calibrate", action="store_true", help="measure the character's lips as read back instead")
     a = ap.parse_args()
+    if a.calibrate:
+        seq = capture_face(str(asset(CLIPS[1])), CaptureConfig(), progress=False)  # d0: where the head stands
+        cal = calibrate_lips(seq) | {"placed_on": CLIPS[1], "reader": f"mediapipe.solutions.face_mesh {mp.__version__}"}
+        out = Path(a.out).parent / "lip_calibration.json" if a.out == ap.get_default("out") else Path(a.out)
+        write_json(out, cal)
+        print(json.dumps({k: cal[k] for k in ("offset", "slope")}))
+        return
     rows = []
     for clip in a.clips:
         path = str(asset(clip))
         seq = capture_face(path, CaptureConfig(), progress=False)
         video = measures(read_faces(iter_frames(probe_video(path))))
         row = {"name": Path(clip).stem, "clip": clip, "frames": seq.n_frames}
-        for name, frames in (("character", render_character(seq)), ("by_name", render_character(seq, False)),
-                             ("lids_by_transfer", render_character(seq, lids=False)),
-                             ("ict_ceiling", render_ict(seq))):  # fmt: skip
-            got = measures(read_faces(frames))
+        for name, draw in (("character", lambda: render_character(seq)),
+                           ("by_name", lambda: render_character(seq, False)),
+                           ("lids_by_transfer", lambda: render_character(seq, lids=False)),
+                           ("lips_by_transfer", lambda: render_character(seq, lips=False)),
+                           ("ict_ceiling", lambda: render_ict(seq))):  # fmt: skip
+            got = measures(read_faces(draw()))
             row[name] = compare(video, got) | {
                 "face_found": round(float(np.isfinite(got["mouth"]).mean()), 3),
                 "blinks": blinks((got["eye_L"] + got["eye_R"]) / 2),

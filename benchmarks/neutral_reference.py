@@ -7,10 +7,11 @@ development data: the same clips the annotation evaluation's capture check reads
 defaults (``anima capture``, no videos).
 
 **Compared**: the character's 53 weights (:func:`anima.export.avatar.character_face`, what every animation
-shows) with each take's rest face estimated from the take itself (the default) and with the neutral take given
-as ``--neutral`` (:func:`anima.capture.run.neutral_reference` on its ``capture.npz``). Per take, clip means over
-the tracked frames; the checks are those of ``anima eval annotations``' ``capture_emotions`` (each emotion's
-weight above the neutral take's), applied to the character's weights instead of the raw fit.
+shows, its lids and lips set from the capture's landmarks) with each take's rest face estimated from the take
+itself (the default) and with the neutral take given as ``--neutral``
+(:func:`anima.capture.run.neutral_reference` on its ``capture.npz``). Per take, clip means over the tracked
+frames; the checks are those of ``anima eval annotations``' ``capture_emotions`` (each emotion's weight above
+the neutral take's), applied to the character's weights instead of the raw fit.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ def main() -> None:
         seqs = {}
         for name, code in TAKES.items():
             run(str(asset(CLIP.format(code))), Path(tmp) / name, CaptureConfig(), render=False, progress=False)
-            seqs[name] = read_sequence(Path(tmp) / name / "capture.npz", landmarks=False)
+            seqs[name] = read_sequence(Path(tmp) / name / "capture.npz")  # its landmarks: the lids and lips
         rest = neutral_reference(str(Path(tmp) / "neutral" / "capture.npz"), CaptureConfig(), progress=False)
     means = {}
     for how in ("own", "neutral_take"):

@@ -11,7 +11,8 @@ in one glTF file (``avatar.glb``), the speech beside it (``speech.wav``), and a 
   clip tracked them; a sequence without a body (a face-only capture, text2face) stands at ease (breathing,
   arms hanging), said in ``info.json``.
 * **Face**: the character's 53 morph weights are chosen per frame so that its lids, brows, mouth corners and
-  lips move as the fitted ICT face's do (:mod:`anima.facemodel.transfer`), not copied by name.
+  lips move as the fitted ICT face's do (:mod:`anima.facemodel.transfer`), not copied by name; a captured
+  clip's lids and lips then open as its landmarks show.
 * **One timeline, one unit**: the animation is sampled at the sequence's frame rate, in metres; the scene's
   ``extras`` carry the frame rate and the frame range (``tools/blender_import.py`` sets Blender's scene from
   them: Blender's own importer keeps them as the scene's custom properties but opens at 24 fps, 250 frames).
@@ -39,7 +40,13 @@ from anima.export.vrm import character_vrm
 from anima.facemodel.character import fit_shape, load_character, skin, tracked_measures, vertex_colors
 from anima.facemodel.ict import load_face_model
 from anima.facemodel.neutral import faded, from_rest, is_captured, presented, rest_face
-from anima.facemodel.transfer import OPEN_PERCENTILE, Transfer, eye_opening, eye_ratios
+from anima.facemodel.transfer import (
+    OPEN_PERCENTILE,
+    Transfer,
+    eye_opening,
+    eye_ratios,
+    lip_opening,
+)
 from anima.io.atomic import atomic_path
 from anima.io.gltf import write_character_glb
 from anima.io.sequence import TrackedSequence
@@ -195,12 +202,12 @@ MOUTH = [k for k, n in enumerate(EXPR_NAMES) if n.startswith(("jaw", "mouth", "c
 """The mouth's channels: under a hand (:func:`anima.core.occlusion.hand_over_face`) they have no evidence."""
 
 
-def character_face(seq: TrackedSequence, lids: bool = True) -> np.ndarray:
+def character_face(seq: TrackedSequence, lids: bool = True, lips: bool = True) -> np.ndarray:
     """The character's 53 morph weights ``[F, 53]`` for the sequence's face (easing to the rest face where it was
     lost, :func:`anima.facemodel.neutral.faded`, and the mouth alone where a hand covers it): chosen so that its
     lids, brows, mouth corners and lips move as the fitted face's do (:func:`face_transfer`), not copied by
-    name; a captured clip's lids then open as its landmarks show (``lids=False``: by the transfer alone, the
-    read-back benchmark's comparison)."""
+    name; a captured clip's lids and lips then open as its landmarks show (``lids=False``, ``lips=False``: by
+    the transfer alone, the read-back benchmark's comparisons)."""
     W = np.zeros((seq.n_frames, len(EXPR_NAMES)), np.float32)
     if seq.tracked.any():
         expression = presented(seq)[0]  # a captured clip's face measured from its rest face
@@ -210,8 +217,12 @@ def character_face(seq: TrackedSequence, lids: bool = True) -> np.ndarray:
                 W[:, k] = np.where(seq.tracked, expression[:, i], 0.0)
         tr = face_transfer()
         W = tr(np.clip(W, 0.0, 1.0))
-        if lids and is_captured(seq.meta) and seq.landmarks is not None and len(seq.landmarks):  # as the video shows
+        seen = is_captured(seq.meta) and seq.landmarks is not None and len(seq.landmarks) > 0
+        if seen and lids:  # as the video shows them
             W = tr.follow_lids(W, eye_opening(seq.landmarks, seq.tracked, seq.width, seq.height), EXPR_NAMES)
+        if seen and lips:
+            opening = np.where(seq.tracked, lip_opening(seq.landmarks, seq.width, seq.height), np.nan)
+            W = tr.follow_lips(W, opening, EXPR_NAMES)
         W = faded(W.astype(np.float32), seq.tracked, seq.fps)
         covered = hand_over_face(seq)
         if covered.any():  # no evidence under the hand: the mouth eases to its rest and back, never frozen
@@ -223,9 +234,9 @@ class LiveCharacterFace:
     """:func:`character_face` for a stream (``anima live``'s page), one frame at a time: the fitted weights
     measured from a running rest face (:func:`anima.facemodel.neutral.rest_face` over the faces of the last
     :attr:`WINDOW_S` seconds, once it holds :data:`~anima.facemodel.neutral.MIN_SECONDS` of them), transferred by
-    geometry, and the lids set from the frame's landmarks over a running open eye (the same percentile as a
-    clip's, :data:`anima.facemodel.transfer.OPEN_PERCENTILE`). The rest is re-estimated every :attr:`EVERY`
-    frames. Called for seen faces only."""
+    geometry, the lids set from the frame's landmarks over a running open eye (the same percentile as a
+    clip's, :data:`anima.facemodel.transfer.OPEN_PERCENTILE`) and the lips from its landmarks' lip opening.
+    The rest is re-estimated every :attr:`EVERY` frames. Called for seen faces only."""
 
     WINDOW_S = 30.0  # contract: not (a span of seconds)
     EVERY = 15
@@ -267,6 +278,8 @@ class LiveCharacterFace:
         w = self.transfer(presented)
         if self.open_eye is not None and np.isfinite(ratio).all() and (self.open_eye > 0).all():
             w = self.transfer.follow_lids(w, (ratio / self.open_eye)[None], EXPR_NAMES)
+        if landmarks is not None:
+            w = self.transfer.follow_lips(w, lip_opening(np.asarray(landmarks)[None], W, H), EXPR_NAMES)
         return np.clip(w[0], 0.0, 1.0).astype(np.float32), presented[0].astype(np.float32)
 
 

@@ -26,6 +26,15 @@ move as the same twelve points of the fitted face do:
   with the video's), so the character's lids are set from the landmarks themselves: each eye's opening over the
   clip's open eye (:func:`eye_opening`) scales the character's lid gap, by eyeBlink or eyeWide. Read back on
   the same five clips, the eyes' r rose from 0.37-0.95 to 0.90-0.98 (``benchmarks/face_readback.py``).
+* **The lips as the video shows them** (:meth:`Transfer.follow_lips`, for a captured clip): the fitted face's lip
+  gap follows Face Mesh's inner lips loosely where a speaker talks with nearly closed lips (d9: r 0.75), and the
+  character's lips are parted at rest (a dark sliver a face tracker reads as an opening), so the character's lip
+  gap is set from the landmarks themselves: the inner lips' distance over the face's height
+  (:func:`lip_opening`) is the opening the character's close-up must show, through the character's own
+  calibration (:data:`LIP_SHOWN`: what its render shows for a lip gap); an opening smaller than the smallest the
+  character shows shuts its lips (:data:`LIP_SHUT`). jawOpen opens and mouthClose closes, undoing each other
+  first, the other channels kept. Read back on the five development clips and Reagan's, the mouth's r rose from
+  0.74-0.99 to 0.87-1.00 (``benchmarks/face_readback.py``).
 """
 
 from __future__ import annotations
@@ -53,6 +62,31 @@ OPEN_PERCENTILE = 90
 :data:`anima.capture.pipeline.BLINK_OPEN`, takes the same open eye). The median (50) let a clip of long squints
 count its open eyes as wide, and the character's lids pinned at their widest read back as extra blinks (d3: 7
 against the video's 5; 90: 5); chosen on the five development clips of ``benchmarks/face_readback.py``."""
+
+
+LIPS = (13, 14, 10, 152)
+"""Face Mesh's points of the mouth's opening: (inner upper lip, inner lower lip) on the midline, over the face's
+height (forehead, chin): the same measure a face tracker reads back from a render."""
+
+LIP_SHOWN = (0.0058, 0.388)
+"""The character's close-up, read back by Face Mesh (the mouth's opening, :data:`LIPS`): ``offset + slope * gap``
+for its lip gap ``gap`` above rest (face sizes, :meth:`Transfer.lip_gaps`), the jaw opening from rest to 0.6.
+Measured on the character alone (no video): ``python benchmarks/face_readback.py --calibrate``
+(``benchmarks/results/lip_calibration.json``); a test measures it again."""
+
+LIP_SHUT = -0.01
+"""The character's lip gap (face sizes, from rest) where the person's lips are shut: past touching (its rest
+lips are parted by a sliver that reads as an opening; closing them by 0.006 reads as shut in the calibration's
+sweep)."""
+
+
+def lip_opening(landmarks: np.ndarray, width: int, height: int) -> np.ndarray:
+    """The mouth's opening ``[F]`` in Face Mesh's landmarks ``[F, 478, 2+]`` (normalised image coordinates): the
+    inner lips' distance over the face's height (:data:`LIPS`)."""
+    px = np.asarray(landmarks, np.float64)[..., :2] * [width, height]
+    up, lo, top, chin = LIPS
+    face = np.maximum(np.linalg.norm(px[:, top] - px[:, chin], axis=-1), 1e-6)
+    return np.linalg.norm(px[:, up] - px[:, lo], axis=-1) / face
 
 
 def eye_ratios(landmarks: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -161,6 +195,42 @@ class Transfer:
         ``Wc [F, 53]``; zero weights give its rest face's gaps."""
         Wc = np.asarray(Wc, np.float64)
         return np.stack([self.rest_gap[s] + Wc @ self._gap_change(s) for s in ("L", "R")], -1)
+
+    def _lip_change(self) -> np.ndarray:
+        """Each character weight's change ``[53]`` of its lip gap (face sizes, upper lip over lower)."""
+        up, lo = POINTS.index("upper_lip"), POINTS.index("lower_lip")
+        return self.Bc[:, up, 1] - self.Bc[:, lo, 1]
+
+    def lip_gaps(self, Wc: np.ndarray) -> np.ndarray:
+        """The character's lip gap ``[F]`` (face sizes) above its rest face's, for its weights ``Wc [F, 53]``."""
+        return np.asarray(Wc, np.float64) @ self._lip_change()
+
+    def follow_lips(self, Wc: np.ndarray, opening: np.ndarray, names, shown=LIP_SHOWN) -> np.ndarray:
+        """The character's weights ``Wc [F, 53]`` (named ``names``) with its lips parted as the person's are:
+        ``opening [F]`` is the mouth's opening (:func:`lip_opening`; NaN where not seen, left as it is), which
+        the character's close-up shows at the lip gap ``(opening - offset) / slope`` (``shown``:
+        :data:`LIP_SHOWN`); under the offset (less than the character can show) its lips shut
+        (:data:`LIP_SHUT`). The gap is reached by jawOpen (opening) or mouthClose (closing), each first undoing
+        the other, the other channels kept."""
+        out = np.array(Wc, np.float64)
+        ix = {n: i for i, n in enumerate(names)}
+        j, c = ix["jawOpen"], ix["mouthClose"]
+        dg = self._lip_change()
+        if not (dg[j] > 0 > dg[c]):
+            return out
+        opening = np.asarray(opening, np.float64)
+        seen = np.isfinite(opening)
+        offset, slope = shown
+        x = np.nan_to_num(opening, nan=0.0)
+        need = np.where(x < offset, LIP_SHUT, (x - offset) / slope) - out @ dg
+        undo_close = np.minimum(np.maximum(need, 0.0) / -dg[c], out[:, c])  # opening: first less mouthClose
+        undo_jaw = np.minimum(np.maximum(-need, 0.0) / dg[j], out[:, j])  # closing: first less jawOpen
+        rest = need + undo_close * dg[c] + undo_jaw * dg[j]  # what is left for the other channel
+        jaw = out[:, j] - undo_jaw + np.maximum(rest, 0.0) / dg[j]
+        close = out[:, c] - undo_close + np.maximum(-rest, 0.0) / -dg[c]
+        out[:, j] = np.where(seen, np.clip(jaw, 0.0, 1.0), out[:, j])
+        out[:, c] = np.where(seen, np.clip(close, 0.0, 1.0), out[:, c])
+        return out
 
     def follow_lids(self, Wc: np.ndarray, opening: np.ndarray, names) -> np.ndarray:
         """The character's weights ``Wc [F, 53]`` (named ``names``) with each eye's lids set to the person's

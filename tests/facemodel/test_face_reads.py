@@ -205,6 +205,75 @@ def test_the_characters_lids_open_as_the_video_shows(d0_capture):
         assert seen[shut, k] < 0.3 and char[shut, k] < 0.35, (k, seen[shut, k], char[shut, k])
 
 
+def test_the_characters_lips_part_as_the_video_shows():
+    """The lips from the landmarks (:meth:`Transfer.follow_lips`): an opening the character can show becomes its
+    lip gap through the calibration (``(opening - offset) / slope`` above rest), less than it can show shuts its
+    lips, by jawOpen and mouthClose (each undoing the other first), the other channels kept; a frame not seen
+    keeps its weights."""
+    from anima.facemodel.transfer import LIP_SHOWN, LIP_SHUT
+
+    t = _transfer()
+    ix = {n: i for i, n in enumerate(EXPR_NAMES)}
+    offset, slope = LIP_SHOWN
+    W = np.zeros((5, 53))
+    W[:, ix["mouthFunnel"]] = 0.2  # another channel parting the lips is taken into account
+    W[1, ix["mouthClose"]] = 0.3  # opened: mouthClose undone first
+    W[2, ix["jawOpen"]] = 0.4  # shut: jawOpen undone first
+    opening = np.array([offset + slope * 0.1, offset + slope * 0.2, 0.0, offset + slope * 0.05, np.nan])
+    got = t.follow_lips(W, opening, EXPR_NAMES)
+    np.testing.assert_allclose(t.lip_gaps(got[:4]), [0.1, 0.2, LIP_SHUT, 0.05], atol=1e-9)
+    assert got[1, ix["mouthClose"]] < W[1, ix["mouthClose"]] and got[2, ix["jawOpen"]] < W[2, ix["jawOpen"]]
+    others = [k for k in range(53) if k not in (ix["jawOpen"], ix["mouthClose"])]
+    np.testing.assert_array_equal(got[:, others], W[:, others])
+    np.testing.assert_array_equal(got[4], W[4])
+
+
+@pytest.mark.slow
+def test_the_lips_calibration_is_what_the_close_up_shows(d0_capture):
+    """:data:`LIP_SHOWN` measured again: the character's jaw opened step by step, its close-up read back by Face
+    Mesh (``benchmarks/face_readback.py --calibrate``): the mouth's opening is the calibration's line of its lip
+    gap (offset within 0.004, slope within 10 %), and its rest lips, shut by :data:`LIP_SHUT`, read as closed."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    from face_readback import calibrate_lips, measures, read_faces, render_character
+
+    from anima.facemodel.transfer import LIP_SHOWN, LIP_SHUT
+
+    cal = calibrate_lips(d0_capture)
+    assert abs(cal["offset"] - LIP_SHOWN[0]) < 0.004 and abs(cal["slope"] / LIP_SHOWN[1] - 1) < 0.1, cal
+    t = _transfer()
+    W = t.follow_lips(np.zeros((3, 53)), np.zeros(3), EXPR_NAMES)
+    assert t.lip_gaps(W)[0] == pytest.approx(LIP_SHUT)
+    assert measures(read_faces(render_character(d0_capture, W=W)))["mouth"][-1] < LIP_SHOWN[0] / 2
+
+
+def test_a_speaker_talking_with_closed_lips_reads_back_as_the_video():
+    """d9's first 10 s (a speaker whose lips part by a pixel or two, closed most of the time): read back by Face
+    Mesh, the character's mouth follows the video's (r >= 0.85) with its lips set from the landmarks; by the
+    transfer alone its rest lips, parted by a sliver, read as openings the video does not have (r under 0.8)."""
+    import itertools
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    from face_readback import compare, measures, read_faces, render_character
+
+    from anima.capture.config import CaptureConfig
+    from anima.capture.pipeline import capture_face
+    from anima.io.assets import asset
+    from anima.io.video import iter_frames, probe_video
+
+    d9, n = str(asset("liveportrait-examples/assets/examples/driving/d9.mp4")), 250
+    seq = capture_face(d9, CaptureConfig(max_frames=n), progress=False)
+    video = measures(read_faces(itertools.islice(iter_frames(probe_video(d9)), n)))
+    assert np.nanpercentile(video["mouth"], 90) < 0.01  # closed lips, nearly throughout
+    lips = compare(video, measures(read_faces(render_character(seq))))["mouth_r"]
+    alone = compare(video, measures(read_faces(render_character(seq, lips=False))))["mouth_r"]
+    assert lips >= 0.85 and alone < 0.8, (lips, alone)
+
+
 def test_the_live_face_is_the_clips_face_one_frame_at_a_time(d0_capture):
     """``anima live``'s page gets :class:`LiveCharacterFace`: d0 streamed frame by frame (its fit and Face Mesh
     landmarks, at 25 fps): the lids follow the landmarks' opening from the first frames on (r >= 0.95 once
