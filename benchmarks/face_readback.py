@@ -6,24 +6,29 @@ by frame, and read back by a face tracker; so is the source video; the two are c
         talking-heads-misc/LatentSync/assets/demo{1,2,3}_video.mp4 \
         talking-heads-misc/MimicTalk/data/raw/examples/German_20s.mp4 \
         talking-heads-misc/Real3DPortrait/data/raw/examples/May_5s.mp4 \
-        --out benchmarks/results/face_readback_fresh.json   # ten talking clips nothing was chosen on
+        --out benchmarks/results/face_readback_fresh.json   # ten talking clips: the lips' fresh clips
+    D=liveportrait-examples/assets/examples/driving
+    python benchmarks/face_readback.py --clips $D/d6.mp4 $D/d10.mp4 $D/d11.mp4 $D/d13.mp4 $D/d14.mp4 $D/d18.mp4 \
+        $D/d19.mp4 $D/d20.mp4 talking-heads-misc/TPSMM/assets/driving.mp4 talking-heads-extra/mouth_source.mp4 \
+        talking-heads-extra/expression_source.mp4 --out benchmarks/results/face_readback_fresh2.json  # held out
     python benchmarks/face_readback.py --calibrate   # the character's lips as read back: lip_calibration.json
 
 **Clips** (the default): talking and expression clips of the shared data, every one looked at while building
 the face (development clips): LivePortrait's d3 frowns, squints and looks surprised, d0 smiles and blinks, d9
 talks and smiles with closed lips; the Obama, Ng, Noem, Li and Reagan styletalk clips and a 2.4-s radio clip
-talk. The fresh clips (the second command) were run once, after every choice. All are captured with ``anima
+talk. The lips' fresh clips (the second command) were run once after the lips were chosen, and again after the
+brows (a second look); the held-out clips (the third) once, after every choice. All are captured with ``anima
 capture --face-only`` (the shipped defaults).
 
 **The character** (what ``avatar.mp4``'s face panel shows): anima's character, its 53 morph weights from the
 capture (:func:`anima.export.avatar.character_face`: the rest face taken out, transferred by geometry, the lids
-set from the landmarks' eye opening and the lips from their lip opening),
+set from the landmarks' eye opening, the lips from their lip opening and the brows' rise from their brows),
 the head skinned and seen from the front of the face at 384 x 384 (:func:`anima.export.avatar.face_camera`),
 coloured (:func:`anima.facemodel.character.vertex_colors`). **The ceiling**: the fitted ICT face itself (the
 person's identity and the fitted expression, no head turn), rendered the same way in one colour. **The
 baseline**: the character's weights copied by name (no transfer, no rest face), as before issue 48;
-``lids_by_transfer`` and ``lips_by_transfer``: the character with its lids, or its lips, by the transfer alone
-(not set from the landmarks).
+``lids_by_transfer``, ``lips_by_transfer`` and ``brows_by_transfer``: the character with its lids, its lips or
+its brows by the transfer alone (not set from the landmarks).
 
 **The lips' calibration** (``--calibrate``, :data:`anima.facemodel.transfer.LIP_SHOWN`): the character alone, its
 jaw opened from rest to 0.6 in 31 steps (each pose held for three frames, the last read), drawn and read back
@@ -110,7 +115,7 @@ def blinks(eye: np.ndarray) -> int:
     return int(((stops - starts) >= 2).sum())
 
 
-def render_character(seq, transfer=True, lids=True, lips=True, W=None) -> list[np.ndarray]:
+def render_character(seq, transfer=True, lids=True, lips=True, brows=True, W=None) -> list[np.ndarray]:
     """The character's close-up, frame by frame: its weights from the sequence (or ``W [F, 53]``, every one
     drawn on the sequence's first frame's head)."""
     ch = load_character()
@@ -119,7 +124,7 @@ def render_character(seq, transfer=True, lids=True, lips=True, W=None) -> list[n
     if given:
         pass
     elif transfer:
-        W = character_face(seq, lids, lips)
+        W = character_face(seq, lids, lips, brows)
     else:
         idx = [seq.expr_names.index(n) for n in EXPR_NAMES]
         W = np.where(seq.tracked[:, None], seq.expression[:, idx], 0.0)
@@ -201,6 +206,7 @@ def main() -> None:
                            ("by_name", lambda: render_character(seq, False)),
                            ("lids_by_transfer", lambda: render_character(seq, lids=False)),
                            ("lips_by_transfer", lambda: render_character(seq, lips=False)),
+                           ("brows_by_transfer", lambda: render_character(seq, brows=False)),
                            ("ict_ceiling", lambda: render_ict(seq))):  # fmt: skip
             got = measures(read_faces(draw()))
             row[name] = compare(video, got) | {

@@ -12,7 +12,7 @@ in one glTF file (``avatar.glb``), the speech beside it (``speech.wav``), and a 
   arms hanging), said in ``info.json``.
 * **Face**: the character's 53 morph weights are chosen per frame so that its lids, brows, mouth corners and
   lips move as the fitted ICT face's do (:mod:`anima.facemodel.transfer`), not copied by name; a captured
-  clip's lids and lips then open as its landmarks show.
+  clip's brows, lids and lips then move as its landmarks show.
 * **One timeline, one unit**: the animation is sampled at the sequence's frame rate, in metres; the scene's
   ``extras`` carry the frame rate and the frame range (``tools/blender_import.py`` sets Blender's scene from
   them: Blender's own importer keeps them as the scene's custom properties but opens at 24 fps, 250 frames).
@@ -43,6 +43,8 @@ from anima.facemodel.neutral import faded, from_rest, is_captured, presented, re
 from anima.facemodel.transfer import (
     OPEN_PERCENTILE,
     Transfer,
+    brow_heights,
+    brow_raise,
     eye_opening,
     eye_ratios,
     lip_opening,
@@ -202,12 +204,12 @@ MOUTH = [k for k, n in enumerate(EXPR_NAMES) if n.startswith(("jaw", "mouth", "c
 """The mouth's channels: under a hand (:func:`anima.core.occlusion.hand_over_face`) they have no evidence."""
 
 
-def character_face(seq: TrackedSequence, lids: bool = True, lips: bool = True) -> np.ndarray:
+def character_face(seq: TrackedSequence, lids: bool = True, lips: bool = True, brows: bool = True) -> np.ndarray:
     """The character's 53 morph weights ``[F, 53]`` for the sequence's face (easing to the rest face where it was
     lost, :func:`anima.facemodel.neutral.faded`, and the mouth alone where a hand covers it): chosen so that its
     lids, brows, mouth corners and lips move as the fitted face's do (:func:`face_transfer`), not copied by
-    name; a captured clip's lids and lips then open as its landmarks show (``lids=False``, ``lips=False``: by
-    the transfer alone, the read-back benchmark's comparisons)."""
+    name; a captured clip's brows, lids and lips then move as its landmarks show (``brows=False``,
+    ``lids=False``, ``lips=False``: by the transfer alone, the read-back benchmark's comparisons)."""
     W = np.zeros((seq.n_frames, len(EXPR_NAMES)), np.float32)
     if seq.tracked.any():
         expression = presented(seq)[0]  # a captured clip's face measured from its rest face
@@ -218,7 +220,10 @@ def character_face(seq: TrackedSequence, lids: bool = True, lips: bool = True) -
         tr = face_transfer()
         W = tr(np.clip(W, 0.0, 1.0))
         seen = is_captured(seq.meta) and seq.landmarks is not None and len(seq.landmarks) > 0
-        if seen and lids:  # as the video shows them
+        if seen and brows:  # as the video shows them, the brows first (they move the lids a little)
+            level = np.median(tr.brow_rise(W)[seq.tracked], axis=0)  # the fit's clip-long brows, from its rest
+            W = tr.follow_brows(W, brow_raise(seq.landmarks, seq.tracked, seq.width, seq.height), EXPR_NAMES, level)
+        if seen and lids:
             W = tr.follow_lids(W, eye_opening(seq.landmarks, seq.tracked, seq.width, seq.height), EXPR_NAMES)
         if seen and lips:
             opening = np.where(seq.tracked, lip_opening(seq.landmarks, seq.width, seq.height), np.nan)
@@ -235,7 +240,8 @@ class LiveCharacterFace:
     measured from a running rest face (:func:`anima.facemodel.neutral.rest_face` over the faces of the last
     :attr:`WINDOW_S` seconds, once it holds :data:`~anima.facemodel.neutral.MIN_SECONDS` of them), transferred by
     geometry, the lids set from the frame's landmarks over a running open eye (the same percentile as a
-    clip's, :data:`anima.facemodel.transfer.OPEN_PERCENTILE`) and the lips from its landmarks' lip opening.
+    clip's, :data:`anima.facemodel.transfer.OPEN_PERCENTILE`), the brows from its brows' height over a running
+    median (around the transferred brows' running median) and the lips from its landmarks' lip opening.
     The rest is re-estimated every :attr:`EVERY` frames. Called for seen faces only."""
 
     WINDOW_S = 30.0  # contract: not (a span of seconds)
@@ -246,8 +252,11 @@ class LiveCharacterFace:
         self.t: deque[float] = deque()
         self.expr: deque[np.ndarray] = deque()
         self.eyes: deque[np.ndarray] = deque()
+        self.brows: deque[np.ndarray] = deque()
         self.rest: dict[str, float] = {}
         self.open_eye = None
+        self.brow_rest = None
+        self.brow_level = None
         self.n = 0
 
     def __call__(
@@ -261,9 +270,11 @@ class LiveCharacterFace:
         self.t.append(float(t))
         self.expr.append(np.asarray(expression, np.float32))
         ratio = eye_ratios(landmarks[None], W, H)[0] if landmarks is not None else np.full(2, np.nan)
+        brows = brow_heights(landmarks[None], W, H)[0] if landmarks is not None else np.full(2, np.nan)
         self.eyes.append(ratio)
+        self.brows.append(brows)
         while self.t[-1] - self.t[0] > self.WINDOW_S:
-            for q in (self.t, self.expr, self.eyes):
+            for q in (self.t, self.expr, self.eyes, self.brows):
                 q.popleft()
         if self.n % self.EVERY == 0:
             span = self.t[-1] - self.t[0]
@@ -273,9 +284,16 @@ class LiveCharacterFace:
             E = np.stack(self.eyes)
             ok = np.isfinite(E).all(-1)
             self.open_eye = np.percentile(E[ok], OPEN_PERCENTILE, axis=0) if ok.sum() >= 10 else None
+            B = np.stack(self.brows)
+            ok = np.isfinite(B).all(-1)
+            self.brow_rest = np.median(B[ok], axis=0) if ok.sum() >= 10 else None
+            shown = np.clip(from_rest(X, list(EXPR_NAMES), self.rest), 0.0, 1.0)  # the window's faces, as a clip's
+            self.brow_level = np.median(self.transfer.brow_rise(self.transfer(shown)), axis=0)
         self.n += 1
         presented = np.clip(from_rest(np.asarray(expression)[None], list(EXPR_NAMES), self.rest), 0.0, 1.0)
         w = self.transfer(presented)
+        if self.brow_rest is not None and np.isfinite(brows).all():
+            w = self.transfer.follow_brows(w, (brows - self.brow_rest)[None], EXPR_NAMES, self.brow_level)
         if self.open_eye is not None and np.isfinite(ratio).all() and (self.open_eye > 0).all():
             w = self.transfer.follow_lids(w, (ratio / self.open_eye)[None], EXPR_NAMES)
         if landmarks is not None:

@@ -26,6 +26,15 @@ move as the same twelve points of the fitted face do:
   with the video's), so the character's lids are set from the landmarks themselves: each eye's opening over the
   clip's open eye (:func:`eye_opening`) scales the character's lid gap, by eyeBlink or eyeWide. Read back on
   the same five clips, the eyes' r rose from 0.37-0.95 to 0.90-0.98 (``benchmarks/face_readback.py``).
+* **The brows as the video shows them** (:meth:`Transfer.follow_brows`, for a captured clip): each brow's height
+  above its eye's corners in Face Mesh's landmarks, over the face's height, from the clip's median
+  (:func:`brow_raise`), is how far the character's brow points rise above their level at the clip's median (in
+  the same face heights: the calibration's :data:`LIP_SHOWN` slope is the character's face size over its face
+  height); that side's browInnerUp and browOuterUp are solved for it (least squares, :data:`BROW_PULL` towards
+  the transferred weights), before the lids are set. browDown keeps the transferred weight: with it in the
+  solve, every downward move of a talking neutral face became browDown (CREMA-D's neutral take read 0.117 at
+  rest, over the issue's 0.1). Read back on eight development clips, the brows' r rose from 0.82-0.97 to
+  0.90-0.97, blinks unchanged.
 * **The lips as the video shows them** (:meth:`Transfer.follow_lips`, for a captured clip): the fitted face's lip
   gap follows Face Mesh's inner lips loosely where a speaker talks with nearly closed lips (d9: r 0.75), and the
   character's lips are parted at rest (a dark sliver a face tracker reads as an opening), so the character's lip
@@ -78,6 +87,35 @@ LIP_SHUT = -0.01
 """The character's lip gap (face sizes, from rest) where the person's lips are shut: past touching (its rest
 lips are parted by a sliver that reads as an opening; closing them by 0.006 reads as shut in the calibration's
 sweep)."""
+
+
+BROWS = {"L": (334, 362, 263), "R": (105, 33, 133)}
+"""Face Mesh's points of each brow, the person's left and right: (the brow, the eye's two corners)."""
+
+BROW_PULL = 0.001
+"""How strongly the brows' raise channels stay at the transferred weights (against the brow points' squared miss,
+in face sizes); 1e-4 and 1e-2 read back within 0.02 on the development clips."""
+
+
+def brow_heights(landmarks: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Each brow's height ``[F, 2]`` (the person's left, right) above its eye's corners over the face's height in
+    Face Mesh's landmarks ``[F, 478, 2+]`` (normalised). Which is the person's left is read as :func:`eye_ratios`
+    does."""
+    px = np.asarray(landmarks, np.float64)[..., :2] * [width, height]
+    face = np.maximum(np.linalg.norm(px[:, LIPS[2]] - px[:, LIPS[3]], axis=-1), 1e-6)
+    h = {s: np.linalg.norm((px[:, a] + px[:, b]) / 2 - px[:, p], axis=-1) / face for s, (p, a, b) in BROWS.items()}
+    mirrored = px[:, EYES["L"][2], 0] < px[:, EYES["R"][2], 0]
+    return np.stack([np.where(mirrored, h["R"], h["L"]), np.where(mirrored, h["L"], h["R"])], -1)
+
+
+def brow_raise(landmarks: np.ndarray, tracked: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Each brow's height ``[F, 2]`` (:func:`brow_heights`) from its median over the frames ``tracked``; NaN
+    where no face was seen (or under ten frames seen)."""
+    out = brow_heights(landmarks, width, height)
+    ok = np.asarray(tracked, bool) & np.isfinite(out).all(-1)
+    if ok.sum() < 10:
+        return np.full(out.shape, np.nan)
+    return np.where(ok[:, None], out - np.median(out[ok], axis=0), np.nan)
 
 
 def lip_opening(landmarks: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -195,6 +233,37 @@ class Transfer:
         ``Wc [F, 53]``; zero weights give its rest face's gaps."""
         Wc = np.asarray(Wc, np.float64)
         return np.stack([self.rest_gap[s] + Wc @ self._gap_change(s) for s in ("L", "R")], -1)
+
+    def brow_rise(self, Wc: np.ndarray) -> np.ndarray:
+        """The rise ``[F, 2, 2]`` (face sizes) of the character's brow points (left, right; inner, outer) for its
+        weights ``Wc [F, 53]``."""
+        pts = [[POINTS.index(f"brow_{p}_{s}") for p in ("in", "out")] for s in ("L", "R")]
+        return self.character(Wc)[:, :, 1][:, pts]
+
+    def follow_brows(self, Wc, raised, names, level=None, pull: float = BROW_PULL) -> np.ndarray:
+        """The character's weights ``Wc [F, 53]`` (named ``names``) with each brow moving as the person's does:
+        ``raised [F, 2]`` (left, right; :func:`brow_raise`, face heights from the clip's median; NaN where not
+        seen, left as it is) is the rise of the side's inner and outer brow points (face sizes: times the face's
+        height, ``1 / LIP_SHOWN[1]``) above ``level [2, 2]`` (their rise at the clip's median, :meth:`brow_rise`,
+        so the clip-long level stays the fit's, measured from its rest face; default 0), reached by that side's
+        browInnerUp and browOuterUp (least squares with ``pull`` towards their weights in ``Wc``); browDown and
+        the other channels are kept."""
+        out = np.array(Wc, np.float64)
+        ix = {n: i for i, n in enumerate(names)}
+        height = 1.0 / LIP_SHOWN[1]
+        level = np.zeros((2, 2)) if level is None else np.asarray(level, np.float64)
+        for k, s in enumerate(("L", "R")):
+            ch = [ix[f"browInnerUp_{s}"], ix[f"browOuterUp_{s}"]]
+            pts = [POINTS.index(f"brow_in_{s}"), POINTS.index(f"brow_out_{s}")]
+            B = self.Bc[ch][:, pts, 1]  # [2 channels, 2 points]: each channel's rise of the points
+            others = out.copy()
+            others[:, ch] = 0.0
+            rise = np.nan_to_num(raised[:, k], nan=0.0)[:, None] * height + level[k]
+            goal = rise - self.character(others)[:, pts, 1]
+            x = (goal @ B.T + pull * out[:, ch]) @ np.linalg.inv(B @ B.T + pull * np.eye(len(ch))).T
+            seen = np.isfinite(raised[:, k])
+            out[:, ch] = np.where(seen[:, None], np.clip(x, 0.0, 1.0), out[:, ch])
+        return out
 
     def _lip_change(self) -> np.ndarray:
         """Each character weight's change ``[53]`` of its lip gap (face sizes, upper lip over lower)."""

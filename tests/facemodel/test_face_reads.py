@@ -228,6 +228,34 @@ def test_the_characters_lips_part_as_the_video_shows():
     np.testing.assert_array_equal(got[4], W[4])
 
 
+def test_the_characters_brows_rise_as_the_video_shows(d0_capture):
+    """The brows from the landmarks (:meth:`Transfer.follow_brows`): a brow raised by x face heights above the
+    clip's median lifts the side's brow points by x times the character's face height (face sizes) above their
+    level (within a fifth: the pull towards the transferred weights), by browInnerUp and browOuterUp alone
+    (browDown and the other channels kept; an unseen frame kept); on d0 (a smile, brows moving a little) the
+    character's brow rise follows the landmarks' frame by frame."""
+    from anima.export.avatar import character_face
+    from anima.facemodel.transfer import LIP_SHOWN, brow_raise
+
+    t = _transfer()
+    ix = {n: i for i, n in enumerate(EXPR_NAMES)}
+    W = np.zeros((3, 53))
+    W[:, ix["browDown_L"]] = 0.1
+    raised = np.array([[0.0, 0.0], [0.02, 0.01], [np.nan, np.nan]])
+    got = t.follow_brows(W, raised, EXPR_NAMES, level=t.brow_rise(W[:1])[0])
+    lift = (t.brow_rise(got) - t.brow_rise(W[:1]))[:2].mean(-1)  # [frame, side], over the inner and outer points
+    np.testing.assert_allclose(lift, raised[:2] / LIP_SHOWN[1], rtol=0.2, atol=1e-4)  # the pull keeps a little
+    others = [k for k in range(53) if not EXPR_NAMES[k].startswith(("browInnerUp", "browOuterUp"))]
+    np.testing.assert_array_equal(got[:, others], W[:, others])
+    np.testing.assert_array_equal(got[2], W[2])
+
+    seq = d0_capture
+    seen = brow_raise(seq.landmarks, seq.tracked, seq.width, seq.height)
+    char = t.brow_rise(character_face(seq)).mean(-1)
+    for k in range(2):
+        assert np.corrcoef(seen[:, k], char[:, k])[0, 1] >= 0.9, k
+
+
 @pytest.mark.slow
 def test_the_lips_calibration_is_what_the_close_up_shows(d0_capture):
     """:data:`LIP_SHOWN` measured again: the character's jaw opened step by step, its close-up read back by Face
