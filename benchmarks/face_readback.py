@@ -122,7 +122,7 @@ def render_character(seq, transfer=True, lids=True, lips=True, brows=True, W=Non
     m = character_motion(seq)
     given = W is not None
     if given:
-        pass
+        W = np.asarray(W)
     elif transfer:
         W = character_face(seq, lids, lips, brows)
     else:

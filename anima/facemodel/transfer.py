@@ -97,23 +97,45 @@ BROW_PULL = 0.001
 in face sizes); 1e-4 and 1e-2 read back within 0.02 on the development clips."""
 
 
+def _pixels(landmarks: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Face Mesh's landmarks ``[F, 478, 2+]`` (normalised image coordinates) in pixels ``[F, 478, 2]``."""
+    return np.asarray(landmarks, np.float64)[..., :2] * [width, height]
+
+
+def _face_height(px: np.ndarray) -> np.ndarray:
+    """The face's height ``[F]`` (forehead to chin, :data:`LIPS`) in pixels ``px [F, 478, 2]``."""
+    return np.maximum(np.linalg.norm(px[:, LIPS[2]] - px[:, LIPS[3]], axis=-1), 1e-6)
+
+
+def _persons_sides(px: np.ndarray, on_left: np.ndarray, on_right: np.ndarray) -> np.ndarray:
+    """``[F, 2]``: a measure of the person's left and right, from the same measure taken with Face Mesh's left
+    and right points (``on_left``, ``on_right`` ``[F]``). Which is the person's left is read off each frame's
+    picture (the eye on the picture's right; a mirrored video swaps them)."""
+    mirrored = px[:, EYES["L"][2], 0] < px[:, EYES["R"][2], 0]
+    return np.stack([np.where(mirrored, on_right, on_left), np.where(mirrored, on_left, on_right)], -1)
+
+
+def _from_clip(values: np.ndarray, tracked: np.ndarray) -> np.ndarray | None:
+    """The frames ``tracked`` whose ``values [F, 2]`` are finite (``[F]`` bool), or None under ten of them."""
+    ok = np.asarray(tracked, bool) & np.isfinite(values).all(-1)
+    return ok if ok.sum() >= 10 else None
+
+
 def brow_heights(landmarks: np.ndarray, width: int, height: int) -> np.ndarray:
     """Each brow's height ``[F, 2]`` (the person's left, right) above its eye's corners over the face's height in
-    Face Mesh's landmarks ``[F, 478, 2+]`` (normalised). Which is the person's left is read as :func:`eye_ratios`
-    does."""
-    px = np.asarray(landmarks, np.float64)[..., :2] * [width, height]
-    face = np.maximum(np.linalg.norm(px[:, LIPS[2]] - px[:, LIPS[3]], axis=-1), 1e-6)
+    Face Mesh's landmarks ``[F, 478, 2+]`` (normalised)."""
+    px = _pixels(landmarks, width, height)
+    face = _face_height(px)
     h = {s: np.linalg.norm((px[:, a] + px[:, b]) / 2 - px[:, p], axis=-1) / face for s, (p, a, b) in BROWS.items()}
-    mirrored = px[:, EYES["L"][2], 0] < px[:, EYES["R"][2], 0]
-    return np.stack([np.where(mirrored, h["R"], h["L"]), np.where(mirrored, h["L"], h["R"])], -1)
+    return _persons_sides(px, h["L"], h["R"])
 
 
 def brow_raise(landmarks: np.ndarray, tracked: np.ndarray, width: int, height: int) -> np.ndarray:
     """Each brow's height ``[F, 2]`` (:func:`brow_heights`) from its median over the frames ``tracked``; NaN
     where no face was seen (or under ten frames seen)."""
     out = brow_heights(landmarks, width, height)
-    ok = np.asarray(tracked, bool) & np.isfinite(out).all(-1)
-    if ok.sum() < 10:
+    ok = _from_clip(out, tracked)
+    if ok is None:
         return np.full(out.shape, np.nan)
     return np.where(ok[:, None], out - np.median(out[ok], axis=0), np.nan)
 
@@ -121,32 +143,28 @@ def brow_raise(landmarks: np.ndarray, tracked: np.ndarray, width: int, height: i
 def lip_opening(landmarks: np.ndarray, width: int, height: int) -> np.ndarray:
     """The mouth's opening ``[F]`` in Face Mesh's landmarks ``[F, 478, 2+]`` (normalised image coordinates): the
     inner lips' distance over the face's height (:data:`LIPS`)."""
-    px = np.asarray(landmarks, np.float64)[..., :2] * [width, height]
-    up, lo, top, chin = LIPS
-    face = np.maximum(np.linalg.norm(px[:, top] - px[:, chin], axis=-1), 1e-6)
-    return np.linalg.norm(px[:, up] - px[:, lo], axis=-1) / face
+    px = _pixels(landmarks, width, height)
+    return np.linalg.norm(px[:, LIPS[0]] - px[:, LIPS[1]], axis=-1) / _face_height(px)
 
 
 def eye_ratios(landmarks: np.ndarray, width: int, height: int) -> np.ndarray:
     """Each eye's opening ``[F, 2]`` (the person's left, right) in Face Mesh's landmarks ``[F, 478, 2+]``
-    (normalised image coordinates): the lids' distance over the eye's width. Which eye is the person's left is
-    read off each frame's picture (the one on the picture's right; a mirrored video swaps them)."""
-    px = np.asarray(landmarks, np.float64)[..., :2] * [width, height]
+    (normalised image coordinates): the lids' distance over the eye's width."""
+    px = _pixels(landmarks, width, height)
     o = {}
     for s, (up, lo, a, b) in EYES.items():
         w = np.maximum(np.linalg.norm(px[:, a] - px[:, b], axis=-1), 1e-6)
         o[s] = np.linalg.norm(px[:, up] - px[:, lo], axis=-1) / w
-    mirrored = px[:, EYES["L"][2], 0] < px[:, EYES["R"][2], 0]
-    return np.stack([np.where(mirrored, o["R"], o["L"]), np.where(mirrored, o["L"], o["R"])], -1)
+    return _persons_sides(px, o["L"], o["R"])
 
 
 def eye_opening(landmarks: np.ndarray, tracked: np.ndarray, width: int, height: int) -> np.ndarray:
     """Each eye's opening ``[F, 2]`` (left, right; :func:`eye_ratios`) over the clip's open eye (its
     :data:`OPEN_PERCENTILE` over the frames ``tracked``); NaN where no face was seen."""
     ratio = eye_ratios(landmarks, width, height)
-    ok = np.asarray(tracked, bool) & np.isfinite(ratio).all(-1)
+    ok = _from_clip(ratio, tracked)
     out = np.full(ratio.shape, np.nan)
-    if ok.sum() < 10:
+    if ok is None:
         return out
     open_eye = np.percentile(ratio[ok], OPEN_PERCENTILE, axis=0)
     good = open_eye > 0
