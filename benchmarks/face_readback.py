@@ -10,30 +10,45 @@ by frame, and read back by a face tracker; so is the source video; the two are c
     D=liveportrait-examples/assets/examples/driving
     python benchmarks/face_readback.py --clips $D/d6.mp4 $D/d10.mp4 $D/d11.mp4 $D/d13.mp4 $D/d14.mp4 $D/d18.mp4 \
         $D/d19.mp4 $D/d20.mp4 talking-heads-misc/TPSMM/assets/driving.mp4 talking-heads-extra/mouth_source.mp4 \
-        talking-heads-extra/expression_source.mp4 --out benchmarks/results/face_readback_fresh2.json  # held out
-    python benchmarks/face_readback.py --calibrate   # the character's lips as read back: lip_calibration.json
+        talking-heads-extra/expression_source.mp4 --out benchmarks/results/face_readback_fresh2.json  # a second look
+    S=styletalk-samples/samples/style_clips/video
+    python benchmarks/face_readback.py --clips $S/furious_talk1_clip{1,2}.mp4 $S/furious_talk2_clip{1,2,3,4,5,6,7}.mp4 \
+        $S/happyenglish_clip{1,2}.mp4 $S/nice_clip1.mp4 $S/sad_emotion_clip1.mp4 $S/sadfather_clip1.mp4 \
+        $S/sadgirl_clip1.mp4 $S/spata_clip1.mp4 $S/surprisegirl_clip2.mp4 $S/trump_clip1.mp4 $S/vscodehappy_clip1.mp4 \
+        styletalk-samples/samples/source_video/video/Obama_clip2.mp4 talking-heads-extra/pose_source2.mp4 \
+        liveportrait-examples/assets/examples/driving/d12.mp4 \
+        --out benchmarks/results/face_readback_fresh3.json  # held out
+    python benchmarks/face_readback.py --calibrate   # the character's lips and eyes as read back:
+                                                     # lip_calibration.json, eye_calibration.json
 
 **Clips** (the default): talking and expression clips of the shared data, every one looked at while building
 the face (development clips): LivePortrait's d3 frowns, squints and looks surprised, d0 smiles and blinks, d9
 talks and smiles with closed lips; the Obama, Ng, Noem, Li and Reagan styletalk clips and a 2.4-s radio clip
 talk. The lips' fresh clips (the second command) were run once after the lips were chosen, and again after the
-brows (a second look); the held-out clips (the third) once, after every choice. All are captured with ``anima
-capture --face-only`` (the shipped defaults).
+brows and the eyes (later looks); the third command's clips were held out for the lips and the brows, and their
+missed blinks led to the eyes' calibration (a second look now); the held-out clips (the fourth) were run once,
+after every choice. All are captured with ``anima capture --face-only`` (the shipped defaults).
 
 **The character** (what ``avatar.mp4``'s face panel shows): anima's character, its 53 morph weights from the
 capture (:func:`anima.export.avatar.character_face`: the rest face taken out, transferred by geometry, the lids
-set from the landmarks' eye opening, the lips from their lip opening and the brows' rise from their brows),
-the head skinned and seen from the front of the face at 384 x 384 (:func:`anima.export.avatar.face_camera`),
-coloured (:func:`anima.facemodel.character.vertex_colors`). **The ceiling**: the fitted ICT face itself (the
-person's identity and the fitted expression, no head turn), rendered the same way in one colour. **The
-baseline**: the character's weights copied by name (no transfer, no rest face), as before issue 48;
-``lids_by_transfer``, ``lips_by_transfer`` and ``brows_by_transfer``: the character with its lids, its lips or
-its brows by the transfer alone (not set from the landmarks).
+set from the landmarks' eye opening through the eyes' calibration, the lips from their lip opening and the brows'
+rise from their brows), the head skinned and seen from the front of the face at 384 x 384
+(:func:`anima.export.avatar.face_camera`), coloured (:func:`anima.facemodel.character.vertex_colors`). **The
+ceiling**: the fitted ICT face itself (the person's identity and the fitted expression, no head turn), rendered
+the same way in one colour. **The baseline**: the character's weights copied by name (no transfer, no rest face),
+as before issue 48; ``lids_by_transfer``, ``lips_by_transfer`` and ``brows_by_transfer``: the character with its
+lids, its lips or its brows by the transfer alone (not set from the landmarks).
 
 **The lips' calibration** (``--calibrate``, :data:`anima.facemodel.transfer.LIP_SHOWN`): the character alone, its
 jaw opened from rest to 0.6 in 31 steps (each pose held for three frames, the last read), drawn and read back
 as above; the mouth's opening against the character's lip gap (face sizes above rest), a least-squares line
 over the gaps of 0.04 and more (under that the reader's hold on nearly closed lips wavers).
+
+**The eyes' calibration** (``--calibrate``, :data:`anima.facemodel.transfer.EYE_SHOWN`): the character alone,
+its lids swept from 1.15 times their rest gap to shut and back in 47 steps (:meth:`Transfer.follow_lids` with the
+gaps as given; each held three frames, the last read), on three head poses (the first frames of d0, Obama and
+d3), both eyes; each read over the reads at rest; the median per gap, an isotonic (increasing) fit, reported at
+:data:`EYE_KNOTS`.
 
 **The reader**: MediaPipe's Face Mesh through its own Python API (``mediapipe.solutions.face_mesh``, not anima's
 wrapper), on every frame of each render and of the source video. Per frame: the mouth's opening (the inner
@@ -77,6 +92,8 @@ CLIPS = (
     "talking-heads-extra/RD_Radio10_0_clip_0.mp4",
 )
 SIZE = 384
+EYE_KNOTS = (0.0, 0.4, 0.5, 0.55, 0.6, 0.65, 0.7, 0.8, 0.9, 1.0, 1.1)
+"""The lid gaps (over the rest gap) the eyes' calibration reports: denser where the read-back falls fastest."""
 
 
 def read_faces(frames) -> np.ndarray:
@@ -157,6 +174,32 @@ def calibrate_lips(seq, steps: int = 31, hold: int = 3) -> dict:
             "points": [[round(float(g), 4), round(float(r), 4)] for g, r in zip(gap, read)]}  # fmt: skip
 
 
+def calibrate_eyes(seqs, steps: int = 47, hold: int = 3) -> dict:
+    """The character's eyes as read back (the module docstring): ``{"gap", "read", "points"}``, the isotonic fit's
+    knots (gaps over the rest gap, increasing; the eye's opening read there over the one read at rest), from each
+    sequence of ``seqs`` (their first frames place the head), both eyes, swept closing and opening."""
+    from sklearn.isotonic import IsotonicRegression
+
+    from anima.export.avatar import face_transfer
+
+    g = np.linspace(1.15, 0.0, steps)
+    g = np.round(np.concatenate([g, g[::-1]]), 4)  # closing, then opening
+    W = face_transfer().follow_lids(np.zeros((len(g), len(EXPR_NAMES))), np.stack([g, g], -1), EXPR_NAMES, None)
+    reads = []
+    for seq in seqs:
+        m = measures(read_faces(render_character(seq, W=np.repeat(W, hold, axis=0))))
+        for e in ("eye_L", "eye_R"):
+            r = m[e][hold - 1 :: hold]
+            reads.append(r / np.nanmean(r[np.abs(g - 1.0) < 0.03]))
+    A = np.array(reads)
+    gaps = np.unique(g)
+    med = np.array([np.nanmedian(A[:, g == x]) for x in gaps])
+    fit = IsotonicRegression(increasing=True).fit(gaps, med).predict(EYE_KNOTS)
+    fit = fit + 1e-3 * np.arange(len(fit))  # strictly increasing, for the inverse
+    return {"gap": list(EYE_KNOTS), "read": [round(float(r), 3) for r in fit],
+            "points": [[float(x), round(float(r), 3)] for x, r in zip(gaps, med)]}  # fmt: skip
+
+
 def render_ict(seq) -> list[np.ndarray]:
     model = load_face_model()
     tris = np.ascontiguousarray(model.triangles(), np.int64) if callable(getattr(model, "triangles", None)) else None
@@ -187,14 +230,26 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "face_readback.json"))
     ap.add_argument("--clips", nargs="*", default=list(CLIPS))
-    ap.add_argument("--calibrate", action="store_true", help="measure the character's lips as read back instead")
+    ap.add_argument(
+        "--calibrate",
+        action="store_true",
+        help="measure the character's lips and eyes as read back instead (into --out's folder)",
+    )
     a = ap.parse_args()
     if a.calibrate:
-        seq = capture_face(str(asset(CLIPS[1])), CaptureConfig(), progress=False)  # d0: where the head stands
-        cal = calibrate_lips(seq) | {"placed_on": CLIPS[1], "reader": f"mediapipe.solutions.face_mesh {mp.__version__}"}
-        out = Path(a.out).parent / "lip_calibration.json" if a.out == ap.get_default("out") else Path(a.out)
-        write_json(out, cal)
-        print(json.dumps({k: cal[k] for k in ("offset", "slope")}))
+        reader = f"mediapipe.solutions.face_mesh {mp.__version__}"
+        placed = [CLIPS[1], CLIPS[3], CLIPS[0]]  # d0, Obama, d3: where the head stands (their first frames)
+        seqs = [capture_face(str(asset(c)), CaptureConfig(), progress=False) for c in placed]
+        where = Path(a.out).parent
+        lips = calibrate_lips(seqs[0]) | {"placed_on": placed[0], "reader": reader}
+        eyes = calibrate_eyes(seqs) | {"placed_on": placed, "reader": reader}
+        write_json(where / "lip_calibration.json", lips)
+        write_json(where / "eye_calibration.json", eyes)
+        print(
+            json.dumps(
+                {"lips": {k: lips[k] for k in ("offset", "slope")}, "eyes": {k: eyes[k] for k in ("gap", "read")}}
+            )
+        )
         return
     rows = []
     for clip in a.clips:

@@ -140,12 +140,13 @@ def _walk(node, keys: list[str]):
     return node
 
 
-REDUCE = {"min": min, "max": max, "median": statistics.median_high, "mean": statistics.fmean}
+REDUCE = {"min": min, "max": max, "median": statistics.median_high, "mean": statistics.fmean, "sum": sum}
 
 
 def value(path: Path, pointer: str, fmt: str | None) -> str:
     """The number (or text) at JSON ``pointer`` of ``path``, formatted; ``len`` counts a list's items, and
-    ``min``/``max``/``median``/``mean`` followed by a format spec (``min.2%``) reduce a list (a ``*`` pointer) first."""
+    ``min``/``max``/``median``/``mean``/``sum`` followed by a format spec (``min.2%``, ``sum,``) reduce a list (a
+    ``*`` pointer) first."""
     node = lookup(json.loads(path.read_text()), pointer)
     if fmt == "len":  # how many items a list (or keys a record) holds
         return str(len(node))

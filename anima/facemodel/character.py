@@ -276,13 +276,15 @@ COLOURS = {
     "sclera": (0.93, 0.92, 0.88),
     "iris": (0.28, 0.36, 0.42),
     "pupil": (0.04, 0.04, 0.05),
-    "lash": (0.15, 0.11, 0.09),
     "mouth": (0.42, 0.20, 0.20),
     "teeth": (0.90, 0.88, 0.80),
     "lashes": (0.08, 0.06, 0.05),
 }
-"""The face's colours (linear RGB): what makes it read (brows, lips, eyes with irises and pupils, the lash line,
-the inside of the mouth) on a skin of :data:`SKIN_RGB`."""
+"""The face's colours (linear RGB): what makes it read (brows, lips, eyes with irises and pupils, the inside of
+the mouth) on a skin of :data:`SKIN_RGB`. No lash line painted on the lids' edge: with one, a face tracker read
+the character's half-shut eye as open and missed some speakers' quick blinks (read back on the nine development
+clips, with the eyes' calibration :data:`anima.facemodel.transfer.EYE_SHOWN`: left eyes r 0.90-0.99 without it,
+0.89-0.98 with it before; blinks equal to the video's on all nine); the lashes' own mesh draws the edge."""
 
 
 @lru_cache(maxsize=1)
@@ -290,7 +292,7 @@ def vertex_colors() -> np.ndarray:
     """The character's colours per vertex ``[V, 3]`` (:data:`COLOURS`), its face's regions found by what its own
     expressions move (no painted texture in the CC0 assets): the eyeballs are what the eyeLook morphs turn and
     the blink does not (irises and pupils where they face forward); the brows, the band the brow morphs move
-    above the upper lids; the lash line, the upper lids' edge (what the blink moves most); the lips, what
+    above the upper lids; the lips, what
     mouthPucker and mouthFunnel move most around the mouth; the inside of the mouth, the head's vertices behind
     the lips (the tongue). The teeth and the lashes (:attr:`Character.parts`) have their own colours."""
     ch = load_character()
@@ -315,7 +317,6 @@ def vertex_colors() -> np.ndarray:
         out[ball] = COLOURS["sclera"]
         out[ball & (ang < 30)] = COLOURS["iris"]
         out[ball & (ang < 12)] = COLOURS["pupil"]
-        out[(blink > 0.75 * blink.max()) & ~ball] = COLOURS["lash"]
         brow = mag(f"browInnerUp_{s}", f"browOuterUp_{s}")
         top = P[f"upper_lid_{s}"][1]
         band = (V[:, 1] > top + 0.012) & (V[:, 1] < top + 0.030)

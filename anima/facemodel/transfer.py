@@ -24,8 +24,12 @@ move as the same twelve points of the fitted face do:
 * **The lids as the video shows them** (:meth:`Transfer.follow_lids`, for a captured clip): the fitted face's
   lids follow Face Mesh's lid landmarks loosely (read back on d0, the fitted face's eye opening has r 0.23 / 0.43
   with the video's), so the character's lids are set from the landmarks themselves: each eye's opening over the
-  clip's open eye (:func:`eye_opening`) scales the character's lid gap, by eyeBlink or eyeWide. Read back on
-  the same five clips, the eyes' r rose from 0.37-0.95 to 0.90-0.98 (``benchmarks/face_readback.py``).
+  clip's open eye (:func:`eye_opening`) is the opening the character's close-up must show, through its own
+  calibration (:data:`EYE_SHOWN`, :func:`lid_gap`: a face tracker reads its lids as their gap down to about two
+  thirds of the rest gap, then as shut within a tenth more), by eyeBlink or eyeWide. Read back on the same five
+  clips, the eyes' r rose from 0.37-0.95 to 0.90-0.98 with the gap simply scaled (``benchmarks/face_readback.py``);
+  the calibration (and no lash line painted on the lids) brought the blinks the character missed on fresh clips
+  (demo 3: 13 of the video's 18, then 16).
 * **The brows as the video shows them** (:meth:`Transfer.follow_brows`, for a captured clip): each brow's height
   above its eye's corners in Face Mesh's landmarks, over the face's height, from the clip's median
   (:func:`brow_raise`), is how far the character's brow points rise above their level at the clip's median (in
@@ -73,11 +77,24 @@ count its open eyes as wide, and the character's lids pinned at their widest rea
 against the video's 5; 90: 5); chosen on the five development clips of ``benchmarks/face_readback.py``."""
 
 
+EYE_SHOWN = (
+    (0.0, 0.4, 0.5, 0.55, 0.6, 0.65, 0.7, 0.8, 0.9, 1.0, 1.1),
+    (0.184, 0.201, 0.258, 0.325, 0.514, 0.601, 0.664, 0.758, 0.894, 1.023, 1.082),
+)
+"""The character's eyes as its close-up shows them: its lids' gap (over its rest gap, :meth:`Transfer.lid_gaps`)
+and the eye's opening Face Mesh reads there (over what it reads at rest; the reader's measure of
+:func:`eye_ratios`), increasing. Read back, the closing lids read as their gap down to about 0.65, then fall
+fast (0.6 reads 0.51, 0.55 reads 0.33) to a shut eye's 0.18-0.2: a tracker sees the lid's edge meet the iris
+and calls the eye shut. Measured on the character alone (no video; three head poses, both eyes, the lids swept
+shut and open again, an isotonic fit of the median): ``python benchmarks/face_readback.py --calibrate``
+(``benchmarks/results/eye_calibration.json``); a test measures it again."""
+
+
 LIPS = (13, 14, 10, 152)
 """Face Mesh's points of the mouth's opening: (inner upper lip, inner lower lip) on the midline, over the face's
 height (forehead, chin): the same measure a face tracker reads back from a render."""
 
-LIP_SHOWN = (0.0058, 0.388)
+LIP_SHOWN = (0.004, 0.398)
 """The character's close-up, read back by Face Mesh (the mouth's opening, :data:`LIPS`): ``offset + slope * gap``
 for its lip gap ``gap`` above rest (face sizes, :meth:`Transfer.lip_gaps`), the jaw opening from rest to 0.6.
 Measured on the character alone (no video): ``python benchmarks/face_readback.py --calibrate``
@@ -170,6 +187,16 @@ def eye_opening(landmarks: np.ndarray, tracked: np.ndarray, width: int, height: 
     good = open_eye > 0
     out[ok[:, None] & good] = (ratio / np.where(good, open_eye, 1.0))[ok[:, None] & good]
     return out
+
+
+def lid_gap(opening: np.ndarray, shown=EYE_SHOWN) -> np.ndarray:
+    """The character's lid gap (over its rest gap) whose close-up shows an eye's ``opening`` (over the open eye;
+    :func:`eye_opening`): the inverse of ``shown`` (:data:`EYE_SHOWN`), shut (0) at or under the least it reads,
+    beyond its widest the gap grows as the opening does, at most 1.5; NaN stays NaN."""
+    gap, read = (np.asarray(v, np.float64) for v in shown)
+    x = np.asarray(opening, np.float64)
+    out = np.where(x > read[-1], gap[-1] + (x - read[-1]), np.interp(x, read, gap))
+    return np.where(np.isfinite(x), np.clip(out, 0.0, 1.5), np.nan)
 
 
 def face_points(V: np.ndarray, D: np.ndarray, names: list[str]) -> tuple[np.ndarray, float]:
@@ -319,21 +346,23 @@ class Transfer:
         out[:, c] = np.where(seen, np.clip(close, 0.0, 1.0), out[:, c])
         return out
 
-    def follow_lids(self, Wc: np.ndarray, opening: np.ndarray, names) -> np.ndarray:
-        """The character's weights ``Wc [F, 53]`` (named ``names``) with each eye's lids set to the person's
-        opening: ``opening [F, 2]`` (left, right) is each eye's opening over its open eye (:func:`eye_opening`:
-        1 open, 0 shut; NaN where not seen, left as it is). The gap of the character's lids is its rest gap
-        times that, by eyeBlink (closing) or eyeWide (opening wider), the other channels kept."""
+    def follow_lids(self, Wc: np.ndarray, opening: np.ndarray, names, shown=EYE_SHOWN) -> np.ndarray:
+        """The character's weights ``Wc [F, 53]`` (named ``names``) with each eye's lids set so that its close-up
+        shows the person's opening: ``opening [F, 2]`` (left, right) is each eye's opening over its open eye
+        (:func:`eye_opening`: 1 open, 0 shut; NaN where not seen, left as it is). The gap of the character's
+        lids is its rest gap times :func:`lid_gap` of that (through ``shown``, :data:`EYE_SHOWN`; ``None``: the
+        opening itself), by eyeBlink (closing) or eyeWide (opening wider), the other channels kept."""
         out = np.array(Wc, np.float64)
         ix = {n: i for i, n in enumerate(names)}
+        opening = np.asarray(opening, np.float64)
+        gaps = np.clip(opening, 0.0, 1.5) if shown is None else lid_gap(opening, shown)
         for k, s in enumerate(("L", "R")):
             dy = self._gap_change(s)
             b, w = ix[f"eyeBlink_{s}"], ix[f"eyeWide_{s}"]
-            rel = opening[:, k]
-            seen = np.isfinite(rel)
+            seen = np.isfinite(opening[:, k])
             others = out.copy()
             others[:, [b, w]] = 0.0
-            need = self.rest_gap[s] * np.clip(np.nan_to_num(rel, nan=1.0), 0.0, 1.5) - (
+            need = self.rest_gap[s] * np.nan_to_num(gaps[:, k], nan=1.0) - (
                 self.rest_gap[s] + others @ dy
             )  # what eyeBlink / eyeWide must add to the gap
             blink = np.clip(need / dy[b], 0.0, 1.0) if dy[b] < 0 else np.zeros(len(out))
