@@ -18,6 +18,9 @@ by frame, and read back by a face tracker; so is the source video; the two are c
         styletalk-samples/samples/source_video/video/Obama_clip2.mp4 talking-heads-extra/pose_source2.mp4 \
         liveportrait-examples/assets/examples/driving/d12.mp4 \
         --out benchmarks/results/face_readback_fresh3.json  # held out
+    M=emotion-clips/eamm-mead
+    python benchmarks/face_readback.py --clips $M/contempt.mp4 $M/disgusted.mp4 $M/fear.mp4 $M/happy.mp4 $M/sad.mp4 \
+        $M/surprised.mp4 --out benchmarks/results/face_readback_fresh4.json  # held out: six emotion clips
     python benchmarks/face_readback.py --calibrate   # the character's lips and eyes as read back:
                                                      # lip_calibration.json, eye_calibration.json
 
@@ -26,8 +29,8 @@ the face (development clips): LivePortrait's d3 frowns, squints and looks surpri
 talks and smiles with closed lips; the Obama, Ng, Noem, Li and Reagan styletalk clips and a 2.4-s radio clip
 talk. The lips' fresh clips (the second command) were run once after the lips were chosen, and again after the
 brows and the eyes (later looks); the third command's clips were held out for the lips and the brows, and their
-missed blinks led to the eyes' calibration (a second look now); the held-out clips (the fourth) were run once,
-after every choice. All are captured with ``anima capture --face-only`` (the shipped defaults).
+missed blinks led to the eyes' calibration (a second look now); the held-out clips (the fourth and fifth) were
+run once, after every choice. All are captured with ``anima capture --face-only`` (the shipped defaults).
 
 **The character** (what ``avatar.mp4``'s face panel shows): anima's character, its 53 morph weights from the
 capture (:func:`anima.export.avatar.character_face`: the rest face taken out, transferred by geometry, the lids
