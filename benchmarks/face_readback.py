@@ -51,7 +51,7 @@ over the gaps of 0.04 and more (under that the reader's hold on nearly closed li
 its lids swept from 1.15 times their rest gap to shut and back in 47 steps (:meth:`Transfer.follow_lids` with the
 gaps as given; each held three frames, the last read), on three head poses (the first frames of d0, Obama and
 d3), both eyes; each read over the reads at rest; the median per gap, an isotonic (increasing) fit, reported at
-:data:`EYE_KNOTS`.
+the gaps of :data:`anima.facemodel.transfer.EYE_SHOWN` (denser where the read-back falls fastest).
 
 **The reader**: MediaPipe's Face Mesh through its own Python API (``mediapipe.solutions.face_mesh``, not anima's
 wrapper), on every frame of each render and of the source video. Per frame: the mouth's opening (the inner
@@ -76,6 +76,7 @@ from anima.core.contract import EXPR_NAMES
 from anima.export.avatar import character_face, character_motion, face_camera
 from anima.facemodel.character import load_character, skin, vertex_colors
 from anima.facemodel.ict import load_face_model
+from anima.facemodel.transfer import EYE_SHOWN
 from anima.io.assets import asset
 from anima.io.atomic import write_json
 from anima.io.video import iter_frames, probe_video
@@ -95,8 +96,6 @@ CLIPS = (
     "talking-heads-extra/RD_Radio10_0_clip_0.mp4",
 )
 SIZE = 384
-EYE_KNOTS = (0.0, 0.4, 0.5, 0.55, 0.6, 0.65, 0.7, 0.8, 0.9, 1.0, 1.1)
-"""The lid gaps (over the rest gap) the eyes' calibration reports: denser where the read-back falls fastest."""
 
 
 def read_faces(frames) -> np.ndarray:
@@ -197,9 +196,9 @@ def calibrate_eyes(seqs, steps: int = 47, hold: int = 3) -> dict:
     A = np.array(reads)
     gaps = np.unique(g)
     med = np.array([np.nanmedian(A[:, g == x]) for x in gaps])
-    fit = IsotonicRegression(increasing=True).fit(gaps, med).predict(EYE_KNOTS)
+    fit = IsotonicRegression(increasing=True).fit(gaps, med).predict(EYE_SHOWN[0])
     fit = fit + 1e-3 * np.arange(len(fit))  # strictly increasing, for the inverse
-    return {"gap": list(EYE_KNOTS), "read": [round(float(r), 3) for r in fit],
+    return {"gap": list(EYE_SHOWN[0]), "read": [round(float(r), 3) for r in fit],
             "points": [[float(x), round(float(r), 3)] for x, r in zip(gaps, med)]}  # fmt: skip
 
 

@@ -292,9 +292,9 @@ def vertex_colors() -> np.ndarray:
     """The character's colours per vertex ``[V, 3]`` (:data:`COLOURS`), its face's regions found by what its own
     expressions move (no painted texture in the CC0 assets): the eyeballs are what the eyeLook morphs turn and
     the blink does not (irises and pupils where they face forward); the brows, the band the brow morphs move
-    above the upper lids; the lips, what
-    mouthPucker and mouthFunnel move most around the mouth; the inside of the mouth, the head's vertices behind
-    the lips (the tongue). The teeth and the lashes (:attr:`Character.parts`) have their own colours."""
+    above the upper lids; the lips, what mouthPucker and mouthFunnel move most around the mouth; the inside of
+    the mouth, the head's vertices behind the lips (the tongue). The teeth and the lashes (:attr:`Character.parts`)
+    have their own colours."""
     ch = load_character()
     nb = ch.n_body
     V = ch.vertices.astype(np.float64)[:nb]
