@@ -21,16 +21,18 @@ by frame, and read back by a face tracker; so is the source video; the two are c
     M=emotion-clips/eamm-mead
     python benchmarks/face_readback.py --clips $M/contempt.mp4 $M/disgusted.mp4 $M/fear.mp4 $M/happy.mp4 $M/sad.mp4 \
         $M/surprised.mp4 --out benchmarks/results/face_readback_fresh4.json  # held out: six emotion clips
-    python benchmarks/face_readback.py --calibrate   # the character's lips and eyes as read back:
-                                                     # lip_calibration.json, eye_calibration.json
+    python benchmarks/face_readback.py --calibrate   # the character's lips, eyes and brows as read back:
+                                     # lip_calibration.json, eye_calibration.json, brow_calibration.json
 
 **Clips** (the default): talking and expression clips of the shared data, every one looked at while building
 the face (development clips): LivePortrait's d3 frowns, squints and looks surprised, d0 smiles and blinks, d9
 talks and smiles with closed lips; the Obama, Ng, Noem, Li and Reagan styletalk clips and a 2.4-s radio clip
 talk. The lips' fresh clips (the second command) were run once after the lips were chosen, and again after the
 brows and the eyes (later looks); the third command's clips were held out for the lips and the brows, and their
-missed blinks led to the eyes' calibration (a second look now); the held-out clips (the fourth and fifth) were
-run once, after every choice. All are captured with ``anima capture --face-only`` (the shipped defaults).
+missed blinks led to the eyes' calibration; the held-out clips (the fourth and fifth) were run once, after the
+eyes' calibration (commit c83dc6c's results). The brows' calibration and the frown came after that, so every set
+run again with them is a later look; no clip is left unread. All are captured with ``anima capture
+--face-only`` (the shipped defaults).
 
 **The character** (what ``avatar.mp4``'s face panel shows): anima's character, its 53 morph weights from the
 capture (:func:`anima.export.avatar.character_face`: the rest face taken out, transferred by geometry, the lids
@@ -52,6 +54,12 @@ its lids swept from 1.15 times their rest gap to shut and back in 47 steps (:met
 gaps as given; each held three frames, the last read), on three head poses (the first frames of d0, Obama and
 d3), both eyes; each read over the reads at rest; the median per gap, an isotonic (increasing) fit, reported at
 the gaps of :data:`anima.facemodel.transfer.EYE_SHOWN` (denser where the read-back falls fastest).
+
+**The brows' calibration** (``--calibrate``, :data:`anima.facemodel.transfer.BROW_SHOWN`): the character alone,
+its brows swept from browDown 1 through rest to browInnerUp and browOuterUp 1 in 21 steps (each held three
+frames, the last read), on the same three head poses, both brows; the brows' height read (over the eye's
+corners, :func:`anima.facemodel.transfer.brow_heights`, from its read at rest) against the brow points' rise
+(face sizes), a least-squares line through rest.
 
 **The reader**: MediaPipe's Face Mesh through its own Python API (``mediapipe.solutions.face_mesh``, not anima's
 wrapper), on every frame of each render and of the source video. Per frame: the mouth's opening (the inner
@@ -76,7 +84,7 @@ from anima.core.contract import EXPR_NAMES
 from anima.export.avatar import character_face, character_motion, face_camera
 from anima.facemodel.character import load_character, skin, vertex_colors
 from anima.facemodel.ict import load_face_model
-from anima.facemodel.transfer import EYE_SHOWN
+from anima.facemodel.transfer import EYE_SHOWN, brow_heights
 from anima.io.assets import asset
 from anima.io.atomic import write_json
 from anima.io.video import iter_frames, probe_video
@@ -202,6 +210,35 @@ def calibrate_eyes(seqs, steps: int = 47, hold: int = 3) -> dict:
             "points": [[float(x), round(float(r), 3)] for x, r in zip(gaps, med)]}  # fmt: skip
 
 
+def calibrate_brows(seqs, steps: int = 21, hold: int = 3) -> dict:
+    """The character's brows as read back (the module docstring): ``{"slope", "points"}``: the brows' height read
+    (:func:`anima.facemodel.transfer.brow_heights`, from its read at rest) per face size its brow points rise
+    (:meth:`anima.facemodel.transfer.Transfer.brow_rise`), a least-squares line through the rest face over both
+    brows of every sequence of ``seqs`` (their first frames place the head), swept from browDown 1 through rest to
+    browInnerUp and browOuterUp 1."""
+    from anima.export.avatar import face_transfer
+
+    x = np.linspace(-1.0, 1.0, steps)
+    W = np.zeros((steps, len(EXPR_NAMES)))
+    for s in ("L", "R"):
+        for up in ("browInnerUp", "browOuterUp"):
+            W[:, EXPR_NAMES.index(f"{up}_{s}")] = np.maximum(x, 0.0)
+        W[:, EXPR_NAMES.index(f"browDown_{s}")] = np.maximum(-x, 0.0)
+    rise = face_transfer().brow_rise(W).mean(-1)  # [steps, 2]: face sizes, the inner and outer points' mean
+    reads = []
+    for seq in seqs:
+        L = read_faces(render_character(seq, W=np.repeat(W, hold, axis=0)))[hold - 1 :: hold]
+        h = brow_heights(L / SIZE, SIZE, SIZE)
+        reads.append(h - h[steps // 2])
+    got = np.stack(reads)  # [seqs, steps, 2]
+    ok = np.isfinite(got)
+    g = np.broadcast_to(rise, got.shape)
+    slope = float((g[ok] * got[ok]).sum() / (g[ok] ** 2).sum())
+    med = np.nanmedian(got, axis=(0, 2))
+    return {"slope": round(slope, 3),
+            "points": [[round(float(r), 4), round(float(m), 4)] for r, m in zip(rise.mean(-1), med)]}  # fmt: skip
+
+
 def render_ict(seq) -> list[np.ndarray]:
     model = load_face_model()
     tris = np.ascontiguousarray(model.triangles(), np.int64) if callable(getattr(model, "triangles", None)) else None
@@ -235,7 +272,7 @@ def main() -> None:
     ap.add_argument(
         "--calibrate",
         action="store_true",
-        help="measure the character's lips and eyes as read back instead (into --out's folder)",
+        help="measure the character's lips, eyes and brows as read back instead (into --out's folder)",
     )
     a = ap.parse_args()
     if a.calibrate:
@@ -245,13 +282,12 @@ def main() -> None:
         where = Path(a.out).parent
         lips = calibrate_lips(seqs[0]) | {"placed_on": placed[0], "reader": reader}
         eyes = calibrate_eyes(seqs) | {"placed_on": placed, "reader": reader}
+        brows = calibrate_brows(seqs) | {"placed_on": placed, "reader": reader}
         write_json(where / "lip_calibration.json", lips)
         write_json(where / "eye_calibration.json", eyes)
-        print(
-            json.dumps(
-                {"lips": {k: lips[k] for k in ("offset", "slope")}, "eyes": {k: eyes[k] for k in ("gap", "read")}}
-            )
-        )
+        write_json(where / "brow_calibration.json", brows)
+        shown = {"lips": {k: lips[k] for k in ("offset", "slope")}, "eyes": {k: eyes[k] for k in ("gap", "read")}}
+        print(json.dumps(shown | {"brows": brows["slope"]}))
         return
     rows = []
     for clip in a.clips:

@@ -241,7 +241,9 @@ class LiveCharacterFace:
     :attr:`WINDOW_S` seconds, once it holds :data:`~anima.facemodel.neutral.MIN_SECONDS` of them), transferred by
     geometry, the lids set from the frame's landmarks over a running open eye (the same percentile as a
     clip's, :data:`anima.facemodel.transfer.OPEN_PERCENTILE`), the brows from its brows' height over a running
-    median (around the transferred brows' running median) and the lips from its landmarks' lip opening.
+    median (around the transferred brows' running median; a frown's browDown stays the fit's: a clip's takes its
+    timing from the landmarks over the whole clip, :meth:`~anima.facemodel.transfer.Transfer.follow_brows`) and
+    the lips from its landmarks' lip opening.
     The rest is re-estimated every :attr:`EVERY` frames. Called for seen faces only."""
 
     WINDOW_S = 30.0  # contract: not (a span of seconds)

@@ -32,13 +32,16 @@ move as the same twelve points of the fitted face do:
   (demo 3: 13 of the video's 18, then 16).
 * **The brows as the video shows them** (:meth:`Transfer.follow_brows`, for a captured clip): each brow's height
   above its eye's corners in Face Mesh's landmarks, over the face's height, from the clip's median
-  (:func:`brow_raise`), is how far the character's brow points rise above their level at the clip's median (in
-  the same face heights: the calibration's :data:`LIP_SHOWN` slope is the character's face size over its face
-  height); that side's browInnerUp and browOuterUp are solved for it (least squares, :data:`BROW_PULL` towards
-  the transferred weights), before the lids are set. browDown keeps the transferred weight: with it in the
-  solve, every downward move of a talking neutral face became browDown (CREMA-D's neutral take read 0.117 at
-  rest, over the issue's 0.1). Read back on eight development clips, the brows' r rose from 0.82-0.97 to
-  0.90-0.97, blinks unchanged.
+  (:func:`brow_raise`), is the height the character's close-up must show: through its own calibration
+  (:data:`BROW_SHOWN`: a tracker reads about half of what its brow points move) its brow points rise above their
+  level at the clip's median (the fit's, from its rest face); that side's browInnerUp and browOuterUp are solved
+  for it (least squares, :data:`BROW_PULL` towards the transferred weights), before the lids are set. A frown
+  (the brows lower than those channels at zero leave them) is taken by browDown, whose mean over the clip stays
+  the fit's (:func:`keep_mean`): solved freely, every downward move of a talking neutral face became browDown
+  (CREMA-D's neutral take read 0.117 at rest, over the issue's 0.1); kept at the fit's mean, a speaker's face
+  over the clip reads as before and only the frown's timing comes from the landmarks. Read back on the nine
+  development clips, the brows' r rose from 0.82-0.97 (by the transfer) to 0.90-0.97 with the landmarks and to
+  0.93-0.97 with the calibration and the frown (the 2.4-s radio clip 0.43, then 0.72), the blinks unchanged.
 * **The lips as the video shows them** (:meth:`Transfer.follow_lips`, for a captured clip): the fitted face's lip
   gap follows Face Mesh's inner lips loosely where a speaker talks with nearly closed lips (d9: r 0.75), and the
   character's lips are parted at rest (a dark sliver a face tracker reads as an opening), so the character's lip
@@ -108,6 +111,14 @@ sweep)."""
 
 BROWS = {"L": (334, 362, 263), "R": (105, 33, 133)}
 """Face Mesh's points of each brow, the person's left and right: (the brow, the eye's two corners)."""
+
+BROW_SHOWN = 0.22
+"""The character's brows as its close-up shows them: the brows' height Face Mesh reads (:func:`brow_heights`, face
+heights, from rest) per face size its brow points rise (:meth:`Transfer.brow_rise`), the brows swept from
+browDown 1 through rest to browInnerUp and browOuterUp 1: the reader sees about half of what the points move (in
+face heights, the lips' :data:`LIP_SHOWN` slope of 0.4 would be all of it). Measured on the character alone (no
+video; three head poses, both brows): ``python benchmarks/face_readback.py --calibrate``
+(``benchmarks/results/brow_calibration.json``); a test measures it again."""
 
 BROW_PULL = 0.001
 """How strongly the brows' raise channels stay at the transferred weights (against the brow points' squared miss,
@@ -187,6 +198,18 @@ def eye_opening(landmarks: np.ndarray, tracked: np.ndarray, width: int, height: 
     good = open_eye > 0
     out[ok[:, None] & good] = (ratio / np.where(good, open_eye, 1.0))[ok[:, None] & good]
     return out
+
+
+def keep_mean(x: np.ndarray, mean: float) -> np.ndarray:
+    """``clip(s * x, 0, 1)`` for the one ``s`` in [0, 1] that makes its mean ``mean`` (``x``'s own, clipped,
+    where that is less): weights ``x [F] >= 0`` scaled down together until they average what they must, a zero
+    kept zero and their order kept."""
+    x = np.asarray(x, np.float64)
+    lo, hi = 0.0, 1.0
+    for _ in range(60):
+        s = (lo + hi) / 2
+        lo, hi = (lo, s) if np.clip(s * x, 0.0, 1.0).mean() > mean else (s, hi)
+    return np.clip(lo * x, 0.0, 1.0) if np.clip(x, 0.0, 1.0).mean() > mean else np.clip(x, 0.0, 1.0)
 
 
 def lid_gap(opening: np.ndarray, shown=EYE_SHOWN) -> np.ndarray:
@@ -285,30 +308,58 @@ class Transfer:
         pts = [[POINTS.index(f"brow_{p}_{s}") for p in ("in", "out")] for s in ("L", "R")]
         return self.character(Wc)[:, :, 1][:, pts]
 
-    def follow_brows(self, Wc, raised, names, level=None, pull: float = BROW_PULL) -> np.ndarray:
-        """The character's weights ``Wc [F, 53]`` (named ``names``) with each brow moving as the person's does:
-        ``raised [F, 2]`` (left, right; :func:`brow_raise`, face heights from the clip's median; NaN where not
-        seen, left as it is) is the rise of the side's inner and outer brow points (face sizes: times the face's
-        height, ``1 / LIP_SHOWN[1]``) above ``level [2, 2]`` (their rise at the clip's median, :meth:`brow_rise`,
-        so the clip-long level stays the fit's, measured from its rest face; default 0), reached by that side's
-        browInnerUp and browOuterUp (least squares with ``pull`` towards their weights in ``Wc``); browDown and
-        the other channels are kept."""
+    def _reach_brows(self, Wc, raised, names, level, pull: float, shown: float) -> np.ndarray:
+        """``Wc`` with each side's browInnerUp and browOuterUp solved for the rise ``raised / shown + level`` of
+        its brow points (:meth:`follow_brows`), the other channels kept."""
         out = np.array(Wc, np.float64)
         ix = {n: i for i, n in enumerate(names)}
-        height = 1.0 / LIP_SHOWN[1]
-        level = np.zeros((2, 2)) if level is None else np.asarray(level, np.float64)
         for k, s in enumerate(("L", "R")):
             ch = [ix[f"browInnerUp_{s}"], ix[f"browOuterUp_{s}"]]
             pts = [POINTS.index(f"brow_in_{s}"), POINTS.index(f"brow_out_{s}")]
             B = self.Bc[ch][:, pts, 1]  # [2 channels, 2 points]: each channel's rise of the points
             others = out.copy()
             others[:, ch] = 0.0
-            rise = np.nan_to_num(raised[:, k], nan=0.0)[:, None] * height + level[k]
+            rise = np.nan_to_num(raised[:, k], nan=0.0)[:, None] / shown + level[k]
             goal = rise - self.character(others)[:, pts, 1]
             x = (goal @ B.T + pull * out[:, ch]) @ np.linalg.inv(B @ B.T + pull * np.eye(len(ch))).T
             seen = np.isfinite(raised[:, k])
             out[:, ch] = np.where(seen[:, None], np.clip(x, 0.0, 1.0), out[:, ch])
         return out
+
+    def follow_brows(
+        self, Wc, raised, names, level=None, pull: float = BROW_PULL, shown: float = BROW_SHOWN
+    ) -> np.ndarray:
+        """The character's weights ``Wc [F, 53]`` (named ``names``) with each brow moving as the person's does:
+        ``raised [F, 2]`` (left, right; :func:`brow_raise`, face heights from the clip's median; NaN where not
+        seen, left as it is) is the height the side's brows must show in the close-up: their inner and outer
+        points rise ``raised / shown`` face sizes (``shown``: :data:`BROW_SHOWN`, the character's calibration)
+        above ``level [2, 2]`` (their rise at the clip's median, :meth:`brow_rise`, so the clip-long level stays
+        the fit's, measured from its rest face; default 0), reached by that side's browInnerUp and browOuterUp
+        (least squares with ``pull`` towards their weights in ``Wc``).
+
+        Where the brows must come lower than those channels at zero leave them (a frown), browDown takes them
+        there (least squares on the two points); the side's browDown over the seen frames (the transferred one
+        plus that) is then scaled down by the one factor that keeps its mean the one in ``Wc``
+        (:func:`keep_mean`): the fit's mean, so a speaker's face over the clip reads as before (a neutral
+        speaker's browDown at rest stays where the rest face put it) and only its timing follows the video; over
+        a single frame nothing changes. The raise channels are then solved again on it; the other channels are
+        kept."""
+        level = np.zeros((2, 2)) if level is None else np.asarray(level, np.float64)
+        raised = np.asarray(raised, np.float64)
+        out = self._reach_brows(Wc, raised, names, level, pull, shown)
+        ix = {n: i for i, n in enumerate(names)}
+        for k, s in enumerate(("L", "R")):
+            seen = np.isfinite(raised[:, k])
+            if seen.sum() < 2:
+                continue
+            d = ix[f"browDown_{s}"]
+            pts = [POINTS.index(f"brow_in_{s}"), POINTS.index(f"brow_out_{s}")]
+            rise = np.nan_to_num(raised[:, k], nan=0.0)[:, None] / shown + level[k]
+            above = np.maximum(self.character(out)[:, pts, 1] - rise, 0.0)  # how far the points stand too high
+            b = -self.Bc[d][pts, 1]  # browDown's lowering of the two points
+            extra = np.maximum(above @ b / (b @ b), 0.0)
+            out[seen, d] = keep_mean(out[seen, d] + extra[seen], float(out[seen, d].mean()))
+        return self._reach_brows(out, raised, names, level, pull, shown)
 
     def _lip_change(self) -> np.ndarray:
         """Each character weight's change ``[53]`` of its lip gap (face sizes, upper lip over lower)."""

@@ -243,30 +243,68 @@ def test_the_characters_lips_part_as_the_video_shows():
 
 def test_the_characters_brows_rise_as_the_video_shows(d0_capture):
     """The brows from the landmarks (:meth:`Transfer.follow_brows`): a brow raised by x face heights above the
-    clip's median lifts the side's brow points by x times the character's face height (face sizes) above their
-    level (within a fifth: the pull towards the transferred weights), by browInnerUp and browOuterUp alone
-    (browDown and the other channels kept; an unseen frame kept); on d0 (a smile, brows moving a little) the
-    character's brow rise follows the landmarks' frame by frame."""
+    clip's median lifts the side's brow points by x over the character's brow calibration (:data:`BROW_SHOWN`,
+    face sizes) above their level (within a fifth: the pull towards the transferred weights), by browInnerUp and
+    browOuterUp alone (browDown and the other channels kept where no brow comes lower; an unseen frame kept);
+    on d0 (a smile, brows moving a little) the character's brow rise follows the landmarks' frame by frame, above
+    and below their median, and its browDown over the clip averages the transfer's."""
     from anima.export.avatar import character_face
-    from anima.facemodel.transfer import LIP_SHOWN, brow_raise
+    from anima.facemodel.transfer import BROW_SHOWN, brow_raise
 
     t = _transfer()
     ix = {n: i for i, n in enumerate(EXPR_NAMES)}
     W = np.zeros((3, 53))
     W[:, ix["browDown_L"]] = 0.1
-    raised = np.array([[0.0, 0.0], [0.02, 0.01], [np.nan, np.nan]])
+    raised = np.array([[0.0, 0.0], [0.01, 0.005], [np.nan, np.nan]])
     got = t.follow_brows(W, raised, EXPR_NAMES, level=t.brow_rise(W[:1])[0])
     lift = (t.brow_rise(got) - t.brow_rise(W[:1]))[:2].mean(-1)  # [frame, side], over the inner and outer points
-    np.testing.assert_allclose(lift, raised[:2] / LIP_SHOWN[1], rtol=0.2, atol=1e-4)  # the pull keeps a little
+    np.testing.assert_allclose(lift, raised[:2] / BROW_SHOWN, rtol=0.2, atol=1e-4)  # the pull keeps a little
     others = [k for k in range(53) if not EXPR_NAMES[k].startswith(("browInnerUp", "browOuterUp"))]
     np.testing.assert_array_equal(got[:, others], W[:, others])
     np.testing.assert_array_equal(got[2], W[2])
 
     seq = d0_capture
     seen = brow_raise(seq.landmarks, seq.tracked, seq.width, seq.height)
-    char = t.brow_rise(character_face(seq)).mean(-1)
+    W = character_face(seq)
+    char = t.brow_rise(W).mean(-1)
     for k in range(2):
-        assert np.corrcoef(seen[:, k], char[:, k])[0, 1] >= 0.9, k
+        up = seen[:, k] > 0  # raised (browInnerUp, browOuterUp) and lowered (browDown, the fit's mean) apart
+        assert np.corrcoef(seen[up, k], char[up, k])[0, 1] >= 0.95, k
+        assert np.corrcoef(seen[~up, k], char[~up, k])[0, 1] >= 0.95, k
+    down = [ix["browDown_L"], ix["browDown_R"]]
+    by_transfer = character_face(seq, lids=False, lips=False, brows=False)
+    np.testing.assert_allclose(W[seq.tracked][:, down].mean(0), by_transfer[seq.tracked][:, down].mean(0), atol=0.01)
+
+
+def test_a_frown_lowers_the_brows_by_browDown_its_mean_kept():
+    """Where the landmarks put a brow lower than the raise channels at zero leave it (a frown), browDown takes it
+    there, the lower the more, and the side's browDown over the seen frames keeps its mean (the fit's: a neutral
+    speaker reads as before); an unseen frame is kept, and over a single frame (``anima live``'s page) browDown
+    is the fit's."""
+    from anima.facemodel.transfer import keep_mean
+
+    t = _transfer()
+    ix = {n: i for i, n in enumerate(EXPR_NAMES)}
+    W = np.zeros((5, 53))
+    W[:, [ix["browDown_L"], ix["browDown_R"]]] = 0.2
+    raised = np.array([[0.0, 0.0], [0.0, 0.0], [-0.004, -0.004], [-0.008, -0.008], [np.nan] * 2])
+    level = t.brow_rise(W[:1])[0]
+    got = t.follow_brows(W, raised, EXPR_NAMES, level=level)
+    for s in ("L", "R"):
+        d = got[:, ix[f"browDown_{s}"]]
+        assert d[3] > d[2] > d[0] == pytest.approx(d[1]), d
+        assert d[:4].mean() == pytest.approx(0.2, abs=1e-6)
+        assert d[4] == 0.2  # unseen
+    rise = t.brow_rise(got).mean(-1)
+    assert rise[3, 0] < rise[2, 0] < rise[0, 0]
+    one = t.follow_brows(W[2:3], raised[2:3], EXPR_NAMES, level=level)
+    assert one[0, ix["browDown_L"]] == 0.2
+
+    x = np.array([0.0, 0.1, 0.5, 0.9])
+    assert keep_mean(x, 0.2).mean() == pytest.approx(0.2, abs=1e-9)
+    assert keep_mean(x, 0.2)[0] == 0.0 and np.all(np.diff(keep_mean(x, 0.2)) > 0)
+    np.testing.assert_allclose(keep_mean(x, x.mean()), x, atol=1e-9)
+    np.testing.assert_array_equal(keep_mean(np.array([2.0, 0.0]), 0.5), [1.0, 0.0])  # clipped where it cannot
 
 
 @pytest.mark.slow
@@ -308,6 +346,25 @@ def test_the_eyes_calibration_is_what_the_close_up_shows(d0_capture):
     miss = np.abs(lid_gap(x, (cal["gap"], cal["read"])) - lid_gap(x, EYE_SHOWN))
     assert miss.max() <= 0.06, (cal, miss.round(3))
     assert cal["read"][0] < 1 / 3, cal
+
+
+def test_the_brows_calibration_is_what_the_close_up_shows(d0_capture):
+    """:data:`BROW_SHOWN` measured again, on one head pose (d0's first frame; the constant took three): the
+    character's brows swept from browDown to browInnerUp and browOuterUp, its close-up read back by Face Mesh
+    (``benchmarks/face_readback.py --calibrate``): the brows' height read per face size their points rise is the
+    constant's within a tenth, and it rises as the brows do."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    from face_readback import calibrate_brows
+
+    from anima.facemodel.transfer import BROW_SHOWN
+
+    cal = calibrate_brows([d0_capture])
+    assert abs(cal["slope"] / BROW_SHOWN - 1) < 0.1, cal
+    read = np.array(cal["points"])[:, 1]
+    assert read[0] < 0 < read[-1] and np.corrcoef(np.array(cal["points"])[:, 0], read)[0, 1] > 0.95, cal
 
 
 def test_a_speaker_talking_with_closed_lips_reads_back_as_the_video():
