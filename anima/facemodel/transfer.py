@@ -308,6 +308,13 @@ class Transfer:
         pts = [[POINTS.index(f"brow_{p}_{s}") for p in ("in", "out")] for s in ("L", "R")]
         return self.character(Wc)[:, :, 1][:, pts]
 
+    @staticmethod
+    def _brow_goal(raised, k: int, level, shown: float) -> tuple[list[int], np.ndarray]:
+        """Side ``k``'s brow points (inner, outer) and the rise ``[F, 2]`` they must reach (:meth:`follow_brows`)."""
+        s = ("L", "R")[k]
+        pts = [POINTS.index(f"brow_in_{s}"), POINTS.index(f"brow_out_{s}")]
+        return pts, np.nan_to_num(raised[:, k], nan=0.0)[:, None] / shown + level[k]
+
     def _reach_brows(self, Wc, raised, names, level, pull: float, shown: float) -> np.ndarray:
         """``Wc`` with each side's browInnerUp and browOuterUp solved for the rise ``raised / shown + level`` of
         its brow points (:meth:`follow_brows`), the other channels kept."""
@@ -315,11 +322,10 @@ class Transfer:
         ix = {n: i for i, n in enumerate(names)}
         for k, s in enumerate(("L", "R")):
             ch = [ix[f"browInnerUp_{s}"], ix[f"browOuterUp_{s}"]]
-            pts = [POINTS.index(f"brow_in_{s}"), POINTS.index(f"brow_out_{s}")]
+            pts, rise = self._brow_goal(raised, k, level, shown)
             B = self.Bc[ch][:, pts, 1]  # [2 channels, 2 points]: each channel's rise of the points
             others = out.copy()
             others[:, ch] = 0.0
-            rise = np.nan_to_num(raised[:, k], nan=0.0)[:, None] / shown + level[k]
             goal = rise - self.character(others)[:, pts, 1]
             x = (goal @ B.T + pull * out[:, ch]) @ np.linalg.inv(B @ B.T + pull * np.eye(len(ch))).T
             seen = np.isfinite(raised[:, k])
@@ -348,18 +354,20 @@ class Transfer:
         raised = np.asarray(raised, np.float64)
         out = self._reach_brows(Wc, raised, names, level, pull, shown)
         ix = {n: i for i, n in enumerate(names)}
+        frowned = False
         for k, s in enumerate(("L", "R")):
             seen = np.isfinite(raised[:, k])
-            if seen.sum() < 2:
+            if seen.sum() < 2:  # one frame (a live stream): browDown stays the fit's
                 continue
             d = ix[f"browDown_{s}"]
-            pts = [POINTS.index(f"brow_in_{s}"), POINTS.index(f"brow_out_{s}")]
-            rise = np.nan_to_num(raised[:, k], nan=0.0)[:, None] / shown + level[k]
+            pts, rise = self._brow_goal(raised, k, level, shown)
             above = np.maximum(self.character(out)[:, pts, 1] - rise, 0.0)  # how far the points stand too high
             b = -self.Bc[d][pts, 1]  # browDown's lowering of the two points
             extra = np.maximum(above @ b / (b @ b), 0.0)
-            out[seen, d] = keep_mean(out[seen, d] + extra[seen], float(out[seen, d].mean()))
-        return self._reach_brows(out, raised, names, level, pull, shown)
+            if extra[seen].any():
+                out[seen, d] = keep_mean(out[seen, d] + extra[seen], float(out[seen, d].mean()))
+                frowned = True
+        return self._reach_brows(out, raised, names, level, pull, shown) if frowned else out
 
     def _lip_change(self) -> np.ndarray:
         """Each character weight's change ``[53]`` of its lip gap (face sizes, upper lip over lower)."""
