@@ -30,17 +30,18 @@ talks and smiles with closed lips; the Obama, Ng, Noem, Li and Reagan styletalk 
 talk. The lips' fresh clips (the second command) were run once after the lips were chosen, and again after the
 brows and the eyes (later looks); the third command's clips were held out for the lips and the brows, and their
 missed blinks led to the eyes' calibration; the held-out clips (the fourth and fifth) were run once, after the
-eyes' calibration (commit c83dc6c's results). The brows' calibration and the frown came after that, so every set
-run again with them is a later look; no clip is left unread. All are captured with ``anima capture
---face-only`` (the shipped defaults).
+eyes' calibration (commit c83dc6c's results). The brows' calibration, the frown and the eyes drawn anti-aliased
+came after that, so every set run again with them is a later look; no clip is left unread. All are captured with
+``anima capture --face-only`` (the shipped defaults).
 
 **The character** (what ``avatar.mp4``'s face panel shows): anima's character, its 53 morph weights from the
 capture (:func:`anima.export.avatar.character_face`: the rest face taken out, transferred by geometry, the lids
 set from the landmarks' eye opening through the eyes' calibration, the lips from their lip opening and the brows'
 rise from their brows), the head skinned and seen from the front of the face at 384 x 384
-(:func:`anima.export.avatar.face_camera`), coloured (:func:`anima.facemodel.character.vertex_colors`). **The
-ceiling**: the fitted ICT face itself (the person's identity and the fitted expression, no head turn), rendered
-the same way in one colour. **The baseline**: the character's weights copied by name (no transfer, no rest face),
+(:func:`anima.export.avatar.face_camera`), coloured (:func:`anima.facemodel.character.vertex_colors`), its eyes
+drawn anti-aliased (:func:`anima.render.avatar.draw_close_up`). **The ceiling**: the fitted ICT face itself (the
+person's identity and the fitted expression, no head turn), rendered the same way in one colour, anti-aliased
+throughout. **The baseline**: the character's weights copied by name (no transfer, no rest face),
 as before issue 48; ``lids_by_transfer``, ``lips_by_transfer`` and ``brows_by_transfer``: the character with its
 lids, its lips or its brows by the transfer alone (not set from the landmarks).
 
@@ -82,15 +83,14 @@ from anima.capture.config import CaptureConfig
 from anima.capture.pipeline import capture_face
 from anima.core.contract import EXPR_NAMES
 from anima.export.avatar import character_face, character_motion, face_camera
-from anima.facemodel.character import load_character, skin, vertex_colors
+from anima.facemodel.character import eye_vertices, load_character, skin, vertex_colors
 from anima.facemodel.ict import load_face_model
 from anima.facemodel.transfer import EYE_SHOWN, brow_heights
 from anima.io.assets import asset
 from anima.io.atomic import write_json
 from anima.io.video import iter_frames, probe_video
-from anima.render.avatar import head_view
+from anima.render.avatar import draw_close_up, draw_smooth
 from anima.render.face import SKIN
-from anima.render.raster import draw_shaded
 
 CLIPS = (
     "liveportrait-examples/assets/examples/driving/d3.mp4",
@@ -156,13 +156,13 @@ def render_character(seq, transfer=True, lids=True, lips=True, brows=True, W=Non
         idx = [seq.expr_names.index(n) for n in EXPR_NAMES]
         W = np.where(seq.tracked[:, None], seq.expression[:, idx], 0.0)
     centre, rot, tris = face_camera(m, ch)
-    col = vertex_colors()
+    col, eyes = vertex_colors(), eye_vertices()
     frames = []
     for f in range(len(W)):
         f0 = 0 if given else f
         V = skin(ch.expressed(m["vertices"], W[f]), m["rest"], m["global"][f0], m["positions"][f0], ch)
         img = np.full((SIZE, SIZE, 3), 28, np.uint8)
-        draw_shaded(img, head_view(V, SIZE, rot[f0], centre[f0], SIZE / 0.30), tris, col, back_faces=False)
+        draw_close_up(img, V, rot[f0], centre[f0], tris, col, eyes)
         frames.append(img)
     return frames
 
@@ -252,7 +252,7 @@ def render_ict(seq) -> list[np.ndarray]:
         V = (base + np.einsum("e,evc->vc", seq.expression[f], D) - c) * scale
         X = V + [SIZE / 2, -SIZE / 2, 0.0]
         img = np.full((SIZE, SIZE, 3), 28, np.uint8)
-        draw_shaded(img, X, tris, SKIN, back_faces=False)
+        draw_smooth(img, X, tris, SKIN)
         frames.append(img)
     return frames
 

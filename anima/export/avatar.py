@@ -37,7 +37,7 @@ from anima.core.occlusion import hand_over_face
 from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
 from anima.errors import InputError
 from anima.export.vrm import character_vrm
-from anima.facemodel.character import fit_shape, load_character, skin, tracked_measures, vertex_colors
+from anima.facemodel.character import eye_vertices, fit_shape, load_character, skin, tracked_measures, vertex_colors
 from anima.facemodel.ict import load_face_model
 from anima.facemodel.neutral import faded, from_rest, is_captured, presented, rest_face
 from anima.facemodel.transfer import (
@@ -359,7 +359,7 @@ def render_avatar_preview(
         return skin(V, m["rest"], m["global"][f0:f1], m["positions"][f0:f1], ch)
 
     render_character_video(path, seq.fps, m["positions"], rig.HEAD, posed, ch.faces, audio=audio, progress=progress,
-                           face=face_camera(m, ch), colors=vertex_colors(),
+                           face=(*face_camera(m, ch), eye_vertices()), colors=vertex_colors(),
                            lod=cluster_mean(ch.vertices, ch.faces, BODY_VIEW_TRIANGLES))  # fmt: skip
     return Path(path)
 

@@ -334,3 +334,16 @@ def vertex_colors() -> np.ndarray:
     parts = [np.asarray(COLOURS["teeth" if n.startswith("teeth") else n], np.float64)[None].repeat(b - a, 0)
              for n, (a, b) in ch.parts.items() if n != "body"]  # fmt: skip
     return np.concatenate([out, *parts]).astype(np.float32)
+
+
+@lru_cache(maxsize=1)
+def eye_vertices() -> tuple[np.ndarray, np.ndarray]:
+    """Each eye's vertices (the eyeball and the lashes, :func:`vertex_colors`), ``[n]`` indices, the character's
+    left eye first: what the face close-up draws anti-aliased (:func:`anima.render.avatar.draw_close_up`)."""
+    col = vertex_colors()
+    eye = np.zeros(len(col), bool)
+    for name in ("sclera", "iris", "pupil", "lashes"):
+        eye |= np.all(np.abs(col - np.asarray(COLOURS[name], np.float32)) < 1e-3, axis=1)
+    x = load_character().vertices[:, 0]
+    left = x > np.median(x[eye])  # the character faces +z: its left is +x
+    return np.flatnonzero(eye & left), np.flatnonzero(eye & ~left)

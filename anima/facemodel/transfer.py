@@ -82,14 +82,15 @@ against the video's 5; 90: 5); chosen on the five development clips of ``benchma
 
 EYE_SHOWN = (
     (0.0, 0.4, 0.5, 0.55, 0.6, 0.65, 0.7, 0.8, 0.9, 1.0, 1.1),
-    (0.184, 0.201, 0.258, 0.325, 0.514, 0.601, 0.664, 0.758, 0.894, 1.023, 1.082),
+    (0.175, 0.209, 0.263, 0.319, 0.471, 0.614, 0.668, 0.76, 0.913, 1.009, 1.079),
 )
 """The character's eyes as its close-up shows them: its lids' gap (over its rest gap, :meth:`Transfer.lid_gaps`)
 and the eye's opening Face Mesh reads there (over what it reads at rest; the reader's measure of
 :func:`eye_ratios`), increasing. Read back, the closing lids read as their gap down to about 0.65, then fall
-fast (0.6 reads 0.51, 0.55 reads 0.33) to a shut eye's 0.18-0.2: a tracker sees the lid's edge meet the iris
+fast (0.6 reads 0.47, 0.55 reads 0.32) to a shut eye's 0.17-0.21: a tracker sees the lid's edge meet the iris
 and calls the eye shut. Measured on the character alone (no video; three head poses, both eyes, the lids swept
-shut and open again, an isotonic fit of the median): ``python benchmarks/face_readback.py --calibrate``
+shut and open again, an isotonic fit of the median; the eyes drawn anti-aliased as the close-up draws them,
+:func:`anima.render.avatar.draw_close_up`): ``python benchmarks/face_readback.py --calibrate``
 (``benchmarks/results/eye_calibration.json``); a test measures it again."""
 
 

@@ -205,3 +205,73 @@ def test_avatar_body_views_at_their_level_of_detail_look_the_same(captures):
             a, b = (np.abs(x.astype(int) - 28).max(-1) > 0 for x in (full, dec))
             assert (a & b).sum() / (a | b).sum() >= 0.97, (f, yaw)
             assert np.abs(full[a & b].astype(int) - dec[a & b]).mean() <= 6, (f, yaw)
+
+
+def test_draw_smooth_moves_with_an_edge_that_moves_by_less_than_a_pixel():
+    """Anti-aliased drawing (supersampled twice a side): a dark square's lower edge lowered by a quarter pixel at
+    a time darkens the picture every half pixel, where drawn plain it jumps a whole row at a time; supersampled
+    once it is the plain drawing; pixels the square does not reach keep their value exactly."""
+    from anima.render.avatar import draw_smooth
+
+    tris = np.array([[0, 3, 2], [0, 2, 1]])  # counter-clockwise seen from the camera: the fronts
+    dark = (0.1, 0.1, 0.1)
+
+    def square(bottom):
+        return np.array([[5.0, -5.0, 0.0], [35.0, -5.0, 0.0], [35.0, -bottom, 0.0], [5.0, -bottom, 0.0]])
+
+    def darkness(bottom, n):
+        img = np.full((40, 40, 3), 200, np.uint8)
+        return -int(draw_smooth(img, square(bottom), tris, dark, supersample=n).astype(int).sum())
+
+    bottoms = (20.1, 20.35, 20.6, 20.85, 21.1)  # pixel centres at 20.5 and 21.5; half-pixel ones at 20.25, 20.75
+    plain = [darkness(b, 1) for b in bottoms]
+    smooth = [darkness(b, 2) for b in bottoms]
+    assert len(set(plain)) == 2
+    assert all(a <= b for a, b in zip(smooth, smooth[1:])) and len(set(smooth)) == 3
+
+    background = np.random.default_rng(0).integers(0, 255, (40, 40, 3), dtype=np.uint8)
+    ref = background.copy()
+    raster.draw_shaded(ref, square(20.3), tris, np.array(dark, np.float32), back_faces=False)
+    assert (ref != background).any()
+    np.testing.assert_array_equal(draw_smooth(background.copy(), square(20.3), tris, dark, supersample=1), ref)
+    img = draw_smooth(background.copy(), square(20.3), tris, dark, supersample=2)
+    reach = np.zeros((40, 40), bool)
+    reach[5:21, 5:35] = True  # the pixels the square covers, in part or whole
+    np.testing.assert_array_equal(img[~reach], background[~reach])
+    assert (img[reach] != background[reach]).any(-1).all()
+
+
+def test_the_close_up_draws_its_eyes_anti_aliased_and_the_rest_as_before():
+    """The face close-up on the character: the box around each eye (its eyeball and lashes) is the whole
+    close-up drawn anti-aliased, there; everywhere else the plain drawing, pixel for pixel."""
+    from anima.facemodel.character import eye_vertices, load_character, vertex_colors
+    from anima.render.avatar import SMOOTH_MARGIN, draw_close_up, draw_smooth, head_view
+
+    ch = load_character()
+    V = ch.vertices.astype(np.float64)
+    eyes = eye_vertices()
+    assert len(eyes) == 2 and all(len(e) > 50 for e in eyes)
+    assert V[eyes[0], 0].min() > V[eyes[1], 0].max()  # one eye each side
+    tris = np.asarray(ch.faces, np.int64)
+    col = vertex_colors()
+    centre = V[np.concatenate(eyes)].mean(0) - [0.0, 0.03, 0.0]
+    size = 256
+    plain, whole, eyes_only = (np.full((size, size, 3), 28, np.uint8) for _ in range(3))
+    draw_close_up(plain, V, np.eye(3), centre, tris, col, smooth=[])
+    draw_close_up(whole, V, np.eye(3), centre, tris, col)
+    draw_close_up(eyes_only, V, np.eye(3), centre, tris, col, smooth=eyes)
+    X = head_view(V, size, np.eye(3), centre, size / 0.30)
+    raw = np.full((size, size, 3), 28, np.uint8)
+    draw_smooth(raw, X, tris, col, supersample=1)
+    np.testing.assert_array_equal(plain, raw)
+    inside = np.zeros((size, size), bool)
+    for e in eyes:
+        x, y = X[e, 0], -X[e, 1]
+        m = SMOOTH_MARGIN
+        inside[int(np.floor(y.min())) - m : int(np.ceil(y.max())) + m + 1,
+               int(np.floor(x.min())) - m : int(np.ceil(x.max())) + m + 1] = True  # fmt: skip
+    assert 0.01 < inside.mean() < 0.15
+    np.testing.assert_array_equal(eyes_only[~inside], plain[~inside])
+    same = (eyes_only[inside] == whole[inside]).all(-1)
+    assert same.mean() > 0.999
+    assert (whole[inside] != plain[inside]).any(-1).mean() > 0.05  # the eyes' edges are drawn otherwise
