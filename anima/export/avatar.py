@@ -23,6 +23,7 @@ in one glTF file (``avatar.glb``), the speech beside it (``speech.wav``), and a 
 from __future__ import annotations
 
 import subprocess
+import threading
 from collections import deque
 from functools import lru_cache
 from pathlib import Path
@@ -134,13 +135,41 @@ def character_motion(seq: TrackedSequence, seed: int = 0) -> dict:
     return {"coeffs": coeffs, "vertices": V, "rest": rest, **mo, "report": report}
 
 
-def write_avatar(seq: TrackedSequence, path: str | Path, speech: str | None = None, preset: str = "anima") -> dict:
+class OnCharacter:
+    """A sequence on the character, shared by the writers of one output set (``avatar.glb``, ``body.bvh`` and
+    ``avatar.mp4``, written on their own threads by :func:`anima.export.motion.write_outputs`): its motion
+    (:func:`character_motion`) and its face (:func:`character_face`) each computed once, on first use (a
+    second thread that asks meanwhile waits for it), and never changed by a writer."""
+
+    def __init__(self, seq: TrackedSequence):
+        self.seq = seq
+        self._locks = {"motion": threading.Lock(), "face": threading.Lock()}
+        self._made: dict = {}
+
+    def _once(self, key: str, make):
+        with self._locks[key]:
+            if key not in self._made:
+                self._made[key] = make(self.seq)
+            return self._made[key]
+
+    def motion(self) -> dict:
+        return self._once("motion", character_motion)
+
+    def face(self) -> np.ndarray:
+        return self._once("face", character_face)
+
+
+def write_avatar(
+    seq: TrackedSequence, path: str | Path, speech: str | None = None, preset: str = "anima", on=None
+) -> dict:
     """``avatar.glb`` for ``seq`` (see the module docstring), joints named by ``preset`` (anima, mixamo, vrm,
-    unreal); returns what it holds (for ``info.json``)."""
+    unreal); returns what it holds (for ``info.json``). ``on``: the sequence's :class:`OnCharacter` when other
+    writers share it."""
     ch = load_character()
-    m = character_motion(seq)
+    on = on or OnCharacter(seq)
+    m = on.motion()
     F = seq.n_frames
-    weights = character_face(seq)
+    weights = on.face()
     extras = {
         "anima": {
             "speech": "speech.wav" if speech else None,
@@ -342,12 +371,13 @@ pixels tall there, several triangles a pixel at full detail; the face close-up k
 
 
 def render_avatar_preview(
-    seq: TrackedSequence, path: str | Path, audio: str | None = None, progress: bool = False
+    seq: TrackedSequence, path: str | Path, audio: str | None = None, progress: bool = False, on=None
 ) -> Path:
-    """``avatar.mp4``: the character, front and 3/4 views, with the speech."""
+    """``avatar.mp4``: the character, front and 3/4 views, with the speech (``on``: as :func:`write_avatar`)."""
     ch = load_character()
-    m = character_motion(seq)
-    weights = character_face(seq)
+    on = on or OnCharacter(seq)
+    m = on.motion()
+    weights = on.face()
 
     D = ch.morph_dense().reshape(len(EXPR_NAMES), -1)  # [53, V * 3]: a chunk's expressions in one product
 

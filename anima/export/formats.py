@@ -50,10 +50,13 @@ def export_glb(seq: TrackedSequence, path: str | Path, animate_head: bool = True
 MAX_RESAMPLE = 16  # the BVH export's frames at most 16 x the sequence's (15 -> 240 fps): memory stays bounded
 
 
-def export_bvh(seq: TrackedSequence, path: str | Path, fps: float | None = None, preset: str = "anima") -> Path:
+def export_bvh(
+    seq: TrackedSequence, path: str | Path, fps: float | None = None, preset: str = "anima", on=None
+) -> Path:
     """The body on the character's rig (``anima.core.rig``: Mixamo's hierarchy, the character's T-pose rest in
     the person's proportions, joints named by ``preset``; legs standing unless tracked), metres, optionally
-    resampled to ``fps`` (the rotations interpolated along the shortest arc)."""
+    resampled to ``fps`` (the rotations interpolated along the shortest arc). ``on``: the sequence's
+    :class:`anima.export.avatar.OnCharacter` when other writers share it."""
     if seq.body_joints is None:
         raise InputError("this sequence has no body (captured with --face-only, or schema v1): nothing to export")
     if not np.isfinite(seq.body_joints).all(-1).any():
@@ -66,7 +69,7 @@ def export_bvh(seq: TrackedSequence, path: str | Path, fps: float | None = None,
                 f"--fps {fps:g}: {n_out:,} frames from {n:,} at {rate:g} fps; anima resamples to at most "
                 f"{MAX_RESAMPLE}x the frames (and {MAX_FRAMES:,} in all)"
             )
-    m = character_motion(seq)
+    m = on.motion() if on is not None else character_motion(seq)
     root, local = m["root"], m["local"]
     if fps and abs(fps - rate) > 1e-6:
         root, local = resample_motion(root, local, rate, fps)

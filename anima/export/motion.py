@@ -36,7 +36,7 @@ from threadpoolctl import threadpool_limits
 
 from anima.core.clock import Stopwatch
 from anima.core.occlusion import hand_over_face
-from anima.export.avatar import body_of, render_avatar_preview, write_avatar, write_speech
+from anima.export.avatar import OnCharacter, body_of, render_avatar_preview, write_avatar, write_speech
 from anima.export.formats import export_arkit_csv, export_bvh, export_glb
 from anima.facemodel.neutral import presented
 from anima.io.atomic import write_json
@@ -68,7 +68,8 @@ def write_motion_outputs(
     face = bool(seq.tracked.any())
     body = body_of(seq) is not None
     exported: dict = {}
-    jobs = [({}, lambda: exported.update(_write_exports(seq, out, speech, info is not None, preset)))]
+    on = OnCharacter(seq)  # the character's motion and face, made once for avatar.glb, body.bvh and avatar.mp4
+    jobs = [({}, lambda: exported.update(_write_exports(seq, out, speech, info is not None, preset, on)))]
     if render and source_video is not None:  # one pass over the source: the fit over it, alone, the skeleton over it
         roles = {}
         if face:
@@ -95,7 +96,9 @@ def write_motion_outputs(
         jobs.append(({"face_video": fv}, lambda: render_videos(seq, None, None, fv, progress=progress, audio=audio)))
     if render:
         av = out.file("avatar.mp4")
-        jobs.append(({"avatar_video": av}, lambda: render_avatar_preview(seq, av, audio=speech, progress=progress)))
+        jobs.append(
+            ({"avatar_video": av}, lambda: render_avatar_preview(seq, av, audio=speech, progress=progress, on=on))
+        )
     with sw("render" if len(jobs) > 1 else "write"):  # the exports are written beside the videos
         videos = run_renders(jobs)
     files.update(exported.get("files", {}))
@@ -124,9 +127,10 @@ def write_motion_outputs(
     return files
 
 
-def _write_exports(seq, out, speech: str | None, describe: bool, preset: str = "anima") -> dict:
+def _write_exports(seq, out, speech: str | None, describe: bool, preset: str = "anima", on=None) -> dict:
     """The files made from the sequence, no videos: ``{"files": {role: path}, "avatar": what avatar.glb
-    holds (when ``describe``)}``."""
+    holds (when ``describe``)}``; ``on``: the sequence's :class:`OnCharacter`, shared with ``avatar.mp4``."""
+    on = on or OnCharacter(seq)
     files = {}
     face = bool(seq.tracked.any())
     body = body_of(seq) is not None
@@ -134,10 +138,10 @@ def _write_exports(seq, out, speech: str | None, describe: bool, preset: str = "
         files["arkit_csv"] = export_arkit_csv(seq, out.file("arkit.csv"))
         files["glb"] = export_glb(seq, out.file("face.glb"))
     if body:
-        files["bvh"] = export_bvh(seq, out.file("body.bvh"), preset=preset)
+        files["bvh"] = export_bvh(seq, out.file("body.bvh"), preset=preset, on=on)
     if speech is not None:
         files["speech"] = write_speech(speech, out.file("speech.wav"))
-    avatar = write_avatar(seq, out.file("avatar.glb"), speech="speech.wav" if speech else None, preset=preset)
+    avatar = write_avatar(seq, out.file("avatar.glb"), speech="speech.wav" if speech else None, preset=preset, on=on)
     files["avatar"] = out.path / "avatar.glb"
     return {"files": files, "avatar": avatar if describe else None}
 

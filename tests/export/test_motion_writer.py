@@ -111,3 +111,43 @@ def test_a_minute_of_motion_makes_an_avatar_of_at_most_20_mb(tmp_path):
     info = write_avatar(seq, tmp_path / "avatar.glb")
     size = (tmp_path / "avatar.glb").stat().st_size
     assert info["frames"] == F and size <= 20e6, size / 1e6
+
+
+def test_one_output_set_puts_the_sequence_on_the_character_once(seq, tmp_path, monkeypatch):
+    """``avatar.glb``, ``body.bvh`` and ``avatar.mp4`` (written on their own threads) share one
+    :class:`OnCharacter`: the character's motion and face are made once per output set, and the files are what
+    each writer makes alone."""
+    import anima.export.avatar as avatar
+    from anima.export.formats import export_bvh
+    from anima.export.motion import write_motion_outputs
+    from anima.io.outdir import OutputFolder
+
+    calls = {"motion": 0, "face": 0}
+    real = {"motion": avatar.character_motion, "face": avatar.character_face}
+
+    def counted(key):
+        def call(s):
+            calls[key] += 1
+            return real[key](s)
+
+        return call
+
+    monkeypatch.setattr(avatar, "character_motion", counted("motion"))
+    monkeypatch.setattr(avatar, "character_face", counted("face"))
+    with OutputFolder(tmp_path / "out", kind="capture") as od:
+        files = write_motion_outputs(seq, od, source_video=str(asset(D0)), progress=False)
+    assert {"avatar", "avatar_video"} <= set(files)
+    assert calls == {"motion": 1, "face": 1}  # three writers (two with a body), one of each
+
+    monkeypatch.undo()  # each writer alone, as `anima export` runs it
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    avatar.write_avatar(seq, alone / "avatar.glb")
+    assert (alone / "avatar.glb").read_bytes() == (tmp_path / "out" / "avatar.glb").read_bytes()
+    if seq.body_joints is not None:
+        export_bvh(seq, alone / "body.bvh")
+        assert (alone / "body.bvh").read_bytes() == (tmp_path / "out" / "body.bvh").read_bytes()
+    avatar.render_avatar_preview(seq, alone / "avatar.mp4")
+    a, _ = read_video(alone / "avatar.mp4")
+    b, _ = read_video(tmp_path / "out" / "avatar.mp4")
+    assert a.shape == b.shape and np.array_equal(a, b)
