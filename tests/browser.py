@@ -137,7 +137,7 @@ def requests(driver) -> list[str]:
 def play_and_sample(driver, seconds: float = 3.0, every_ms: int = 40) -> dict:
     """Play from frame 0 and, inside the page, read its state every ``every_ms``: ``[frame the 3D view shows,
     the videos' clocks, the audio's clock, playing, seconds since play, seconds since the page's clock chose that
-    frame]``; then how many distinct frames the 3D view drew per second."""
+    frame, distinct frames the 3D view drew since play]``; then how many distinct frames it drew per second."""
     return driver.execute_async_script(
         """
         const [secs, every, done] = arguments;
@@ -148,7 +148,8 @@ def play_and_sample(driver, seconds: float = 3.0, every_ms: int = 40) -> dict:
         const d0 = anima.renderedFrames;
         function sample() {
           const s = anima.state();
-          out.push([s.frame, s.videoTimes, s.audioTime, s.playing, (performance.now() - t0) / 1000, s.frameAge]);
+          out.push([s.frame, s.videoTimes, s.audioTime, s.playing, (performance.now() - t0) / 1000, s.frameAge,
+                    anima.renderedFrames - d0]);
           if (performance.now() - t0 < secs * 1000) return setTimeout(sample, every);
           const wall = (performance.now() - t0) / 1000;
           const r = {samples: out, drawn_frames_per_s: (anima.renderedFrames - d0) / wall, wall_s: wall};

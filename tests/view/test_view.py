@@ -131,7 +131,7 @@ def test_capture_page_shows_the_artifact(results, browser):
         # 16 to 25 frames a second on a 2-core machine) is the page's speed, which benchmarks/bench_view.py
         # measures: here only that the view never stalls (a frame chosen over 0.25 s before, in 1 sample of 20)
         assert all(s[5] is not None for s in playing), played
-        gaps = np.array([abs(int((t - age) * seq.fps + 1e-6) - f) for f, vts, _, _, _, age in playing for t in vts])
+        gaps = np.array([abs(int((t - age) * seq.fps + 1e-6) - f) for f, vts, _, _, _, age, _ in playing for t in vts])
         assert gaps.max() <= 2 and np.median(gaps) <= 1, (gaps.tolist(), played)
         ages = np.array([s[5] for s in playing])
         assert np.mean(ages > 0.25) <= 0.05, (ages.tolist(), played)
@@ -142,6 +142,34 @@ def test_capture_page_shows_the_artifact(results, browser):
         assert rate == pytest.approx(seq.fps, rel=0.15), rate
         shot(browser, "capture_after_play")
     assert not [c for c in console(browser) if "SEVERE" in c and "favicon" not in c]
+
+
+def test_edges_are_drawn_smooth_where_the_gl_affords_it(results, browser):
+    """Multisampling on a GPU, none on a software rasterizer (this machine's SwiftShader), "#aa" / "#noaa" force
+    either: the page says which it drew with, both canvases were made so, and the close-up drawn smooth blends
+    its edges (more colours in the same square)."""
+    colours, seen = {}, {}
+    with served(results / "capture") as (url, _):
+        for variant in ("", "#aa", "#noaa"):
+            browser.get("about:blank")
+            browser.get(url + variant)
+            wait_ready(browser)
+            seen[variant] = browser.execute_script(
+                "return [anima.gl, ...['view3d', 'face3d'].map(id => { const c = document.getElementById(id);"
+                " const gl = c.getContext('webgl2') || c.getContext('webgl');"
+                " return gl.getContextAttributes().antialias; })]"
+            )
+            state(browser, 30)
+            face = browser.execute_script("return anima.faceOnScreen()")
+            left, top, side, _ = (int(v) for v in face["square"])
+            sq = shot(browser, f"edges{variant.replace('#', '_')}")[top : top + side, left : left + side]
+            colours[variant] = len(np.unique(sq.reshape(-1, 3), axis=0))
+    gl = seen[""][0]
+    assert gl["software"] and "swiftshader" in gl["renderer"].lower(), gl  # headless Chromium here: no GPU
+    assert seen[""] == [gl, False, False] and seen["#noaa"][1:] == [False, False]
+    assert seen["#aa"][0]["antialias"] and seen["#aa"][1:] == [True, True]
+    assert colours["#aa"] > 1.15 * colours["#noaa"], colours
+    assert colours[""] == colours["#noaa"], colours
 
 
 def test_text2face_page_from_disk(results, browser, tmp_path, cli):

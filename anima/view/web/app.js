@@ -65,9 +65,31 @@ let frames = V.frames;
 
 // ---- 3D ---------------------------------------------------------------------------------------------------
 const canvas = $("view3d");
-// no MSAA and a Lambert material: without a GPU (SwiftShader, a laptop's iGPU) the page still draws the clip's
-// frame rate
-const renderer = new THREE.WebGLRenderer({ canvas, antialias: false });
+// the page's switches after its '#', joined by '&': "noface" (no face close-up), "aa" / "noaa" (edges drawn smooth
+// or not, whatever the GL)
+const HASH = new Set(location.hash.slice(1).split("&").filter(Boolean));
+// the browser's WebGL renderer, as the driver names it ("" where it says nothing)
+function glName() {
+  try {
+    const gl = document.createElement("canvas").getContext("webgl");
+    if (!gl) return "";
+    const info = gl.getExtension("WEBGL_debug_renderer_info");
+    const name = String(gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER));
+    const lose = gl.getExtension("WEBGL_lose_context");
+    if (lose) lose.loseContext();
+    return name;
+  } catch (e) {
+    return "";
+  }
+}
+// Edges drawn smooth (multisampling) on a GPU, where it costs almost nothing: the lids, the lips and the limbs
+// without stair steps. A software rasterizer (SwiftShader, llvmpipe: a machine without a GPU) draws without it,
+// and the material is Lambert's, so the page still draws the clip's frame rate there.
+const GL_NAME = glName();
+const SOFTWARE_GL = GL_NAME === "" || /swiftshader|llvmpipe|softpipe|software/i.test(GL_NAME);
+const SMOOTH = HASH.has("aa") || (!HASH.has("noaa") && !SOFTWARE_GL);
+api.gl = { renderer: GL_NAME, software: SOFTWARE_GL, antialias: SMOOTH };
+const renderer = new THREE.WebGLRenderer({ canvas, antialias: SMOOTH });
 renderer.setPixelRatio(1);
 const scene = new THREE.Scene();
 scene.background = new THREE.Color(0x1c1c1c);
@@ -640,7 +662,7 @@ let faceRenderer = null;
 let faceDirty = true;
 let faceDrawnAt = -1e9;
 function setupFaceView() {
-  if (!faceMesh || faceRenderer || location.hash === "#noface") return; // (#noface: the page without it)
+  if (!faceMesh || faceRenderer || HASH.has("noface")) return; // (#noface: the page without it)
   const wrap = document.createElement("div");
   wrap.style.position = "relative";
   canvas.parentNode.insertBefore(wrap, canvas);
@@ -650,7 +672,7 @@ function setupFaceView() {
   faceCanvas.title = "the face close up";
   Object.assign(faceCanvas.style, { position: "absolute", top: "4px", right: "4px", outline: "1px solid #333" });
   wrap.appendChild(faceCanvas);
-  faceRenderer = new THREE.WebGLRenderer({ canvas: faceCanvas, antialias: false });
+  faceRenderer = new THREE.WebGLRenderer({ canvas: faceCanvas, antialias: SMOOTH });
   faceRenderer.setPixelRatio(1);
   sizeFace();
 }
