@@ -137,7 +137,7 @@ def character_motion(seq: TrackedSequence, seed: int = 0) -> dict:
 
 class OnCharacter:
     """A sequence on the character, shared by the writers of one output set (``avatar.glb``, ``body.bvh`` and
-    ``avatar.mp4``, written on their own threads by :func:`anima.export.motion.write_outputs`): its motion
+    ``avatar.mp4``, written on their own threads by :func:`anima.export.motion.write_motion_outputs`): its motion
     (:func:`character_motion`) and its face (:func:`character_face`) each computed once, on first use (a
     second thread that asks meanwhile waits for it), and never changed by a writer."""
 

@@ -11,7 +11,7 @@ import numpy as np
 from anima.core import rig
 from anima.core.rotations import matrix_to_euler, matrix_to_quat
 from anima.errors import InputError
-from anima.export.avatar import character_motion, write_avatar
+from anima.export.avatar import OnCharacter, character_motion, write_avatar
 from anima.export.fbx import blender, export_fbx
 from anima.export.vrm import arkit_weights, vrm_expressions
 from anima.facemodel.ict import load_face_model
@@ -69,7 +69,7 @@ def export_bvh(
                 f"--fps {fps:g}: {n_out:,} frames from {n:,} at {rate:g} fps; anima resamples to at most "
                 f"{MAX_RESAMPLE}x the frames (and {MAX_FRAMES:,} in all)"
             )
-    m = on.motion() if on is not None else character_motion(seq)
+    m = (on or OnCharacter(seq)).motion()
     root, local = m["root"], m["local"]
     if fps and abs(fps - rate) > 1e-6:
         root, local = resample_motion(root, local, rate, fps)
