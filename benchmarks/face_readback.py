@@ -23,6 +23,10 @@ by frame, and read back by a face tracker; so is the source video; the two are c
         $M/surprised.mp4 --out benchmarks/results/face_readback_fresh4.json  # held out: six emotion clips
     python benchmarks/face_readback.py --calibrate   # the character's lips, eyes and brows as read back:
                                      # lip_calibration.json, eye_calibration.json, brow_calibration.json
+    python benchmarks/face_readback.py --isolate --clips talking-heads-extra/RD_Radio10_0_clip_0.mp4 \
+        videoretalking-examples/examples/face/2.mp4 liveportrait-examples/assets/examples/driving/d18.mp4 \
+        styletalk-samples/samples/style_clips/video/furious_talk2_clip3.mp4 $M/contempt.mp4 $M/disgusted.mp4 \
+        $M/surprised.mp4 --out benchmarks/results/face_readback_isolate.json  # the seven eyes under 0.8: why
 
 **Clips** (the default): talking and expression clips of the shared data, every one looked at while building
 the face (development clips): LivePortrait's d3 frowns, squints and looks surprised, d0 smiles and blinks, d9
@@ -62,6 +66,12 @@ frames, the last read), on the same three head poses, both brows; the brows' hei
 corners, :func:`anima.facemodel.transfer.brow_heights`, from its read at rest) against the brow points' rise
 (face sizes), a least-squares line through rest.
 
+**Why an eye misses** (``--isolate``, on the clips whose eye reads under 0.8): the character as above
+(``character``), the same weights drawn on the first frame's head (``head_still``: what the head's turning
+costs), and its lids alone moving on that head (``lids_alone``: every channel at rest but eyeBlink, eyeWide and
+eyeSquint, the lids' gap set from the landmarks again), which shows what the other channels (the mouth, the brows)
+do to the tracker's reading of the character's eye.
+
 **The reader**: MediaPipe's Face Mesh through its own Python API (``mediapipe.solutions.face_mesh``, not anima's
 wrapper), on every frame of each render and of the source video. Per frame: the mouth's opening (the inner
 lips' distance, 13-14) and the brows' height (inner brows 105/334 over the upper lids 159/386), each over the
@@ -85,7 +95,7 @@ from anima.core.contract import EXPR_NAMES
 from anima.export.avatar import character_face, character_motion, face_camera
 from anima.facemodel.character import eye_vertices, load_character, skin, vertex_colors
 from anima.facemodel.ict import load_face_model
-from anima.facemodel.transfer import EYE_SHOWN, brow_heights
+from anima.facemodel.transfer import EYE_SHOWN, brow_heights, eye_opening
 from anima.io.assets import asset
 from anima.io.atomic import write_json
 from anima.io.video import iter_frames, probe_video
@@ -239,6 +249,17 @@ def calibrate_brows(seqs, steps: int = 21, hold: int = 3) -> dict:
             "points": [[round(float(r), 4), round(float(m), 4)] for r, m in zip(rise.mean(-1), med)]}  # fmt: skip
 
 
+def lids_alone(seq) -> np.ndarray:
+    """The character's weights ``[F, 53]`` with its lids alone moving (``--isolate``): every channel at rest but
+    the eyes' eyeBlink, eyeWide and eyeSquint, the lids' gap set from the landmarks again as in
+    :func:`~anima.export.avatar.character_face` (the other channels no longer adding to it)."""
+    from anima.export.avatar import face_transfer
+
+    W = character_face(seq)
+    W = np.where([n.startswith(("eyeBlink", "eyeWide", "eyeSquint")) for n in EXPR_NAMES], W, 0.0)
+    return face_transfer().follow_lids(W, eye_opening(seq.landmarks, seq.tracked, seq.width, seq.height), EXPR_NAMES)
+
+
 def render_ict(seq) -> list[np.ndarray]:
     model = load_face_model()
     tris = np.ascontiguousarray(model.triangles(), np.int64) if callable(getattr(model, "triangles", None)) else None
@@ -274,6 +295,12 @@ def main() -> None:
         action="store_true",
         help="measure the character's lips, eyes and brows as read back instead (into --out's folder)",
     )
+    ap.add_argument(
+        "--isolate",
+        action="store_true",
+        help="read the character as it is, with its head held still, and with its lids alone moving "
+        "(head held still, every other channel at rest) instead of the comparisons",
+    )
     a = ap.parse_args()
     if a.calibrate:
         reader = f"mediapipe.solutions.face_mesh {mp.__version__}"
@@ -295,12 +322,17 @@ def main() -> None:
         seq = capture_face(path, CaptureConfig(), progress=False)
         video = measures(read_faces(iter_frames(probe_video(path))))
         row = {"name": Path(clip).stem, "clip": clip, "frames": seq.n_frames}
-        for name, draw in (("character", lambda: render_character(seq)),
-                           ("by_name", lambda: render_character(seq, False)),
-                           ("lids_by_transfer", lambda: render_character(seq, lids=False)),
-                           ("lips_by_transfer", lambda: render_character(seq, lips=False)),
-                           ("brows_by_transfer", lambda: render_character(seq, brows=False)),
-                           ("ict_ceiling", lambda: render_ict(seq))):  # fmt: skip
+        draws = (("character", lambda: render_character(seq)),
+                 ("by_name", lambda: render_character(seq, False)),
+                 ("lids_by_transfer", lambda: render_character(seq, lids=False)),
+                 ("lips_by_transfer", lambda: render_character(seq, lips=False)),
+                 ("brows_by_transfer", lambda: render_character(seq, brows=False)),
+                 ("ict_ceiling", lambda: render_ict(seq)))  # fmt: skip
+        if a.isolate:
+            draws = (("character", lambda: render_character(seq)),
+                     ("head_still", lambda: render_character(seq, W=character_face(seq))),
+                     ("lids_alone", lambda: render_character(seq, W=lids_alone(seq))))  # fmt: skip
+        for name, draw in draws:
             got = measures(read_faces(draw()))
             row[name] = compare(video, got) | {
                 "face_found": round(float(np.isfinite(got["mouth"]).mean()), 3),
