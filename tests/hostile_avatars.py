@@ -1,7 +1,8 @@
 """Hostile avatars for the bad-input matrix and the memory benchmark: a real VRM 1.0 (the shared data's humanoid
 test file) with one field broken at a time, node bombs (hundreds of thousands of nodes in a few MB, one long
 chain), cycles and self-parents. Every one must be refused in one line (exit 2 or 4) or retargeted, within
-seconds and bounded memory, by ``retarget``, ``view --avatar`` and ``live --avatar`` alike."""
+seconds and bounded memory, by ``retarget``, ``view --avatar`` and ``live --avatar`` alike. And a rig anima never
+wrote (:func:`unseen_rig`: random bone axes, facing -z), which must play as well as anima's own."""
 
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ import copy
 import json
 import struct
 from pathlib import Path
+
+import numpy as np
 
 from anima.io.assets import asset
 
@@ -162,3 +165,33 @@ def make(folder: Path) -> dict[str, Path]:
         d, b = _bomb(doc, binary, n, chain)
         out[name] = pack(folder / f"bomb_{n}_{'chain' if chain else 'flat'}.vrm", d, b)
     return out
+
+
+def unseen_rig(path, seed=3, arkit=False):
+    """A rig anima never wrote: the character in an A-pose, every bone's axes turned at random (so its local
+    rotations mean nothing to anima's rig), the whole body facing -z, names ``mixamorig1_*``; its morph targets
+    named ``shape0``... (none found by name), or ``arkit``: as ARKit names them."""
+    from anima.core import rig
+    from anima.core.contract import EXPR_NAMES
+    from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
+    from anima.export.vrm import character_avatar
+    from anima.facemodel.character import load_character
+    from anima.io.gltf import write_character_glb
+    from anima.render.raster import vertex_normals
+
+    ch = load_character()
+    a = character_avatar("mean", "A")
+    rng = np.random.default_rng(seed)
+    turn = rotvec_to_matrix(np.array([0.0, np.pi, 0.0]))
+    R = turn @ a["rest_rot"] @ rotvec_to_matrix(rng.normal(size=(rig.N_RIG, 3)))
+    J, V = a["rest"] @ turn.T, a["vertices"] @ turn.T
+    par = np.maximum(rig.PARENTS_RIG, 0)
+    local = np.einsum("jba,jbc->jac", R[par], R)
+    local[rig.HIPS] = R[rig.HIPS]
+    morphs = list(EXPR_NAMES) if arkit else [f"shape{k}" for k in range(len(ch.morph_index))]
+    return write_character_glb(
+        path, ["mixamorig1_" + n for n in rig.NAMES], rig.PARENTS_RIG, J, J[rig.HIPS][None],
+        matrix_to_quat(local)[None], V, vertex_normals(V, ch.faces), ch.faces, ch.skin_joints, ch.skin_weights,
+        list(zip(ch.morph_index, ch.morph_delta)), morphs,
+        np.zeros((1, len(ch.morph_index))), 30.0, animated=~rig.LEAVES, rest_rotations=R,
+    )  # fmt: skip

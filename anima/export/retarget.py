@@ -200,6 +200,14 @@ def facing(pos_world: dict[str, np.ndarray]) -> np.ndarray:
     return np.stack([x, y, np.cross(x, y)], -1)
 
 
+def avatar_front(g: Gltf, hum: Humanoid) -> list[float]:
+    """The avatar's forward at its rest, in its file's world axes (:func:`facing`'s): the side a camera stands
+    on to see its face (the viewer's face close-up)."""
+    W = g.world()
+    front = facing({n: W[i, :3, 3] for n, i in hum.nodes.items()})[:, 2]
+    return [round(float(v), 4) for v in front]
+
+
 def in_t_pose(g: Gltf, hum: Humanoid, max_deg: float = 10.0) -> bool:
     """Whether the avatar's rest is a T-pose: both upper arms and forearms within ``max_deg`` of horizontal."""
     W = g.world()

@@ -27,10 +27,11 @@ import numpy as np
 from anima.core import rig
 from anima.core.contract import EXPR_NAMES
 from anima.errors import InputError
-from anima.export.retarget import LiveRetarget
+from anima.export.retarget import LiveRetarget, avatar_front, find_humanoid
 from anima.export.vrm import write_character_avatar
 from anima.facemodel.character import load_character
 from anima.io.atomic import copy_file, write_text
+from anima.io.gltf_read import read_gltf
 from anima.io.outdir import OutputFolder, check_out_dir, holds_nothing
 from anima.io.validate import input_file
 from anima.live.config import LiveConfig
@@ -53,7 +54,9 @@ def _page(root: Path, title: str, fps: float, avatar: str | None = None) -> None
     }  # fmt: skip
     if avatar is not None:  # the user's file as it is: the page moves its own bones (LiveRetarget)
         vrm = Path(avatar).suffix.lower() == ".vrm"
-        data["avatar"] = {"avatar": Path(avatar).name, "as": "retargeted live, frame by frame", "vrm": vrm}
+        g = read_gltf(avatar)
+        data["avatar"] = {"avatar": Path(avatar).name, "as": "retargeted live, frame by frame", "vrm": vrm,
+                          "front": avatar_front(g, find_humanoid(g))}  # fmt: skip
         write_text(root / "view-data.js", _js("ANIMA_VIEW", data))
         write_text(root / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(Path(avatar).read_bytes()).decode()))
         for f in viewer_files():

@@ -33,7 +33,7 @@ from anima.dataset.windows import read_clips
 from anima.errors import AssetNotFound, InputError, SchemaError
 from anima.export.formats import export_glb, export_vrma
 from anima.export.framing import generated_sequence
-from anima.export.retarget import find_humanoid, in_t_pose, load_avatar
+from anima.export.retarget import avatar_front, find_humanoid, in_t_pose, load_avatar
 from anima.export.retarget import run as retarget
 from anima.io.atomic import copy_file, write_text
 from anima.io.gltf_read import read_gltf
@@ -393,8 +393,9 @@ def _avatar_view(folder: Path, kind: str, avatar: Path, out: Path, notes: list, 
     g = read_gltf(avatar)
     if how == "vrma" and g.vrm is None:
         raise InputError(f"--motion vrma plays on a VRM; {avatar} is a plain glTF (use --motion retarget)")
+    hum = find_humanoid(g)
     if how == "auto":
-        how = "vrma" if g.vrm is not None and in_t_pose(g, find_humanoid(g)) else "retarget"
+        how = "vrma" if g.vrm is not None and in_t_pose(g, hum) else "retarget"
     with tempfile.TemporaryDirectory(prefix="anima-view-") as tmp:
         if how == "vrma":
             vrma = Path(export_vrma(read_sequence(seq_path, landmarks=False), Path(tmp) / "take.vrma")).read_bytes()
@@ -409,6 +410,7 @@ def _avatar_view(folder: Path, kind: str, avatar: Path, out: Path, notes: list, 
             notes.append(f"face on {avatar.name}: {r['face']['via']}, {len(r['face']['found_a_home'])} channels")
     wrote.append(write_text(out / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(glb_bytes).decode())
                             + _js("ANIMA_VRMA", base64.b64encode(vrma).decode() if vrma else None)))  # fmt: skip
+    info["front"] = avatar_front(g, hum)  # where the face close-up's camera stands
     return info
 
 

@@ -11,6 +11,7 @@ import subprocess
 
 import numpy as np
 import pytest
+from hostile_avatars import unseen_rig
 
 from anima.core import rig
 from anima.core.rotations import matrix_to_quat, quat_to_matrix, rotvec_to_matrix
@@ -46,31 +47,6 @@ def _pack(path, doc, binary):
         + struct.pack("<II", len(binary), 0x004E4942) + binary
     )  # fmt: skip
     return path
-
-
-def unseen_rig(path, seed=3):
-    """A rig anima never wrote: the character in an A-pose, every bone's axes turned at random (so its local
-    rotations mean nothing to anima's rig), the whole body facing -z, names ``mixamorig1_*``."""
-    from anima.export.vrm import character_avatar
-    from anima.facemodel.character import load_character
-    from anima.io.gltf import write_character_glb
-    from anima.render.raster import vertex_normals
-
-    ch = load_character()
-    a = character_avatar("mean", "A")
-    rng = np.random.default_rng(seed)
-    turn = rotvec_to_matrix(np.array([0.0, np.pi, 0.0]))
-    R = turn @ a["rest_rot"] @ rotvec_to_matrix(rng.normal(size=(rig.N_RIG, 3)))
-    J, V = a["rest"] @ turn.T, a["vertices"] @ turn.T
-    par = np.maximum(rig.PARENTS_RIG, 0)
-    local = np.einsum("jba,jbc->jac", R[par], R)
-    local[rig.HIPS] = R[rig.HIPS]
-    return write_character_glb(
-        path, ["mixamorig1_" + n for n in rig.NAMES], rig.PARENTS_RIG, J, J[rig.HIPS][None],
-        matrix_to_quat(local)[None], V, vertex_normals(V, ch.faces), ch.faces, ch.skin_joints, ch.skin_weights,
-        list(zip(ch.morph_index, ch.morph_delta)), [f"shape{k}" for k in range(len(ch.morph_index))],
-        np.zeros((1, len(ch.morph_index))), 30.0, animated=~rig.LEAVES, rest_rotations=R,
-    )  # fmt: skip
 
 
 @pytest.fixture(scope="module")

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from browser import chromium, console, have_browser, play_and_sample, requests, served, wait_media, wait_ready
+from hostile_avatars import unseen_rig
 
 from anima.core import rig
 from anima.core.contract import EXPR_NAMES
@@ -75,9 +76,10 @@ def assert_head_drawn(b, name: str) -> None:
     assert np.abs(corner.astype(int) - BACKGROUND).max() <= 8  # and the background is where it should be
 
 
-def assert_face_inset(b, name: str) -> None:
+def assert_face_inset(b, name: str, coloured: bool = True) -> np.ndarray:
     """The face close-up (issue 48): a square in the canvas's top right, the character's face filling its middle
-    (the camera follows the head: the face's centre near the square's), the square's corners background."""
+    (the camera follows the head: the face's centre near the square's), the square's corners background;
+    ``coloured``: anima's skin and lips (not a grey avatar's). Returns the square's pixels."""
     face = b.execute_script("return anima.faceOnScreen()")
     assert face is not None, "no face close-up on a character's page"
     img = shot(b, name)
@@ -89,7 +91,15 @@ def assert_face_inset(b, name: str) -> None:
     assert mid.mean() > 0.9, f"the face close-up's middle is mostly background ({mid.mean():.2f}): {SHOTS / name}.png"
     assert 0.25 < drawn.mean() < 0.95 and not drawn[:6, -6:].any(), f"not a head in the close-up: {SHOTS / name}.png"
     warm = sq[drawn]  # the face's colours: skin and lips, more red than blue
-    assert np.median(warm[:, 0] - warm[:, 2]) > 10, f"the close-up is not the character's face: {SHOTS / name}.png"
+    assert not coloured or np.median(warm[:, 0] - warm[:, 2]) > 10, (
+        f"the close-up is not the character's face: {SHOTS / name}.png"
+    )
+    return sq
+
+
+def after_draw(b) -> None:
+    """Wait until the page has drawn what it was last asked for (two animation frames)."""
+    b.execute_async_script("const done = arguments[0]; requestAnimationFrame(() => requestAnimationFrame(done));")
 
 
 def test_capture_page_shows_the_artifact(results, browser):
@@ -382,7 +392,9 @@ def test_a_users_vrm_plays_the_result_in_three_vrm(results, browser, tmp_path):
     """Issue 35: anima's character written as a VRM loads in @pixiv/three-vrm (>= 50 humanoid bones, >= 15
     expressions); the capture reaches it as a VRM Animation (three-vrm-animation) with the arm pose of the
     source and the blink and viseme expressions following the face; an A-pose VRM plays the VRM Animation
-    too (relative to its rest, as VRM defines it) and, retargeted by anima, keeps the source's arm pose."""
+    too (relative to its rest, as VRM defines it) and, retargeted by anima, keeps the source's arm pose. Issue 48:
+    each shows the avatar's face close up, its mouth opening and shutting with the source's, and so does a glTF
+    rig anima never wrote (random bone axes, facing -z)."""
     from anima.export.avatar import character_motion
     from anima.export.vrm import arkit_weights, vrm_expressions, write_character_avatar
 
@@ -391,6 +403,7 @@ def test_a_users_vrm_plays_the_result_in_three_vrm(results, browser, tmp_path):
     vrm_of = {v: k for k, v in rig.CONVENTIONS["vrm"].items() if v}
     want = vrm_expressions(arkit_weights(seq.expression, seq.expr_names) * seq.tracked[:, None])
     frames = list(range(0, seq.n_frames, 5))
+    shut, wide = (frames[int(k(want["aa"][frames]))] for k in (np.argmin, np.argmax))  # the mouth least and most open
     t_vrm = write_character_avatar(tmp_path / "t.vrm")
     a_vrm = write_character_avatar(tmp_path / "a.vrm", "heavy", "A", 45.0)
     errors = {}
@@ -398,11 +411,29 @@ def test_a_users_vrm_plays_the_result_in_three_vrm(results, browser, tmp_path):
         "T, vrma": (t_vrm,),
         "A, vrma": (a_vrm, "--motion", "vrma"),
         "A, retargeted": (a_vrm,),
+        # a rig anima never wrote: random bone axes, facing -z, "mixamorig1_" names, no humanoid map
+        "glTF, retargeted": (unseen_rig(tmp_path / "unseen.glb", arkit=True),),
     }.items():
         with served(results / "capture", "--avatar", *args) as (url, _):
             browser.get(url)
             wait_ready(browser, 120)
             S = [state(browser, f) for f in frames]
+            # issue 48: the user's avatar gets the face close-up too (its head's part of its skinned meshes, the
+            # camera riding its head bone), and the mouth moves there while the forehead keeps still
+            square = {}
+            for f in (shut, wide):
+                state(browser, f)
+                after_draw(browser)
+                shot_name = f"vrm_face_{name.replace(', ', '_')}_{f}"
+                square[f] = assert_face_inset(browser, shot_name, coloured=not name.startswith("glTF"))
+        side = square[shut].shape[0]
+        moved = np.abs(square[wide] - square[shut]).max(-1)
+        mouth = moved[int(0.62 * side) : int(0.8 * side), int(0.35 * side) : int(0.65 * side)].mean()
+        forehead = moved[int(0.15 * side) : int(0.3 * side), int(0.35 * side) : int(0.65 * side)].mean()
+        print(f"{name}: the close-up's mouth changed {mouth:.1f}, its forehead {forehead:.1f} (grey levels)")
+        assert mouth > 8 and mouth > 3 * forehead, (name, mouth, forehead)
+        if name.startswith("glTF"):
+            continue
         assert len(S[0]["humanoid"]) >= 50 and len(S[0]["expressions"] or {}) >= 15, name
         err = [
             np.abs(_arm_pose(lambda n: np.array(s["humanoid"][n])) - _arm_pose(lambda n: P[f, rig.IX[vrm_of[n]]]))

@@ -140,11 +140,18 @@ function frameView() {
   const fov = (camera.fov * Math.PI) / 180;
   const dist = (0.5 * Math.max(size.y, size.x / camera.aspect)) / Math.tan(fov / 2) + size.z;
   controls.target.copy(c);
-  camera.position.set(c.x, c.y, c.z + dist * 1.15);
+  camera.position.copy(avatarFront()).multiplyScalar(dist * 1.15).add(c); // in front of the character
   camera.near = dist / 100;
   camera.far = dist * 100;
   camera.updateProjectionMatrix();
   controls.update();
+}
+
+// the way a user's avatar faces at its rest, as anima measured it (its hips' and shoulders' left-right line);
+// anima's character and a glTF without that faces +Z
+function avatarFront() {
+  const f = V.avatar && V.avatar.front;
+  return f && f.length === 3 ? new THREE.Vector3(f[0], f[1], f[2]).normalize() : new THREE.Vector3(0, 0, 1);
 }
 
 // a user's VRM (`anima view --avatar x.vrm`): three-vrm loads it, the result comes as a VRM Animation
@@ -570,60 +577,103 @@ function pause() {
   if (audio) audio.pause();
   $("play").textContent = "▶";
 }
-// ---- the face close up (issue 48): an inset in the canvas's top right, a second camera mounted on the head
-// of anima's character, in front of its face, so expressions can be judged by eye (a user's VRM: none)
+// ---- the face close up (issue 48): an inset in the canvas's top right, a second camera mounted on the head, in
+// front of its face, so expressions can be judged by eye: anima's character, or a user's skinned avatar (VRM, glTF)
 const faceCam = new THREE.PerspectiveCamera(30, 1, 0.01, 10);
-faceCam.layers.set(1); // it sees the head's own triangles (faceMesh) and the lights, nothing else
+faceCam.layers.set(1); // it sees the head's own triangles (headPart) and the lights, nothing else
 scene.traverse((o) => {
   if (o.isLight) o.layers.enable(1);
 });
-let faceMesh = null;
+let faceMesh = null; // anima's character's head (its morphs blended on the CPU: copyToFace)
 let faceVerts = null; // the main mesh's vertex index of each of faceMesh's vertices
-// the character's head and neck as a second skinned mesh on layer 1: its own small buffers (the vertices that
-// the head or the neck move most, their triangles) on the same bones; the morphed positions and normals are
-// copied over from the body's mesh when they change, so the close-up costs the head's vertices, not the body's
-function setupFaceMesh(o) {
-  const g = o.geometry;
+let faceFrame = null; // where the close-up looks: {head, centre (head's local), restInv, forward, height}
+// one of an attribute's vertices, as its own kind of array (interleaved ones as plain floats)
+function pickVertices(a, verts) {
+  const n = a.itemSize;
+  if (a.isInterleavedBufferAttribute) {
+    const out = new Float32Array(verts.length * n);
+    verts.forEach((v, i) => {
+      for (let c = 0; c < n; c++) out[i * n + c] = a.getComponent(v, c);
+    });
+    return new THREE.BufferAttribute(out, n);
+  }
+  const out = new a.array.constructor(verts.length * n);
+  verts.forEach((v, i) => {
+    for (let c = 0; c < n; c++) out[i * n + c] = a.array[v * n + c];
+  });
+  return new THREE.BufferAttribute(out, n, a.normalized);
+}
+// the bone that moves each vertex of a skinned mesh most (its index in the mesh's skeleton)
+function mainBones(g) {
   const si = g.attributes.skinIndex;
   const sw = g.attributes.skinWeight;
-  if (!g.index || !si || !sw) return;
-  const keep = new Set(
-    ["Head", "Neck", "HeadTop_End"].map((n) => o.skeleton.bones.findIndex((b) => b.name === n)).filter((i) => i >= 0),
-  );
-  const isHead = new Uint8Array(si.count);
+  const out = new Int32Array(si.count);
   for (let v = 0; v < si.count; v++) {
     let best = -1;
     let bw = -1;
-    for (let k = 0; k < 4; k++) {
+    for (let k = 0; k < si.itemSize; k++) {
       const w = sw.getComponent(v, k);
       if (w > bw) [bw, best] = [w, si.getComponent(v, k)];
     }
-    isHead[v] = keep.has(best) ? 1 : 0;
+    out[v] = best;
   }
-  const idx = g.index.array;
+  return out;
+}
+// The triangles of skinned mesh `o` whose three vertices are moved most by bones `keep` says are the head's, as a
+// second skinned mesh on layer 1 over the same bones, a child of `o`: its own small buffers (and its morph targets
+// where the GPU blends them, sharing `o`'s weights), so the close-up costs the head's vertices, not the body's.
+// Returns {mesh, verts: o's vertex index of each of its vertices} or null.
+function headPart(o, keep, gpuMorphs) {
+  const g = o.geometry;
+  if (!g.attributes.skinIndex || !g.attributes.skinWeight || !o.skeleton) return null;
+  const inHead = o.skeleton.bones.map((b) => keep(b));
+  if (!inHead.some(Boolean)) return null;
+  const main = mainBones(g);
+  const isHead = (v) => main[v] >= 0 && inHead[main[v]];
+  const idx = g.index ? g.index.array : Array.from({ length: g.attributes.position.count }, (_, i) => i);
+  // a mesh drawn with several materials (MToon's outline: a second pass) keeps its groups
+  const ranges = g.groups.length ? g.groups : [{ start: 0, count: idx.length, materialIndex: 0 }];
   const tris = [];
-  for (let t = 0; t < idx.length; t += 3) {
-    if (isHead[idx[t]] && isHead[idx[t + 1]] && isHead[idx[t + 2]]) tris.push(idx[t], idx[t + 1], idx[t + 2]);
+  const groups = [];
+  for (const r of ranges) {
+    const from = tris.length;
+    for (let t = r.start; t + 2 < Math.min(idx.length, r.start + r.count); t += 3) {
+      if (isHead(idx[t]) && isHead(idx[t + 1]) && isHead(idx[t + 2])) tris.push(idx[t], idx[t + 1], idx[t + 2]);
+    }
+    if (tris.length > from) groups.push([from, tris.length - from, r.materialIndex]);
   }
-  if (!tris.length) return;
+  if (!tris.length) return null;
   const verts = Int32Array.from(new Set(tris)).sort();
   const local = new Map(Array.from(verts, (v, i) => [v, i]));
   const hg = new THREE.BufferGeometry();
-  for (const [name, a] of Object.entries(g.attributes)) {
-    const n = a.itemSize;
-    const out = new a.array.constructor(verts.length * n);
-    verts.forEach((v, i) => {
-      for (let c = 0; c < n; c++) out[i * n + c] = a.array[v * n + c];
-    });
-    hg.setAttribute(name, new THREE.BufferAttribute(out, n, a.normalized));
+  for (const [name, a] of Object.entries(g.attributes)) hg.setAttribute(name, pickVertices(a, verts));
+  if (gpuMorphs) {
+    for (const [name, list] of Object.entries(g.morphAttributes)) {
+      hg.morphAttributes[name] = list.map((a) => pickVertices(a, verts));
+    }
+    hg.morphTargetsRelative = g.morphTargetsRelative;
   }
   hg.setIndex(tris.map((v) => local.get(v)));
-  faceVerts = verts;
-  faceMesh = new THREE.SkinnedMesh(hg, o.material);
-  faceMesh.bind(o.skeleton, o.bindMatrix);
-  faceMesh.frustumCulled = false;
-  faceMesh.layers.set(1);
-  o.add(faceMesh);
+  if (Array.isArray(o.material)) for (const [s, c, m] of groups) hg.addGroup(s, c, m);
+  const mesh = new THREE.SkinnedMesh(hg, o.material);
+  mesh.bind(o.skeleton, o.bindMatrix);
+  if (gpuMorphs && o.morphTargetInfluences) {
+    // the same array: whatever sets the avatar's weights (the animation, three-vrm's expressions) sets these
+    mesh.morphTargetInfluences = o.morphTargetInfluences;
+    mesh.morphTargetDictionary = o.morphTargetDictionary;
+  }
+  mesh.frustumCulled = false;
+  mesh.layers.set(1);
+  o.add(mesh);
+  return { mesh, verts };
+}
+// anima's character: its head and neck (the vertices the head or the neck move most); the morphed positions and
+// normals are copied over from the body's mesh when they change
+function setupFaceMesh(o) {
+  const part = headPart(o, (b) => ["Head", "Neck", "HeadTop_End"].includes(b.name), false);
+  if (!part) return;
+  faceMesh = part.mesh;
+  faceVerts = part.verts;
 }
 function copyToFace(g) {
   for (const name of ["position", "normal"]) {
@@ -638,20 +688,66 @@ function copyToFace(g) {
     a.needsUpdate = true;
   }
 }
-const FACE_M = 0.3; // the height of face the inset shows (metres)
+const FACE_M = 0.3; // the height of face the inset shows for anima's character (metres)
 const FACE_INSET = 0.3; // the inset's side, a fraction of the canvas's height
 const facePos = new THREE.Vector3();
+// the head's bone: a VRM's humanoid says; else by name (three.js drops the ':' of "mixamorig:Head")
 function headBone() {
   if (vrm) return vrm.humanoid.getRawBoneNode("head");
-  return bones.Head || bones["mixamorig:Head"] || bones.head || null;
+  const named = bones.Head || bones.mixamorigHead || bones["mixamorig:Head"] || bones.head;
+  return named || Object.values(bones).find((b) => /(^|[^a-z])head$/i.test(b.name)) || null;
 }
-// the face's centre and the yaw it faces (world), or null where there is no character's head
+// A user's avatar, at its rest (before the first frame is applied): the head's part of each of its skinned meshes
+// (the vertices moved most by the head bone or a bone under it: jaw, eyes, hair; or by the neck), and the frame
+// the close-up looks from: the skull's vertices' centre and height, and the avatar's front at rest, carried by
+// the head's turn from its rest.
+function setupAvatarFace() {
+  const head = headBone();
+  if (!head) return;
+  const underHead = new Set();
+  head.traverse((b) => underHead.add(b));
+  const keep = (b) => underHead.has(b) || b === head.parent;
+  const skull = new Set([head]);
+  if (vrm) for (const n of ["jaw", "leftEye", "rightEye"]) skull.add(vrm.humanoid.getRawBoneNode(n));
+  scene.updateMatrixWorld(true);
+  const box = new THREE.Box3();
+  const all = new THREE.Box3();
+  const p = new THREE.Vector3();
+  const meshes = [];
+  scene.traverse((o) => {
+    if (o.isSkinnedMesh && o.layers.isEnabled(0)) meshes.push(o);
+  });
+  for (const o of meshes) {
+    const part = headPart(o, keep, true);
+    if (!part) continue;
+    const main = mainBones(o.geometry);
+    for (const v of part.verts) {
+      o.localToWorld(o.getVertexPosition(v, p));
+      all.expandByPoint(p);
+      if (skull.has(o.skeleton.bones[main[v]])) box.expandByPoint(p);
+    }
+  }
+  if (all.isEmpty()) return;
+  // rigid parts under the head (glasses, a hat) are seen too
+  head.traverse((o) => {
+    if (o.isMesh && !o.isSkinnedMesh) o.layers.enable(1);
+  });
+  const face = box.isEmpty() ? all : box;
+  const size = face.getSize(new THREE.Vector3());
+  faceFrame = {
+    head,
+    centre: head.worldToLocal(face.getCenter(new THREE.Vector3())),
+    restInv: head.getWorldQuaternion(new THREE.Quaternion()).invert(),
+    forward: avatarFront(),
+    height: Math.min(0.6, Math.max(0.15, 1.25 * size.y)),
+  };
+}
+// the face's centre and how the head has turned (world), or null where there is no head to look at
 function faceTarget() {
-  const head = faceMesh ? headBone() : null;
-  if (!head) return null;
-  // anima's head joint is the skull's base, the face about 9 cm above it; a VRM's head bone sits about there too
-  const centre = head.localToWorld(new THREE.Vector3(0, 0.085, 0.02));
-  return { centre, q: head.getWorldQuaternion(new THREE.Quaternion()) };
+  if (!faceFrame) return null;
+  const { head, centre, restInv, forward, height } = faceFrame;
+  const q = head.getWorldQuaternion(new THREE.Quaternion()).multiply(restInv);
+  return { centre: head.localToWorld(centre.clone()), q, forward, height };
 }
 // its own small canvas over the 3D view's top right (a second WebGL context): drawn when the frame or the head
 // changed, at most every FACE_EVERY_MS while playing, so the body's view keeps the clip's frame rate on a
@@ -662,7 +758,17 @@ let faceRenderer = null;
 let faceDirty = true;
 let faceDrawnAt = -1e9;
 function setupFaceView() {
-  if (!faceMesh || faceRenderer || HASH.has("noface")) return; // (#noface: the page without it)
+  if (faceRenderer || HASH.has("noface")) return; // (#noface: the page without it)
+  if (faceMesh) {
+    const head = headBone();
+    // anima's head joint is the skull's base, the face about 9 cm above it; the rig's rest faces +Z
+    const centre = new THREE.Vector3(0, 0.085, 0.02);
+    const forward = new THREE.Vector3(0, 0, 1);
+    if (head) faceFrame = { head, centre, restInv: new THREE.Quaternion(), forward, height: FACE_M };
+  } else if (V.avatar && (vrm || morphMesh || Object.keys(bones).length)) {
+    setupAvatarFace();
+  }
+  if (!faceFrame) return;
   const wrap = document.createElement("div");
   wrap.style.position = "relative";
   canvas.parentNode.insertBefore(wrap, canvas);
@@ -689,8 +795,8 @@ function renderFace(now) {
   if (!t) return;
   // the camera rides on the head like a helmet camera: the face seen from straight in front on every frame, only
   // the expression moves (the body's view shows where the head turns; export/avatar.py's face_camera says why)
-  const dist = (0.5 * FACE_M) / Math.tan((faceCam.fov * Math.PI) / 360);
-  facePos.set(0, 0, dist).applyQuaternion(t.q).add(t.centre);
+  const dist = (0.5 * t.height) / Math.tan((faceCam.fov * Math.PI) / 360);
+  facePos.copy(t.forward).multiplyScalar(dist).applyQuaternion(t.q).add(t.centre);
   faceCam.position.copy(facePos);
   faceCam.up.set(0, 1, 0).applyQuaternion(t.q);
   faceCam.lookAt(t.centre);
