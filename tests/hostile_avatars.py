@@ -195,3 +195,15 @@ def unseen_rig(path, seed=3, arkit=False):
         list(zip(ch.morph_index, ch.morph_delta)), morphs,
         np.zeros((1, len(ch.morph_index))), 30.0, animated=~rig.LEAVES, rest_rotations=R,
     )  # fmt: skip
+
+
+def with_mtoon_outline(src: Path, dst: Path) -> Path:
+    """VRM ``src`` with its first material drawn by MToon (``VRMC_materials_mtoon``) with an outline, as VRoid's
+    avatars are: three-vrm then draws the mesh with two materials (the surface, the outline) over two groups."""
+    doc, binary = read_glb(Path(src))
+    doc["extensionsUsed"] = [*doc.get("extensionsUsed", []), "VRMC_materials_mtoon"]
+    doc["materials"][0].setdefault("extensions", {})["VRMC_materials_mtoon"] = {
+        "specVersion": "1.0", "shadeColorFactor": [0.8, 0.7, 0.7], "outlineWidthMode": "worldCoordinates",
+        "outlineWidthFactor": 0.002, "outlineColorFactor": [0.1, 0.05, 0.05], "outlineLightingMixFactor": 0.0,
+    }  # fmt: skip
+    return pack(Path(dst), doc, binary)
