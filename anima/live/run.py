@@ -27,11 +27,10 @@ import numpy as np
 from anima.core import rig
 from anima.core.contract import EXPR_NAMES
 from anima.errors import InputError
-from anima.export.retarget import LiveRetarget, avatar_front, find_humanoid
+from anima.export.retarget import LiveRetarget, avatar_front
 from anima.export.vrm import write_character_avatar
 from anima.facemodel.character import load_character
 from anima.io.atomic import copy_file, write_text
-from anima.io.gltf_read import read_gltf
 from anima.io.outdir import OutputFolder, check_out_dir, holds_nothing
 from anima.io.validate import input_file
 from anima.live.config import LiveConfig
@@ -46,7 +45,8 @@ from anima.view.ws import Broadcaster
 __all__ = ["check", "recover", "run"]
 
 
-def _page(root: Path, title: str, fps: float, avatar: str | None = None) -> None:
+def _page(root: Path, title: str, fps: float, avatar: str | None = None, front: list | None = None) -> None:
+    """The live page in ``root``: anima's character, or ``avatar`` as it is (``front``: its forward at rest)."""
     data = {
         "schema": "anima.view", "version": 1, "kind": "live", "live": True, "title": title, "fps": fps,
         "frames": 1, "videos": [], "audio": None, "curves": {}, "marks": [], "ranges": [], "joints": {},
@@ -54,9 +54,8 @@ def _page(root: Path, title: str, fps: float, avatar: str | None = None) -> None
     }  # fmt: skip
     if avatar is not None:  # the user's file as it is: the page moves its own bones (LiveRetarget)
         vrm = Path(avatar).suffix.lower() == ".vrm"
-        g = read_gltf(avatar)
         data["avatar"] = {"avatar": Path(avatar).name, "as": "retargeted live, frame by frame", "vrm": vrm,
-                          "front": avatar_front(g, find_humanoid(g))}  # fmt: skip
+                          "front": front}  # fmt: skip
         write_text(root / "view-data.js", _js("ANIMA_VIEW", data))
         write_text(root / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(Path(avatar).read_bytes()).decode()))
         for f in viewer_files():
@@ -126,7 +125,8 @@ def run(cfg: LiveConfig, command: str | None = None, announce=print) -> dict:
     )
     journal = Journal(od, reader.fps) if od is not None else None
     try:
-        _page(root, f"live: {Path(src).name if Path(src).exists() else src}", reader.fps, cfg.avatar)
+        front = avatar_front(retarget.g, retarget.hum) if retarget is not None else None
+        _page(root, f"live: {Path(src).name if Path(src).exists() else src}", reader.fps, cfg.avatar, front)
         server, note = open_server(root, cfg.port, live=hub)
         threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.2}, daemon=True).start()
         url = page_url(server)

@@ -622,7 +622,7 @@ function mainBones(g) {
 // The triangles of skinned mesh `o` whose three vertices are moved most by bones `keep` says are the head's, as a
 // second skinned mesh on layer 1 over the same bones, a child of `o`: its own small buffers (and its morph targets
 // where the GPU blends them, sharing `o`'s weights), so the close-up costs the head's vertices, not the body's.
-// Returns {mesh, verts: o's vertex index of each of its vertices} or null.
+// Returns {mesh, verts: o's vertex index of each of its vertices, main: mainBones of o} or null.
 function headPart(o, keep, gpuMorphs) {
   const g = o.geometry;
   if (!g.attributes.skinIndex || !g.attributes.skinWeight || !o.skeleton) return null;
@@ -665,7 +665,7 @@ function headPart(o, keep, gpuMorphs) {
   mesh.frustumCulled = false;
   mesh.layers.set(1);
   o.add(mesh);
-  return { mesh, verts };
+  return { mesh, verts, main };
 }
 // anima's character: its head and neck (the vertices the head or the neck move most); the morphed positions and
 // normals are copied over from the body's mesh when they change
@@ -720,7 +720,7 @@ function setupAvatarFace() {
   for (const o of meshes) {
     const part = headPart(o, keep, true);
     if (!part) continue;
-    const main = mainBones(o.geometry);
+    const { main } = part;
     for (const v of part.verts) {
       o.localToWorld(o.getVertexPosition(v, p));
       all.expandByPoint(p);
