@@ -207,3 +207,63 @@ def with_mtoon_outline(src: Path, dst: Path) -> Path:
         "outlineWidthFactor": 0.002, "outlineColorFactor": [0.1, 0.05, 0.05], "outlineLightingMixFactor": 0.0,
     }  # fmt: skip
     return pack(Path(dst), doc, binary)
+
+
+_COMPONENTS = {5121: np.uint8, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
+_WIDTH = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}
+
+
+def _accessor(doc: dict, binary: bytes, i: int) -> np.ndarray:
+    """A tightly packed accessor's values ``[count, width]`` (what anima's writer makes)."""
+    a = doc["accessors"][i]
+    view = doc["bufferViews"][a["bufferView"]]
+    dtype, width = np.dtype(_COMPONENTS[a["componentType"]]), _WIDTH[a["type"]]
+    start = view.get("byteOffset", 0) + a.get("byteOffset", 0)
+    return np.frombuffer(binary, dtype, a["count"] * width, start).reshape(a["count"], width)
+
+
+def split_like_vroid(src: Path, dst: Path) -> Path:
+    """VRM ``src`` (one skinned mesh) made of separate meshes on the same skin, as VRoid's avatars are: a face mesh
+    (the triangles the head bone or a bone under it moves most) of two primitives with two materials (the skin; the
+    eyes, brows, lips, lashes and teeth), both carrying the morph targets the expressions bind, and a body mesh
+    (every other triangle, the neck's too) with none."""
+    doc, binary = read_glb(Path(src))
+    node = next(i for i, n in enumerate(doc["nodes"]) if "mesh" in n)
+    mesh = doc["meshes"][doc["nodes"][node]["mesh"]]
+    (prim,) = mesh["primitives"]
+    tris = _accessor(doc, binary, prim["indices"]).reshape(-1, 3)
+    joints = _accessor(doc, binary, prim["attributes"]["JOINTS_0"])
+    weights = _accessor(doc, binary, prim["attributes"]["WEIGHTS_0"])
+    colour = _accessor(doc, binary, prim["attributes"]["COLOR_0"])[:, :3]
+    skin = doc["skins"][doc["nodes"][node]["skin"]]["joints"]
+    under = [doc["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"]["head"]["node"]]
+    for n in under:
+        under += doc["nodes"][n].get("children", [])
+    main = np.asarray(skin)[joints[np.arange(len(joints)), np.argmax(weights, 1)]]
+    head = np.isin(main, under)[tris].all(1)
+    values, counts = np.unique(colour, axis=0, return_counts=True)
+    skin_coloured = np.all(colour == values[np.argmax(counts)], 1)[tris].all(1)
+    binary = bytearray(binary)
+
+    def indices(t: np.ndarray) -> int:
+        data = np.ascontiguousarray(t, np.uint32).tobytes()
+        binary.extend(bytes((4 - len(binary) % 4) % 4))
+        doc["bufferViews"].append({"buffer": 0, "byteOffset": len(binary), "byteLength": len(data), "target": 34963})
+        binary.extend(data)
+        doc["accessors"].append({"bufferView": len(doc["bufferViews"]) - 1, "componentType": 5125,
+                                 "count": t.size, "type": "SCALAR"})  # fmt: skip
+        return len(doc["accessors"]) - 1
+
+    doc["materials"].append({**doc["materials"][0], "name": "face parts"})
+    face_parts = len(doc["materials"]) - 1
+    mesh["name"] = "Face"
+    mesh["primitives"] = [
+        {**prim, "indices": indices(tris[head & skin_coloured])},
+        {**prim, "indices": indices(tris[head & ~skin_coloured]), "material": face_parts},
+    ]
+    body = {k: v for k, v in prim.items() if k != "targets"}
+    doc["meshes"].append({"name": "Body", "primitives": [{**body, "indices": indices(tris[~head])}]})
+    doc["nodes"].append({"name": "Body", "mesh": len(doc["meshes"]) - 1, "skin": doc["nodes"][node]["skin"]})
+    doc["scenes"][doc.get("scene", 0)]["nodes"].append(len(doc["nodes"]) - 1)
+    doc["buffers"][0]["byteLength"] = len(binary)
+    return pack(Path(dst), doc, bytes(binary))

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from browser import chromium, console, have_browser, play_and_sample, requests, served, wait_media, wait_ready
-from hostile_avatars import unseen_rig, with_mtoon_outline
+from hostile_avatars import split_like_vroid, unseen_rig, with_mtoon_outline
 
 from anima.core import rig
 from anima.core.contract import EXPR_NAMES
@@ -394,7 +394,8 @@ def test_a_users_vrm_plays_the_result_in_three_vrm(results, browser, tmp_path):
     source and the blink and viseme expressions following the face; an A-pose VRM plays the VRM Animation
     too (relative to its rest, as VRM defines it) and, retargeted by anima, keeps the source's arm pose. Issue 48:
     each shows the avatar's face close up, its mouth opening and shutting with the source's, and so do a glTF
-    rig anima never wrote (random bone axes, facing -z) and a VRM drawn by MToon with an outline (VRoid's way)."""
+    rig anima never wrote (random bone axes, facing -z), a VRM drawn by MToon with an outline and one made of a
+    face mesh and a body mesh (VRoid's ways)."""
     from anima.export.avatar import character_motion
     from anima.export.vrm import arkit_weights, vrm_expressions, write_character_avatar
 
@@ -412,6 +413,8 @@ def test_a_users_vrm_plays_the_result_in_three_vrm(results, browser, tmp_path):
         "A, vrma": (a_vrm, "--motion", "vrma"),
         "A, retargeted": (a_vrm,),
         "MToon, vrma": (with_mtoon_outline(t_vrm, tmp_path / "mtoon.vrm"),),  # as VRoid's: surface and outline
+        # as VRoid's too: a face mesh of two primitives (skin; eyes, brows, lips) with the morphs, a body mesh
+        "split, vrma": (split_like_vroid(t_vrm, tmp_path / "split.vrm"),),
         # a rig anima never wrote: random bone axes, facing -z, "mixamorig1_" names, no humanoid map
         "glTF, retargeted": (unseen_rig(tmp_path / "unseen.glb", arkit=True),),
     }.items():
@@ -433,13 +436,21 @@ def test_a_users_vrm_plays_the_result_in_three_vrm(results, browser, tmp_path):
                     " out.push([[].concat(o.material).length, o.geometry.groups.length]); }); return out;"
                 )
                 assert kinds == [[2, 2]], kinds
+            if name.startswith("split"):  # each mesh gets its head's part: the face's two, the body's neck
+                parts = browser.execute_script(
+                    "const out = []; anima._debug.scene.traverse((o) => { if (o.isMesh && o.layers.mask === 2)"
+                    " out.push([o.parent.name, o.geometry.index.count / 3, !!o.morphTargetInfluences]); });"
+                    " return out;"
+                )
+                print(name, parts)
+                assert len(parts) == 3 and sum(p[2] for p in parts) == 2, parts
         side = square[shut].shape[0]
         moved = np.abs(square[wide] - square[shut]).max(-1)
         mouth = moved[int(0.62 * side) : int(0.8 * side), int(0.35 * side) : int(0.65 * side)].mean()
         forehead = moved[int(0.15 * side) : int(0.3 * side), int(0.35 * side) : int(0.65 * side)].mean()
         print(f"{name}: the close-up's mouth changed {mouth:.1f}, its forehead {forehead:.1f} (grey levels)")
         assert mouth > 8 and mouth > 3 * forehead, (name, mouth, forehead)
-        if name.startswith(("glTF", "MToon")):
+        if name.startswith(("glTF", "MToon", "split")):
             continue
         assert len(S[0]["humanoid"]) >= 50 and len(S[0]["expressions"] or {}) >= 15, name
         err = [
