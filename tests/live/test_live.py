@@ -4,11 +4,13 @@ benchmarks/bench_live.py, tests check behaviour), Live Link Face packets leave a
 recorded take matches an offline `anima capture` of the same frames."""
 
 import json
+import os
 import re
 import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,6 +21,7 @@ from anima.io.assets import asset
 from anima.io.sequence import read_sequence
 
 pytestmark = pytest.mark.slow
+SHOTS = Path(os.environ.get("ANIMA_TEST_ARTIFACTS", Path(__file__).resolve().parents[2] / "test-artifacts")) / "live"
 D0 = "liveportrait-examples/assets/examples/driving/d0.mp4"  # a face: a smile and blinks
 D6 = "liveportrait-examples/assets/examples/driving/d6.mp4"  # a face turning, 30 fps
 S13 = "liveportrait-examples/assets/examples/source/s13.mp4"  # a woman standing, full body, 25 fps
@@ -159,27 +162,56 @@ def test_a_killed_take_keeps_its_parts_and_is_recovered(tmp_path):
     assert not (rec / "take").exists() and not any(n.startswith("take/") for n in read_marker(rec)["files"])
 
 
-def test_a_users_vrm_follows_the_camera_live(tmp_path):
+@pytest.mark.parametrize("avatar", ["shared sample", "cut like VRoid's"])
+def test_a_users_vrm_follows_the_camera_live(tmp_path, avatar):
     """--avatar: the page loads the user's VRM as it is (three-vrm) and each message poses its own bones (the
-    retargeting of `anima retarget`, one frame at a time): its hands move with the tracked person's."""
+    retargeting of `anima retarget`, one frame at a time): its hands move with the tracked person's. The shared
+    sample (a third party's VRM, its head a test quad) and anima's own VRM cut in meshes as VRoid's avatars are
+    (a face mesh of two primitives with the morphs, a body mesh): that one also shows its face close up, its face
+    morphs moving with the person's (issue 48)."""
+    from hostile_avatars import split_like_vroid
+
+    from anima.export.vrm import write_character_avatar
+
     assert have_browser() is None, have_browser()
-    vrm = asset("avatars/VRMC_materials_mtoon_UV_Animation_Test.vrm")
+    if avatar == "shared sample":
+        vrm = asset("avatars/VRMC_materials_mtoon_UV_Animation_Test.vrm")
+    else:
+        vrm = split_like_vroid(write_character_avatar(tmp_path / "t.vrm"), tmp_path / "split.vrm")
     p = _live(asset("gesture-video/pats-crops/oliver1_gt.mp4"), "--realtime", "--trackers", "1", "--avatar", vrm,
               "--max-seconds", "30")  # fmt: skip
     url = re.search(r"(http://127\.0\.0\.1:\d+/\S+/index\.html)", p.stdout.readline()).group(1)
+    face = (  # the close-up's canvas, and the morph weights of the close-up's face parts
+        "const w = []; anima._debug.scene.traverse((o) => { if (o.isMesh && o.layers.mask === 2"
+        " && o.morphTargetInfluences) w.push(...o.morphTargetInfluences); });"
+        " return [!!document.getElementById('face3d'), w];"
+    )
     with chromium() as b:
         b.get(url)
         samples = []
         for _ in range(8):
             time.sleep(0.6)
-            samples.append(b.execute_script("return [anima.live, anima.state(), anima.error || null]"))
+            samples.append(
+                b.execute_script(f"return [anima.live, anima.state(), anima.error || null, (() => {{{face}}})()]")
+            )
+        if avatar != "shared sample":  # for people to look at: the avatar and its face close up, live
+            SHOTS.mkdir(parents=True, exist_ok=True)
+            (SHOTS / "live_vroid_cut.png").write_bytes(b.get_screenshot_as_png())
     p.send_signal(signal.SIGINT)
     _result(p)
-    live, state, err = samples[-1]
+    live, state, err, _ = samples[-1]
     assert err is None and live and live["received"] > 10, (err, live and live["received"])
     assert state["humanoid"] and "leftHand" in state["humanoid"], state["humanoid"]
-    hands = np.array([s["humanoid"]["leftHand"] + s["humanoid"]["rightHand"] for _, s, _ in samples[2:]])
+    hands = np.array([s["humanoid"]["leftHand"] + s["humanoid"]["rightHand"] for _, s, _, _ in samples[2:]])
     assert np.isfinite(hands).all() and np.ptp(hands, 0).max() > 0.01  # the avatar's own hands move
+    shown = [f for *_, f in samples[2:]]
+    if avatar == "shared sample":  # no skinned head: no close-up
+        assert not any(c for c, _ in shown), shown
+    else:
+        assert all(c for c, _ in shown), shown
+        morphs = np.array([w for _, w in shown])
+        print(avatar, "the close-up's face morphs move by up to", np.ptp(morphs, 0).max().round(3))
+        assert morphs.shape[1] == 2 * 53 and np.ptp(morphs, 0).max() > 0.05, morphs.shape  # the face moves
 
 
 def test_a_take_never_touches_what_it_did_not_start(cli, tmp_path):
