@@ -131,7 +131,7 @@ def _edits(doc: dict) -> dict:
                     "samplers": [{"input": 0, "output": 0}],
                     "channels": [{"sampler": 0, "target": {"node": hips, "path": "colour"}}],
                 }
-            ],  # fmt: skip
+            ],
         ),
         "animation sampler out of range": set_(
             ["animations"], [{"samplers": [], "channels": [{"sampler": 3, "target": {"node": 0, "path": "rotation"}}]}]
@@ -214,12 +214,51 @@ _WIDTH = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}
 
 
 def _accessor(doc: dict, binary: bytes, i: int) -> np.ndarray:
-    """A tightly packed accessor's values ``[count, width]`` (what anima's writer makes)."""
+    """A tightly packed accessor's values ``[count, width]``, sparse ones too (what anima's writer makes)."""
     a = doc["accessors"][i]
-    view = doc["bufferViews"][a["bufferView"]]
     dtype, width = np.dtype(_COMPONENTS[a["componentType"]]), _WIDTH[a["type"]]
-    start = view.get("byteOffset", 0) + a.get("byteOffset", 0)
-    return np.frombuffer(binary, dtype, a["count"] * width, start).reshape(a["count"], width)
+
+    def read(view: int, dt, n: int, offset: int = 0) -> np.ndarray:
+        start = doc["bufferViews"][view].get("byteOffset", 0) + offset
+        return np.frombuffer(binary, dt, n, start)
+
+    if "bufferView" in a:
+        out = read(a["bufferView"], dtype, a["count"] * width, a.get("byteOffset", 0)).reshape(-1, width).copy()
+    else:
+        out = np.zeros((a["count"], width), dtype)
+    if "sparse" in a:
+        sp = a["sparse"]
+        idx = read(sp["indices"]["bufferView"], _COMPONENTS[sp["indices"]["componentType"]], sp["count"])
+        out[idx] = read(sp["values"]["bufferView"], dtype, sp["count"] * width).reshape(-1, width)
+    return out
+
+
+def _append(doc: dict, binary: bytearray, values: np.ndarray, kind: str, target: int | None = None) -> int:
+    """``values`` (float32 ``[n, 3]`` or uint32 ``[n]``) as a new accessor at the end of ``binary``."""
+    data = np.ascontiguousarray(values).tobytes()
+    binary.extend(bytes((4 - len(binary) % 4) % 4))
+    view = {"buffer": 0, "byteOffset": len(binary), "byteLength": len(data), **({"target": target} if target else {})}
+    doc["bufferViews"].append(view)
+    binary.extend(data)
+    acc = {"bufferView": len(doc["bufferViews"]) - 1, "count": len(values), "type": kind,
+           "componentType": 5125 if values.dtype == np.uint32 else 5126}  # fmt: skip
+    if kind == "VEC3":
+        acc |= {"min": values.min(0).tolist(), "max": values.max(0).tolist()}
+    doc["accessors"].append(acc)
+    return len(doc["accessors"]) - 1
+
+
+def _head_triangles(doc: dict, binary: bytes, node: int, prim: dict) -> tuple[np.ndarray, np.ndarray]:
+    """``(triangles [T, 3], whether the head bone or a bone under it moves all three of its vertices most [T])``."""
+    tris = _accessor(doc, binary, prim["indices"]).reshape(-1, 3)
+    joints = _accessor(doc, binary, prim["attributes"]["JOINTS_0"])
+    weights = _accessor(doc, binary, prim["attributes"]["WEIGHTS_0"])
+    skin = doc["skins"][doc["nodes"][node]["skin"]]["joints"]
+    under = [doc["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"]["head"]["node"]]
+    for n in under:
+        under += doc["nodes"][n].get("children", [])
+    main = np.asarray(skin)[joints[np.arange(len(joints)), np.argmax(weights, 1)]]
+    return tris, np.isin(main, under)[tris].all(1)
 
 
 def split_like_vroid(src: Path, dst: Path) -> Path:
@@ -231,28 +270,14 @@ def split_like_vroid(src: Path, dst: Path) -> Path:
     node = next(i for i, n in enumerate(doc["nodes"]) if "mesh" in n)
     mesh = doc["meshes"][doc["nodes"][node]["mesh"]]
     (prim,) = mesh["primitives"]
-    tris = _accessor(doc, binary, prim["indices"]).reshape(-1, 3)
-    joints = _accessor(doc, binary, prim["attributes"]["JOINTS_0"])
-    weights = _accessor(doc, binary, prim["attributes"]["WEIGHTS_0"])
+    tris, head = _head_triangles(doc, binary, node, prim)
     colour = _accessor(doc, binary, prim["attributes"]["COLOR_0"])[:, :3]
-    skin = doc["skins"][doc["nodes"][node]["skin"]]["joints"]
-    under = [doc["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"]["head"]["node"]]
-    for n in under:
-        under += doc["nodes"][n].get("children", [])
-    main = np.asarray(skin)[joints[np.arange(len(joints)), np.argmax(weights, 1)]]
-    head = np.isin(main, under)[tris].all(1)
     values, counts = np.unique(colour, axis=0, return_counts=True)
     skin_coloured = np.all(colour == values[np.argmax(counts)], 1)[tris].all(1)
     binary = bytearray(binary)
 
     def indices(t: np.ndarray) -> int:
-        data = np.ascontiguousarray(t, np.uint32).tobytes()
-        binary.extend(bytes((4 - len(binary) % 4) % 4))
-        doc["bufferViews"].append({"buffer": 0, "byteOffset": len(binary), "byteLength": len(data), "target": 34963})
-        binary.extend(data)
-        doc["accessors"].append({"bufferView": len(doc["bufferViews"]) - 1, "componentType": 5125,
-                                 "count": t.size, "type": "SCALAR"})  # fmt: skip
-        return len(doc["accessors"]) - 1
+        return _append(doc, binary, t.astype(np.uint32).ravel(), "SCALAR", 34963)
 
     doc["materials"].append({**doc["materials"][0], "name": "face parts"})
     face_parts = len(doc["materials"]) - 1
@@ -265,5 +290,53 @@ def split_like_vroid(src: Path, dst: Path) -> Path:
     doc["meshes"].append({"name": "Body", "primitives": [{**body, "indices": indices(tris[~head])}]})
     doc["nodes"].append({"name": "Body", "mesh": len(doc["meshes"]) - 1, "skin": doc["nodes"][node]["skin"]})
     doc["scenes"][doc.get("scene", 0)]["nodes"].append(len(doc["nodes"]) - 1)
+    doc["buffers"][0]["byteLength"] = len(binary)
+    return pack(Path(dst), doc, bytes(binary))
+
+
+def rigid_head(src: Path, dst: Path) -> Path:
+    """VRM ``src`` (one skinned mesh, its rest unturned) with its head as a rigid mesh, a child of the head bone
+    (no skin), carrying the morph targets the expressions bind, as low-poly and robot avatars are built; the body
+    stays skinned (with its neck) and has none."""
+    doc, binary = read_glb(Path(src))
+    node = next(i for i, n in enumerate(doc["nodes"]) if "mesh" in n)
+    mesh = doc["meshes"][doc["nodes"][node]["mesh"]]
+    (prim,) = mesh["primitives"]
+    tris, head = _head_triangles(doc, binary, node, prim)
+    bone = doc["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"]["head"]["node"]
+    parent = {c: i for i, n in enumerate(doc["nodes"]) for c in n.get("children", [])}
+    at, n = np.zeros(3), bone
+    while n is not None:  # the head bone's place at rest (every rotation of this rest is the identity)
+        assert doc["nodes"][n].get("rotation", [0, 0, 0, 1]) == [0, 0, 0, 1], "a rest with turned bones"
+        at += doc["nodes"][n].get("translation", [0, 0, 0])
+        n = parent.get(n)
+    used = np.unique(tris[head])
+    local = np.full(int(tris.max()) + 1, -1)
+    local[used] = np.arange(len(used))
+    binary = bytearray(binary)
+    attr = lambda name: _accessor(doc, binary, prim["attributes"][name])[used]
+    rigid = {
+        "attributes": {
+            "POSITION": _append(doc, binary, (attr("POSITION") - at).astype(np.float32), "VEC3", 34962),
+            "NORMAL": _append(doc, binary, attr("NORMAL").astype(np.float32), "VEC3", 34962),
+            "COLOR_0": _append(doc, binary, (attr("COLOR_0") / 255.0).astype(np.float32), "VEC4", 34962),
+        },
+        "indices": _append(doc, binary, local[tris[head]].astype(np.uint32).ravel(), "SCALAR", 34963),
+        "targets": [
+            {"POSITION": _append(doc, binary, _accessor(doc, binary, t["POSITION"])[used], "VEC3")}
+            for t in prim["targets"]
+        ],
+        "material": prim["material"],
+    }
+    doc["meshes"].append({"name": "Head", "primitives": [rigid], "extras": mesh.get("extras", {})})
+    doc["nodes"].append({"name": "Head mesh", "mesh": len(doc["meshes"]) - 1})
+    doc["nodes"][bone].setdefault("children", []).append(len(doc["nodes"]) - 1)
+    mesh["primitives"] = [{**{k: v for k, v in prim.items() if k != "targets"}, "indices": _append(
+        doc, binary, tris[~head].astype(np.uint32).ravel(), "SCALAR", 34963)}]  # fmt: skip
+    mesh.pop("extras", None)
+    mesh.pop("weights", None)
+    for e in doc["extensions"]["VRMC_vrm"]["expressions"]["preset"].values():
+        for b in e.get("morphTargetBinds", []):
+            b["node"] = len(doc["nodes"]) - 1
     doc["buffers"][0]["byteLength"] = len(binary)
     return pack(Path(dst), doc, bytes(binary))

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from browser import chromium, console, have_browser, play_and_sample, requests, served, wait_media, wait_ready
-from hostile_avatars import split_like_vroid, unseen_rig, with_mtoon_outline
+from hostile_avatars import rigid_head, split_like_vroid, unseen_rig, with_mtoon_outline
 
 from anima.core import rig
 from anima.core.contract import EXPR_NAMES
@@ -416,6 +416,9 @@ def test_a_users_vrm_plays_the_result_in_three_vrm(results, browser, tmp_path):
         # as VRoid's too: a face mesh of two primitives (skin; eyes, brows, lips) with the morphs, a body mesh
         "split, vrma": (split_like_vroid(t_vrm, tmp_path / "split.vrm"),),
         "split, retargeted": (tmp_path / "split.vrm", "--motion", "retarget"),
+        # a rigid head (a child of the head bone, no skin) with the morphs, as low-poly and robot avatars are built
+        "rigid head, vrma": (rigid_head(t_vrm, tmp_path / "rigid.vrm"),),
+        "rigid head, retargeted": (tmp_path / "rigid.vrm", "--motion", "retarget"),
         # a rig anima never wrote: random bone axes, facing -z, "mixamorig1_" names, no humanoid map
         "glTF, retargeted": (unseen_rig(tmp_path / "unseen.glb", arkit=True),),
     }.items():
@@ -467,7 +470,7 @@ def test_a_users_vrm_plays_the_result_in_three_vrm(results, browser, tmp_path):
                 np.testing.assert_allclose(got, want[e][frames], atol=0.02)
                 assert np.ptp(got) > 0.05, (name, e)
     print(errors)
-    for name in ("T, vrma", "A, retargeted", "split, vrma", "split, retargeted"):
+    for name in ("T, vrma", "A, retargeted", "split, vrma", "split, retargeted", "rigid head, retargeted"):
         assert errors[name][0] <= 8.0 and errors[name][1] <= 20.0, errors
     # a VRM Animation is relative to the VRM's rest (VRM 1.0 asks for a T-pose): an A-pose VRM's arms hang lower
     assert errors["A, vrma"][0] > errors["A, retargeted"][0], errors

@@ -727,11 +727,18 @@ function setupAvatarFace() {
       if (skull.has(o.skeleton.bones[main[v]])) box.expandByPoint(p);
     }
   }
-  if (all.isEmpty()) return;
-  // rigid parts under the head (glasses, a hat) are seen too
+  // rigid parts under the head (glasses, a hat, or the head itself on a low-poly or robot avatar) are seen too,
+  // and framed with the skull
+  const rigid = new THREE.Box3();
   head.traverse((o) => {
-    if (o.isMesh && !o.isSkinnedMesh) o.layers.enable(1);
+    if (o.isMesh && !o.isSkinnedMesh) {
+      o.layers.enable(1);
+      rigid.union(new THREE.Box3().setFromObject(o, true));
+    }
   });
+  all.union(rigid);
+  if (all.isEmpty()) return;
+  box.union(rigid);
   const face = box.isEmpty() ? all : box;
   const size = face.getSize(new THREE.Vector3());
   faceFrame = {
