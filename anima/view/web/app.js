@@ -670,7 +670,8 @@ function headPart(o, keep, gpuMorphs) {
 // anima's character: its head and neck (the vertices the head or the neck move most); the morphed positions and
 // normals are copied over from the body's mesh when they change
 function setupFaceMesh(o) {
-  const part = headPart(o, (b) => ["Head", "Neck", "HeadTop_End"].includes(b.name), false);
+  const bust = ["Head", "Neck", "HeadTop_End", "Spine2", "LeftShoulder", "RightShoulder"];
+  const part = headPart(o, (b) => bust.includes(b.name), false);
   if (!part) return;
   faceMesh = part.mesh;
   faceVerts = part.verts;
@@ -706,7 +707,9 @@ function setupAvatarFace() {
   if (!head) return;
   const underHead = new Set();
   head.traverse((b) => underHead.add(b));
-  const keep = (b) => underHead.has(b) || b === head.parent;
+  const neck = head.parent;
+  const chest = neck && neck.parent;
+  const keep = (b) => underHead.has(b) || b === neck || (chest && (b === chest || b.parent === chest));
   const skull = new Set([head]);
   if (vrm) for (const n of ["jaw", "leftEye", "rightEye"]) skull.add(vrm.humanoid.getRawBoneNode(n));
   scene.updateMatrixWorld(true);
