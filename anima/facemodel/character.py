@@ -286,12 +286,24 @@ the character's half-shut eye as open and missed some speakers' quick blinks (re
 clips, with the eyes' calibration :data:`anima.facemodel.transfer.EYE_SHOWN`: left eyes r 0.90-0.99 without it,
 0.89-0.98 with it before; blinks equal to the video's on all nine); the lashes' own mesh draws the edge."""
 
+SOCKET_SHADE = 0.25
+"""How much darker the skin is at the eye's rim (:func:`vertex_colors`): the eye socket's shade, falling off over
+:data:`SOCKET_MM` around the eyeball and faded out from the upper lid up (the brows keep their contrast). A real
+face's eye sits in a shaded socket; the character's, on flat skin, read back (Face Mesh, ``benchmarks/
+face_readback.py``, the nine development clips) with the radio clip's right eye at r 0.58; so shaded 0.83, the
+lowest eye of the nine (Obama's left eye 0.91 to 0.86), blinks equal to the video's on all nine (d3 6 of 5
+before). Chosen on those clips among no shade; 0.15, 0.25 and 0.35 over the whole socket (which lowered the
+brows' read-back by up to 0.05); 0.25 and 0.35 faded out above the upper lid; and the lower lid's rim painted
+instead."""
+SOCKET_MM = 12.0
+
 
 @lru_cache(maxsize=1)
 def vertex_colors() -> np.ndarray:
     """The character's colours per vertex ``[V, 3]`` (:data:`COLOURS`), its face's regions found by what its own
     expressions move (no painted texture in the CC0 assets): the eyeballs are what the eyeLook morphs turn and
-    the blink does not (irises and pupils where they face forward); the brows, the band the brow morphs move
+    the blink does not (irises and pupils where they face forward), their sockets shaded (:data:`SOCKET_SHADE`);
+    the brows, the band the brow morphs move
     above the upper lids; the lips, what mouthPucker and mouthFunnel move most around the mouth; the inside of
     the mouth, the head's vertices behind the lips (the tongue). The teeth and the lashes (:attr:`Character.parts`)
     have their own colours."""
@@ -314,6 +326,12 @@ def vertex_colors() -> np.ndarray:
         d = V - c
         cos = (d @ front) / np.maximum(np.linalg.norm(d, axis=-1) * np.linalg.norm(front), 1e-12)
         ang = np.degrees(np.arccos(np.clip(cos, -1, 1)))
+        r = np.median(np.linalg.norm(V[ball] - c, axis=-1))
+        top = P[f"upper_lid_{s}"][1]
+        rim = np.linalg.norm((V - c)[:, :2] * [0.8, 1.0], axis=-1) - r  # a little wider than high
+        w = np.clip(1.0 - rim / (SOCKET_MM / 1000.0), 0.0, 1.0) * (V[:, 2] > c[2] - 0.005)
+        w *= np.clip((top + 0.010 - V[:, 1]) / 0.006, 0.0, 1.0)  # none from 1 cm above the upper lid up
+        out[head & ~ball] *= 1.0 - SOCKET_SHADE * w[head & ~ball, None]
         out[ball] = COLOURS["sclera"]
         out[ball & (ang < 30)] = COLOURS["iris"]
         out[ball & (ang < 12)] = COLOURS["pupil"]

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from anima.core.contract import EXPR_NAMES
-from anima.facemodel.character import COLOURS, SKIN_RGB, load_character, vertex_colors
+from anima.facemodel.character import COLOURS, SKIN_RGB, SOCKET_SHADE, load_character, vertex_colors
 from anima.facemodel.ict import load_face_model
 from anima.facemodel.neutral import FADE_S, MAX_REST, faded, from_rest, presented, rest_face
 from anima.facemodel.transfer import POINTS, Transfer, face_points
@@ -103,13 +103,17 @@ def test_the_head_has_a_face_in_colour():
     for k in ("brow", "lip", "sclera", "iris", "pupil"):
         assert count[k] >= 8, count
     skin = np.all(np.isclose(col, SKIN_RGB, atol=1e-3), 1)
-    assert skin.mean() > 0.9  # the rest of the body keeps its skin
+    shade = col[:, 0] / SKIN_RGB[0]  # the eye sockets: the skin's colour, darker
+    socket = ~skin & np.all(np.isclose(col, shade[:, None] * np.asarray(SKIN_RGB), atol=1e-3), 1) & (shade < 1)
+    assert (skin | socket).mean() > 0.9  # the rest of the body keeps its skin
+    assert shade[socket].min() == pytest.approx(1.0 - SOCKET_SHADE, abs=0.03)
     V = ch.vertices
     brow, lip = (
         np.all(np.isclose(col, COLOURS["brow"], atol=1e-3), 1),
         np.all(np.isclose(col, COLOURS["lip"], atol=1e-3), 1),
     )
     assert V[brow, 1].min() > V[lip, 1].max() + 0.06  # the brows above the lips, a face's height apart
+    assert V[socket, 1].min() > V[lip, 1].max() and V[socket, 1].max() < V[brow, 1].min()  # between them
 
 
 def _front(V, J, tris, colors, size=240):
