@@ -34,8 +34,9 @@ talks and smiles with closed lips; the Obama, Ng, Noem, Li and Reagan styletalk 
 talk. The lips' fresh clips (the second command) were run once after the lips were chosen, and again after the
 brows and the eyes (later looks); the third command's clips were held out for the lips and the brows, and their
 missed blinks led to the eyes' calibration; the held-out clips (the fourth and fifth) were run once, after the
-eyes' calibration (commit c83dc6c's results). The brows' calibration, the frown and the eyes drawn anti-aliased
-came after that, so every set run again with them is a later look; no clip is left unread. All are captured with
+eyes' calibration (commit c83dc6c's results). The brows' calibration, the frown, the eyes drawn anti-aliased
+and their sockets shaded (chosen on the development clips) came after that, so every set run again with them is
+a later look; no clip is left unread. All are captured with
 ``anima capture --face-only`` (the shipped defaults).
 
 **The character** (what ``avatar.mp4``'s face panel shows): anima's character, its 53 morph weights from the
