@@ -290,11 +290,12 @@ SOCKET_SHADE = 0.25
 """How much darker the skin is at the eye's rim (:func:`vertex_colors`): the eye socket's shade, falling off over
 :data:`SOCKET_MM` around the eyeball and faded out from the upper lid up (the brows keep their contrast). A real
 face's eye sits in a shaded socket; the character's, on flat skin, read back (Face Mesh, ``benchmarks/
-face_readback.py``, the nine development clips) with the radio clip's right eye at r 0.58; so shaded 0.83, the
-lowest eye of the nine (Obama's left eye 0.91 to 0.86), blinks equal to the video's on all nine (d3 6 of 5
-before). Chosen on those clips among no shade; 0.15, 0.25 and 0.35 over the whole socket (which lowered the
+face_readback.py``, the nine development clips) with the radio clip's right eye at r 0.58. Chosen on those clips,
+with the eyes' old calibration, among no shade; 0.15, 0.25 and 0.35 over the whole socket (which lowered the
 brows' read-back by up to 0.05); 0.25 and 0.35 faded out above the upper lid; and the lower lid's rim painted
-instead."""
+instead. With the calibrations measured again on the character so shaded (:data:`~anima.facemodel.transfer.
+EYE_SHOWN`), the radio clip's right eye reads 0.84, Obama's left 0.87 (0.91 unshaded), and d3 counts 7 blinks of
+the video's 5 (6 unshaded); over all 58 clips read back the misses fell from 14 to 10 (docs/rig.md)."""
 SOCKET_MM = 12.0
 
 
@@ -336,7 +337,6 @@ def vertex_colors() -> np.ndarray:
         out[ball & (ang < 30)] = COLOURS["iris"]
         out[ball & (ang < 12)] = COLOURS["pupil"]
         brow = mag(f"browInnerUp_{s}", f"browOuterUp_{s}")
-        top = P[f"upper_lid_{s}"][1]
         band = (V[:, 1] > top + 0.012) & (V[:, 1] < top + 0.030)
         out[(brow > 0.55 * brow.max()) & band & head & ~ball] = COLOURS["brow"]
     x0, x1 = sorted((P["corner_L"][0], P["corner_R"][0]))
