@@ -34,19 +34,19 @@ talks and smiles with closed lips; the Obama, Ng, Noem, Li and Reagan styletalk 
 talk. The lips' fresh clips (the second command) were run once after the lips were chosen, and again after the
 brows and the eyes (later looks); the third command's clips were held out for the lips and the brows, and their
 missed blinks led to the eyes' calibration; the held-out clips (the fourth and fifth) were run once, after the
-eyes' calibration (commit c83dc6c's results). The brows' calibration, the frown, the eyes drawn anti-aliased
-and their sockets shaded (chosen on the development clips) came after that, so every set run again with them is
-a later look; no clip is left unread. All are captured with
+eyes' calibration (commit c83dc6c's results). The brows' calibration, the frown, the eyes drawn anti-aliased,
+their sockets shaded and the close-up's bust (chosen on the development clips) came after that, so every set run
+again with them is a later look; no clip is left unread. All are captured with
 ``anima capture --face-only`` (the shipped defaults).
 
 **The character** (what ``avatar.mp4``'s face panel shows): anima's character, its 53 morph weights from the
 capture (:func:`anima.export.avatar.character_face`: the rest face taken out, transferred by geometry, the lids
 set from the landmarks' eye opening through the eyes' calibration, the lips from their lip opening and the brows'
-rise from their brows), the head skinned and seen from the front of the face at 384 x 384
-(:func:`anima.export.avatar.face_camera`), coloured (:func:`anima.facemodel.character.vertex_colors`), its eyes
-drawn anti-aliased (:func:`anima.render.avatar.draw_close_up`). **The ceiling**: the fitted ICT face itself (the
-person's identity and the fitted expression, no head turn), rendered the same way in one colour, anti-aliased
-throughout. **The baseline**: the character's weights copied by name (no transfer, no rest face),
+rise from their brows), the head and the bust under it skinned and seen from the front of the face at
+384 x 384 (:func:`anima.export.avatar.face_camera`), coloured (:func:`anima.facemodel.character.vertex_colors`),
+its eyes drawn anti-aliased (:func:`anima.render.avatar.draw_close_up`). **The ceiling**: the fitted ICT face
+itself (the person's identity and the fitted expression, no head turn), rendered the same way in one colour,
+anti-aliased throughout. **The baseline**: the character's weights copied by name (no transfer, no rest face),
 as before issue 48; ``lids_by_transfer``, ``lips_by_transfer`` and ``brows_by_transfer``: the character with its
 lids, its lips or its brows by the transfer alone (not set from the landmarks).
 

@@ -398,10 +398,17 @@ FACE_CENTRE = np.array([0.0, 0.085, 0.02])
 """The face's centre in the head joint's frame (metres; the head joint sits where the neck meets the skull)."""
 
 
+BUST = ("Head", "Neck", "HeadTop_End", "Spine2", "LeftShoulder", "RightShoulder")
+"""What the close-up draws: the head, the neck and the bust under them (the upper chest and the shoulders), so the
+square's bottom shows shoulders, not the neck's ragged cut (as the viewer's close-up does). Read back on the nine
+development clips (``benchmarks/face_readback.py``, the calibrations as they were), d3's blinks came to the
+video's 5 (7 with the head and neck alone) and the radio clip's brows to r 0.84 (0.79); docs/rig.md."""
+
+
 def head_triangles(ch) -> np.ndarray:
-    """The character's triangles whose vertices all follow the head or the neck (what a close-up draws)."""
+    """The character's triangles whose vertices all follow the bones of :data:`BUST` (what a close-up draws)."""
     main = ch.skin_joints[np.arange(len(ch.vertices)), np.argmax(ch.skin_weights, 1)]
-    head = np.isin(main, [rig.HEAD, rig.IX["Neck"], rig.IX["HeadTop_End"]])
+    head = np.isin(main, [rig.IX[b] for b in BUST])
     return ch.faces[head[ch.faces].all(1)]
 
 
@@ -409,10 +416,10 @@ def face_camera(m: dict, ch) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The close-up's camera per frame, mounted on the head like a face-capture rig's helmet camera: the face's
     centre ``[F, 3]``, the head's rotation ``[F, 3, 3]`` (its columns the head's axes in the world: the view
     undoes it, so the face is seen from straight in front on every frame and only the expression moves; the
-    body's views show where the head turns), and the head's triangles. Chosen on five development clips read
-    back by a face tracker (``benchmarks/face_readback.py``): a camera that followed only the head's yaw let the
-    character's nods and tilts move its brows against its lids, brow height r 0.52 on Obama's clip; locked to
-    the head, 0.77."""
+    body's views show where the head turns), and the triangles it draws (:func:`head_triangles`). Chosen on
+    five development clips read back by a face tracker (``benchmarks/face_readback.py``): a camera that followed
+    only the head's yaw let the character's nods and tilts move its brows against its lids, brow height r 0.52
+    on Obama's clip; locked to the head, 0.77."""
     G, P = m["global"][:, rig.HEAD], m["positions"][:, rig.HEAD]
     centre = P + np.einsum("fij,j->fi", G, FACE_CENTRE)
     return centre, np.asarray(G, np.float64), head_triangles(ch)

@@ -82,12 +82,12 @@ against the video's 5; 90: 5); chosen on the five development clips of ``benchma
 
 EYE_SHOWN = (
     (0.0, 0.4, 0.5, 0.55, 0.6, 0.65, 0.7, 0.8, 0.9, 1.0, 1.1),
-    (0.206, 0.24, 0.281, 0.317, 0.512, 0.609, 0.64, 0.778, 0.915, 1.013, 1.084),
+    (0.205, 0.232, 0.279, 0.316, 0.508, 0.608, 0.631, 0.769, 0.906, 1.013, 1.069),
 )
 """The character's eyes as its close-up shows them: its lids' gap (over its rest gap, :meth:`Transfer.lid_gaps`)
 and the eye's opening Face Mesh reads there (over what it reads at rest; the reader's measure of
 :func:`eye_ratios`), increasing. Read back, the closing lids read as their gap down to about 0.65, then fall
-fast (0.6 reads 0.51, 0.55 reads 0.32) to a shut eye's 0.21-0.24: a tracker sees the lid's edge meet the iris
+fast (0.6 reads 0.51, 0.55 reads 0.32) to a shut eye's 0.21-0.23: a tracker sees the lid's edge meet the iris
 and calls the eye shut. Measured on the character alone (no video; three head poses, both eyes, the lids swept
 shut and open again, an isotonic fit of the median; the eyes drawn anti-aliased as the close-up draws them,
 :func:`anima.render.avatar.draw_close_up`): ``python benchmarks/face_readback.py --calibrate``
@@ -98,7 +98,7 @@ LIPS = (13, 14, 10, 152)
 """Face Mesh's points of the mouth's opening: (inner upper lip, inner lower lip) on the midline, over the face's
 height (forehead, chin): the same measure a face tracker reads back from a render."""
 
-LIP_SHOWN = (0.0052, 0.393)
+LIP_SHOWN = (0.0041, 0.396)
 """The character's close-up, read back by Face Mesh (the mouth's opening, :data:`LIPS`): ``offset + slope * gap``
 for its lip gap ``gap`` above rest (face sizes, :meth:`Transfer.lip_gaps`), the jaw opening from rest to 0.6.
 Measured on the character alone (no video): ``python benchmarks/face_readback.py --calibrate``
