@@ -21,6 +21,15 @@ by frame, and read back by a face tracker; so is the source video; the two are c
     M=emotion-clips/eamm-mead
     python benchmarks/face_readback.py --clips $M/contempt.mp4 $M/disgusted.mp4 $M/fear.mp4 $M/happy.mp4 $M/sad.mp4 \
         $M/surprised.mp4 --out benchmarks/results/face_readback_fresh4.json  # held out: six emotion clips
+    python benchmarks/face_readback.py --clips emotion-clips/crema-d/1001_DFA_{ANG,DIS,FEA,HAP,NEU,SAD}_XX.flv \
+        --out benchmarks/results/face_readback_crema.json  # development: CREMA-D's six takes of one actor
+    V=styletalk-samples/samples/source_video/video T=gesture-video/tango-interviews
+    python benchmarks/face_readback.py --clips $V/Obama_clip1.mp4 $V/andrew_clip_2.mp4 $V/feifeili_clip2_short.mp4 \
+        $V/feifeili_clip3.mp4 talking-heads-extra/{pose_source1,uncrop_Obama,aniportrait_pose_ref}.mp4 \
+        liveportrait-examples/assets/examples/source/s{18,20,29,32}.mp4 $T/1wrQ6Msp7wM_00-00-39.69_00-00-45.68.mp4 \
+        $T/speaker12_10_BVHw8aCPATM_00-01-05.0_00-01-10.0.mp4 $T/speaker7_iuYlGRnC7J8_00-00-0.00_00-00-3.25.mp4 \
+        $T/speaker8_jjRWaMCWs44_00-00-30.16_00-00-33.32.mp4 $T/speaker9_o7Ik1OB4TaE_00-00-38.15_00-00-42.33.mp4 \
+        --out benchmarks/results/face_readback_fresh5.json  # held out: the sixteen clips never read back before
     python benchmarks/face_readback.py --calibrate   # the character's lips, eyes and brows as read back:
                                      # lip_calibration.json, eye_calibration.json, brow_calibration.json
     python benchmarks/face_readback.py --isolate --clips talking-heads-extra/RD_Radio10_0_clip_0.mp4 \

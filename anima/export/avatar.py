@@ -49,6 +49,8 @@ from anima.facemodel.transfer import (
     eye_opening,
     eye_ratios,
     lip_opening,
+    lower_lid_depths,
+    lower_lid_rise,
 )
 from anima.io.atomic import atomic_path
 from anima.io.gltf import write_character_glb
@@ -237,8 +239,9 @@ def character_face(seq: TrackedSequence, lids: bool = True, lips: bool = True, b
     """The character's 53 morph weights ``[F, 53]`` for the sequence's face (easing to the rest face where it was
     lost, :func:`anima.facemodel.neutral.faded`, and the mouth alone where a hand covers it): chosen so that its
     lids, brows, mouth corners and lips move as the fitted face's do (:func:`face_transfer`), not copied by
-    name; a captured clip's brows, lids and lips then move as its landmarks show (``brows=False``,
-    ``lids=False``, ``lips=False``: by the transfer alone, the read-back benchmark's comparisons)."""
+    name; a captured clip's brows, lids (the lower lids first, then the gap) and lips then move as its landmarks
+    show (``brows=False``, ``lids=False``, ``lips=False``: by the transfer alone, the read-back benchmark's
+    comparisons)."""
     W = np.zeros((seq.n_frames, len(EXPR_NAMES)), np.float32)
     if seq.tracked.any():
         expression = presented(seq)[0]  # a captured clip's face measured from its rest face
@@ -252,7 +255,10 @@ def character_face(seq: TrackedSequence, lids: bool = True, lips: bool = True, b
         if seen and brows:  # as the video shows them, the brows first (they move the lids a little)
             level = np.median(tr.brow_rise(W)[seq.tracked], axis=0)  # the fit's clip-long brows, from its rest
             W = tr.follow_brows(W, brow_raise(seq.landmarks, seq.tracked, seq.width, seq.height), EXPR_NAMES, level)
-        if seen and lids:
+        if seen and lids:  # the lower lids first (a squint), then the gap as the video shows it
+            level = np.median(tr.lower_lids(W)[seq.tracked], axis=0)  # the fit's clip-long squint, from its rest
+            W = tr.follow_lower_lids(W, lower_lid_rise(seq.landmarks, seq.tracked, seq.width, seq.height),
+                                     EXPR_NAMES, level)  # fmt: skip
             W = tr.follow_lids(W, eye_opening(seq.landmarks, seq.tracked, seq.width, seq.height), EXPR_NAMES)
         if seen and lips:
             opening = np.where(seq.tracked, lip_opening(seq.landmarks, seq.width, seq.height), np.nan)
@@ -269,7 +275,8 @@ class LiveCharacterFace:
     measured from a running rest face (:func:`anima.facemodel.neutral.rest_face` over the faces of the last
     :attr:`WINDOW_S` seconds, once it holds :data:`~anima.facemodel.neutral.MIN_SECONDS` of them), transferred by
     geometry, the lids set from the frame's landmarks over a running open eye (the same percentile as a
-    clip's, :data:`anima.facemodel.transfer.OPEN_PERCENTILE`), the brows from its brows' height over a running
+    clip's, :data:`anima.facemodel.transfer.OPEN_PERCENTILE`; the lower lids from their depth over a running
+    median, around the transferred lower lids' running median), the brows from its brows' height over a running
     median (around the transferred brows' running median; a frown's browDown stays the fit's: a clip's takes its
     timing from the landmarks over the whole clip, :meth:`~anima.facemodel.transfer.Transfer.follow_brows`) and
     the lips from its landmarks' lip opening.
@@ -284,10 +291,13 @@ class LiveCharacterFace:
         self.expr: deque[np.ndarray] = deque()
         self.eyes: deque[np.ndarray] = deque()
         self.brows: deque[np.ndarray] = deque()
+        self.lowers: deque[np.ndarray] = deque()
         self.rest: dict[str, float] = {}
         self.open_eye = None
         self.brow_rest = None
         self.brow_level = None
+        self.lower_rest = None
+        self.lower_level = None
         self.n = 0
 
     def __call__(
@@ -302,10 +312,12 @@ class LiveCharacterFace:
         self.expr.append(np.asarray(expression, np.float32))
         ratio = eye_ratios(landmarks[None], W, H)[0] if landmarks is not None else np.full(2, np.nan)
         brows = brow_heights(landmarks[None], W, H)[0] if landmarks is not None else np.full(2, np.nan)
+        lower = lower_lid_depths(landmarks[None], W, H)[0] if landmarks is not None else np.full(2, np.nan)
         self.eyes.append(ratio)
         self.brows.append(brows)
+        self.lowers.append(lower)
         while self.t[-1] - self.t[0] > self.WINDOW_S:
-            for q in (self.t, self.expr, self.eyes, self.brows):
+            for q in (self.t, self.expr, self.eyes, self.brows, self.lowers):
                 q.popleft()
         if self.n % self.EVERY == 0:
             span = self.t[-1] - self.t[0]
@@ -318,14 +330,21 @@ class LiveCharacterFace:
             B = np.stack(self.brows)
             ok = np.isfinite(B).all(-1)
             self.brow_rest = np.median(B[ok], axis=0) if ok.sum() >= 10 else None
-            shown = np.clip(from_rest(X, list(EXPR_NAMES), self.rest), 0.0, 1.0)  # the window's faces, as a clip's
-            self.brow_level = np.median(self.transfer.brow_rise(self.transfer(shown)), axis=0)
+            D = np.stack(self.lowers)
+            ok = np.isfinite(D).all(-1)
+            self.lower_rest = np.median(D[ok], axis=0) if ok.sum() >= 10 else None
+            shown = self.transfer(np.clip(from_rest(X, list(EXPR_NAMES), self.rest), 0.0, 1.0))  # as a clip's
+            self.brow_level = np.median(self.transfer.brow_rise(shown), axis=0)
+            self.lower_level = np.median(self.transfer.lower_lids(shown), axis=0)
         self.n += 1
         presented = np.clip(from_rest(np.asarray(expression)[None], list(EXPR_NAMES), self.rest), 0.0, 1.0)
         w = self.transfer(presented)
         if self.brow_rest is not None and np.isfinite(brows).all():
             w = self.transfer.follow_brows(w, (brows - self.brow_rest)[None], EXPR_NAMES, self.brow_level)
         if self.open_eye is not None and np.isfinite(ratio).all() and (self.open_eye > 0).all():
+            if self.lower_rest is not None and np.isfinite(lower).all():
+                rise = (self.lower_rest - lower) / self.open_eye
+                w = self.transfer.follow_lower_lids(w, rise[None], EXPR_NAMES, self.lower_level)
             w = self.transfer.follow_lids(w, (ratio / self.open_eye)[None], EXPR_NAMES)
         if landmarks is not None:
             w = self.transfer.follow_lips(w, lip_opening(np.asarray(landmarks)[None], W, H), EXPR_NAMES)

@@ -201,6 +201,37 @@ def eye_opening(landmarks: np.ndarray, tracked: np.ndarray, width: int, height: 
     return out
 
 
+def lower_lid_depths(landmarks: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Each lower lid's depth ``[F, 2]`` (the person's left, right) under its eye's corners in Face Mesh's landmarks
+    ``[F, 478, 2+]`` (normalised): the lower lid's distance from the corners' line, across it (so a tilted head
+    reads the same), over the eye's width; a squint (the lower lid rising) makes it smaller."""
+    px = _pixels(landmarks, width, height)
+    o = {}
+    for s, (up, lo, a, b) in EYES.items():
+        e = px[:, b] - px[:, a]
+        w = np.maximum(np.linalg.norm(e, axis=-1), 1e-6)
+        across = np.stack([-e[:, 1], e[:, 0]], -1) / w[:, None]  # the corners' line turned a quarter
+        side = np.sign(np.nansum((px[:, lo] - px[:, up]) * across))  # pointing from the upper lid to the lower
+        o[s] = ((px[:, lo] - (px[:, a] + px[:, b]) / 2) * across).sum(-1) * (side or 1.0) / w
+    return _persons_sides(px, o["L"], o["R"])
+
+
+def lower_lid_rise(landmarks: np.ndarray, tracked: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Each lower lid's rise ``[F, 2]`` (left, right) above its median over the frames ``tracked``
+    (:func:`lower_lid_depths`), over the clip's open eye (:func:`eye_opening`'s, so it is a share of the open
+    eye's lid gap); NaN where no face was seen."""
+    depth = lower_lid_depths(landmarks, width, height)
+    ratio = eye_ratios(landmarks, width, height)
+    ok = _from_clip(depth, tracked)
+    out = np.full(depth.shape, np.nan)
+    if ok is None:
+        return out
+    open_eye = np.percentile(ratio[ok], OPEN_PERCENTILE, axis=0)
+    good = ok[:, None] & (open_eye > 0)
+    out[good] = ((np.median(depth[ok], axis=0) - depth) / np.where(open_eye > 0, open_eye, 1.0))[good]
+    return out
+
+
 def keep_mean(x: np.ndarray, mean: float) -> np.ndarray:
     """``clip(s * x, 0, 1)`` for the one ``s`` in [0, 1] that makes its mean ``mean`` (``x``'s own, clipped,
     where that is less): weights ``x [F] >= 0`` scaled down together until they average what they must, a zero
@@ -302,6 +333,32 @@ class Transfer:
         ``Wc [F, 53]``; zero weights give its rest face's gaps."""
         Wc = np.asarray(Wc, np.float64)
         return np.stack([self.rest_gap[s] + Wc @ self._gap_change(s) for s in ("L", "R")], -1)
+
+    def lower_lids(self, Wc: np.ndarray) -> np.ndarray:
+        """The rise ``[F, 2]`` (left, right; face sizes) of the character's lower lids for weights ``Wc [F, 53]``."""
+        return self.character(Wc)[:, [POINTS.index("lower_lid_L"), POINTS.index("lower_lid_R")], 1]
+
+    def follow_lower_lids(self, Wc: np.ndarray, rise: np.ndarray, names, level=None) -> np.ndarray:
+        """The character's weights ``Wc [F, 53]`` (named ``names``) with each lower lid moving as the person's
+        does: ``rise [F, 2]`` (left, right; :func:`lower_lid_rise`, a share of the open eye's gap from the clip's
+        median; NaN where not seen, left as it is) lifts the side's lower lid that share of the character's rest
+        gap above ``level [2]`` (its rise at the clip's median, :meth:`lower_lids`, so the clip-long squint stays
+        the fit's; default 0), by eyeSquint alone, clipped to [0, 1]; the other channels kept. :meth:`follow_lids`
+        then sets the gap: what the lower lid does not close, the upper lid does."""
+        out = np.array(Wc, np.float64)
+        level = np.zeros(2) if level is None else np.asarray(level, np.float64)
+        rise = np.asarray(rise, np.float64)
+        ix = {n: i for i, n in enumerate(names)}
+        for k, s in enumerate(("L", "R")):
+            q, lo = ix[f"eyeSquint_{s}"], POINTS.index(f"lower_lid_{s}")
+            if self.Bc[q, lo, 1] <= 0:
+                continue
+            others = out.copy()
+            others[:, q] = 0.0
+            goal = level[k] + np.nan_to_num(rise[:, k]) * self.rest_gap[s]
+            x = (goal - self.character(others)[:, lo, 1]) / self.Bc[q, lo, 1]
+            out[:, q] = np.where(np.isfinite(rise[:, k]), np.clip(x, 0.0, 1.0), out[:, q])
+        return out
 
     def brow_rise(self, Wc: np.ndarray) -> np.ndarray:
         """The rise ``[F, 2, 2]`` (face sizes) of the character's brow points (left, right; inner, outer) for its
