@@ -256,10 +256,10 @@ def character_face(seq: TrackedSequence, lids: bool = True, lips: bool = True, b
             level = np.median(tr.brow_rise(W)[seq.tracked], axis=0)  # the fit's clip-long brows, from its rest
             W = tr.follow_brows(W, brow_raise(seq.landmarks, seq.tracked, seq.width, seq.height), EXPR_NAMES, level)
         if seen and lids:  # the lower lids first (a squint), then the gap as the video shows it
+            opening = eye_opening(seq.landmarks, seq.tracked, seq.width, seq.height)
             level = np.median(tr.lower_lids(W)[seq.tracked], axis=0)  # the fit's clip-long squint, from its rest
-            W = tr.follow_lower_lids(W, lower_lid_rise(seq.landmarks, seq.tracked, seq.width, seq.height),
-                                     EXPR_NAMES, level)  # fmt: skip
-            W = tr.follow_lids(W, eye_opening(seq.landmarks, seq.tracked, seq.width, seq.height), EXPR_NAMES)
+            rise = lower_lid_rise(seq.landmarks, seq.tracked, seq.width, seq.height)
+            W = tr.follow_lids(tr.follow_lower_lids(W, rise, EXPR_NAMES, level, opening), opening, EXPR_NAMES)
         if seen and lips:
             opening = np.where(seq.tracked, lip_opening(seq.landmarks, seq.width, seq.height), np.nan)
             W = tr.follow_lips(W, opening, EXPR_NAMES)
@@ -342,10 +342,11 @@ class LiveCharacterFace:
         if self.brow_rest is not None and np.isfinite(brows).all():
             w = self.transfer.follow_brows(w, (brows - self.brow_rest)[None], EXPR_NAMES, self.brow_level)
         if self.open_eye is not None and np.isfinite(ratio).all() and (self.open_eye > 0).all():
+            opening = (ratio / self.open_eye)[None]
             if self.lower_rest is not None and np.isfinite(lower).all():
-                rise = (self.lower_rest - lower) / self.open_eye
-                w = self.transfer.follow_lower_lids(w, rise[None], EXPR_NAMES, self.lower_level)
-            w = self.transfer.follow_lids(w, (ratio / self.open_eye)[None], EXPR_NAMES)
+                rise = ((self.lower_rest - lower) / self.open_eye)[None]
+                w = self.transfer.follow_lower_lids(w, rise, EXPR_NAMES, self.lower_level, opening)
+            w = self.transfer.follow_lids(w, opening, EXPR_NAMES)
         if landmarks is not None:
             w = self.transfer.follow_lips(w, lip_opening(np.asarray(landmarks)[None], W, H), EXPR_NAMES)
         return np.clip(w[0], 0.0, 1.0).astype(np.float32), presented[0].astype(np.float32)

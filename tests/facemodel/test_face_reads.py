@@ -311,6 +311,73 @@ def test_a_frown_lowers_the_brows_by_browDown_its_mean_kept():
     np.testing.assert_array_equal(keep_mean(np.array([2.0, 0.0]), 0.5), [1.0, 0.0])  # clipped where it cannot
 
 
+def test_the_characters_lower_lids_rise_as_the_video_shows(d0_capture):
+    """The lower lids from the landmarks (:meth:`Transfer.follow_lower_lids`, before :meth:`Transfer.follow_lids`):
+    a lower lid risen a share x of the open eye's gap above the clip's median lifts the character's lower lid
+    x of its rest gap above its level, by eyeSquint alone (clipped to [0, 1]; an unseen frame kept); the lids'
+    gap is then the same, the upper lid closing less by what the lower lid closed. In a blink (the eye shut past
+    the close-up's cliff, :data:`LOWER_LID_CLIFF`) the lower lid holds its level and the upper lid closes. The
+    lower lid's depth is read across the eye's corners (a tilted head reads the same). On d0 the character's
+    lower lids rise as the landmarks' do (outside blinks) wherever eyeSquint is not clipped."""
+    from anima.export.avatar import character_face
+    from anima.facemodel.transfer import (
+        EYE_SHOWN,
+        LOWER_LID_CLIFF,
+        eye_opening,
+        lower_lid_depths,
+        lower_lid_rise,
+        lower_lid_share,
+    )
+
+    t = _transfer()
+    ix = {n: i for i, n in enumerate(EXPR_NAMES)}
+    W = np.zeros((4, 53))
+    W[:, [ix["eyeSquint_L"], ix["eyeSquint_R"]]] = 0.3
+    W[:, ix["mouthSmile_L"]] = 0.4  # another channel moving the lower lid is taken into account
+    level = t.lower_lids(W[:1])[0]
+    rise = np.array([[0.0, 0.0], [0.1, 0.05], [-0.9, 0.0], [np.nan, np.nan]])
+    got = t.follow_lower_lids(W, rise, EXPR_NAMES, level)
+    gap = t.rest_gap["L"]
+    np.testing.assert_allclose(t.lower_lids(got[:2]) - level, rise[:2] * gap, atol=1e-9)
+    assert got[2, ix["eyeSquint_L"]] == 0.0  # as low as eyeSquint can take it
+    np.testing.assert_array_equal(got[3], W[3])
+    moved = [ix[f"eyeSquint_{s}"] for s in ("L", "R")]
+    np.testing.assert_array_equal(np.delete(got, moved, 1), np.delete(W, moved, 1))
+    opening = np.full((4, 2), 0.8)
+    plain, split = t.follow_lids(W, opening, EXPR_NAMES), t.follow_lids(got, opening, EXPR_NAMES)
+    np.testing.assert_allclose(t.lid_gaps(split), t.lid_gaps(plain), atol=1e-9)
+    assert split[1, ix["eyeBlink_L"]] < plain[1, ix["eyeBlink_L"]]
+    # in a blink (the eye shut past the close-up's cliff) the lower lid holds its level: the upper lid closes
+    gaps, read = EYE_SHOWN
+    foot, top = (np.interp(g, gaps, read) for g in LOWER_LID_CLIFF)
+    np.testing.assert_allclose(lower_lid_share(np.array([0.0, foot, (foot + top) / 2, top, 1.2])),
+                               [0.0, 0.0, 0.5, 1.0, 1.0], atol=1e-9)  # fmt: skip
+    blinking = t.follow_lower_lids(W, rise, EXPR_NAMES, level, opening=np.array([[1.0, 1.0], [0.1, 1.0], [1.0] * 2,
+                                                                                 [np.nan] * 2]))  # fmt: skip
+    np.testing.assert_allclose(t.lower_lids(blinking[1:2]) - level, [[0.0, rise[1, 1] * gap]], atol=1e-9)
+    np.testing.assert_array_equal(blinking[[0, 2, 3]], got[[0, 2, 3]])
+
+    seq = d0_capture
+    L = np.asarray(seq.landmarks, np.float64)[:, :, :2]
+    turn = np.deg2rad(20.0)
+    R = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
+    c = np.array([0.5, 0.5])
+    tilted = ((L - c) * [seq.width, seq.height]) @ R.T / [seq.width, seq.height] + c  # turned in pixels
+    np.testing.assert_allclose(
+        lower_lid_depths(tilted, seq.width, seq.height), lower_lid_depths(L, seq.width, seq.height), atol=1e-9
+    )
+    opening = eye_opening(seq.landmarks, seq.tracked, seq.width, seq.height)
+    seen = lower_lid_rise(seq.landmarks, seq.tracked, seq.width, seq.height) * lower_lid_share(opening)
+    W = character_face(seq)
+    lids = t.lower_lids(W)
+    for k, s in enumerate(("L", "R")):
+        q = W[:, ix[f"eyeSquint_{s}"]]
+        free = (q > 0.01) & (q < 0.99) & np.isfinite(seen[:, k])
+        assert free.sum() > 20 and np.ptp(seen[free, k]) > 0.05, (s, free.sum())
+        slope = np.polyfit(seen[free, k], lids[free, k], 1)[0]
+        assert np.corrcoef(seen[free, k], lids[free, k])[0, 1] > 0.99 and slope == pytest.approx(gap, rel=0.02), s
+
+
 @pytest.mark.slow
 def test_the_lips_calibration_is_what_the_close_up_shows(d0_capture):
     """:data:`LIP_SHOWN` measured again: the character's jaw opened step by step, its close-up read back by Face
