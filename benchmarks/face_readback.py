@@ -44,20 +44,25 @@ talk. The lips' fresh clips (the second command) were run once after the lips we
 brows and the eyes (later looks); the third command's clips were held out for the lips and the brows, and their
 missed blinks led to the eyes' calibration; the held-out clips (the fourth and fifth) were run once, after the
 eyes' calibration (commit c83dc6c's results). The brows' calibration, the frown, the eyes drawn anti-aliased,
-their sockets shaded and the close-up's bust (chosen on the development clips) came after that, so every set run
-again with them is a later look; no clip is left unread. All are captured with
-``anima capture --face-only`` (the shipped defaults).
+their sockets shaded, the close-up's bust and the lower lids (chosen on the development clips) came after that,
+so every set run again with them is a later look. CREMA-D's six takes (the sixth command) are development clips
+too, read back first for the lower lids; the sixteen clips of the seventh command (every other clip of the
+shared data where Face Mesh finds a face in 90 % of the frames or more, at least 100 pixels tall, a rule on the
+videos alone) were held out and run once with the lower lids (commit 4ad9d4f,
+``face_readback_fresh5_heldout.json``), before their blink rule (``face_readback_fresh5.json``: a second
+look). All are captured with ``anima capture --face-only`` (the shipped defaults).
 
 **The character** (what ``avatar.mp4``'s face panel shows): anima's character, its 53 morph weights from the
-capture (:func:`anima.export.avatar.character_face`: the rest face taken out, transferred by geometry, the lids
-set from the landmarks' eye opening through the eyes' calibration, the lips from their lip opening and the brows'
-rise from their brows), the head and the bust under it skinned and seen from the front of the face at
-384 x 384 (:func:`anima.export.avatar.face_camera`), coloured (:func:`anima.facemodel.character.vertex_colors`),
-its eyes drawn anti-aliased (:func:`anima.render.avatar.draw_close_up`). **The ceiling**: the fitted ICT face
-itself (the person's identity and the fitted expression, no head turn), rendered the same way in one colour,
-anti-aliased throughout. **The baseline**: the character's weights copied by name (no transfer, no rest face),
-as before issue 48; ``lids_by_transfer``, ``lips_by_transfer`` and ``brows_by_transfer``: the character with its
-lids, its lips or its brows by the transfer alone (not set from the landmarks).
+capture (:func:`anima.export.avatar.character_face`: the rest face taken out, transferred by geometry, the lids set
+from the landmarks' eye opening through the eyes' calibration after the lower lids from theirs, the lips from their
+lip opening and the brows' rise from their brows), the head and the bust under it skinned and seen from the front
+of the face at 384 x 384 (:func:`anima.export.avatar.face_camera`), coloured
+(:func:`anima.facemodel.character.vertex_colors`), its eyes drawn anti-aliased
+(:func:`anima.render.avatar.draw_close_up`). **The ceiling**: the fitted ICT face itself (the person's identity and
+the fitted expression, no head turn), rendered the same way in one colour, anti-aliased throughout. **The
+baseline**: the character's weights copied by name (no transfer, no rest face), as before issue 48;
+``lids_by_transfer``, ``lips_by_transfer`` and ``brows_by_transfer``: the character with its lids, its lips or its
+brows by the transfer alone (not set from the landmarks).
 
 **The lips' calibration** (``--calibrate``, :data:`anima.facemodel.transfer.LIP_SHOWN`): the character alone, its
 jaw opened from rest to 0.6 in 31 steps (each pose held for three frames, the last read), drawn and read back
