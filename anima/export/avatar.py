@@ -270,6 +270,14 @@ def character_face(seq: TrackedSequence, lids: bool = True, lips: bool = True, b
     return np.clip(W, 0.0, 1.0)
 
 
+def _median_seen(values) -> np.ndarray | None:
+    """The median ``[2]`` of a window's per-frame pairs ``values`` over the frames where both were seen; None under
+    ten such frames."""
+    X = np.stack(values)
+    ok = np.isfinite(X).all(-1)
+    return np.median(X[ok], axis=0) if ok.sum() >= 10 else None
+
+
 class LiveCharacterFace:
     """:func:`character_face` for a stream (``anima live``'s page), one frame at a time: the fitted weights
     measured from a running rest face (:func:`anima.facemodel.neutral.rest_face` over the faces of the last
@@ -327,12 +335,7 @@ class LiveCharacterFace:
             E = np.stack(self.eyes)
             ok = np.isfinite(E).all(-1)
             self.open_eye = np.percentile(E[ok], OPEN_PERCENTILE, axis=0) if ok.sum() >= 10 else None
-            B = np.stack(self.brows)
-            ok = np.isfinite(B).all(-1)
-            self.brow_rest = np.median(B[ok], axis=0) if ok.sum() >= 10 else None
-            D = np.stack(self.lowers)
-            ok = np.isfinite(D).all(-1)
-            self.lower_rest = np.median(D[ok], axis=0) if ok.sum() >= 10 else None
+            self.brow_rest, self.lower_rest = _median_seen(self.brows), _median_seen(self.lowers)
             shown = self.transfer(np.clip(from_rest(X, list(EXPR_NAMES), self.rest), 0.0, 1.0))  # as a clip's
             self.brow_level = np.median(self.transfer.brow_rise(shown), axis=0)
             self.lower_level = np.median(self.transfer.lower_lids(shown), axis=0)

@@ -201,13 +201,18 @@ def eye_opening(landmarks: np.ndarray, tracked: np.ndarray, width: int, height: 
     """Each eye's opening ``[F, 2]`` (left, right; :func:`eye_ratios`) over the clip's open eye (its
     :data:`OPEN_PERCENTILE` over the frames ``tracked``); NaN where no face was seen."""
     ratio = eye_ratios(landmarks, width, height)
-    ok = _from_clip(ratio, tracked)
-    out = np.full(ratio.shape, np.nan)
+    return _over_open_eye(ratio, ratio, _from_clip(ratio, tracked))
+
+
+def _over_open_eye(x: np.ndarray, ratio: np.ndarray, ok: np.ndarray | None) -> np.ndarray:
+    """``x [F, 2]`` over the clip's open eye (the :data:`OPEN_PERCENTILE` of the eyes' ``ratio``
+    (:func:`eye_ratios`) over the frames ``ok``); NaN outside them (all, for ``ok`` None) and where it is 0."""
+    out = np.full(np.shape(x), np.nan)
     if ok is None:
         return out
     open_eye = np.percentile(ratio[ok], OPEN_PERCENTILE, axis=0)
-    good = open_eye > 0
-    out[ok[:, None] & good] = (ratio / np.where(good, open_eye, 1.0))[ok[:, None] & good]
+    good = ok[:, None] & (open_eye > 0)
+    out[good] = (x / np.where(open_eye > 0, open_eye, 1.0))[good]
     return out
 
 
@@ -231,15 +236,9 @@ def lower_lid_rise(landmarks: np.ndarray, tracked: np.ndarray, width: int, heigh
     (:func:`lower_lid_depths`), over the clip's open eye (:func:`eye_opening`'s, so it is a share of the open
     eye's lid gap); NaN where no face was seen."""
     depth = lower_lid_depths(landmarks, width, height)
-    ratio = eye_ratios(landmarks, width, height)
     ok = _from_clip(depth, tracked)
-    out = np.full(depth.shape, np.nan)
-    if ok is None:
-        return out
-    open_eye = np.percentile(ratio[ok], OPEN_PERCENTILE, axis=0)
-    good = ok[:, None] & (open_eye > 0)
-    out[good] = ((np.median(depth[ok], axis=0) - depth) / np.where(open_eye > 0, open_eye, 1.0))[good]
-    return out
+    rise = depth if ok is None else np.median(depth[ok], axis=0) - depth
+    return _over_open_eye(rise, eye_ratios(landmarks, width, height), ok)
 
 
 LOWER_LID_CLIFF = (0.55, 0.65)
