@@ -71,9 +71,11 @@ over the gaps of 0.04 and more (under that the reader's hold on nearly closed li
 
 **The eyes' calibration** (``--calibrate``, :data:`anima.facemodel.transfer.EYE_SHOWN`): the character alone,
 its lids swept from 1.15 times their rest gap to shut and back in 47 steps (:meth:`Transfer.follow_lids` with the
-gaps as given; each held three frames, the last read), on three head poses (the first frames of d0, Obama and
-d3), both eyes; each read over the reads at rest; the median per gap, an isotonic (increasing) fit, reported at
-the gaps of :data:`anima.facemodel.transfer.EYE_SHOWN` (denser where the read-back falls fastest).
+gaps as given; each held three frames, the last read), with eyeSquint held at each of the table's seven weights
+(0 to 1: the lower lid risen), on three head poses (the first frames of d0, Obama and d3), both eyes; each read
+over the eye's read at rest with no squint; the reads' lower third per gap and squint (:data:`EYE_PERCENTILE`),
+fitted increasing along both (:func:`bimonotone`), reported at the gaps of
+:data:`anima.facemodel.transfer.EYE_SHOWN` (denser where the read-back falls fastest).
 
 **The brows' calibration** (``--calibrate``, :data:`anima.facemodel.transfer.BROW_SHOWN`): the character alone,
 its brows swept from browDown 1 through rest to browInnerUp and browOuterUp 1 in 21 steps (each held three
@@ -209,30 +211,57 @@ def calibrate_lips(seq, steps: int = 31, hold: int = 3) -> dict:
             "points": [[round(float(g), 4), round(float(r), 4)] for g, r in zip(gap, read)]}  # fmt: skip
 
 
-def calibrate_eyes(seqs, steps: int = 47, hold: int = 3) -> dict:
-    """The character's eyes as read back (the module docstring): ``{"gap", "read", "points"}``, the isotonic fit's
-    knots (gaps over the rest gap, increasing; the eye's opening read there over the one read at rest), from each
-    sequence of ``seqs`` (their first frames place the head), both eyes, swept closing and opening."""
+EYE_PERCENTILE = 100 / 3
+"""The eyes' calibration reads the lower third of its reads at each gap and squint (their 33rd percentile over the
+head poses, both eyes and both sweeps): a gap chosen so is on the open side of the cliff, where the close-up
+shows the iris (the median left a half-open eye of Ng's read as shut at another head pose). Chosen on the
+development clips (the nine and CREMA-D's six; scratch runs)."""
+
+
+def bimonotone(M: np.ndarray, x: np.ndarray, y: np.ndarray, iters: int = 50) -> np.ndarray:
+    """``M [len(y), len(x)]`` made non-decreasing along both axes: isotonic fits along ``x`` (each row) and along
+    ``y`` (each column) in turn, ``iters`` times, a last fit along ``x``."""
     from sklearn.isotonic import IsotonicRegression
 
+    fit = lambda t, v: IsotonicRegression(increasing=True).fit(t, v).predict(t)
+    X = np.asarray(M, np.float64)
+    for _ in range(iters):
+        X = np.array([fit(x, r) for r in X])
+        X = np.array([fit(y, c) for c in X.T]).T
+    return np.array([fit(x, r) for r in X])
+
+
+def calibrate_eyes(seqs, squints=EYE_SHOWN[1], steps: int = 47, hold: int = 3) -> dict:
+    """The character's eyes as read back (the module docstring): ``{"gap", "squint", "read", "points"}``: at each
+    eyeSquint weight of ``squints``, the reads' lower third (:data:`EYE_PERCENTILE`) at the gaps of
+    :data:`anima.facemodel.transfer.EYE_SHOWN` (over the rest gap, increasing), fitted increasing in both
+    (:func:`bimonotone`; the eye's opening read there over the one read at rest with no squint), from each
+    sequence of ``seqs`` (their first frames place the head), both eyes, swept closing and opening; ``points``
+    the reads' percentile per swept gap, before the fit."""
     from anima.export.avatar import face_transfer
 
     g = np.linspace(1.15, 0.0, steps)
     g = np.round(np.concatenate([g, g[::-1]]), 4)  # closing, then opening
-    W = face_transfer().follow_lids(np.zeros((len(g), len(EXPR_NAMES))), np.stack([g, g], -1), EXPR_NAMES, None)
-    reads = []
-    for seq in seqs:
-        m = measures(read_faces(render_character(seq, W=np.repeat(W, hold, axis=0))))
-        for e in ("eye_L", "eye_R"):
-            r = m[e][hold - 1 :: hold]
-            reads.append(r / np.nanmean(r[np.abs(g - 1.0) < 0.03]))
-    A = np.array(reads)
+    per_squint = []
+    for q in squints:
+        W = np.zeros((len(g), len(EXPR_NAMES)))
+        W[:, [EXPR_NAMES.index("eyeSquint_L"), EXPR_NAMES.index("eyeSquint_R")]] = q
+        W = face_transfer().follow_lids(W, np.stack([g, g], -1), EXPR_NAMES, None)
+        reads = []
+        for seq in seqs:
+            m = measures(read_faces(render_character(seq, W=np.repeat(W, hold, axis=0))))
+            reads += [m[e][hold - 1 :: hold] for e in ("eye_L", "eye_R")]
+        per_squint.append(np.array(reads))  # [poses x eyes, gaps swept]
+    rest = np.nanmean(per_squint[0][:, np.abs(g - 1.0) < 0.03], axis=1)  # each eye's open read, no squint
     gaps = np.unique(g)
-    med = np.array([np.nanmedian(A[:, g == x]) for x in gaps])
-    fit = IsotonicRegression(increasing=True).fit(gaps, med).predict(EYE_SHOWN[0])
-    fit = fit + 1e-3 * np.arange(len(fit))  # strictly increasing, for the inverse
-    return {"gap": list(EYE_SHOWN[0]), "read": [round(float(r), 3) for r in fit],
-            "points": [[float(x), round(float(r), 3)] for x, r in zip(gaps, med)]}  # fmt: skip
+    M = np.array([[np.nanpercentile(A[:, g == x] / rest[:, None], EYE_PERCENTILE) for x in gaps] for A in per_squint])
+    fit = bimonotone(M, gaps, np.asarray(squints, np.float64))
+    knots = EYE_SHOWN[0]
+    read = np.array([np.interp(knots, gaps, r) for r in fit])
+    read = read + 1e-3 * np.arange(len(knots))  # strictly increasing, for the inverse
+    rounded = lambda A: [[round(float(r), 3) for r in row] for row in A]
+    return {"gap": list(knots), "squint": [float(q) for q in squints], "read": rounded(read),
+            "points": {"gap": [float(x) for x in gaps], "read": rounded(M)}}  # fmt: skip
 
 
 def calibrate_brows(seqs, steps: int = 21, hold: int = 3) -> dict:
@@ -328,7 +357,10 @@ def main() -> None:
         write_json(where / "lip_calibration.json", lips)
         write_json(where / "eye_calibration.json", eyes)
         write_json(where / "brow_calibration.json", brows)
-        shown = {"lips": {k: lips[k] for k in ("offset", "slope")}, "eyes": {k: eyes[k] for k in ("gap", "read")}}
+        shown = {
+            "lips": {k: lips[k] for k in ("offset", "slope")},
+            "eyes": {k: eyes[k] for k in ("gap", "squint", "read")},
+        }
         print(json.dumps(shown | {"brows": brows["slope"]}))
         return
     rows = []

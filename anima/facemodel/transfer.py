@@ -26,7 +26,8 @@ move as the same twelve points of the fitted face do:
   with the video's), so the character's lids are set from the landmarks themselves: each eye's opening over the
   clip's open eye (:func:`eye_opening`) is the opening the character's close-up must show, through its own
   calibration (:data:`EYE_SHOWN`, :func:`lid_gap`: a face tracker reads its lids as their gap down to about two
-  thirds of the rest gap, then as shut within a tenth more), by eyeBlink or eyeWide. Read back on the same five
+  thirds of the rest gap, then as shut within a tenth more; a risen lower lid moves that cliff to smaller gaps, so
+  the calibration is a table over the frame's eyeSquint too), by eyeBlink or eyeWide. Read back on the same five
   clips, the eyes' r rose from 0.37-0.95 to 0.90-0.98 with the gap simply scaled (``benchmarks/face_readback.py``);
   the calibration (and no lash line painted on the lids) brought the blinks the character missed on fresh clips
   (demo 3: 13 of the video's 18, then 16).
@@ -91,17 +92,30 @@ against the video's 5; 90: 5); chosen on the five development clips of ``benchma
 
 
 EYE_SHOWN = (
-    (0.0, 0.4, 0.5, 0.55, 0.6, 0.65, 0.7, 0.8, 0.9, 1.0, 1.1),
-    (0.205, 0.232, 0.279, 0.316, 0.508, 0.608, 0.631, 0.769, 0.906, 1.013, 1.069),
+    (0.0, 0.1, 0.2, 0.3, 0.4, 0.45, 0.5, 0.55, 0.6, 0.65, 0.7, 0.8, 0.9, 1.0, 1.1),
+    (0.0, 0.125, 0.25, 0.375, 0.5, 0.75, 1.0),
+    (
+        (0.154, 0.161, 0.18, 0.203, 0.223, 0.226, 0.256, 0.316, 0.479, 0.604, 0.634, 0.752, 0.907, 0.997, 1.057),
+        (0.154, 0.161, 0.18, 0.203, 0.223, 0.245, 0.256, 0.328, 0.537, 0.604, 0.682, 0.752, 0.91, 0.997, 1.057),
+        (0.154, 0.174, 0.18, 0.203, 0.224, 0.245, 0.271, 0.447, 0.537, 0.626, 0.682, 0.778, 0.91, 0.997, 1.057),
+        (0.154, 0.174, 0.197, 0.21, 0.239, 0.245, 0.271, 0.447, 0.55, 0.63, 0.697, 0.795, 0.91, 0.997, 1.057),
+        (0.157, 0.178, 0.197, 0.219, 0.239, 0.245, 0.355, 0.482, 0.599, 0.63, 0.697, 0.795, 0.91, 1.007, 1.057),
+        (0.16, 0.198, 0.204, 0.231, 0.239, 0.289, 0.523, 0.549, 0.599, 0.66, 0.713, 0.827, 0.933, 1.007, 1.057),
+        (0.174, 0.208, 0.227, 0.231, 0.369, 0.412, 0.524, 0.587, 0.611, 0.676, 0.737, 0.843, 0.935, 1.018, 1.057),
+    ),
 )
-"""The character's eyes as its close-up shows them: its lids' gap (over its rest gap, :meth:`Transfer.lid_gaps`)
-and the eye's opening Face Mesh reads there (over what it reads at rest; the reader's measure of
-:func:`eye_ratios`), increasing. Read back, the closing lids read as their gap down to about 0.65, then fall
-fast (0.6 reads 0.51, 0.55 reads 0.32) to a shut eye's 0.21-0.23: a tracker sees the lid's edge meet the iris
-and calls the eye shut. Measured on the character alone (no video; three head poses, both eyes, the lids swept
-shut and open again, an isotonic fit of the median; the eyes drawn anti-aliased as the close-up draws them,
-:func:`anima.render.avatar.draw_close_up`): ``python benchmarks/face_readback.py --calibrate``
-(``benchmarks/results/eye_calibration.json``); a test measures it again."""
+"""The character's eyes as its close-up shows them: ``(gaps, squints, reads)``, its lids' gap (over its rest gap,
+:meth:`Transfer.lid_gaps`), its eyeSquint weight (the lower lid risen), and ``reads [squints, gaps]``, the eye's
+opening Face Mesh reads there (over what it reads at rest with no squint; the reader's measure of
+:func:`eye_ratios`), increasing along both. Read back, the closing upper lid reads as its gap down to about 0.65,
+then falls fast (0.6 reads 0.48, 0.55 reads 0.32) to a shut eye's 0.15-0.2: a tracker sees the lid's edge meet
+the iris and calls the eye shut. With the lower lid risen the cliff comes at smaller gaps (0.55 reads 0.45 at
+eyeSquint 0.25, 0.59 at 1): the same gap shows more of the iris. Measured on the character alone (no video; three
+head poses, both eyes, the lids swept shut and open again at each squint; the eyes drawn anti-aliased as the
+close-up draws them, :func:`anima.render.avatar.draw_close_up`): the reads' lower third (their 33rd percentile,
+so that the gap is chosen on the open side of the cliff), fitted increasing in the gap and in the squint
+together: ``python benchmarks/face_readback.py --calibrate`` (``benchmarks/results/eye_calibration.json``); a
+test measures it again."""
 
 
 LIPS = (13, 14, 10, 152)
@@ -256,7 +270,7 @@ def lower_lid_share(opening: np.ndarray, shown=EYE_SHOWN, cliff=LOWER_LID_CLIFF)
     Mesh's lower lid rises a tenth or more of the open gap in a blink) left the upper lid short of the iris,
     where the close-up reads a half blink as open (on the development clips, a half blink of Noem's read 0.53 of
     the open eye, 0.35 with the lower lid still)."""
-    gap, read = (np.asarray(v, np.float64) for v in shown)
+    gap, read = np.asarray(shown[0], np.float64), np.asarray(shown[2][0], np.float64)  # no squint: the upper lid's
     foot, top = np.interp(cliff[0], gap, read), np.interp(cliff[1], gap, read)
     return np.clip((np.asarray(opening, np.float64) - foot) / (top - foot), 0.0, 1.0)
 
@@ -273,13 +287,24 @@ def keep_mean(x: np.ndarray, mean: float) -> np.ndarray:
     return np.clip(lo * x, 0.0, 1.0) if np.clip(x, 0.0, 1.0).mean() > mean else np.clip(x, 0.0, 1.0)
 
 
-def lid_gap(opening: np.ndarray, shown=EYE_SHOWN) -> np.ndarray:
+def lid_gap(opening: np.ndarray, squint=0.0, shown=EYE_SHOWN) -> np.ndarray:
     """The character's lid gap (over its rest gap) whose close-up shows an eye's ``opening`` (over the open eye;
-    :func:`eye_opening`): the inverse of ``shown`` (:data:`EYE_SHOWN`), shut (0) at or under the least it reads,
-    beyond its widest the gap grows as the opening does, at most 1.5; NaN stays NaN."""
-    gap, read = (np.asarray(v, np.float64) for v in shown)
+    :func:`eye_opening`) with its eyeSquint weight ``squint`` (a number, or one per opening): the inverse of each
+    of ``shown``'s rows (:data:`EYE_SHOWN`), linear between its squints (clipped to them; NaN as none), shut (0) at
+    or under the least a row reads, beyond its widest the gap grows as the opening does, at most 1.5; NaN stays
+    NaN."""
+    gap, levels = (np.asarray(v, np.float64) for v in shown[:2])
     x = np.asarray(opening, np.float64)
-    out = np.where(x > read[-1], gap[-1] + (x - read[-1]), np.interp(x, read, gap))
+    per = np.stack(
+        [np.where(x > r[-1], gap[-1] + (x - r[-1]), np.interp(x, r, gap)) for r in np.asarray(shown[2], np.float64)]
+    )
+    q = np.clip(np.nan_to_num(np.broadcast_to(np.asarray(squint, np.float64), x.shape)), levels[0], levels[-1])
+    j = np.clip(np.searchsorted(levels, q, side="right") - 1, 0, max(len(levels) - 2, 0))
+    if len(levels) == 1:
+        out = per[0]
+    else:
+        t = (q - levels[j]) / (levels[j + 1] - levels[j])
+        out = (1 - t) * np.take_along_axis(per, j[None], 0)[0] + t * np.take_along_axis(per, (j + 1)[None], 0)[0]
     return np.where(np.isfinite(x), np.clip(out, 0.0, 1.5), np.nan)
 
 
@@ -499,19 +524,23 @@ class Transfer:
         """The character's weights ``Wc [F, 53]`` (named ``names``) with each eye's lids set so that its close-up
         shows the person's opening: ``opening [F, 2]`` (left, right) is each eye's opening over its open eye
         (:func:`eye_opening`: 1 open, 0 shut; NaN where not seen, left as it is). The gap of the character's
-        lids is its rest gap times :func:`lid_gap` of that (through ``shown``, :data:`EYE_SHOWN`; ``None``: the
-        opening itself), by eyeBlink (closing) or eyeWide (opening wider), the other channels kept."""
+        lids is its rest gap times :func:`lid_gap` of that at the frame's eyeSquint weight (through ``shown``,
+        :data:`EYE_SHOWN`; ``None``: the opening itself), by eyeBlink (closing) or eyeWide (opening wider), the
+        other channels kept."""
         out = np.array(Wc, np.float64)
         ix = {n: i for i, n in enumerate(names)}
         opening = np.asarray(opening, np.float64)
-        gaps = np.clip(opening, 0.0, 1.5) if shown is None else lid_gap(opening, shown)
         for k, s in enumerate(("L", "R")):
+            if shown is None:
+                gaps = np.clip(opening[:, k], 0.0, 1.5)
+            else:
+                gaps = lid_gap(opening[:, k], out[:, ix[f"eyeSquint_{s}"]], shown)
             dy = self._gap_change(s)
             b, w = ix[f"eyeBlink_{s}"], ix[f"eyeWide_{s}"]
             seen = np.isfinite(opening[:, k])
             others = out.copy()
             others[:, [b, w]] = 0.0
-            need = self.rest_gap[s] * np.nan_to_num(gaps[:, k], nan=1.0) - (
+            need = self.rest_gap[s] * np.nan_to_num(gaps, nan=1.0) - (
                 self.rest_gap[s] + others @ dy
             )  # what eyeBlink / eyeWide must add to the gap
             blink = np.clip(need / dy[b], 0.0, 1.0) if dy[b] < 0 else np.zeros(len(out))

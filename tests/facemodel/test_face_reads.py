@@ -186,7 +186,8 @@ def test_the_characters_lids_open_as_the_video_shows(d0_capture):
     opening over its open eye scales the character's lid gap (1 keeps the rest gap, 0.5 halves it, 1.2 opens it
     wider by eyeWide; an eye not seen keeps its weights); through the calibration (:data:`EYE_SHOWN`) the gap is
     the one whose close-up reads as that opening (:func:`lid_gap`: shut at or under the least it reads, a
-    half-open eye's 0.5 nearer the cliff where the read-back falls, 0.55-0.65); on d0 (a blink, looks to the
+    half-open eye's 0.5 nearer the cliff where the read-back falls, 0.55-0.65; at the frame's eyeSquint, linear
+    between the table's, a risen lower lid asking less gap); on d0 (a blink, looks to the
     side) the character's lid gaps follow the landmarks' opening frame by frame (rank r >= 0.99), and its lids
     shut where the video's do."""
     from scipy.stats import spearmanr
@@ -205,12 +206,19 @@ def test_the_characters_lids_open_as_the_video_shows(d0_capture):
     np.testing.assert_array_equal(got[3], W[3])
     assert got[2, EXPR_NAMES.index("eyeWide_L")] > 0 and got[2, EXPR_NAMES.index("eyeBlink_L")] == 0
 
-    gap, read = EYE_SHOWN
-    np.testing.assert_allclose(lid_gap(np.array(read)), gap, atol=1e-9)  # the table's inverse
-    assert lid_gap(np.array([0.0, min(read)])).max() == 0.0 and 0.55 < lid_gap(np.array([0.5]))[0] < 0.65
+    gap, squints, reads = EYE_SHOWN
+    for q, read in zip(squints, reads):  # each squint's row inverted
+        np.testing.assert_allclose(lid_gap(np.array(read), q), gap, atol=1e-9)
+    between = (squints[0] + squints[1]) / 2  # linear between the squints
+    x = np.linspace(0.2, 1.0, 9)
+    np.testing.assert_allclose(lid_gap(x, between), (lid_gap(x, squints[0]) + lid_gap(x, squints[1])) / 2, atol=1e-9)
+    np.testing.assert_array_equal(lid_gap(x, [np.nan] * 9), lid_gap(x))  # no squint known: none
+    assert lid_gap(np.array([0.0, min(reads[0])])).max() == 0.0 and 0.55 < lid_gap(np.array([0.5]))[0] < 0.65
+    assert lid_gap(np.array([0.5]), 1.0)[0] < lid_gap(np.array([0.5]))[0] - 0.05  # the lower lid risen: less gap
     assert np.isnan(lid_gap(np.array([np.nan]))[0]) and lid_gap(np.array([9.0]))[0] == 1.5
-    calibrated = t.follow_lids(W, opening, EXPR_NAMES)
-    np.testing.assert_allclose(t.lid_gaps(calibrated[:3]) / rest, lid_gap(opening[:3]), atol=0.02)
+    calibrated = t.follow_lids(W, opening, EXPR_NAMES)  # the left eye at eyeSquint 0.3
+    asked = np.stack([lid_gap(opening[:3, 0], 0.3), lid_gap(opening[:3, 1], 0.0)], -1)
+    np.testing.assert_allclose(t.lid_gaps(calibrated[:3]) / rest, asked, atol=0.02)
 
     seq = d0_capture
     seen = eye_opening(seq.landmarks, seq.tracked, seq.width, seq.height)
@@ -344,12 +352,12 @@ def test_the_characters_lower_lids_rise_as_the_video_shows(d0_capture):
     moved = [ix[f"eyeSquint_{s}"] for s in ("L", "R")]
     np.testing.assert_array_equal(np.delete(got, moved, 1), np.delete(W, moved, 1))
     opening = np.full((4, 2), 0.8)
-    plain, split = t.follow_lids(W, opening, EXPR_NAMES), t.follow_lids(got, opening, EXPR_NAMES)
+    plain, split = (t.follow_lids(w, opening, EXPR_NAMES, shown=None) for w in (W, got))  # the gap as given
     np.testing.assert_allclose(t.lid_gaps(split), t.lid_gaps(plain), atol=1e-9)
     assert split[1, ix["eyeBlink_L"]] < plain[1, ix["eyeBlink_L"]]
     # in a blink (the eye shut past the close-up's cliff) the lower lid holds its level: the upper lid closes
-    gaps, read = EYE_SHOWN
-    foot, top = (np.interp(g, gaps, read) for g in LOWER_LID_CLIFF)
+    gaps, _, reads = EYE_SHOWN
+    foot, top = (np.interp(g, gaps, reads[0]) for g in LOWER_LID_CLIFF)  # the upper lid's cliff, no squint
     np.testing.assert_allclose(lower_lid_share(np.array([0.0, foot, (foot + top) / 2, top, 1.2])),
                                [0.0, 0.0, 0.5, 1.0, 1.0], atol=1e-9)  # fmt: skip
     blinking = t.follow_lower_lids(W, rise, EXPR_NAMES, level, opening=np.array([[1.0, 1.0], [0.1, 1.0], [1.0] * 2,
@@ -400,10 +408,11 @@ def test_the_lips_calibration_is_what_the_close_up_shows(d0_capture):
 
 
 def test_the_eyes_calibration_is_what_the_close_up_shows(d0_capture):
-    """:data:`EYE_SHOWN` measured again, on one head pose (d0's first frame; the table took three): the
-    character's lids swept shut and open, its close-up read back by Face Mesh (``benchmarks/face_readback.py
-    --calibrate``); for every opening from a shut eye's to an open one's, the lid gap it asks for is within 0.06
-    of the table's (of the rest gap), and a shut eye reads under a third of an open one."""
+    """:data:`EYE_SHOWN` measured again, on one head pose (d0's first frame; the table took three) and at two of
+    its squints (none and eyeSquint 1; the table took seven): the character's lids swept shut and open, its
+    close-up read back by Face Mesh (``benchmarks/face_readback.py --calibrate``); at both squints, for every
+    opening from a shut eye's to an open one's, the lid gap it asks for is within 0.06 of the table's (of the rest
+    gap), and a shut eye reads under a third of an open one."""
     import sys
     from pathlib import Path
 
@@ -412,11 +421,12 @@ def test_the_eyes_calibration_is_what_the_close_up_shows(d0_capture):
 
     from anima.facemodel.transfer import EYE_SHOWN, lid_gap
 
-    cal = calibrate_eyes([d0_capture])
+    cal = calibrate_eyes([d0_capture], squints=(0.0, 1.0))
     x = np.linspace(0.25, 1.0, 31)
-    miss = np.abs(lid_gap(x, (cal["gap"], cal["read"])) - lid_gap(x, EYE_SHOWN))
-    assert miss.max() <= 0.06, (cal, miss.round(3))
-    assert cal["read"][0] < 1 / 3, cal
+    for q in (0.0, 1.0):
+        miss = np.abs(lid_gap(x, q, (cal["gap"], cal["squint"], cal["read"])) - lid_gap(x, q, EYE_SHOWN))
+        assert miss.max() <= 0.06, (q, cal["read"], miss.round(3))
+    assert cal["read"][0][0] < 1 / 3, cal
 
 
 def test_the_brows_calibration_is_what_the_close_up_shows(d0_capture):
