@@ -94,7 +94,10 @@ wrapper), on every frame of each render and of the source video. Per frame: the 
 lips' distance, 13-14) and the brows' height (inner brows 105/334 over the upper lids 159/386), each over the
 face's height (10-152); each eye's opening (upper over lower lid, 159-145 and 386-374, over the eye's width).
 Reported: Pearson's r of each measure between a render and the video, over the frames where both found a face;
-blinks counted on both (the mean eye opening under 60 % of its clip median for at least two frames).
+blinks counted on both (the mean eye opening under 60 % of its clip median for at least two frames); and, as
+the count's two-frame rule can split a blink at its edge (a closing one frame under the line in the video, two in
+the render), the eye's closings (any run under that line: ``closings``, ``video_closings``) and how many of the
+video's the render closes too, within a frame (``closings_shared``): whether the blinks fall on the same frames.
 """
 
 from __future__ import annotations
@@ -159,14 +162,28 @@ def measures(L: np.ndarray) -> dict[str, np.ndarray]:
     }
 
 
-def blinks(eye: np.ndarray) -> int:
+def low_runs(eye: np.ndarray) -> np.ndarray:
+    """``[N, 2]`` (start, stop) of the runs of frames where the eye opening ``eye [F]`` is under 60 % of its clip
+    median (unseen frames count as open); none under five seen frames."""
     ok = np.isfinite(eye)
     if ok.sum() < 5:
-        return 0
+        return np.zeros((0, 2), int)
     low = np.where(ok, eye, np.nanmedian(eye)) < 0.6 * np.nanmedian(eye)
     runs = np.diff(np.concatenate([[0], low.astype(int), [0]]))
-    starts, stops = np.flatnonzero(runs == 1), np.flatnonzero(runs == -1)
-    return int(((stops - starts) >= 2).sum())
+    return np.stack([np.flatnonzero(runs == 1), np.flatnonzero(runs == -1)], -1)
+
+
+def blinks(eye: np.ndarray) -> int:
+    """Blinks counted in the eye opening ``eye [F]``: :func:`low_runs` of two frames or more."""
+    r = low_runs(eye)
+    return int(((r[:, 1] - r[:, 0]) >= 2).sum())
+
+
+def shared_blinks(video: np.ndarray, other: np.ndarray, slack: int = 1) -> int:
+    """How many of the video's eye closings (:func:`low_runs` of any length, ``video [F]``) a render's eye
+    (``other [F]``) closes too, a closing of its own overlapping it within ``slack`` frames."""
+    mine = low_runs(other)
+    return int(sum(((mine[:, 0] < b + slack) & (mine[:, 1] > a - slack)).any() for a, b in low_runs(video)))
 
 
 def render_character(seq, transfer=True, lids=True, lips=True, brows=True, W=None) -> list[np.ndarray]:
@@ -368,6 +385,7 @@ def main() -> None:
         path = str(asset(clip))
         seq = capture_face(path, CaptureConfig(), progress=False)
         video = measures(read_faces(iter_frames(probe_video(path))))
+        eyes = (video["eye_L"] + video["eye_R"]) / 2
         row = {"name": Path(clip).stem, "clip": clip, "frames": seq.n_frames}
         draws = (("character", lambda: render_character(seq)),
                  ("by_name", lambda: render_character(seq, False)),
@@ -384,8 +402,11 @@ def main() -> None:
             row[name] = compare(video, got) | {
                 "face_found": round(float(np.isfinite(got["mouth"]).mean()), 3),
                 "blinks": blinks((got["eye_L"] + got["eye_R"]) / 2),
+                "closings": len(low_runs((got["eye_L"] + got["eye_R"]) / 2)),
+                "closings_shared": shared_blinks(eyes, (got["eye_L"] + got["eye_R"]) / 2),
             }
-        row["video_blinks"] = blinks((video["eye_L"] + video["eye_R"]) / 2)
+        row["video_blinks"] = blinks(eyes)
+        row["video_closings"] = len(low_runs(eyes))
         rows.append(row)
         print(json.dumps(row), flush=True)
     write_json(a.out, {"rows": rows, "protocol": "benchmarks/face_readback.py docstring", "reader":

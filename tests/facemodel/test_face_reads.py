@@ -448,6 +448,29 @@ def test_the_brows_calibration_is_what_the_close_up_shows(d0_capture):
     assert read[0] < 0 < read[-1] and np.corrcoef(np.array(cal["points"])[:, 0], read)[0, 1] > 0.95, cal
 
 
+def test_the_read_back_counts_blinks_and_finds_them_on_the_same_frames(d0_capture):
+    """The read-back's blink measures on d0's blink (its landmarks' eye opening, the reader's measure of it):
+    one closing, counted as a blink (two frames or more under the line); a render closing on the same frames,
+    or one frame late, shares it; one closing five frames late, or a one-frame closing counted by the two-frame
+    rule as none, is told apart."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    from face_readback import blinks, low_runs, shared_blinks
+
+    from anima.facemodel.transfer import eye_ratios
+
+    eye = eye_ratios(d0_capture.landmarks, d0_capture.width, d0_capture.height).mean(1)
+    runs = low_runs(eye)
+    assert len(runs) == 1 and blinks(eye) == 1 and runs[0, 1] - runs[0, 0] >= 2, runs
+    assert shared_blinks(eye, eye) == 1 and shared_blinks(eye, np.roll(eye, 1)) == 1
+    assert shared_blinks(eye, np.roll(eye, 5)) == 0
+    brief = eye.copy()
+    brief[runs[0, 0] + 1 : runs[0, 1]] = np.nanmedian(eye)  # the closing cut to its first frame
+    assert blinks(brief) == 0 and len(low_runs(brief)) == 1 and shared_blinks(eye, brief) == 1
+
+
 def test_a_speaker_talking_with_closed_lips_reads_back_as_the_video():
     """d9's first 10 s (a speaker whose lips part by a pixel or two, closed most of the time): read back by Face
     Mesh, the character's mouth follows the video's (r >= 0.85) with its lips set from the landmarks; by the
