@@ -399,11 +399,12 @@ def main() -> None:
                      ("lids_alone", lambda: render_character(seq, W=lids_alone(seq))))  # fmt: skip
         for name, draw in draws:
             got = measures(read_faces(draw()))
+            seen = (got["eye_L"] + got["eye_R"]) / 2
             row[name] = compare(video, got) | {
                 "face_found": round(float(np.isfinite(got["mouth"]).mean()), 3),
-                "blinks": blinks((got["eye_L"] + got["eye_R"]) / 2),
-                "closings": len(low_runs((got["eye_L"] + got["eye_R"]) / 2)),
-                "closings_shared": shared_blinks(eyes, (got["eye_L"] + got["eye_R"]) / 2),
+                "blinks": blinks(seen),
+                "closings": len(low_runs(seen)),
+                "closings_shared": shared_blinks(eyes, seen),
             }
         row["video_blinks"] = blinks(eyes)
         row["video_closings"] = len(low_runs(eyes))
