@@ -19,7 +19,7 @@ from anima.facemodel.neutral import presented
 from anima.io.arkit import write_live_link_csv
 from anima.io.bvh import write_bvh
 from anima.io.gltf import write_glb, write_vrma
-from anima.io.outdir import check_out_file
+from anima.io.outdir import check_out_file, record_out_file
 from anima.io.sequence import TrackedSequence, read_sequence
 from anima.io.validate import MAX_FRAMES
 
@@ -164,4 +164,5 @@ def export(
     if spec.needs_face and not seq.tracked.any():
         raise InputError(f"no frame of {sequence_path} has a face: no {fmt} export can be made from it")
     notes = spec.write(seq, Path(out), {"fps": fps, "preset": preset, "units": units})
+    record_out_file(out, f"anima export {fmt}")
     return Path(out), notes

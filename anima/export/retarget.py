@@ -40,7 +40,7 @@ from anima.io.arkit import LIVE_LINK_COLUMNS, arkit_name
 from anima.io.atomic import write_json
 from anima.io.gltf import write_with_animation
 from anima.io.gltf_read import Gltf, _order, read_gltf
-from anima.io.outdir import check_out_file
+from anima.io.outdir import check_out_file, record_out_file
 from anima.io.sequence import read_sequence
 from anima.io.validate import read_json
 
@@ -565,5 +565,7 @@ def run(result: str | Path, avatar: str | Path, out: str | Path, command: str | 
         out, g.doc, g.bin, seq.fps, tracks, name="anima", extras={"anima": {"retarget": report}},
         scene_extras=scene_extras,
     )  # fmt: skip
+    record_out_file(out, "anima retarget")
     write_json(info_path, report)
+    record_out_file(info_path, "anima retarget info")
     return {**report, "outputs": [str(out), str(info_path)]}

@@ -2,10 +2,12 @@
 anima deletes and overwrites only what it made.
 
 **Ownership.** A folder is anima's when it holds anima's marker (``.anima-folder``, written by anima when it
-creates or first claims the folder; it lists every file anima wrote there with its sha256). ``--out`` may name a
-new folder, an empty one, or one of anima's; a folder that already holds files anima did not write is refused
-before any work (:func:`check_out_dir`). A result folder of an older anima (a valid result or dataset manifest,
-no marker) is adopted, but nothing in it is deleted.
+creates or first claims the folder; it lists every file anima wrote there with its sha256) and, for a finished
+result, nothing the marker does not list. ``--out`` may name a new folder, an empty one, or one of anima's; a
+folder that holds files anima did not write (a copied marker included), or a file anima wrote that the user
+has edited since, is refused before any work (:func:`check_out_dir`). A folder whose last run did not finish
+(the marker's ``running``) is anima's as a whole, so the rerun completes it. A result folder of an older anima
+(a valid result or dataset manifest, no marker) is adopted, but nothing in it is deleted.
 
 :class:`OutputFolder` is entered *before* any work starts, so a bad ``--out`` (an existing file, a read-only
 folder, a user's folder) is refused at once, and:
@@ -23,7 +25,8 @@ folder, a user's folder) is refused at once, and:
 
 Single output files (``--out FILE``) are checked by :func:`check_out_file`: never a folder, a special file
 (device, pipe, socket), a link, or a path that equals, holds or lies inside one of the command's inputs; the
-suffix must be the format's; an existing file is replaced only when its content shows anima wrote it
+suffix must be the format's; an existing file is replaced only while it matches the record anima keeps
+beside it (:func:`record_out_file`), or, without one, when its content shows anima wrote it
 (``anima.io.owned``). Output folders follow the same input rule (:func:`check_apart`).
 """
 
@@ -80,7 +83,7 @@ def read_marker(folder: Path) -> dict | None:
         return None
     try:
         d = json.loads(m.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError):
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
         return None
     if not isinstance(d, dict) or d.get("schema") != MARKER_SCHEMA or not isinstance(d.get("files"), dict):
         return None
@@ -95,22 +98,66 @@ def _legacy_result(folder: Path) -> bool:
         if not stat.S_ISREG(os.lstat(m).st_mode) or m.stat().st_size > _MAX_MARKER_BYTES:
             return False
         d = json.loads(m.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError):
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
         return False
     return isinstance(d, dict) and d.get("schema") in LEGACY_SCHEMAS
 
 
+MANAGED_KINDS = ("dataset", "text2face_run", "text2face_work", "eval_reenact", "pose_ablation")
+"""Kinds of folder a command fills and keeps by its own layout (:func:`claim_folder`: a dataset, a training
+run), not as a list of files; markers written before ``contents`` was recorded are told by their kind."""
+
+
+def _managed(marker: dict) -> bool:
+    return marker.get("contents", "managed" if marker.get("kind") in MANAGED_KINDS else "listed") == "managed"
+
+
+def _anima_manifest(folder: Path) -> bool:
+    try:
+        read_manifest(folder)
+        return True
+    except (InputError, SchemaError, OSError):
+        return False
+
+
 def foreign_entries(folder: Path) -> list[str]:
     """The entries of an existing ``folder`` that make it a user's rather than anima's: everything but anima's
-    own lock/marker/temporary files, unless the folder carries anima's marker (or is an older anima result)."""
+    own lock/marker/temporary files, unless the folder carries anima's marker (or is an older anima result).
+    A marker lists the files of a finished result: an entry it does not list (nor anima's manifest) is not
+    anima's, so a user's folder that gained a copied marker stays the user's. A folder whose last run did not
+    finish (killed, failed) may hold files its marker does not list yet, and a folder a command fills by its
+    own layout (a dataset, a training run) lists none: both are anima's as a whole."""
     try:
         names = sorted(os.listdir(folder))
     except OSError:
         return []
     user = [n for n in names if not _is_transient(n)]
-    if not user or read_marker(folder) is not None or _legacy_result(folder):
+    if not user:
         return []
-    return user
+    marker = read_marker(folder)
+    if marker is None:
+        return [] if _legacy_result(folder) else user
+    if _managed(marker) or marker.get("running"):
+        return []
+    listed = {n.split("/")[0] for n in marker["files"]}
+    return [n for n in user if n not in listed and not (n == MANIFEST and _anima_manifest(folder))]
+
+
+def changed_entries(folder: Path) -> list[str]:
+    """The files a finished result's marker lists whose content is no longer what anima wrote (a user edited
+    them): anima neither replaces nor removes them."""
+    marker = read_marker(folder)
+    if marker is None or _managed(marker) or marker.get("running"):
+        return []
+    changed = []
+    for name, digest in marker["files"].items():
+        p = confined(folder, name)
+        try:
+            if p is not None and sha256(p) != digest:
+                changed.append(name)
+        except OSError:
+            pass
+    return changed
 
 
 def check_apart(path: str | os.PathLike, inputs=(), flag: str = "--out") -> None:
@@ -161,12 +208,21 @@ def check_out_dir(path: str | os.PathLike, flag: str = "--out", inputs=()) -> Pa
     if p.is_dir():
         foreign = foreign_entries(p)
         if foreign:
-            shown = ", ".join(foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
             raise InputError(
-                f"{flag} {p} already holds files anima did not write ({shown}); anima writes only into a new "
-                "or empty folder or one it made: give another folder"
+                f"{flag} {p} already holds files anima did not write ({_shown(foreign)}); anima writes only into a "
+                "new or empty folder or one it made: give another folder"
+            )
+        changed = changed_entries(p)
+        if changed:
+            raise InputError(
+                f"{flag} {p}: {_shown(changed)} changed since anima wrote {'them' if len(changed) > 1 else 'it'}; "
+                "anima keeps your edits: move them away or give another folder"
             )
     return p
+
+
+def _shown(names: list[str]) -> str:
+    return ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
 
 
 def claim_folder(path: str | os.PathLike, kind: str, flag: str = "--out", inputs=()) -> Path:
@@ -178,12 +234,16 @@ def claim_folder(path: str | os.PathLike, kind: str, flag: str = "--out", inputs
     except OSError as e:
         raise InputError(f"{flag} {p}: cannot write there ({e.strerror or e})") from None
     if read_marker(p) is None:
-        write_marker(p, kind, {})
+        write_marker(p, kind, {}, contents="managed")
     return p
 
 
-def write_marker(folder: Path, kind: str, files: dict[str, str]) -> None:
-    write_json(folder / MARKER, {"schema": MARKER_SCHEMA, "version": 1, "kind": kind, "files": files}, indent=None)
+def write_marker(folder: Path, kind: str, files: dict[str, str], running: bool = False, contents: str = "listed"):
+    """anima's marker: the folder's kind, the files anima wrote (``name -> sha256``), whether a run is writing
+    (or was killed writing), and whether ``files`` lists the folder's contents (``listed``) or the command
+    keeps its own layout (``managed``)."""
+    doc = {"schema": MARKER_SCHEMA, "version": 1, "kind": kind, "contents": contents, "files": files}
+    write_json(folder / MARKER, doc | ({"running": True} if running else {}), indent=None)
 
 
 def confined(folder: Path, name: str) -> Path | None:
@@ -293,12 +353,26 @@ def check_out_file(
         raise InputError(f"{flag} {p}: cannot write in {base}")
     if ours is _BY_SUFFIX:
         ours = owned.BY_SUFFIX.get(p.suffix.lower())
+    kind = what or (f"a {p.suffix.lower().lstrip('.')} file" if p.suffix else "a file")
     if p.exists() or p.is_symlink():
-        kind = what or (f"a {p.suffix.lower().lstrip('.')} file" if p.suffix else "a file")
         if p.is_symlink():
             raise InputError(f"{flag} {p} is a link; anima replaces only a file it wrote: choose another path")
-        check_replaceable(p, flag, ours or (lambda q: False), kind)
+        if owned.read_record(p) is not None:  # anima recorded what it wrote: the whole file must still be that
+            if not owned.recorded(p):
+                raise InputError(f"{flag} {p} was changed since anima wrote it; anima keeps it: choose another path")
+        else:
+            check_replaceable(p, flag, ours or (lambda q: False), kind)
+    rec = owned.record_path(p)
+    if os.path.lexists(rec) and owned.read_record(p) is None:
+        raise InputError(f"{flag} {p}: {rec.name} beside it is not anima's record; anima keeps it: choose another path")
     return p
+
+
+def record_out_file(path: str | os.PathLike, kind: str | None = None) -> Path:
+    """After a single-file output is written: its record beside it (``anima.io.owned.write_record``), so a
+    later run may replace it while, and only while, it is unchanged."""
+    owned.write_record(path, kind)
+    return Path(path)
 
 
 def check_replaceable(path: Path, flag: str, ours, what: str) -> Path:
@@ -345,8 +419,7 @@ class OutputFolder:
             remove_stale_temps(self.path)
             marker = read_marker(self.path)
             self._previous = dict(marker["files"]) if marker else {}
-            if marker is None:
-                write_marker(self.path, self.kind, {})
+            write_marker(self.path, self.kind, self._previous, running=True)  # until the run finishes
             old = self.path / MANIFEST
             if old.is_file() and not old.is_symlink():
                 old.unlink()
@@ -365,7 +438,7 @@ class OutputFolder:
         """Files written while the run goes on (``name -> sha256``, e.g. a live take's parts) are listed in
         anima's marker now, beside the previous run's files: a run killed before it finishes leaves a folder
         that is still anima's, whose partial files anima may use or remove."""
-        write_marker(self.path, self.kind, self._previous | files)
+        write_marker(self.path, self.kind, self._previous | files, running=True)
 
     def add(self, path: str | os.PathLike) -> Path:
         p = Path(path)

@@ -3,12 +3,17 @@ files a single-file output (``--out FILE``) may replace. One check per kind of f
 a bounded head of the file and running nothing:
 
 * glTF / GLB / VRM / VRM Animation: a binary glTF whose ``asset.generator`` is ``anima``;
-* BVH: a hierarchy whose joints are anima's rig under one of its naming presets (``anima.core.rig``);
-* ARKit CSV: the Live Link Face header exactly as anima writes it;
 * npz: a zip of ``.npy`` members holding the members of the named kind;
 * checkpoints: a torch zip (``data.pkl``) of anima's envelope (``anima.io.checkpoint``);
 * JSON: a document whose ``schema`` / ``kind`` field is the named one;
 * a video: one whose record beside it (``OUT.json``, written by anima with the video) names its sha256.
+
+These say what *kind* of file a path holds. The exports (``anima export``, ``anima retarget``) also keep a
+record beside each file they write (``.NAME.anima.json``: its size and sha256, :func:`write_record`): a file
+with a record is replaced only while the whole file still matches it (:func:`recorded`), so a CSV that began
+as anima's and gained a user's lines is the user's. Text formats a person edits (CSV, BVH) and FBX are
+replaced only with such a record. The record lives beside the file, never inside its format, so every other
+reader reads the file as before.
 
 :data:`BY_SUFFIX` maps an output's suffix to its default check (``anima.io.outdir.check_out_file``).
 """
@@ -17,21 +22,16 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
+import stat
 import struct
 import zipfile
 from pathlib import Path
 
-from anima.core import rig
-from anima.io.arkit import header
+from anima.io.atomic import write_json
 from anima.io.checkpoint import looks_like_checkpoint
 
-_HEAD = 1 << 20  # bytes read of a text file's head
 _GLB = 0x46546C67
-
-
-def _head(path: Path, n: int = _HEAD) -> bytes:
-    with open(path, "rb") as fh:
-        return fh.read(n)
 
 
 def gltf(path: Path) -> bool:
@@ -49,32 +49,6 @@ def gltf(path: Path) -> bool:
         return False
     asset = doc.get("asset") if isinstance(doc, dict) else None
     return isinstance(asset, dict) and str(asset.get("generator", "")).split(" ")[0] == "anima"
-
-
-def bvh(path: Path) -> bool:
-    """A BVH whose joints are anima's rig, named by one of its presets (``anima.core.rig.PRESETS``)."""
-    try:
-        text = _head(path).decode("utf-8")
-    except (OSError, UnicodeDecodeError):
-        return False
-    if not text.lstrip().startswith("HIERARCHY") or "MOTION" not in text:
-        return False
-    names = []
-    for line in text[: text.index("MOTION")].splitlines():
-        w = line.split()
-        if len(w) >= 2 and w[0] in ("ROOT", "JOINT"):
-            names.append(" ".join(w[1:]))
-    return any(names == rig.preset_names(p) for p in rig.PRESETS)
-
-
-def arkit_csv(path: Path) -> bool:
-    """A Live Link Face CSV with anima's header (``anima.io.arkit``) whose first row starts at anima's timecode
-    zero (Live Link Face on a phone writes the time of day)."""
-    try:
-        lines = _head(path, 1 << 16).decode("utf-8").splitlines()
-    except (OSError, UnicodeDecodeError):
-        return False
-    return len(lines) >= 2 and lines[0].strip() == ",".join(header()) and lines[1].startswith("00:00:00:00.000,")
 
 
 def npz(*members: str):
@@ -129,6 +103,45 @@ def video(path: Path) -> bool:
     return isinstance(want, str) and want == sha256(path)
 
 
+RECORD_SCHEMA = "anima.file"
+
+
+def record_path(path: str | Path) -> Path:
+    """Where anima keeps the record of a single file it wrote: ``.NAME.anima.json`` beside it."""
+    path = Path(path)
+    return path.with_name(f".{path.name}.anima.json")
+
+
+def read_record(path: str | Path) -> dict | None:
+    """The record beside ``path`` when it is a regular file of anima's schema, else None."""
+    rec = record_path(path)
+    try:
+        st = os.lstat(rec)
+        if not stat.S_ISREG(st.st_mode) or st.st_size > 1 << 16:
+            return None
+        d = json.loads(rec.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
+        return None
+    return d if isinstance(d, dict) and d.get("schema") == RECORD_SCHEMA else None
+
+
+def recorded(path: str | Path) -> bool:
+    """Whether ``path`` is, to the byte, the file anima last wrote there (its sha256 as recorded beside it)."""
+    d = read_record(path)
+    try:
+        return d is not None and d.get("bytes") == Path(path).stat().st_size and d.get("sha256") == sha256(path)
+    except OSError:
+        return False
+
+
+def write_record(path: str | Path, kind: str | None = None) -> Path:
+    """Record, beside the file anima has just written at ``path``, its size and sha256 (atomic)."""
+    path = Path(path)
+    doc = {"schema": RECORD_SCHEMA, "version": 1, "file": path.name, "kind": kind, "bytes": path.stat().st_size,
+           "sha256": sha256(path)}  # fmt: skip
+    return write_json(record_path(path), doc, indent=None)
+
+
 def sha256(path: Path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as fh:
@@ -141,8 +154,9 @@ BY_SUFFIX = {
     ".glb": gltf,
     ".vrm": gltf,
     ".vrma": gltf,
-    ".bvh": bvh,
-    ".csv": arkit_csv,
+    ".bvh": recorded,
+    ".csv": recorded,
+    ".fbx": recorded,
     ".pt": checkpoint,
     ".mp4": video,
     ".mov": video,

@@ -1083,3 +1083,66 @@ def test_every_bad_input_is_one_line_and_exit_2_3_or_4(results):
         if not ok:
             bad.append(f"{name}: rc {r['rc']}, stderr {err[-300:]!r}, stdout {r['stdout'][-200:]!r}")
     assert not bad, f"{len(bad)} of {len(results)} cases broke the contract:\n" + "\n".join(bad)
+
+
+# --- What a result folder and a single-file export may replace (ownership on write) ---
+
+
+def _refused(r, *words):
+    """A one-line refusal (exit 2) naming ``words``."""
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and r.stderr.startswith("anima: error:"), r.stderr
+    assert all(w in r.stderr for w in words), r.stderr
+
+
+def test_a_rerun_keeps_a_file_the_user_edited_in_its_result(tmp_path, cli):
+    """Edit arkit.csv inside a capture result, run the same capture into it again: refused, naming the file;
+    the edit kept. Unedited, the rerun replaces anima's own files."""
+    clip, res = asset(D0), tmp_path / "res"
+    argv = ("capture", clip, "--out", res, "--face-only", "--max-frames", "20", "--no-render", "--quiet")
+    assert cli(*argv).returncode == 0
+    assert cli(*argv).returncode == 0  # anima's own, unchanged: replaced
+    csv = res / "arkit.csv"
+    edited = csv.read_text() + "my,own,line\n"
+    csv.write_text(edited)
+    before = {p.name: p.read_bytes() for p in res.iterdir() if p.is_file()}
+    _refused(cli(*argv), "arkit.csv", "changed since anima wrote it")
+    assert {p.name: p.read_bytes() for p in res.iterdir() if p.is_file()} == before
+
+
+def test_a_copied_marker_does_not_make_a_users_folder_animas(tmp_path, cli):
+    """``cp -a res/. proj/`` into a folder with the user's own files: the marker came along, but the folder
+    holds files anima never wrote there, so a capture into it is refused and the user's files stay."""
+    import shutil
+
+    res, proj = tmp_path / "res", tmp_path / "proj"
+    argv = ("--face-only", "--max-frames", "20", "--no-render", "--quiet")
+    assert cli("capture", asset(D0), "--out", res, *argv).returncode == 0
+    proj.mkdir()
+    (proj / "capture.npz").write_bytes(b"the user's own capture")
+    (proj / "notes.txt").write_text("my notes\n")
+    for f in res.iterdir():
+        if f.name not in ("capture.npz", "manifest.json"):
+            shutil.copy2(f, proj / f.name)
+    (proj / "manifest.json").write_text('{"mine": true}\n')
+    before = {p.name: p.read_bytes() for p in proj.iterdir()}
+    _refused(cli("capture", asset(D0), "--out", proj, *argv), "did not write", "notes.txt")
+    assert {p.name: p.read_bytes() for p in proj.iterdir()} == before
+
+
+def test_an_export_keeps_a_csv_the_user_appended_to(tmp_path, cli):
+    """``export arkit --out mine.csv`` over a CSV anima wrote that has the user's lines appended: refused (the
+    whole file is checked against the record beside it, not its header); unchanged, it is replaced; the record
+    does not enter the CSV, so Live Link readers read it as before."""
+    from anima.io.arkit import read_live_link_csv
+
+    seq = _sequence(tmp_path / "take.npz")
+    out = tmp_path / "mine.csv"
+    assert cli("export", "arkit", seq, "--out", out).returncode == 0
+    assert cli("export", "arkit", seq, "--out", out).returncode == 0
+    read_live_link_csv(out)
+    out.write_text(out.read_text() + "00:00:09:00.000,1\n")
+    edited = out.read_bytes()
+    _refused(cli("export", "arkit", seq, "--out", out), "changed since anima wrote it")
+    assert out.read_bytes() == edited
+
+

@@ -112,7 +112,7 @@ def _tree(folder):
 
 
 def test_anima_writes_only_into_its_own_folders(tmp_path):
-    """Issue 32: a folder holding files anima did not write is refused (before any work); an empty or new one is
+    """A folder holding files anima did not write is refused (before any work); an empty or new one is
     claimed with anima's marker; an older anima result (a manifest, no marker) is adopted but nothing in it is
     deleted."""
     from anima.io.outdir import MARKER, check_out_dir, read_marker
@@ -131,10 +131,24 @@ def test_anima_writes_only_into_its_own_folders(tmp_path):
     with OutputFolder(empty, kind="demo") as od:
         write_json(od.file("a.json"), {})
     assert read_marker(empty)["files"].keys() == {"a.json"}
+    with OutputFolder(empty, kind="demo") as od:  # a rerun replaces anima's unchanged file
+        write_json(od.file("a.json"), {"again": 1})
     (empty / "mine.txt").write_text("added by the user later")  # a user's file inside an anima folder
-    with OutputFolder(empty, kind="demo") as od:  # the rerun keeps it (anima never wrote it)
-        write_json(od.file("b.json"), {})
-    assert (empty / "mine.txt").read_text() == "added by the user later" and not (empty / "a.json").exists()
+    with pytest.raises(InputError, match="did not write .*mine.txt"):  # the folder is no longer anima's alone
+        OutputFolder(empty, kind="demo")
+    (empty / "mine.txt").unlink()
+    (empty / "a.json").write_text('{"edited": true}')  # a file anima wrote, edited by the user
+    with pytest.raises(InputError, match="a.json changed since anima wrote it"):
+        with OutputFolder(empty, kind="demo") as od:
+            write_json(od.file("a.json"), {})
+    assert (empty / "a.json").read_text() == '{"edited": true}'
+    mine = tmp_path / "proj"  # a user's folder that gained anima's marker (cp -a res/. proj/)
+    mine.mkdir()
+    (mine / "capture.npz").write_bytes(b"the user's own")
+    (mine / MARKER).write_bytes((empty / MARKER).read_bytes())
+    with pytest.raises(InputError, match="did not write .*capture.npz"):
+        OutputFolder(mine, kind="demo")
+    assert (mine / "capture.npz").read_bytes() == b"the user's own"
     legacy = tmp_path / "legacy"  # an older anima's result: manifest, no marker; its stale list is not trusted
     legacy.mkdir()
     (legacy / "keep.txt").write_text("listed by an old manifest")
@@ -147,8 +161,8 @@ def test_anima_writes_only_into_its_own_folders(tmp_path):
 
 
 def test_stale_removal_stays_inside_the_folder_and_on_anima_content(tmp_path):
-    """A marker or manifest naming ``../victim.txt``, an absolute path, a path through a symlink or a file whose
-    content changed since anima wrote it: nothing of those is deleted."""
+    """A killed run's marker or a manifest naming ``../victim.txt``, an absolute path, a path through a symlink
+    or a file whose content changed since anima wrote it: nothing of those is deleted."""
     import hashlib
 
     from anima.io.outdir import MARKER, sha256
@@ -174,6 +188,7 @@ def test_stale_removal_stays_inside_the_folder_and_on_anima_content(tmp_path):
             "old.json": sha256(out / "old.json"),
         }
     )
+    marker["running"] = True  # a run killed while writing: its folder is anima's as a whole
     (out / MARKER).write_text(json.dumps(marker))
     (out / "manifest.json").write_text(
         json.dumps({"schema": "anima.result", "version": 1, "files": {"../victim.txt": {}, str(victim): {}}})
