@@ -59,12 +59,20 @@ class SpeechFeatures:
     names = FEATURE_NAMES
 
 
-def read_audio(path: str | Path, sr: int = SR) -> np.ndarray:
+MAX_AUDIO_S = 3600.0
+"""``anima audio features``' longest audio (one hour, the longest --seconds of any command): its decoded samples
+and features take about 2.3 GB; a longer file is refused after decoding at most this much."""
+
+
+def read_audio(path: str | Path, sr: int = SR, max_s: float | None = None) -> np.ndarray:
     """Decode the first audio stream of any file ffmpeg reads (WAV, MP3, FLAC, the audio of a video) to
-    mono float32 at ``sr``. Raises :class:`NoAudio` when there is no audio stream."""
+    mono float32 at ``sr``. Raises :class:`NoAudio` when there is no audio stream. ``max_s``: the longest audio
+    taken; ffmpeg decodes at most a little more (whatever the container claims), and a longer one is refused."""
     p = Path(path)
     if not p.is_file():
         raise InputError(f"audio file not found: {p}")
+    # a little past the limit, so a longer file shows itself (a file of exactly max_s is taken)
+    until = [] if max_s is None else ["-t", f"{max_s + 0.5:.3f}"]
     cmd = [
         FFMPEG,
         "-hide_banner",
@@ -82,6 +90,7 @@ def read_audio(path: str | Path, sr: int = SR) -> np.ndarray:
         str(sr),
         "-f",
         "f32le",
+        *until,
         "-",
     ]
     res = subprocess.run(cmd, capture_output=True, timeout=600)
@@ -93,6 +102,8 @@ def read_audio(path: str | Path, sr: int = SR) -> np.ndarray:
     x = np.frombuffer(res.stdout, np.float32)
     if x.size == 0:
         raise NoAudio(f"the audio track of {p} is empty")
+    if max_s is not None and x.size > (max_s + 0.1) * sr:
+        raise InputError(f"{p}: the audio is longer than {max_s:g} s ({max_s / 60:g} min), the most this command takes")
     if not np.isfinite(x).all():
         raise InputError(f"{p}: the audio holds NaN or infinite samples (a damaged float WAV)")
     return x.copy()
@@ -220,7 +231,7 @@ def write_speech_features(
     ``features [F, 28]``, ``valid [F]``, ``fps``, ``names``). Returns a summary."""
     dest = Path(out) if out else Path(path).with_suffix(".speech.npz")
     check_out_file(dest, inputs=[path], suffixes=(".npz",), ours=SPEECH_NPZ, what="a speech-features file")
-    x = read_audio(path)
+    x = read_audio(path, max_s=MAX_AUDIO_S)
     longest = 2 * int(np.ceil(len(x) / SR * fps)) + 1
     if n_frames is not None and not 1 <= n_frames <= longest:
         raise InputError(

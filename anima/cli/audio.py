@@ -12,7 +12,7 @@ from anima.core.contract import TEXT_FPS
 @dataclass
 class FeaturesIn:
     file: str = field(default="", metadata={"positional": True, "metavar": "file"})
-    """audio (WAV/MP3/FLAC) or a video"""
+    """audio (WAV/MP3/FLAC) or a video, at most 1 hour"""
     fps: float = field(default=TEXT_FPS, metadata={"range": (1.0, 240.0), "metavar": "FPS"})
     """motion frame rate, 1-240"""
     frames: int | None = field(default=None, metadata={"range": (1, None), "metavar": "FRAMES"})

@@ -13,7 +13,7 @@ from anima.cli.options import add_options, config_from_args
 from anima.dataset.storage import check_dataset
 from anima.dataset.windows import read_clips, read_windows
 from anima.errors import InputError
-from anima.eval.all import run_all
+from anima.eval.all import read_results, run_all
 from anima.eval.config import AllEval
 from anima.eval.registry import EVALUATIONS, Context, Evaluation, rows
 from anima.io.outdir import check_out_dir
@@ -61,6 +61,8 @@ def cmd_eval(ev: Evaluation, a) -> int:
 def cmd_all(a) -> int:
     cfg = config_from_args(AllEval, a, _fields(AllEval))
     out = check_out_dir(cfg.out, inputs=[cfg.db])
+    if cfg.resume:
+        read_results(out)  # a results file that is not anima's is refused before an hour of work
     check_dataset(cfg.db)
     # the dataset read in full before an hour of work: a broken one is refused now, not when its row comes
     if not read_windows(cfg.db).n or not read_clips(cfg.db):

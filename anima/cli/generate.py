@@ -33,7 +33,7 @@ ACTIONS = [n for n, e in VOCABULARY.items() if e.parsed and e.phrases and n not 
 @dataclass
 class PromptIn:
     prompt: str = field(default="", metadata={"positional": True, "metavar": "prompt"})
-    '''e.g. "a woman smiles, then blinks"'''
+    """e.g. "a woman smiles, then blinks"; at most 2,000 characters and 100 events"""
     out: str = field(default="", metadata={"required": True, "metavar": "OUT"})
     """output folder"""
 
@@ -52,7 +52,7 @@ class PromptMore:
 @dataclass
 class SpeechIn:
     speech: str = field(default="", metadata={"positional": True, "metavar": "speech"})
-    """speech audio (WAV/MP3/FLAC or a video's audio; resampled to 16 kHz)"""
+    """speech audio (WAV/MP3/FLAC or a video's audio; resampled to 16 kHz), at most 10 min"""
     db: str | None = field(default=None, metadata={"metavar": "DB"})
     """dataset folder from `anima dataset build` (k-NN search); default: the built-in motion library"""
     generator: str | None = field(default=None, metadata={"metavar": "GENERATOR"})

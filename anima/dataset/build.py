@@ -46,7 +46,7 @@ from anima.dataset.describe import fitting_descriptions, segment_timeline
 from anima.dataset.filters import clip_rejection, cut_clips
 from anima.dataset.pairs import audio_motion_windows, text_motion_clip
 from anima.dataset.storage import SCHEMA, VERSION, read_table, write_shard
-from anima.errors import InputError
+from anima.errors import InputError, SchemaError
 from anima.io.atomic import write_json
 from anima.io.video import VideoInfo, frame_times, probe_video
 
@@ -580,6 +580,19 @@ def content_groups(videos: list[Path], table: dict) -> list[str]:
     return out
 
 
+def _record(path: Path) -> dict:
+    """A video's record (``videos/ID.json``, ``errors/ID.json``) of a build into this folder; one that is not
+    anima's (not JSON, nested too deeply, not an object) is a :class:`SchemaError`."""
+    why = "not a JSON object"
+    try:
+        d = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError) as e:
+        d, why = None, "nested too deeply" if isinstance(e, RecursionError) else str(e).splitlines()[0][:80]
+    if not isinstance(d, dict):
+        raise SchemaError(f"{path}: not a video record of anima's ({why}): remove it and build again")
+    return d
+
+
 def _manifest(out: Path, videos: list[Path], cfg: BuildConfig, status: str, table: dict) -> dict:
     """The dataset's manifest. ``splits`` lists the videos of each split as their rows carry it; ``split_table``
     says why (key path, source, group; :mod:`anima.dataset.splits`); a video whose rows were made under
@@ -590,9 +603,9 @@ def _manifest(out: Path, videos: list[Path], cfg: BuildConfig, status: str, tabl
         r = out / "videos" / f"{vid}.json"
         e = out / "errors" / f"{vid}.json"
         if r.exists():
-            results.append(json.loads(r.read_text()))
+            results.append(_record(r))
         elif e.exists():
-            errors.append(json.loads(e.read_text()))
+            errors.append(_record(e))
     removed = {k: sum(r["removed"].get(k, 0) for r in results) for k in RULES}  # older videos lack newer rules
     return {
         "schema": SCHEMA,

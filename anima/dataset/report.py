@@ -8,7 +8,6 @@ descriptions, and contact sheets (frames of a few kept clips with the fitted mes
 from __future__ import annotations
 
 import html
-import json
 from collections import Counter
 from pathlib import Path
 
@@ -17,6 +16,7 @@ import numpy as np
 from anima.capture.config import CaptureConfig
 from anima.capture.pipeline import capture_video
 from anima.dataset.storage import check_dataset, read_table
+from anima.dataset.windows import clip_events
 from anima.io.atomic import write_figure, write_image, write_text
 from anima.io.video import read_video
 from anima.render.face import render_mesh
@@ -108,8 +108,8 @@ def write_report(folder: str | Path, n_examples: int = 4, sheets: int = 3) -> Pa
     tm = read_table(folder, "text_motion").to_pydict()
     lengths = [e - s for s, e in zip(tm["start_s"], tm["end_s"])]
     occ = Counter()
-    for a in tm["attributes"]:
-        occ.update({n for n, _, _ in json.loads(a)})
+    for a, row in zip(tm["attributes"], tm["clip_id"]):
+        occ.update({n for n, _, _ in clip_events(a, folder, row)})
     n_clips = max(len(tm["clip_id"]), 1)
     frac = {k: v / n_clips for k, v in occ.items()}
     plots = _plots(rep, lengths, frac, manifest["removed_by_rule"])

@@ -137,6 +137,20 @@ class ClipRow:
     extra: dict = field(default_factory=dict)
 
 
+def clip_events(text: str | None, folder: str | Path, row: str) -> list[tuple[str, float, float]]:
+    """A clip's ``attributes`` column (JSON: ``[[name, start_s, end_s], ...]`` or ``{"events": [...]}``) as
+    events; anything else (not JSON, nested too deeply, another shape) is a :class:`SchemaError`."""
+    try:
+        ev = json.loads(text) if text else []
+        ev = ev.get("events", []) if isinstance(ev, dict) else ev
+        return [(str(a), float(s), float(e)) for a, s, e in ev]
+    except (ValueError, TypeError, RecursionError) as e:
+        why = "nested too deeply" if isinstance(e, RecursionError) else str(e).splitlines()[0][:80]
+        raise SchemaError(
+            f"{folder}: clip {row}: its attributes are not a list of events ({why}): rebuild it"
+        ) from None
+
+
 def read_clips(folder: str | Path, split: str | None = None) -> list[ClipRow]:
     """The (text, motion) clips of a dataset (one split, or all)."""
     t = read_table(folder, "text_motion", split).to_pydict()
@@ -144,8 +158,7 @@ def read_clips(folder: str | Path, split: str | None = None) -> list[ClipRow]:
     out = []
     for i in range(len(t["clip_id"])):
         n, row = int(t["n_frames"][i]), t["clip_id"][i]
-        ev = json.loads(t["attributes"][i]) if t["attributes"][i] else []
-        ev = ev.get("events", []) if isinstance(ev, dict) else ev
+        ev = clip_events(t["attributes"][i], folder, row)
         g = t["gender"][i]
         out.append(
             ClipRow(
@@ -156,7 +169,7 @@ def read_clips(folder: str | Path, split: str | None = None) -> list[ClipRow]:
                 float(t["start_s"][i]),
                 _array(t["motion"][i], n, FACE_DIM, "motion", row),
                 list(t["texts"][i]),
-                [(str(a), float(s), float(e)) for a, s, e in ev],
+                ev,
                 g if g in ("female", "male") else None,
                 fps,
             )

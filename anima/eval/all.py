@@ -28,12 +28,14 @@ from pathlib import Path
 from threadpoolctl import threadpool_limits
 
 from anima import __version__
-from anima.errors import AnimaError, InputError
+from anima.errors import AnimaError, InputError, SchemaError
 from anima.eval.registry import EVALUATIONS, Context, Evaluation
 from anima.eval.registry import rows as registry_rows
 from anima.io.assets import data_root, shown_path
 from anima.io.atomic import write_json, write_text
 from anima.io.outdir import OutputFolder, sha256
+from anima.io.validate import MAX_JSON_BYTES, MAX_JSON_DEPTH
+from anima.io.validate import _depth as depth
 
 
 def commit() -> str | None:
@@ -78,7 +80,7 @@ def dataset_fingerprint(folder: str | os.PathLike) -> dict:
     try:
         held = {k: v for k, v in json.loads(raw).items() if k not in BUILD_TIMING}
         content = hashlib.sha256(json.dumps(held, sort_keys=True).encode()).hexdigest()
-    except (ValueError, AttributeError):
+    except (ValueError, AttributeError, RecursionError):
         content = None
     return {"folder": str(folder), "manifest_sha256": hashlib.sha256(raw).hexdigest(), "content_sha256": content}
 
@@ -200,13 +202,43 @@ def summary_markdown(results: dict, rows: list[tuple[Evaluation, str, object]]) 
     return "\n".join(lines) + "\n"
 
 
+def read_results(out: str | os.PathLike) -> dict | list | None:
+    """The ``results.json`` of a run into ``out``, what ``--resume`` reads: None when there is none, or it is not
+    a regular file or not JSON (its rows run again). One larger than ``MAX_JSON_BYTES`` or nested deeper than
+    ``MAX_JSON_DEPTH`` (anima writes 12 levels) is no results file of anima's: a :class:`SchemaError`, before
+    anything is computed."""
+    p = Path(out) / "results.json"
+    nested = SchemaError(
+        f"{p}: nested deeper than {MAX_JSON_DEPTH} levels: not the results of `anima eval all` (--resume reads "
+        "them; move the file away to start afresh)"
+    )
+    try:
+        if not p.is_file():
+            return None
+        if p.stat().st_size > MAX_JSON_BYTES:
+            raise SchemaError(
+                f"{p}: {p.stat().st_size / 2**20:.0f} MB: not the results of `anima eval all` (at most "
+                f"{MAX_JSON_BYTES / 2**20:.0f} MB; --resume reads them; move the file away to start afresh)"
+            )
+        old = json.loads(p.read_text(encoding="utf-8"))
+    except RecursionError:
+        raise nested from None
+    except (OSError, ValueError):  # (UnicodeDecodeError is a ValueError)
+        return None
+    if depth(old, MAX_JSON_DEPTH) > MAX_JSON_DEPTH:
+        raise nested
+    return old
+
+
 def finished_rows(out: Path, prov: dict, quick: bool) -> tuple[dict, float]:
     """The rows (name -> entry, status "ok") of a run into ``out`` that stopped, or ended, on the same clean
     commit, shared data, dataset (its content: a rebuild that took other seconds is the same) and ``quick`` as
     ``prov``, and that run's minutes: what ``--resume`` keeps.
-    Anything else: none."""
+    Anything else: none (a results file nested too deeply, :func:`read_results`: a :class:`SchemaError`)."""
+    old = read_results(out)
+    if old is None:
+        return {}, 0.0
     try:
-        old = json.loads((out / "results.json").read_text())
         p = old["provenance"]
         same = (
             prov["commit"] is not None

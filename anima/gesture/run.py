@@ -126,9 +126,16 @@ def talking_face_of(db: str, S: np.ndarray, fps: float, seed: int = 0) -> tuple[
     return talking_face(S, fps, dict(model), seed), None
 
 
+MAX_SPEECH_S = 600.0
+"""The longest speech ``anima gesture`` takes (10 min, as ``anima text2face``'s longest clip): without videos
+that is about 8 s and 0.8 GB; a longer file is refused before the search, after decoding at most this much (its
+--help states it)."""
+
+
 def read_speech(speech_path: str, fps: float):
-    """Speech features at ``fps`` (any audio rate, resampled to 16 kHz mono), and notes for the user."""
-    x = read_audio(speech_path)
+    """Speech features at ``fps`` (any audio rate, resampled to 16 kHz mono; at most :data:`MAX_SPEECH_S`), and
+    notes for the user."""
+    x = read_audio(speech_path, max_s=MAX_SPEECH_S)
     feats = speech_features(x, fps)
     if len(feats.features) < N_STEP:
         raise InputError(f"speech is {len(x) / 16000:.2f} s long: at least {N_STEP / fps:.2f} s is needed")
@@ -183,6 +190,7 @@ def run(
         if not Path(folder).exists():
             raise InputError(f"--keyword-db {spec!r}: no dataset at {folder}")
         kw_folders[word.lower()] = folder
+    read_audio(speech, sr=8000, max_s=MAX_SPEECH_S)  # a cheap probe: no audio, or too long, before anything loads
     with OutputFolder(out, kind="gesture", command=command, inputs=inputs) as od:
         if generator:
             from anima.gesture.generator import load_generator  # lazy: torch

@@ -579,12 +579,19 @@ def _found(events, attr: str, start: int, end: int, fps: float) -> int:
 
 
 def compose(
-    plan: Plan, lib: Library, n_frames: int | None, seed: int = 0, rounds: int = 3, draws: int = 6
+    plan: Plan,
+    lib: Library,
+    n_frames: int | None,
+    seed: int = 0,
+    rounds: int = 3,
+    draws: int = 6,
+    max_frames: int | None = None,
 ) -> tuple[np.ndarray, dict]:
     """The prompt's motion ``[n_frames, 56]`` and a record of what made it (segments, gains, checks).
     ``n_frames`` None: as long as the prompt's events need, at least :data:`DEFAULT_FRAMES` (the first
     layout's need; a later draw that would need more is skipped); a given ``n_frames`` that cannot hold the
-    events is refused (:class:`TooShort`).
+    events is refused (:class:`TooShort`). ``max_frames``: the longest clip made; events that need more are
+    refused (an :class:`InputError`) after their layout, before anything is rendered.
 
     Up to ``draws`` layouts (other segments), each rendered up to ``rounds`` + 1 times: an event the
     detectors miss is made 1.35x stronger, a mouth that reads as talk when none was asked is smoothed more.
@@ -601,6 +608,11 @@ def compose(
                 raise
             if best is not None:  # the length is set by the first layout: skip a draw that needs more
                 continue
+            if max_frames is not None and e.need > max_frames:
+                raise InputError(
+                    f"the prompt's events need {e.need} frames ({e.need / lib.fps / 60:.1f} min): the timeline "
+                    f"method makes at most {max_frames} ({max_frames / lib.fps / 60:g} min); ask for fewer events"
+                ) from None
             n_frames = e.need
             placed = plan_layout(plan, lib, n_frames, seed + 1009 * draw, frozenset(avoid))
         detectable = [  # (a faint event, asked for, may stay under the detectors' threshold: not made stronger)

@@ -47,10 +47,10 @@ class PromptConfig:
 
     length: int | None = field(default=None, metadata={"range": (1, 100_000)})
     """Frames at 30 fps; default: the timeline method makes the clip as long as the prompt's events need (at
-    least 90 = 3 s), the model 90; a length too short for the events is refused; the model's trained range
-    applies."""
+    least 90 = 3 s), the model 90; a length too short for the events is refused; the timeline method makes at
+    most 18000 (10 min, asked or implied by the events), the model its trained range."""
     seconds: float | None = field(default=None, metadata={"range": (0.01, 3600.0)})
-    """Length in seconds (overrides --length)."""
+    """Length in seconds (overrides --length; the timeline method: at most 600)."""
     seed: int = 0
     """Random seed: other seeds give other motions."""
     method: str = field(default="auto", metadata={"choices": ("auto", "timeline", "model")})

@@ -146,6 +146,13 @@ class Plan:
 
 
 MAX_COUNT = 50  # "blinks 10^12 times" is refused, not planned
+MAX_PROMPT_CHARS = 2_000
+"""The longest prompt read, in characters (whitespace runs count as one): ten times a long, detailed prompt of
+ten events; the model's encoder reads about 1,000 of them anyway (MiniLM's 256 tokens). Parsing is linear in
+the clauses, so this bounds the parse before it starts (``anima text2face``'s --help states it)."""
+MAX_PROMPT_EVENTS = 100
+"""The most events a prompt may name (each at most :data:`MAX_COUNT` times; the clip they make is bounded by
+``anima.text2face.run.MAX_TIMELINE_FRAMES`` as well): more is refused, not planned."""
 
 
 def _count(clause: str) -> int | None:
@@ -250,6 +257,11 @@ def parse(prompt: str, encoder=None) -> Plan:
     """The events a prompt asks for (see the module docstring). ``encoder``: an object with ``encode(list
     of str) -> [N, d]`` unit vectors, used only for clauses the lexicon does not cover."""
     text = " ".join(prompt.strip().split())
+    if len(text) > MAX_PROMPT_CHARS:
+        raise InputError(
+            f"the prompt has {len(text):,} characters: anima reads at most {MAX_PROMPT_CHARS:,} "
+            f"(and {MAX_PROMPT_EVENTS} events)"
+        )
     plan = Plan(text)
     low = text.lower().replace("’", "'")
     proto = None
@@ -341,6 +353,11 @@ def parse(prompt: str, encoder=None) -> Plan:
                 sd = _direction(clause[a:b], clause)
             plan.events.append(Event(ev, max(1, c), inten, sd, clause_i, clause[a:b]))
         last = (clause, plan.events[n_before:])
+    if len(plan.events) > MAX_PROMPT_EVENTS:
+        raise InputError(
+            f"the prompt names {len(plan.events)} events: anima plans at most {MAX_PROMPT_EVENTS} "
+            f"(each up to {MAX_COUNT} times)"
+        )
     by_clause: dict[int, list[Event]] = {}
     for e in plan.events:
         by_clause.setdefault(e.clause, []).append(e)

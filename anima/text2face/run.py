@@ -79,7 +79,9 @@ def run(
     return info | {"written": [str(p) for p in files.values()]}
 
 
-MAX_TIMELINE_FRAMES = 18_000  # 10 min at the text rate
+MAX_TIMELINE_FRAMES = 18_000
+"""The timeline method's longest clip (10 min at the text rate): --length/--seconds and the length a prompt's
+events imply alike (``anima text2face --help`` states it)."""
 
 
 def _library(db, with_builtin: bool) -> Library:
@@ -120,7 +122,7 @@ def _timeline(prompt, out, cfg: PromptConfig, db, video: bool, progress: bool, c
         plan = parse(prompt)
         if not plan.events and plan.unknown:  # words the lexicon lacks: try the sentence encoder
             plan = parse(prompt, get_encoder("minilm"))
-        motion, record = compose(plan, lib, n, cfg.seed)
+        motion, record = compose(plan, lib, n, cfg.seed, max_frames=MAX_TIMELINE_FRAMES)
         info = {
             "prompt": plan.text,
             "frames": len(motion),

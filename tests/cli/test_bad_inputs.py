@@ -1146,3 +1146,113 @@ def test_an_export_keeps_a_csv_the_user_appended_to(tmp_path, cli):
     assert out.read_bytes() == edited
 
 
+# --- Bounds on what a prompt or a speech file implies; nested JSON ---
+
+
+def _measured(argv: list, timeout: float = 120) -> tuple[int, str, float, float]:
+    """Run ``anima ARGV`` in a new interpreter: its exit code, stderr, seconds and peak memory (GB, the
+    process's own maximum resident set, from wait4)."""
+    import tempfile
+    import threading
+    import time
+
+    t0 = time.perf_counter()
+    with tempfile.TemporaryFile("w+") as fh:
+        p = subprocess.Popen([sys.executable, "-m", "anima", *map(str, argv)], stdout=subprocess.DEVNULL, stderr=fh)
+        killer = threading.Timer(timeout, p.kill)
+        killer.start()
+        try:
+            _, status, usage = os.wait4(p.pid, 0)
+        finally:
+            killer.cancel()
+        p.returncode = os.waitstatus_to_exitcode(status)  # (reaped here: Popen must not wait for it again)
+        fh.seek(0)
+        stderr = fh.read()
+    return p.returncode, stderr, time.perf_counter() - t0, usage.ru_maxrss / 2**20  # ru_maxrss: KB on Linux
+
+
+def _one_line(rc: int, stderr: str, *words) -> None:
+    assert rc in (2, 3, 4) and stderr.count("\n") == 1 and stderr.startswith("anima: error:"), (rc, stderr[-2000:])
+    assert "Traceback" not in stderr and all(w in stderr for w in words), stderr
+
+
+def test_a_prompt_past_its_limits_is_refused_within_a_minute(tmp_path):
+    """The red team's 55,000-character prompt (5,000 blinks: 128,778 frames, over two minutes and 5.8 GB): refused
+    in one line (exit 2) within 60 s and 2 GB, before --out is made; so are 150 events in few characters, and events
+    that need more than the timeline method's 10 minutes; --help states the limits."""
+    from anima.text2face.prompt import MAX_PROMPT_CHARS, MAX_PROMPT_EVENTS
+    from anima.text2face.run import MAX_TIMELINE_FRAMES
+
+    out = tmp_path / "t2f"
+    blinks = " then ".join(["blink"] * 5000)
+    rc, err, seconds, gb = _measured(["text2face", blinks, "--out", out, "--no-video"])
+    _one_line(rc, err, f"{MAX_PROMPT_CHARS:,}")
+    assert rc == 2 and seconds < 60 and gb < 2, (seconds, gb)
+    many = " then ".join(["blink"] * 150)  # 1,144 characters
+    rc, err, seconds, _ = _measured(["text2face", many, "--out", out, "--no-video"])
+    _one_line(rc, err, f"at most {MAX_PROMPT_EVENTS}")
+    long = ", then ".join(["smiles and blinks 50 times while nodding 50 times and shaking its head 50 times"] * 20)
+    assert len(long) < MAX_PROMPT_CHARS
+    rc, err, seconds, _ = _measured(["text2face", long, "--out", out, "--no-video"])
+    _one_line(rc, err, f"at most {MAX_TIMELINE_FRAMES}")
+    assert rc == 2 and seconds < 60 and not out.exists()
+    r = subprocess.run([sys.executable, "-m", "anima", "text2face", "--help"], capture_output=True, text=True)
+    text = " ".join(r.stdout.split())
+    assert f"at most {MAX_PROMPT_CHARS:,} characters and {MAX_PROMPT_EVENTS} events" in text, r.stdout
+    assert f"at most {MAX_TIMELINE_FRAMES} (10 min" in text, r.stdout
+
+
+def test_a_speech_file_longer_than_the_command_takes_is_refused(tmp_path):
+    """Speech past ``anima gesture``'s 10 minutes (and audio past ``anima audio features``' hour) is refused in
+    one line (exit 2) after decoding no more than the limit, before --out is made; a file of the limit is taken.
+    The files: real speech looped, and silence."""
+    from anima.audio.features import MAX_AUDIO_S, read_audio
+    from anima.gesture.run import MAX_SPEECH_S
+    from anima.io.video import FFMPEG
+
+    def make(path: Path, seconds: float, *src) -> Path:
+        argv = [FFMPEG, "-hide_banner", "-nostdin", "-v", "error", "-y", *src, "-t", f"{seconds:g}"]
+        subprocess.run([*argv, "-ac", "1", "-ar", "8000", "-c:a", "flac", str(path)], check=True)
+        return path
+
+    loop = ["-stream_loop", "-1", "-i", str(asset(SPEECH))]
+    at_limit = make(tmp_path / "speech_10min.flac", MAX_SPEECH_S, *loop)
+    over = make(tmp_path / "speech_over.flac", MAX_SPEECH_S + 2, *loop)
+    out = tmp_path / "g"
+    rc, err, seconds, gb = _measured(["gesture", over, "--out", out, "--no-render"])
+    _one_line(rc, err, f"longer than {MAX_SPEECH_S:g} s")
+    assert rc == 2 and seconds < 30 and gb < 2 and not out.exists(), (seconds, gb)
+    hour = make(tmp_path / "hour.flac", MAX_AUDIO_S + 2, "-f", "lavfi", "-i", "anullsrc=r=8000:cl=mono")
+    rc, err, seconds, gb = _measured(["audio", "features", hour, "--out", tmp_path / "hour.npz"])
+    _one_line(rc, err, f"longer than {MAX_AUDIO_S:g} s")
+    assert rc == 2 and seconds < 30 and gb < 2 and not (tmp_path / "hour.npz").exists(), (seconds, gb)
+    x = read_audio(at_limit, max_s=MAX_SPEECH_S)  # ffmpeg decodes a little past the limit: a file of it is taken
+    assert abs(len(x) / 16000 - MAX_SPEECH_S) < 0.05
+
+
+def test_eval_all_resume_refuses_a_deeply_nested_results_file(tmp_path):
+    """``anima eval all --resume`` into a folder whose results.json nests 100,000 lists (a RecursionError, exit 1,
+    before): one line, exit 4, before the dataset is read or anything computed; as deep as anima's depth limit
+    allows but no deeper, too."""
+    from anima.errors import SchemaError
+    from anima.eval.all import finished_rows
+    from anima.io.outdir import OutputFolder
+    from anima.io.validate import MAX_JSON_DEPTH
+
+    out, db = tmp_path / "ea", tmp_path / "ds"
+    db.mkdir()
+    (db / "manifest.json").write_text('{"schema": "anima.dataset", "version": 1}')
+    with OutputFolder(out, kind="eval_all") as od:
+        Path(od.file("results.json")).write_text("[" * 100_000 + "]" * 100_000)
+    before = (out / "results.json").read_bytes()
+    rc, err, seconds, _ = _measured(["eval", "all", "--db", db, "--out", out, "--resume", "--only", "landmarks"])
+    _one_line(rc, err, "results.json", "nested")
+    assert rc == 4 and seconds < 30 and (out / "results.json").read_bytes() == before
+    deep = "[" * (MAX_JSON_DEPTH + 1) + "]" * (MAX_JSON_DEPTH + 1)
+    (out / "results.json").write_text(json.dumps({"provenance": {}, "rows": json.loads(deep)}))
+    with pytest.raises(SchemaError, match="nested deeper"):
+        finished_rows(out, {"commit": "a" * 40}, False)
+    (out / "results.json").write_text("{not json")  # not JSON at all: its rows run again, as before
+    assert finished_rows(out, {"commit": "a" * 40}, False) == ({}, 0.0)
+
+
