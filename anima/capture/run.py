@@ -3,6 +3,7 @@ through the one motion writer (:func:`anima.export.motion.write_motion_outputs`)
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 
@@ -114,6 +115,8 @@ def run(
         t0 = time.perf_counter()
         with sw("capture"):
             seq = capture_video(video, cfg, audio=audio, progress=progress, timings=tm)
+        if isinstance(seq.meta.get("source"), dict):  # absolute: `anima view` finds it from any folder
+            seq.meta["source"]["path"] = os.path.abspath(video)
         if rest is not None:
             seq.meta["rest_face"] = {"channels": rest, "from": str(neutral)}
         s = seq.summary()

@@ -15,6 +15,7 @@ from anima.core.contract import EXPR_NAMES
 from anima.export.livelink import Sender, livelink_rows, parse_target
 from anima.export.vmc import VmcSender, blend_values, parse_vmc
 from anima.export.vrm import arkit_weights
+from anima.io.udp import distinct_targets
 from anima.live.take import LiveFrame
 
 
@@ -72,8 +73,12 @@ SINKS: dict[str, tuple[Callable[[str, str], tuple[str, int]], type]] = {
 
 
 def check_sinks(cfg) -> dict[str, tuple[str, int]]:
-    """The optional outputs a config asks for, their addresses parsed (one line, exit 2, for a bad one)."""
-    return {k: parse(getattr(cfg, k), f"--{k}") for k, (parse, _) in SINKS.items() if getattr(cfg, k, None) is not None}
+    """The optional outputs a config asks for, their addresses parsed (one line, exit 2, for a bad one, one that
+    cannot be sent to, or two outputs on one address and port: :mod:`anima.io.udp`)."""
+    asked = [k for k in SINKS if getattr(cfg, k, None) is not None]
+    targets = {k: SINKS[k][0](getattr(cfg, k), f"--{k}") for k in asked}
+    distinct_targets({f"--{k}": t for k, t in targets.items()})
+    return targets
 
 
 def open_sinks(targets: dict[str, tuple[str, int]], rest: np.ndarray) -> list:

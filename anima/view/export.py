@@ -11,8 +11,11 @@ everything it shows comes from here.
 * the videos and ``speech.wav`` beside it, copied (a missing one is a note on the page, the 3D plays alone).
 
 Only regular files inside the result folder are read (a symlink, or a name that leaves the folder, is a note,
-never followed); a re-enactment record's video must lie beside the record; the capture's source video must be
-a real, browser-playable video. A copy of a user's file keeps its permission bits.
+never followed); a re-enactment record's video must lie beside the record; the capture's source video is never
+looked up against the current folder: a relative recorded path is a file inside the result folder, an absolute
+one is taken as recorded only when it is the video the capture tracked (its recorded size, frame count and
+codec), and it must be a real, browser-playable video (else the page has no source video, and a note says why).
+A copy of a user's file keeps its permission bits.
 """
 
 from __future__ import annotations
@@ -142,22 +145,44 @@ def _inside(folder: Path, name: str, notes: list) -> Path | None:
     return p
 
 
-def _source_video(src: str, meta: dict, notes: list) -> Path | None:
-    """The capture's source video when the page can show it: a readable, browser-playable video file."""
-    s = Path(src)
-    if not s.is_file():
-        notes.append(f"the source video {src} is not there")
+_FINGERPRINT = ("width", "height", "n_frames", "codec")
+"""What a capture records of its source video (:class:`anima.io.video.VideoInfo`) and the file at a recorded
+absolute path must show again before the page takes it."""
+
+
+def _source_video(folder: Path, src: str, meta: dict, notes: list) -> Path | None:
+    """The capture's source video when the page can show it, never looked up against the current folder: a
+    relative recorded path inside the result folder (a regular file, no ``..``, no symlink), an absolute one as
+    recorded when it is the video the capture tracked (the same size, frame count and codec as recorded); a
+    readable, browser-playable video. Anything else: no source video, a note saying why."""
+    none = "no source video:"
+    if "\x00" in src:
+        notes.append(f"{none} the recorded source is not a file name")
         return None
+    if os.path.isabs(src):
+        s = Path(src)
+        if not s.is_file():
+            notes.append(f"{none} the source video {src} is not there")
+            return None
+    else:
+        s = confined(folder, src)
+        if s is None:
+            notes.append(f"{none} the recorded source {src} is not a file inside {folder} (a relative source is "
+                         "looked up in the result folder)")  # fmt: skip
+            return None
     if s.suffix.lower() not in PLAYABLE or meta.get("codec") not in ("h264", "vp8", "vp9", "av1"):
-        notes.append(f"the source video {s.name} ({meta.get('codec')}) does not play in a browser")
+        notes.append(f"{none} the source video {s.name} ({meta.get('codec')}) does not play in a browser")
         return None
     try:
         info = probe_video(s)
     except InputError:
-        notes.append(f"the source video {src} is not a readable video: not shown")
+        notes.append(f"{none} the source video {src} is not a readable video")
+        return None
+    if os.path.isabs(src) and any(meta.get(k) != getattr(info, k) for k in _FINGERPRINT):
+        notes.append(f"{none} {src} is not the video this capture tracked (its size, frames or codec differ)")
         return None
     if info.codec not in ("h264", "vp8", "vp9", "av1"):
-        notes.append(f"the source video {s.name} ({info.codec}) does not play in a browser")
+        notes.append(f"{none} the source video {s.name} ({info.codec}) does not play in a browser")
         return None
     return s
 
@@ -210,7 +235,7 @@ def _sequence_view(folder: Path, kind: str, out: Path, notes: list, wrote: list)
     src = source.get("path") if isinstance(source, dict) else None
     src = src if isinstance(src, str) and src else None
     if kind == "capture" and src:
-        s = _source_video(src, source, notes)
+        s = _source_video(folder, src, source, notes)
         if s is not None:
             name = f"source{s.suffix.lower()}"
             wrote.append(copy_file(s, out / name, keep_mode=True))

@@ -10,8 +10,14 @@ server without them leaves videos unseekable). What it will and will not do:
   same-origin`` tells the browser not to hand it to another origin anyway;
 * it answers only ``Host: 127.0.0.1:PORT`` or ``localhost:PORT`` (a DNS-rebinding page names its own host);
 * a malformed request (a NUL, a bad escape, a Range of thousands of digits, an absolute-form target such as
-  ``GET http://other.host/TOKEN/...``) is answered 400, never a traceback; an idle connection is closed after
-  :data:`IDLE_TIMEOUT_S`;
+  ``GET http://other.host/TOKEN/...``) is answered 400, never a traceback;
+* a request must arrive whole (its line and headers; the server reads no body: GET and HEAD only) within
+  :data:`REQUEST_S` of the connection opening or of the previous answer, however slowly it trickles in (an idle
+  connection is closed at the same limit). What the server sends has no such limit: a slow reader of a long
+  video is served for as long as it keeps reading (a client that reads nothing for :data:`IDLE_TIMEOUT_S` is
+  closed), and the live page's WebSocket lives as long as the page answers its pings;
+* at most :data:`MAX_CONNECTIONS` connections at once: one more closes the connection that has waited longest for
+  a request (idle, or a request still arriving), or, when every one is busy answering, is answered 503;
 * the live page's WebSocket takes at most :data:`anima.view.ws.MAX_CLIENTS` pages: one more is answered 503
   before the upgrade, and a page that stops answering the server's pings loses its slot
   (:data:`anima.view.ws.PING_S`).
@@ -20,15 +26,18 @@ server without them leaves videos unseekable). What it will and will not do:
 from __future__ import annotations
 
 import errno
+import io
 import mimetypes
 import os
 import re
 import secrets
 import shutil
+import socket
 import stat
 import sys
 import tempfile
 import threading
+import time
 import webbrowser
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -42,9 +51,35 @@ from anima.view.ws import accept_key
 
 HOST = "127.0.0.1"
 IDLE_TIMEOUT_S = 20
+"""A client that reads nothing of what it is sent for this long is closed."""
+REQUEST_S = 10.0
+"""The longest a request (its line and headers) may take to arrive, in all."""
+MAX_CONNECTIONS = 32
+"""Connections served at once (the live page's WebSocket included)."""
+_BUSY = b"HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\nRetry-After: 1\r\nConnection: close\r\n\r\n"
 _RANGE = re.compile(r"bytes=(\d{0,18})-(\d{0,18})$")
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,200}$")
 _TYPES = {".js": "text/javascript; charset=utf-8", ".html": "text/html; charset=utf-8", ".wav": "audio/wav"}
+
+
+class _RequestReader(io.RawIOBase):
+    """A connection's bytes for the request parser, every read bounded by what is left until ``deadline`` (when
+    set): a request that trickles in a byte at a time still ends at the deadline."""
+
+    def __init__(self, sock, idle: float):
+        self.sock, self.idle = sock, idle
+        self.deadline: float | None = None
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, b) -> int:
+        if self.deadline is not None:
+            left = self.deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError("the request did not arrive in time")
+            self.sock.settimeout(min(left, self.idle))
+        return self.sock.recv_into(b)
 
 
 class _Handler(BaseHTTPRequestHandler):
@@ -60,6 +95,26 @@ class _Handler(BaseHTTPRequestHandler):
 
     def log_message(self, format, *args):
         pass
+
+    def setup(self):
+        super().setup()
+        self.rfile.close()  # the socket's own file: replaced by one that keeps the request's deadline
+        self.reader = _RequestReader(self.connection, self.timeout)
+        self.rfile = io.BufferedReader(self.reader)
+
+    def handle_one_request(self):
+        """One request, which must arrive whole within :data:`REQUEST_S`; its answer is not limited."""
+        self.reader.deadline = time.monotonic() + REQUEST_S
+        self.server.waiting(self.connection, True)
+        super().handle_one_request()
+
+    def parse_request(self) -> bool:
+        try:
+            return super().parse_request()  # reads the headers
+        finally:
+            self.reader.deadline = None
+            self.connection.settimeout(self.timeout)
+            self.server.waiting(self.connection, False)
 
     def _refuse(self, status: HTTPStatus, head_only: bool = False) -> None:
         body = f"{status.value} {status.phrase}\n".encode()
@@ -189,7 +244,52 @@ class _Handler(BaseHTTPRequestHandler):
 
 
 class _Server(ThreadingHTTPServer):
+    """One thread per connection, at most :data:`MAX_CONNECTIONS` of them: one more closes the connection that
+    has waited longest for its request (an idle keep-alive, or a request still arriving), so that connections
+    held open without a request never lock the page out; when every connection is busy answering, it is
+    answered 503."""
+
     daemon_threads = True
+    max_connections = MAX_CONNECTIONS
+
+    def __init__(self, *args, **kw):
+        self.lock = threading.Lock()
+        self.open: dict = {}  # socket -> since when it waits for a request (None: it is being answered)
+        super().__init__(*args, **kw)
+
+    def waiting(self, sock, wait: bool) -> None:
+        with self.lock:
+            if sock in self.open:
+                self.open[sock] = time.monotonic() if wait else None
+
+    def process_request(self, request, client_address):
+        with self.lock:
+            full = len(self.open) >= self.max_connections
+            if full:
+                idle = [(t, s) for s, t in self.open.items() if t is not None]
+                if idle:
+                    oldest = min(idle, key=lambda x: x[0])[1]
+                    del self.open[oldest]
+                    try:
+                        oldest.shutdown(socket.SHUT_RDWR)  # its thread's read ends; the thread closes it
+                    except OSError:
+                        pass
+                    full = False
+            if not full:
+                self.open[request] = time.monotonic()
+        if full:
+            try:
+                request.setblocking(False)
+                request.send(_BUSY)
+            except OSError:
+                pass
+            return self.shutdown_request(request)
+        return super().process_request(request, client_address)
+
+    def shutdown_request(self, request):
+        with self.lock:
+            self.open.pop(request, None)
+        super().shutdown_request(request)
 
     def handle_error(self, request, client_address):
         """A request that failed in a way the handler did not answer (a dropped connection): no traceback."""

@@ -1256,3 +1256,282 @@ def test_eval_all_resume_refuses_a_deeply_nested_results_file(tmp_path):
     assert finished_rows(out, {"commit": "a" * 40}, False) == ({}, 0.0)
 
 
+# --- Addresses that cannot be sent to; view's source video; the view server's limits ---
+
+
+def _anima_at(cwd: Path, *args, timeout: float = 120) -> subprocess.CompletedProcess:
+    """``anima ARGS`` run in ``cwd`` (the folder matters to the cases below), as a user runs it."""
+    r = subprocess.run(
+        [sys.executable, "-m", "anima", *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=timeout
+    )
+    assert "Traceback" not in r.stderr, r.stderr[-3000:]
+    return r
+
+
+def _refused_one_line(r: subprocess.CompletedProcess, *words) -> None:
+    assert r.returncode in (2, 3, 4), (r.returncode, r.stderr[-500:])
+    assert r.stderr.count("\n") == 1 and r.stderr.startswith("anima: error:"), r.stderr
+    assert all(w in r.stderr for w in words), r.stderr
+
+
+def _udp_listener():
+    """A UDP socket on 127.0.0.1 that records whatever reaches it (0.0.0.0 reaches it on Linux)."""
+    import socket
+
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx.bind(("127.0.0.1", 0))
+    rx.settimeout(0.5)
+    return rx
+
+
+def _nothing_arrived(rx) -> bool:
+    try:
+        rx.recv(65536)
+        return False
+    except TimeoutError:
+        return True
+
+
+def _a_result(d: Path, source: dict | None = None) -> Path:
+    """A result folder: a generated capture of 10 frames whose recorded source video is ``source``."""
+    from anima.export.framing import generated_sequence
+    from anima.io.sequence import write_sequence
+
+    d.mkdir(parents=True, exist_ok=True)
+    seq = generated_sequence(25.0, face=np.zeros((10, 56), np.float32))
+    if source is not None:
+        seq.meta["source"] = source
+    write_sequence(seq, d / "capture.npz")
+    return d
+
+
+def test_vmc_and_livelink_refuse_addresses_that_cannot_be_sent_to(tmp_path):
+    """``--to 0.0.0.0:P`` (the unspecified address: on Linux it lands on this machine), the broadcast address,
+    ``[::]``, a multicast group, for every command that sends: one line, exit 2, before anything is read, tracked
+    or sent (a listener on 127.0.0.1:P gets nothing; live loads no model)."""
+    import time
+
+    res = _a_result(tmp_path / "res")
+    d0 = asset(D0)
+    with _udp_listener() as rx:
+        p = rx.getsockname()[1]
+        cases = [
+            ("vmc", res, "--to", f"0.0.0.0:{p}"),
+            ("vmc", res, "--to", f"255.255.255.255:{p}"),
+            ("vmc", res, "--to", f"[::]:{p}"),
+            ("vmc", res, "--to", f"[::ffff:0.0.0.0]:{p}"),
+            ("livelink", res / "capture.npz", "--to", f"0.0.0.0:{p}"),
+            ("livelink", res / "capture.npz", "--to", f"224.0.0.1:{p}"),
+            ("live", d0, "--no-browser", "--max-frames", "5", "--vmc", f"0.0.0.0:{p}"),
+            ("live", d0, "--no-browser", "--max-frames", "5", "--livelink", f"255.255.255.255:{p}"),
+            ("live", d0, "--no-browser", "--max-frames", "5", "--vmc", f"127.0.0.1:{p}", "--livelink", f"[::]:{p}"),
+        ]
+        for argv in cases:
+            t0 = time.monotonic()
+            r = _anima_at(tmp_path, *argv)
+            _refused_one_line(r, "packets cannot be sent to", argv[-1].rsplit(":", 1)[0].strip("[]"))
+            assert r.returncode == 2 and not r.stdout and time.monotonic() - t0 < 30, (argv, r.stdout[-300:])
+        assert _nothing_arrived(rx)
+    assert not (tmp_path / "take").exists()
+
+
+def test_live_refuses_two_outputs_on_one_address_and_port(tmp_path):
+    """``anima live --vmc H:P --livelink H:P`` (the same port, or a name of the same address): one receiver would
+    get both streams; refused in one line, exit 2, before tracking."""
+    d0 = asset(D0)
+    with _udp_listener() as rx:
+        p = rx.getsockname()[1]
+        for vmc, ll in ((f"127.0.0.1:{p}", f"127.0.0.1:{p}"), (f"localhost:{p}", f"127.0.0.1:{p}")):
+            r = _anima_at(tmp_path, "live", d0, "--no-browser", "--max-frames", "5", "--vmc", vmc, "--livelink", ll)
+            _refused_one_line(r, "--livelink and --vmc both send to", f"127.0.0.1:{p}")
+            assert r.returncode == 2 and not r.stdout
+        assert _nothing_arrived(rx)
+
+
+def test_view_never_takes_the_source_video_from_the_current_folder(tmp_path):
+    """A capture of ``clip.mp4`` run in one folder, viewed from another folder that holds another ``clip.mp4``: the
+    page's source video is the captured one (the capture records where it is), never the current folder's; a
+    result whose recorded source is relative (an older capture) looks it up in the result folder only: not there,
+    the page has no source video and a note says so."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    (a / "clip.mp4").write_bytes(asset(D0).read_bytes())
+    (b / "clip.mp4").write_bytes(asset(PATS).read_bytes())  # another person's clip under the same name
+    r = _anima_at(a, "capture", "clip.mp4", "--out", tmp_path / "cap", "--max-frames", "3", "--face-only",
+                  "--no-render", "--quiet")  # fmt: skip
+    assert r.returncode == 0, r.stderr[-2000:]
+    r = _anima_at(b, "view", tmp_path / "cap", "--static", tmp_path / "page")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "page" / "source.mp4").read_bytes() == (a / "clip.mp4").read_bytes()
+    # an older result: the source recorded as typed, relative ("clip.mp4")
+    from anima.io.video import probe_video
+
+    old = _a_result(tmp_path / "old", {**probe_video(a / "clip.mp4").as_dict(), "path": "clip.mp4"})
+    r = _anima_at(b, "view", old, "--static", tmp_path / "page_old")
+    assert r.returncode == 0, r.stderr
+    assert not (tmp_path / "page_old" / "source.mp4").exists()
+    said = [x for x in r.stderr.splitlines() if "no source video" in x]
+    assert len(said) == 1 and said[0].startswith("anima: note:") and "clip.mp4" in said[0], r.stderr
+    assert "source video" not in (tmp_path / "page_old" / "view-data.js").read_text().replace("no source video", "")
+    # relative to the result: a source inside the result folder is found from anywhere
+    (old / "clip.mp4").write_bytes((a / "clip.mp4").read_bytes())
+    r = _anima_at(b, "view", old, "--static", tmp_path / "page_inside")
+    assert r.returncode == 0 and "no source video" not in r.stderr, r.stderr
+    assert (tmp_path / "page_inside" / "source.mp4").read_bytes() == (a / "clip.mp4").read_bytes()
+
+
+def test_a_crafted_result_cannot_copy_a_local_video_into_its_page(tmp_path):
+    """A result whose recorded source points at a video it did not capture (an absolute path to another video, a
+    ``..`` out of the result, a symlink in it) gets no source video, said in one note: ``view --static`` copies
+    nothing of it, and ``anima view`` does not serve it."""
+    from anima.io.video import probe_video
+
+    private = tmp_path / "private.mp4"
+    private.write_bytes(asset(PATS).read_bytes())
+    captured = probe_video(asset(D0)).as_dict()  # what the crafted result claims to have tracked
+    crafted = {
+        "absolute, another video": {**captured, "path": str(private)},
+        "absolute, no record of it": {"path": str(private), "codec": "h264"},
+        "relative, out of the result": {**probe_video(private).as_dict(), "path": "../private.mp4"},
+        "a symlink in the result": {**probe_video(private).as_dict(), "path": "clip.mp4"},
+        "a device": {**captured, "path": "/dev/zero"},
+    }
+    secret = private.read_bytes()[-4096:]
+    for k, (name, source) in enumerate(crafted.items()):
+        res = _a_result(tmp_path / f"res{k}", source)
+        (res / "clip.mp4").symlink_to(private)
+        page = tmp_path / f"page{k}"
+        r = _anima_at(tmp_path, "view", res, "--static", page)
+        assert r.returncode == 0 and "Traceback" not in r.stderr, (name, r.stderr)
+        said = [x for x in r.stderr.splitlines() if "no source video" in x]
+        assert len(said) == 1 and said[0].startswith("anima: note:"), (name, r.stderr)
+        assert not list(page.glob("source*")), name
+        assert not any(secret in p.read_bytes() for p in page.iterdir() if p.is_file()), name
+        assert "source.mp4" not in (page / "view-data.js").read_text(), name
+    # served: the page lists no source video, and there is none to ask for
+    from browser import served
+
+    with served(tmp_path / "res0") as (url, _):
+        import urllib.error
+        import urllib.request
+
+        with pytest.raises(urllib.error.HTTPError) as e:
+            urllib.request.urlopen(url.replace("index.html", "source.mp4"), timeout=10)
+        assert e.value.code == 404
+        assert b"source.mp4" not in urllib.request.urlopen(url.replace("index.html", "view-data.js"), timeout=10).read()
+    # the video the capture did track, where it recorded it: taken
+    real = tmp_path / "clip.mp4"
+    real.write_bytes(asset(D0).read_bytes())
+    r = _anima_at(tmp_path, "view", _a_result(tmp_path / "genuine", {**captured, "path": str(real)}), "--static",
+                  tmp_path / "page_genuine")  # fmt: skip
+    assert r.returncode == 0 and "no source video" not in r.stderr, r.stderr
+    assert (tmp_path / "page_genuine" / "source.mp4").read_bytes() == real.read_bytes()
+
+
+def _port_token(url: str) -> tuple[int, str]:
+    import re
+
+    port, token = re.search(r":(\d+)/([A-Za-z0-9_-]+)/index\.html", url).groups()
+    return int(port), token
+
+
+def test_view_server_cuts_a_request_that_trickles_in_but_not_a_slow_download(tmp_path):
+    """A client that sends its request a byte every half second (each read well within the idle timeout) is cut
+    off at the request time limit, not held for ever; meanwhile a client reading a 3 MB video slowly, for longer
+    than that limit, gets every byte."""
+    import contextlib
+    import socket
+    import threading
+    import time
+
+    from browser import served
+
+    from anima.io.video import probe_video
+    from anima.view.serve import IDLE_TIMEOUT_S, REQUEST_S
+
+    video = asset(D0).read_bytes()  # the result's own source video, beside it
+    res = _a_result(tmp_path / "res", {**probe_video(asset(D0)).as_dict(), "path": "clip.mp4"})
+    (res / "clip.mp4").write_bytes(video)
+    with served(res) as (url, _):
+        port, tok = _port_token(url)
+        got: dict = {}
+
+        def slow_download():
+            s = socket.socket()
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 8192)
+            s.connect(("127.0.0.1", port))
+            s.settimeout(30)
+            s.sendall(f"GET /{tok}/source.mp4 HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode())
+            t0, data = time.monotonic(), b""
+            while chunk := s.recv(16384):
+                data += chunk
+                time.sleep(0.05)  # about 300 kB/s: longer than the request time limit for the whole video
+            got.update(seconds=time.monotonic() - t0, body=data.partition(b"\r\n\r\n")[2], head=data[:20])
+            s.close()
+
+        reader = threading.Thread(target=slow_download, daemon=True)
+        reader.start()
+        request = f"GET /{tok}/index.html HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nX-Slow: {'a' * 200}".encode()
+        with socket.create_connection(("127.0.0.1", port), timeout=IDLE_TIMEOUT_S + 10) as s:
+            t0, cut = time.monotonic(), None
+            for byte in request:
+                try:
+                    s.sendall(bytes([byte]))
+                    s.setblocking(False)
+                    with contextlib.suppress(BlockingIOError):
+                        if s.recv(1) == b"":
+                            cut = time.monotonic() - t0
+                            break
+                    s.setblocking(True)
+                except (ConnectionResetError, BrokenPipeError):
+                    cut = time.monotonic() - t0
+                    break
+                time.sleep(0.5)
+        assert cut is not None and REQUEST_S - 1 <= cut <= REQUEST_S + 3, cut
+        reader.join(60)
+        assert got["head"].startswith(b"HTTP/1.") and b" 200 " in got["head"], got.get("head")
+        assert len(got["body"]) == len(video) and got["body"] == video
+        assert got["seconds"] > REQUEST_S, got["seconds"]
+
+
+def test_view_server_caps_its_connections_and_still_answers(tmp_path):
+    """40 connections held open with a request that never ends (the cap is 32): the server stays within its cap
+    (the connections that waited longest are closed) and still answers a normal request at once."""
+    import socket
+    import time
+
+    from browser import served
+
+    from anima.view.serve import MAX_CONNECTIONS
+
+    with served(_a_result(tmp_path / "res")) as (url, _):
+        port, tok = _port_token(url)
+        held = []
+        for _ in range(MAX_CONNECTIONS + 8):
+            s = socket.create_connection(("127.0.0.1", port), timeout=10)
+            s.sendall(b"GET /")
+            held.append(s)
+        time.sleep(0.5)
+        t0 = time.monotonic()
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+            s.sendall(f"GET /{tok}/index.html HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n\r\n".encode())
+            data = b""
+            while chunk := s.recv(65536):
+                data += chunk
+        assert b" 200 " in data.split(b"\r\n")[0] and b"viewer.js" in data, data[:200]
+        assert time.monotonic() - t0 < 3
+        time.sleep(0.3)
+        closed = 0
+        for s in held:
+            s.setblocking(False)
+            try:
+                closed += s.recv(1) == b""
+            except BlockingIOError:
+                pass
+            except OSError:
+                closed += 1
+            s.close()
+        assert closed >= len(held) + 1 - MAX_CONNECTIONS, closed
+
+

@@ -17,6 +17,7 @@ import pytest
 from anima.export.framing import generated_sequence
 from anima.io.assets import asset
 from anima.io.sequence import write_sequence
+from anima.io.video import probe_video
 from anima.view.export import build_view
 from anima.view.serve import open_server
 
@@ -94,7 +95,7 @@ def test_the_export_reads_only_regular_files_inside_the_result(tmp_path):
     shutil.copyfile(asset(D0), src)
     src.chmod(0o600)
     seq = generated_sequence(25.0, face=np.zeros((10, 56), np.float32))
-    seq.meta["source"] = {"path": str(src), "codec": "h264"}
+    seq.meta["source"] = probe_video(src).as_dict()  # as a capture records it
     write_sequence(seq, res / "capture.npz")
     for name in ("overlay.mp4", "speech.wav", "avatar.glb", "info.json"):
         (res / name).symlink_to(secret)
