@@ -1,4 +1,4 @@
-"""Doc tables generated from result JSON, never typed by hand (issue 38).
+"""Doc tables generated from result JSON, never typed by hand.
 
 A block in any markdown file under ``docs/`` or in ``README.md``::
 
@@ -22,10 +22,10 @@ where ``POINTER`` is a JSON pointer into ``FILE`` (``/rows/annotations/result/ca
 or ``len`` (how many items a list holds); ``*`` in the pointer takes every item of a list, and ``min``,
 ``max``, ``median`` or ``mean`` before the spec (``min.2%``) reduce them to one number.
 
-A result is never typed (issue 52): :func:`typed_results` finds a number in the prose (outside blocks, inline
+A result is never typed: :func:`typed_results` finds a number in the prose (outside blocks, inline
 values and code) that reads as a measurement (after a metric word such as r, F1, MAE, SSIM, recall, mean or
 took; "1.7x faster"; "9 ms a frame"), unless a comparison or bound precedes it (a target or a threshold);
-``TYPED_OK`` lists the few left that are settings, criteria or numbers quoted from a seed or an issue, each
+``TYPED_OK`` lists the few left that are settings, criteria or numbers quoted from a seed or a reference, each
 with why. ``--check`` fails on any other.
 
     .venv/bin/python tools/doc_tables.py           # rewrite every block
@@ -61,13 +61,13 @@ TYPED = re.compile(
 BOUND = re.compile(r"(?:[<>=]|\bwithin|\bbelow|\bunder|\bover|\bat least|\bat most|\bat|\bby construction)\s*$")
 # (document, number, words on its line) -> why it is typed: settings, criteria and quoted numbers, not results
 TYPED_OK = {
-    ("dataset.md", "1.0", "precision and recall are both"): "the selection rule (both are 1)",
-    ("gesture.md", "0.61", "The reference the issue gives"): "quoted from the issue (its reference clip)",
+    ("detectors.md", "1.0", "precision and recall are both"): "the selection rule (both are 1)",
+    ("gesture.md", "0.61", "For reference, a captured talking clip"): "a reference quoted from a captured clip",
     ("pose3d.md", "150 mm", "PCK@150 mm"): "the metric's name (PCK at 150 mm)",
-    ("rig.md", "0.8", "eye aspect ratio from open 0.8"): "a setting: the lid opening's open level",
-    ("rig.md", "0.2", "clip median to shut 0.2"): "a setting: the lid opening's shut level",
+    ("face_rig.md", "0.8", "eye aspect ratio from open 0.8"): "a setting: the lid opening's open level",
+    ("face_rig.md", "0.2", "clip median to shut 0.2"): "a setting: the lid opening's shut level",
     ("rig.md", "1.77", "gets the mean adult"): "a setting: the default character's height",
-    ("text2face.md", "95 %", "95 % confidence interval"): "the interval's level",
+    ("text2face_model.md", "95 %", "95 % confidence interval"): "the interval's level",
 }
 
 

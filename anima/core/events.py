@@ -1,4 +1,4 @@
-"""The facial-event vocabulary, declared once (issue 46): every event a prompt can ask for, a detector can
+"""The facial-event vocabulary, declared once: every event a prompt can ask for, a detector can
 label or a description can say, with what each part of anima needs to know about it.
 
 One :class:`Event` per event: the prompt parser's phrases (regular expressions, word-boundary anchored, matched

@@ -40,13 +40,13 @@ class DetectorConfig:
     blink_baseline_s: float | None = 1.0
     """``blink_on`` is measured above the running median of this many seconds of eyeBlink (the lids' own
     resting level: the fit leaves open lids at about 0.2 on some faces, where closed lids peak at only 0.5-0.6).
-    None: ``blink_on`` is an absolute eyeBlink level (before issue 16: 0.5). The window and 0.2 were chosen on
+    None: ``blink_on`` is an absolute eyeBlink level (0.5 then). The window and 0.2 were chosen on
     the labelled clips other than uncrop_obama, which was held out to test the change."""
     smile_on: float = 0.4
     """This and the other event thresholds below: chosen on the labelled clips of the training and validation
     splits only, each over its declared grid (``anima.eval.annotations.calibrate``; ``anima eval annotations``
-    lists the clips and reports the test clips before and after). Before issue 52: smile 0.35, brows 0.3, nod 4
-    degrees, set on labelled clips that included test videos."""
+    lists the clips and reports the test clips with these and with the earlier values, smile 0.35, brows 0.3, nod 4
+    degrees, which were set on labelled clips that included test videos)."""
     frown_on: float = 0.25
     squint_on: float = 0.2
     brow_on: float = 0.25
@@ -62,7 +62,7 @@ class DetectorConfig:
     talk_voice_decides: bool = True
     """Where the clip's own audio is voiced, lip motion alone decides talk, without the reversal count (voice
     activity plus lip motion: speech with few clear mouth reversals is still talk while the voice is heard).
-    Without audio, lip motion and reversals decide. False: the detector before issue 19 (voice only gated)."""
+    Without audio, lip motion and reversals decide. False: the voice only gates lip motion and reversals."""
     nod_deg: float = 3.0
     shake_deg: float = 7.0
     turn_deg: float = 20.0

@@ -343,7 +343,7 @@ def _repeats_phrases(text: str, k: int = 4, limit: int = 2) -> bool:
 
 
 def fitting_descriptions(segs: list[Segment], n: int, seed: int, gender: str | None) -> tuple[list[str], int]:
-    """A clip's ``n`` distinct descriptions in varied templates and granularity (issue 37): the short form,
+    """A clip's ``n`` distinct descriptions in varied templates and granularity: the short form,
     events in order, a summary of what happens, events with their times, and the seed's long grammar over
     the clip's condensed changes; each within the text encoder's window and free of repeated phrases (a
     candidate that is not is left out and counted, never cut). Deterministic in ``seed``."""

@@ -61,7 +61,7 @@ SOURCE_RULES: list[tuple[str, str, str]] = [
     ("talking-heads-extra/expression_source", r"", "styletalk:happyenglish"),  # the happyenglish speaker
     ("talking-heads-extra/RD_Radio", r"^(RD_Radio\d+)_", "hdtf:{1}"),
     # one interview (same shot, flag, dress, earrings), re-cropped in VideoReTalking's examples: found by the
-    # face crops (issue 52), declared so a build of any subset gives it one split
+    # face crops, declared so a build of any subset gives it one split
     ("talking-heads-extra/pose_source", r"", "recording:pose-source"),
     ("videoretalking-examples/examples/face/3.mp4", r"", "recording:pose-source"),
     ("talking-heads-misc/Real3DPortrait/", r"^May_", "person:theresa-may"),

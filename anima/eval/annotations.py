@@ -138,8 +138,8 @@ def _grid(lo: float, hi: float, step: float) -> tuple[float, ...]:
 
 
 # candidate thresholds per knob, declared in the detector's own units over the range a detector could sensibly
-# use, NOT around the shipped value (issue 38: a grid anchored on the in-sample values, with ties going to them,
-# let the shipped calibration leak into the out-of-sample score)
+# use, NOT around the shipped value (a grid anchored on the in-sample values, with ties going to them, would let
+# the shipped calibration leak into the out-of-sample score)
 GRIDS = {
     "blink_on": _grid(0.05, 0.6, 0.05),  # eyeBlink above its running median
     "smile_on": _grid(0.1, 0.7, 0.05),  # blendshape weights
@@ -186,13 +186,13 @@ def choose_thresholds(pairs, base: DetectorConfig) -> dict:
     return chosen
 
 
-# the thresholds shipped before issue 52 (item 2) re-chose them on training and validation clips only; their test
-# scores are reported beside the re-calibrated ones
+# the thresholds shipped before the calibration on training and validation clips only; their test scores are
+# reported beside the calibrated ones
 BEFORE_TRAIN_ONLY = {"smile_on": 0.35, "brow_on": 0.3, "nod_deg": 4.0}
 
 
 def calibrate(pairs, base: DetectorConfig) -> tuple[dict, dict]:
-    """The shipped thresholds' rule (issue 52, item 2): each knob swept alone over its declared grid
+    """The shipped thresholds' rule: each knob swept alone over its declared grid
     (:data:`GRIDS`), the others at ``base``; the value with the best event-level F1 pooled over ``pairs`` (the
     labelled clips of the training and validation splits, never test), ties to the median of the tied values.
     A knob keeps ``base``'s value where its attribute has no labelled event in ``pairs`` or where every value
@@ -221,14 +221,14 @@ def calibrate(pairs, base: DetectorConfig) -> tuple[dict, dict]:
 
 
 def calibration(pairs, base: DetectorConfig) -> dict:
-    """Which clips calibrated what (issue 52, item 2): the thresholds chosen by :func:`calibrate` on the
+    """Which clips calibrated what: the thresholds chosen by :func:`calibrate` on the
     training and validation clips, whether the shipped ones are those, and the test clips' scores with the
     thresholds before and after the re-calibration (the test labels choose nothing)."""
     sides = {lab["name"]: split_for(asset(lab["clip"])) for _, lab in pairs}
     fit = [(s, lab) for s, lab in pairs if sides[lab["name"]] != "test"]
     test = [(s, lab) for s, lab in pairs if sides[lab["name"]] == "test"]
     chosen, detail = calibrate(fit, base)
-    blink_rule = {}  # the blink rule's baseline window on the same clips (None: the absolute rule before issue 16)
+    blink_rule = {}  # the blink rule's baseline window on the same clips (None: an absolute eyeBlink level)
     for w in (0.5, 1.0, 2.0, 3.0, None):
         total: dict = {}
         for seq, lab in fit:
@@ -297,8 +297,8 @@ def voiced_mask(seq, cfg: DetectorConfig) -> np.ndarray:
 
 def talk_on_speech(cfg: DetectorConfig | None = None, clips=None, seconds: float = SPEECH_SECONDS) -> dict:
     """Talk recall against voice activity on monologue clips: the share of voiced frames inside a detected
-    talk event, with the shipped detector and with the detector before issue 19 (``talk_voice_decides``
-    False: the voice only gated lip motion and its reversal count)."""
+    talk event, with the shipped detector and with the voice only gating lip motion and its reversal count
+    (``talk_voice_decides`` False)."""
     base = cfg or DetectorConfig()
     before = dataclasses.replace(base, talk_voice_decides=False)
     rows = []
@@ -330,7 +330,7 @@ def talk_on_speech(cfg: DetectorConfig | None = None, clips=None, seconds: float
 
 # One CREMA-D actor saying one sentence six ways: each emotion against the same speaker's neutral clip.
 CREMA_D_CLIPS = "emotion-clips/crema-d/1001_DFA_{}_XX.flv"
-# the weights an emotion should raise (issue 19; fear: brows raised, eyes wide)
+# the weights an emotion should raise (fear: brows raised, eyes wide)
 EMOTION_WEIGHTS = {
     "ANG": ("angry", ["browDown", "noseSneer"]),
     "DIS": ("disgusted", ["browDown", "noseSneer"]),
@@ -448,7 +448,7 @@ def capture_emotions_summary(r: dict) -> list[str]:
 
 def talk_on_speech_summary(r: dict) -> list[str]:
     """Talk against the clip's own voice (``r["talk_on_speech"]``): the share of voiced frames inside a talk
-    event, with the shipped rule and with the voice only gating lip motion (before issue 19)."""
+    event, with the shipped rule and with the voice only gating lip motion."""
     ts = r["talk_on_speech"]
     names = [Path(c["clip"]).stem for c in ts["clips"]]
     voiced = sum(c["voiced_s"] for c in ts["clips"])

@@ -8,14 +8,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 HELDOUT_PROMPTS = Path(__file__).parent / "prompts" / "text2face_heldout.json"
-"""The held-out prompt suite (issue 52, item 3): written and frozen before any method ran on it, run once per
+"""The held-out prompt suite: written and frozen before any method ran on it, run once per
 release by ``anima eval all``; its result is reported whatever it is and never used to change anything. After a
 release it joins the development suites and a new one is written (the protocol: docs/text2face.md)."""
 HELDOUT_SHA256 = "49c9ff532d64588984dd30354f9db62c9642fc11f542edaf3f53793e973d870f"
 """The held-out suite's file hash, recorded when it was frozen (2026-11-27); a test fails if the file changes."""
 DEV2_PROMPTS = Path(__file__).parent / "prompts" / "text2face_dev2.json"
-"""The second development suite: the 40 prompts that were 'held out' until issue 52 (its judge failures were
-seen before the round that fixed smiles, frowns and shakes, so its scores are development scores)."""
+"""The second development suite: 40 prompts written after the first suite (its judge failures were seen before
+the round that fixed smiles, frowns and shakes, so its scores are development scores)."""
 
 
 @dataclass

@@ -58,8 +58,8 @@ DEFINITIONS = ("ict_original", "calibrated")
 
 
 def definition_vertices(model, name: str) -> np.ndarray:
-    """The 68 ICT vertices of a landmark definition: ``ict_original`` (ICT's own 68, the points raw
-    MediaPipe was mapped through before issue 16) or ``calibrated`` (:mod:`anima.facemodel.landmarks68`:
+    """The 68 ICT vertices of a landmark definition: ``ict_original`` (ICT's own 68, as ICT-FaceKit
+    defines them) or ``calibrated`` (:mod:`anima.facemodel.landmarks68`:
     ICT's Multi-PIE jawline substitutes and points 17-67 re-chosen on 47 other annotated faces)."""
     return np.asarray(model.landmarks68 if name == "ict_original" else ibug68_vertices(model), np.int64)
 

@@ -114,8 +114,8 @@ def _text2face_rows(c: Context) -> list[tuple[str, object]]:
     q = dict(reps=2, ablations=False, steps=20) if c.quick else {}
     return [
         ("text2face", Text2FaceEval(dataset=c.db, work=str(c.work), **q)),
-        # both judges on every suite (issue 38): the dataset's detectors and the independent one; the two
-        # development suites, then the frozen held-out one (issue 52: run once per release, here)
+        # both judges on every suite: the dataset's detectors and the independent one; the two
+        # development suites, then the frozen held-out one (run once per release, here)
         ("text2face_prompts", Text2FaceEval(dataset=c.db, prompts="", seeds=seeds, judge=not c.quick)),
         (
             "text2face_prompts_dev2",

@@ -13,8 +13,7 @@ temporal Gaussian filter (default sigma). Reported per clip (over frames with a 
 The filter's sigma is chosen on **validation** clips (:data:`VALIDATION_CLIPS`, validation split of
 :mod:`anima.dataset.splits`): the smallest sigma of :data:`SIGMAS` whose mean reduction reaches 40 % with a mean
 error ratio <= 1.10 there; the report is on **test** clips (:data:`DEFAULT_CLIPS`, test split), with the
-capture's default and with the chosen sigma, and says whether they agree (issue 38: before, the default was
-chosen on the reported clips).
+capture's default and with the chosen sigma, and says whether they agree (the reported clips choose nothing).
 """
 
 from __future__ import annotations
@@ -34,8 +33,8 @@ from anima.io.assets import asset
 from anima.io.sequence import TrackedSequence
 from anima.io.video import probe_video
 
-DEFAULT_CLIPS = [  # talking faces of the test split (issue 52: EDTalk's pose source, one recording with
-    # video-retalking's face 3, is train since the two were found to be one interview)
+DEFAULT_CLIPS = [  # talking faces of the test split (EDTalk's pose source, one recording with
+    # video-retalking's face 3, is train: the two are one interview)
     "videoretalking-examples/examples/face/5.mp4",
     "liveportrait-examples/assets/examples/driving/d10.mp4",
     "liveportrait-examples/assets/examples/driving/d20.mp4",

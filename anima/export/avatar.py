@@ -425,7 +425,7 @@ BUST = ("Head", "Neck", "HeadTop_End", "Spine2", "LeftShoulder", "RightShoulder"
 """What the close-up draws: the head, the neck and the bust under them (the upper chest and the shoulders), so the
 square's bottom shows shoulders, not the neck's ragged cut (as the viewer's close-up does). Read back on the nine
 development clips (``benchmarks/face_readback.py``, the calibrations as they were), d3's blinks came to the
-video's 5 (7 with the head and neck alone) and the radio clip's brows to r 0.84 (0.79); docs/rig.md."""
+video's 5 (7 with the head and neck alone) and the radio clip's brows to r 0.84 (0.79); docs/face_rig.md."""
 
 
 def head_triangles(ch) -> np.ndarray:

@@ -295,7 +295,7 @@ with the eyes' old calibration, among no shade; 0.15, 0.25 and 0.35 over the who
 brows' read-back by up to 0.05); 0.25 and 0.35 faded out above the upper lid; and the lower lid's rim painted
 instead. With the calibrations measured again on the character so shaded (:data:`~anima.facemodel.transfer.
 EYE_SHOWN`), the radio clip's right eye read 0.84, Obama's left 0.87 (0.91 unshaded), and d3 counted 7 blinks of
-the video's 5 (6 unshaded); over all 58 clips read back the misses fell from 14 to 10 (docs/rig.md; the close-up
+the video's 5 (6 unshaded); over all 58 clips read back the misses fell from 14 to 10 (docs/face_rig.md; the close-up
 has drawn the bust since, :data:`anima.export.avatar.BUST`, with the calibrations measured again)."""
 SOCKET_MM = 12.0
 

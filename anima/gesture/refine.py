@@ -176,7 +176,7 @@ def knn_pairs(db, cfg: RefinerTrainConfig | None = None, windows=None, no_repeat
     each window's speech matched against a database without its own video. ``cfg.k_sampling``: ``"seed"``
     (§5.3.4: ``cfg.pairs_per_window`` syntheses per window, k = 1 for half of them and uniform over 2..15 for
     the rest, each from a random database frame's pose feature) or ``"ks"`` (one synthesis per k in
-    ``cfg.ks`` from the database's mean pose feature, anima's setting before issue 16)."""
+    ``cfg.ks`` from the database's mean pose feature: the :meth:`RefinerTrainConfig.anima_v1` ablation)."""
     cfg = cfg or RefinerTrainConfig()
     if db.S is None:
         raise InputError("the database has no per-frame speech features (build it with from_dataset)")
@@ -217,8 +217,8 @@ def pair_draws(sub, cfg: RefinerTrainConfig, rng: np.random.Generator) -> list[t
 class RefinerTrainConfig:
     """Defaults are the seed's (§5.3.4: loss weights w1 = 0.1 (L1 to the k-NN), w2 = 1 (adversarial), w3 = 100
     (gradient penalty); k = 1 for half of the pairs, uniform 2..15 for the rest, random initial pose); only
-    the number of steps is smaller (the seed: 300,000 on hours of data). :meth:`anima_v1` is the setting
-    before issue 16, kept as a measured ablation."""
+    the number of steps is smaller (the seed: 300,000 on hours of data). :meth:`anima_v1` is another
+    setting, kept as a measured ablation."""
 
     steps: int = 600  # generator steps
     critic_steps: int = 5
@@ -235,7 +235,7 @@ class RefinerTrainConfig:
 
     @classmethod
     def anima_v1(cls, **kw) -> RefinerTrainConfig:
-        """anima's refiner before issue 16: L1 10, adversarial 1, gradient penalty 10, k = 0..4 from the mean
+        """The ablation's refiner: L1 10, adversarial 1, gradient penalty 10, k = 0..4 from the mean
         pose (it kept the refined output within 0.15 cm of the k-NN's)."""
         return cls(**{"gp": 10.0, "l1": 10.0, "adv": 1.0, "k_sampling": "ks", **kw})
 

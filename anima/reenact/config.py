@@ -9,8 +9,7 @@ from dataclasses import dataclass, field
 class ReenactConfig:
     n: int = field(default=100, metadata={"range": (1, 100_000)})
     """Nearest target frames: the validation clip's choice with ``detail`` 1 (``python
-    benchmarks/reenact_sharpness.py``: lowest LPIPS within the tLP bound; the seed's 100 too). A run before
-    the colours came from the database frames (issue 38) had chosen 50 by a tie."""
+    benchmarks/reenact_sharpness.py``: lowest LPIPS within the tLP bound; the seed's 100 too)."""
     a: float = field(default=0.9, metadata={"range": (1e-6, 1 - 1e-6)})
     """Weight fraction the n best carry (eq. 3.4; seed 0.9)."""
     smooth: int = field(default=5, metadata={"range": (0, 1000)})

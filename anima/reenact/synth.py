@@ -149,7 +149,7 @@ def temporal_mean(x: np.ndarray, T: int) -> np.ndarray:
     return uniform_filter1d(np.asarray(x, np.float32), size=T, axis=0, mode="nearest")
 
 
-# ---- colour and lighting per frame (issue 21) -------------------------------------------------------------
+# ---- colour and lighting per frame --------------------------------------------------------------------------
 GAIN_RANGE = (0.5, 2.0)  # per-channel contrast change allowed between two frames' skin
 
 

@@ -1,4 +1,4 @@
-"""The timeline method of ``anima text2face`` (issue 19): a prompt's events synthesised from captured motion.
+"""The timeline method of ``anima text2face``: a prompt's events synthesised from captured motion.
 
 The seed's model (cVQ-VAE + FaceFormer decoder) needs hours of data; on the shared minutes its prompts
 collapse onto a few codebook entries. This method works on minutes and improves with more:
@@ -67,10 +67,10 @@ SHAKE_MAX_RAD = 0.3  # 17 degrees either way (the turn detector fires at 20 degr
 SHAKE_RAD = {0.6: 0.15, 1.0: 0.25, 1.4: 0.3}
 """A head shake's peak yaw (radians) by stated intensity: a plain shake swings 14 degrees either way. Shakes
 are keyframed (:func:`anima.text2face.poses.shake_track`): the captured ones of the shared data (6 in the
-training videos) are slow, one-sided wanders of the head that a viewer does not read as "no" (issue 37)."""
+training videos) are slow, one-sided wanders of the head that a viewer does not read as "no"."""
 NOD_RAD = {0.35: 0.14, 0.6: 0.2, 1.0: 0.26, 1.4: 0.33}
 """A nod's bob (radians, the chin down) by stated intensity: 8, 11.5, 15 and 19 degrees. Nods are keyframed
-(:func:`anima.text2face.poses.nod_track`, issue 50 item 4): one bob each, so "nods twice" is two bobs (the
+(:func:`anima.text2face.poses.nod_track`): one bob each, so "nods twice" is two bobs (the
 captured ones bob two to six times); a single 0.8-s bob of 15 degrees is what the dataset's nod detector reads
 as one nod (a shallower or quicker one it misses)."""
 # Longer holds read as other events to the detectors, which measure against the clip's own rest: an open
@@ -413,7 +413,7 @@ def plan_layout(plan: Plan, lib: Library, n_frames: int, seed: int = 0, avoid: f
 TALK_JAW_STD = 0.05
 """The jaw's motion in captured talk: the median over the built-in library's talk segments of jawOpen's standard
 deviation (0.05; a test measures it). A talk track below it is scaled up to it (at most 2x), so a dataset
-whose detected talk includes quiet stretches still talks as visibly (issue 50 item 5)."""
+whose detected talk includes quiet stretches still talks as visibly."""
 
 
 def talk_energy(lib: Library, seg: Segment) -> float:
@@ -425,8 +425,8 @@ def talk_energy(lib: Library, seg: Segment) -> float:
 def _talk_track(lib: Library, n: int, rng: np.random.Generator, lively: bool = True) -> np.ndarray:
     """``n`` frames of lip offsets tiled from talk segments (crossfaded over their margins): the livelier half of
     the library's talk segments (by :func:`talk_energy`), the track scaled up to :data:`TALK_JAW_STD` where its
-    jaw moves less (at most 2x). ``lively=False``: every talk segment, as captured (before issue 50; for
-    benchmarks/bench_talk_energy.py)."""
+    jaw moves less (at most 2x). ``lively=False``: every talk segment, as captured (for
+    benchmarks/ablation_talk_energy.py)."""
     pool = lib.segments.get(TALK) or []
     if not pool:
         raise InputError("the library has no captured 'talk' segment")
@@ -525,19 +525,19 @@ a prompt's "smiles" should not depend on whose smile was drawn). Blinks and clos
 STRENGTH_OF = {n: e.strength for n, e in VOCABULARY.items() if e.strength}
 """Per event, its own ranges (the vocabulary's): blinks and closed eyes close the eye; an open mouth is
 jawOpen 0.3 (the detector) up to a yawn's 0.45 held a second; a smile and a frown at full strength on their
-own channel (issue 37: mouthSmile 0.6 alone, or browDown 0.6 alone, barely changes the face a viewer sees; the
+own channel (mouthSmile 0.6 alone, or browDown 0.6 alone, barely changes the face a viewer sees; the
 face model's brows move little, so even a slight frown needs browDown 0.8 to be seen); raised brows on the
 brows' mean."""
 SYMMETRIC = tuple(n for n, e in VOCABULARY.items() if e.symmetric)
 """Events made alike on both sides when no side is named: a captured segment's left-right difference is
-mostly the fit's (head pose) and leaves one brow or one corner weak (issue 37: a frown at full strength)."""
+mostly the fit's (head pose) and leaves one brow or one corner weak (a frown at full strength)."""
 _PAIRS = {
     a: [(_IX[c], _IX[c[:-2] + "_R"]) for c in CHANNELS[a] if c.endswith("_L") and c[:-2] + "_R" in _IX]
     for a in SYMMETRIC
 }
 FROWN_SNEER = 0.35
 """A frown's noseSneer at least this fraction of its browDown: the face model's browDown alone lowers the
-brows by less than a tracker sees in a captured frown (issue 37; chosen on the development suite)."""
+brows by less than a tracker sees in a captured frown (chosen on the development prompt suite)."""
 PEAK_OF_MEAN = {n for n, e in VOCABULARY.items() if e.peak_of_mean}
 """Events whose peak is taken on the mean of their main channels, not the largest: a captured raise lifts
 the inner brows well above the outer ones, and the face model's brows rise visibly only with both."""

@@ -1,6 +1,6 @@
 """Keyframed expression events: the face actions that no dataset detector labels (gaze, eye rolls, cheek puff,
 pout, lip press, one-sided brows and smiles, winks, ...), made as an envelope on their ARKit channels instead
-of being copied from captured segments (issue 37). Between them, :data:`POSES` and the detector-labelled
+of being copied from captured segments. Between them, :data:`POSES` and the detector-labelled
 events of :mod:`anima.text2face.compose` reach every one of the 53 expression channels.
 
 An event rises over ``attack_s`` (raised cosine), holds its weights for the slot, and falls over
@@ -149,8 +149,8 @@ def shake_track(n: int, count: int, peak: float, fps: float) -> np.ndarray:
 
 def nod_track(n: int, count: int, peak: float, fps: float) -> np.ndarray:
     """Head pitch offsets ``[n]`` (radians, positive: the chin down): ``count`` nods spread over ``n`` frames,
-    each one bob of ``peak`` down and back up (a raised cosine), so a viewer counts exactly ``count`` (issue 50
-    item 4: captured nod segments bob two to six times)."""
+    each one bob of ``peak`` down and back up (a raised cosine), so a viewer counts exactly ``count`` (captured
+    nod segments bob two to six times)."""
     out = np.zeros(n, np.float32)
     for t, k, _ in _repeats(NOD, n, count, fps):
         out[t : t + k] = peak * np.sin(np.linspace(0.0, np.pi, k)) ** 2

@@ -1,4 +1,4 @@
-"""A prompt -> a timeline of facial events (issue 19): what the timeline method of ``anima text2face`` makes.
+"""A prompt -> a timeline of facial events: what the timeline method of ``anima text2face`` makes.
 
 The vocabulary is the dataset's attribute detectors (``anima.dataset.attributes.ATTRIBUTES``) plus eight
 emotions. A prompt is read clause by clause:
@@ -78,7 +78,7 @@ STRONGER = (
 )
 FAINT = 0.35
 INTENSITY = [(SOFTER, 0.6), (SOFTEST, FAINT), (STRONGER, 1.4)]
-"""Intensity as a dial (issue 50): one softening word (:data:`SOFTER`) is 0.6, two of them ("a slight, faint
+"""Intensity as a dial: one softening word (:data:`SOFTER`) is 0.6, two of them ("a slight, faint
 smile", "just a little bit, barely"), a strengthened one ("very slightly") or a superlative (:data:`SOFTEST`)
 :data:`FAINT`; strengthening words alone 1.4; none 1. ``compose.STRENGTH`` turns each level into a peak range per
 event, the same for the built-in library and a dataset."""
@@ -221,8 +221,8 @@ def _lexicon_matches(clause: str) -> list[tuple[int, str, tuple[int, int]]]:
 
 
 def _bind_sides(clause: str, hits) -> dict[int, str]:
-    """Each side word of a clause bound to the event it governs (issue 50: "turns her head to the left and
-    smiles" is a left turn and a plain smile): a side inside an event's words is that event's; one outside any
+    """Each side word of a clause bound to the event it governs ("turns her head to the left and smiles" is a
+    left turn and a plain smile): a side inside an event's words is that event's; one outside any
     goes to the nearest event before it that takes a side, else to the next one."""
     out: dict[int, str] = {}
     for m in re.finditer(SIDE, clause):

@@ -1,4 +1,4 @@
-"""Rows of the learned gesture models, cross-validated by speaker (issue 52; by video for one speaker): the
+"""Rows of the learned gesture models, cross-validated by speaker (by video for one speaker): the
 k-NN + cGAN refiner (§5.3.3), the §4.4 generator with its baselines (direct regression, LSTM), FGD, the lip
 error (table 4.3) and the sync classifier (table 4.4). Every model is trained by its feature package
 (``anima.gesture``) on the training folds' videos and judged on the held-out fold's windows."""
@@ -40,7 +40,7 @@ from anima.gesture.sync import accuracy, train_sync
 
 
 def fold_inputs(db, test_videos: set, ks, controls, cfg: RefinerTrainConfig, rng, no_repeat: int, blend: bool) -> dict:
-    """Everything one refiner fold reads, from databases without that fold's videos (issue 38): the training
+    """Everything one refiner fold reads, from databases without that fold's videos: the training
     pairs (each training window's k-NN syntheses searched in the fold's training videos less the window's own
     video), the judged inputs (each held-out window's k = ``ks`` outputs and controlled outputs searched in the
     fold's training videos) and the bone lengths every output is re-posed on (measured on the training videos)."""
@@ -94,7 +94,7 @@ SIGMA_GRID = (0.0, 0.75, 1.5, 3.0)  # frames: the refiner's correction smoothing
 
 
 def pick_sigma(scores: dict, captured_jerk: float) -> float:
-    """The rule fixed before any run (issue 38): the correction smoothing whose refined wrist jerk is closest
+    """The rule fixed before any run: the correction smoothing whose refined wrist jerk is closest
     to the captured jerk of the same validation windows; a tie goes to the smaller sigma."""
     return min(sorted(scores), key=lambda s: abs(scores[s]["jerk"] - captured_jerk))
 
@@ -434,7 +434,7 @@ def generator_rows(
             res[kind]["jerk"].append(jerk(g, fps))
             res[kind]["wrist_motion_cm"].append(wrist_motion(g))
             res[kind]["beat_consistency"].append(beat_consistency(g, kept["onsets"][i], fps))
-    # FGD per fold (issue 38): each fold's feature network is trained on the other folds' videos only and
+    # FGD per fold: each fold's feature network is trained on the other folds' videos only and
     # measures that fold's judged windows; the rows are the window-weighted mean over folds
     fgd_rows, fgd_folds = defaultdict(float), []
     perm_rng = np.random.default_rng(0)

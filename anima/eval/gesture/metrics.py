@@ -142,7 +142,7 @@ def speaker_of(source: str) -> str:
 
 
 def speaker_folds(sources, folds: int, by_speaker: bool = True, fixed: dict | None = None) -> dict[str, int]:
-    """Each video's fold (issue 52, item 5): with ``by_speaker``, all of a speaker's videos (:func:`speaker_of`)
+    """Each video's fold: with ``by_speaker``, all of a speaker's videos (:func:`speaker_of`)
     in one fold, so a window is judged by models that never saw its speaker; the speakers, most windows first
     (then by name), each go to the fold with the fewest windows so far (scikit-learn's GroupKFold rule).
     ``sources``: one entry per window (a video may repeat; its count is the weight). ``fixed``: speakers

@@ -172,7 +172,7 @@ def evaluate(
     }
     if refiner_folds:
         out["knn_cgan"] = refiner_rows(db, kept, ks, refiner_folds, refiner_steps, progress)
-        if refiner_ablation:  # anima's setting before issue 16, on the same folds and windows
+        if refiner_ablation:  # RefinerTrainConfig.anima_v1, on the same folds and windows
             v1 = RefinerTrainConfig.anima_v1()
             out["knn_cgan_anima_v1"] = refiner_rows(db, kept, ks, refiner_folds, refiner_steps, progress, v1)
         body = [db.source[i][0] for i in sorted(kept["outs"])]

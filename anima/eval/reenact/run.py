@@ -10,7 +10,7 @@ bounding boxes, the same crop for output and truth):
 * NME: MediaPipe face mesh run on the output and on the real frame, mean distance of the 40 lip landmarks
   divided by sqrt(w h) of the real frame's landmark box;
 * tOF (eq. 2.9): the L2 norm of Farneback flow(out_t, out_t+1) - flow(gt_t, gt_t+1) per pixel, averaged
-  over pixels and frame pairs (before issue 16: |dx| + |dy|, up to 1.41x larger); tLP: mean |LPIPS(out_t,
+  over pixels and frame pairs (not |dx| + |dy|, which is up to 1.41x larger); tLP: mean |LPIPS(out_t,
   out_t+1) - LPIPS(gt_t, gt_t+1)|;
 * base loss: the same pipeline rendering the *true* vertex colours sampled from the ground-truth frame
   (what rasterization and blending alone cost);
@@ -56,8 +56,8 @@ def video_skin(rx, db, video: int = 0):
 
 def _render(rx, db, seq, gt, cfg, n=None, true_colors=False, truth_skin=False):
     """Self-re-enactment of ``gt``. Colours: the weighted median moved to the target video's database skin
-    (:func:`video_skin`); ``truth_skin``: moved to each truth frame's own skin ring instead (anima's rows
-    before issue 38: reads the truth frame); ``true_colors``: the truth frame's own vertex colours (base
+    (:func:`video_skin`); ``truth_skin``: moved to each truth frame's own skin ring instead (reads the truth
+    frame, not the seed's protocol; for comparison); ``true_colors``: the truth frame's own vertex colours (base
     loss)."""
     sm = Smoother(cfg.smooth)
     out, boxes = [], []
@@ -102,12 +102,12 @@ def self_reenactment(
         out, _ = _render(rxt, db, seq, gt, cfg)
         outs[name] = out
         res[name] = video_metrics(out, list(gt), box)
-        # anima's rows before issue 38: colours moved to each truth frame's skin ring (not the seed's protocol)
+        # for comparison: colours moved to each truth frame's skin ring (reads the truth; not the seed's protocol)
         old, _ = _render(rxt, db, seq, gt, cfg, truth_skin=True)
         res[f"{name}_truth_frame_skin"] = video_metrics(old, list(gt), box)
     res["colour_target"] = (
         "method rows: the target video's skin from its database frames (no truth frame read; seed 001 §4.2.1); "
-        "*_truth_frame_skin rows: each truth frame's own skin ring (anima before issue 38, shown for comparison)"
+        "*_truth_frame_skin rows: each truth frame's own skin ring (reads the truth frame, shown for comparison)"
     )
     res["ssim_vs_n"] = {}
     for n in ns:
@@ -133,7 +133,7 @@ SHARPNESS_GRID = [(n, detail) for n in (25, 50, 100) for detail in (0.0, 0.5, 1.
 def sharpness_ablation(
     val_clips: list[str], test_clips: list[str], actor_frames: int = 250, grid=SHARPNESS_GRID, progress: bool = False
 ) -> dict:
-    """Issue 21 item 2, chosen on validation and reported on test: self-re-enactment (method 1) of the first
+    """The mouth detail and n, chosen on validation and reported on test: self-re-enactment (method 1) of the first
     ``actor_frames`` of ``val_clips[0]`` (database: the rest of it and the other clips) for every (n, detail)
     of ``grid``; the setting with the lowest LPIPS whose tLP stays within 10 % of the seed setting's (n 100,
     no detail) is chosen, then the seed setting and the chosen one are run on ``test_clips`` the same way."""
@@ -414,5 +414,5 @@ def summary(r: dict) -> list[str]:
     return out + [
         "",
         "One video per row: no interval over videos. method rows: colours moved to the target video's skin from "
-        "its database frames (seed §4.2.1); *_truth_frame_skin: to each truth frame's skin (before issue 38).",
+        "its database frames (seed §4.2.1); *_truth_frame_skin: to each truth frame's skin (reads the truth).",
     ]

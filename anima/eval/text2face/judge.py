@@ -1,4 +1,4 @@
-"""An independent judge of generated faces (issue 38, item 5): does the rendered face do what the prompt says,
+"""An independent judge of generated faces: does the rendered face do what the prompt says,
 read by a judge that shares no code or threshold with the dataset's detectors (``anima.dataset.attributes``,
 which also choose the timeline method's segments)?
 
@@ -57,13 +57,11 @@ UNRELIABLE = {
 @dataclass
 class JudgeConfig:
     """Thresholds, in inter-ocular units unless said, fitted through the round trip on the labelled real clips of
-    the training and validation splits only (issue 52; module docstring; benchmarks/results/judge_calibration.json
+    the training and validation splits only (module docstring; benchmarks/results/judge_calibration.json
     lists the clips, event F1 there: blink 0.93, smile 0.80, mouth open 1.0, raised brows 0.80, frown 0.29, nod
     0.50 (2 labelled nods; leave-one-clip-out 0.33): the frown and nod readings are unreliable; the test clips'
-    scores beside them), with the judge's own renderer (:mod:`anima.eval.text2face.judge_render`). Before it, on the
-    previews' renderer: blink 0.5, mouth open 0.18, brows up 0.07, nod 0.05; before issue 52, fitted on every
-    labelled clip: smile 0.14, mouth open 0.12, brows up 0.035 and down 0.035 in inter-ocular distances (the
-    brows are now measured in the eyes-to-forehead height, which a nod shortens alike)."""
+    scores beside them), with the judge's own renderer (:mod:`anima.eval.text2face.judge_render`). The brows are
+    measured in the eyes-to-forehead height, which a nod shortens alike, so a nod does not read as a frown."""
 
     blink_ratio: float = 0.45  # the lid gap below this share of the open eye (90th percentile) is a blink
     blink_max_s: float = 1.0
@@ -75,7 +73,7 @@ class JudgeConfig:
     nod_swing: float = 0.06  # a vertical swing of the nose (up and back) of this
     shake_swing: float = 0.08  # a horizontal swing, both ways
     turn_offset: float = 0.18  # a sideways offset from the clip's median
-    shake_join_s: float = 0.3  # swings closer than this are one shake (each cycle was one before issue 52)
+    shake_join_s: float = 0.3  # swings closer than this are one shake
     min_s: float = 0.1  # shortest event
     pad_s: float = 1.0  # first and last frames held this long when percentiles are taken
 
@@ -182,8 +180,7 @@ def events(m: dict[str, np.ndarray], fps: float, cfg: JudgeConfig | None = None)
 
 def track_frames(frames) -> np.ndarray:
     """MediaPipe Face Mesh landmarks ``[F, 478, 2]`` (pixels; NaN where no face) of RGB frames, in order, read with
-    MediaPipe's own solution API (issue 52: not anima's capture wrapper, so a change there cannot move the
-    judge)."""
+    MediaPipe's own solution API (not anima's capture wrapper, so a change there cannot move the judge)."""
     import mediapipe as mp
 
     out = []

@@ -1,4 +1,4 @@
-"""The judge's own render of face motion (issue 52, item 4): a path that shares no code with the generator's
+"""The judge's own render of face motion: a path that shares no code with the generator's
 previews (``anima.render``: a z-buffer rasterizer with per-vertex shading, framed by
 ``anima.export.framing``), so that a change there cannot move the judge.
 

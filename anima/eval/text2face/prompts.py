@@ -1,4 +1,4 @@
-"""The prompt suite of text -> face (issue 19): does the motion do what the words say?
+"""The prompt suite of text -> face: does the motion do what the words say?
 
 ``anima eval text2face DATASET --prompts [FILE]`` generates every prompt of the suite
 (``anima/eval/prompts/text2face.json``: 114 prompts written for the suite, not taken from the dataset's
@@ -20,7 +20,7 @@ measured against; the same rule for every method):
 * **count accuracy** (prompts with a count): the detected number of that event equals the count.
 * **side accuracy** (one-sided prompts): the named side's weight peaks above 0.3 and at least twice the
   other side's.
-* **emotion checks** (``EMOTION_CHECKS``, the channel sets of issue 19): each named ARKit weight's mean
+* **emotion checks** (``EMOTION_CHECKS``, each emotion's channel set): each named ARKit weight's mean
   over the clip rises above the same method's output for the neutral prompts, and its peak lies in the
   range of the captured clips (at most their largest value).
 * **distinctness**: the largest difference of any expression weight or head rotation (rad) at any frame

@@ -577,7 +577,7 @@ function pause() {
   if (audio) audio.pause();
   $("play").textContent = "▶";
 }
-// ---- the face close up (issue 48): an inset in the canvas's top right, a second camera mounted on the head, in
+// ---- the face close up: an inset in the canvas's top right, a second camera mounted on the head, in
 // front of its face, so expressions can be judged by eye: anima's character, or a user's skinned avatar (VRM, glTF)
 const faceCam = new THREE.PerspectiveCamera(30, 1, 0.01, 10);
 faceCam.layers.set(1); // it sees the head's own triangles (headPart) and the lights, nothing else
