@@ -96,35 +96,62 @@ def draw_close_up(img: np.ndarray, V: np.ndarray, head: np.ndarray, centre: np.n
     return draw_smooth(img, X, tris, paint, boxes=boxes)
 
 
-def framing(
-    positions: np.ndarray, head: int, head_radius: float, yaws, size: int, centre, scale: float, margin: int = 12
-) -> tuple[int, list[tuple[int, int, int]]]:
-    """Where each view of a ``size`` square (1.4 m across) the figure moves in, over the whole clip: the
-    joints and a ``head_radius`` ball around the head joint, plus ``margin`` pixels and the label's rows.
-    Returns ``(height, [(x0, width, y0) per view])``: the crop of each square that is drawn, widths and the
-    height rounded up to multiples of 8 and never beyond the square. The figure keeps its size in pixels;
-    the empty floor and sky are not drawn (or encoded: about half the pixels of two full squares)."""
-    J = positions[np.isfinite(positions).all(-1).all(-1)]
-    if not len(J):
-        return size, [(0, size, 0) for _ in yaws]
-    pad = head_radius * scale + margin
-    crops, tops, bottoms = [], [], []
-    for yaw in yaws:
-        P = _view(J.reshape(-1, 3), size, yaw, centre, scale)
-        H = _view(J[:, head], size, yaw, centre, scale)
-        lo_x = min(P[:, 0].min() - margin, H[:, 0].min() - pad)
-        hi_x = max(P[:, 0].max() + margin, H[:, 0].max() + pad)
-        tops.append(min(-P[:, 1].max() - margin, -H[:, 1].max() - pad) - LABEL_PX)
-        bottoms.append(max(-P[:, 1].min() + margin, -H[:, 1].min() + pad))
-        crops.append((lo_x, hi_x))
-    y0 = int(np.clip(np.floor(min(tops)), 0, size))
-    height = min(size - y0, -(-int(np.ceil(max(bottoms) - y0)) // 8) * 8)
-    out = []
-    for lo_x, hi_x in crops:
-        x0 = int(np.clip(np.floor(lo_x), 0, size))
-        width = min(size - x0, -(-int(np.ceil(hi_x - x0)) // 8) * 8)
-        out.append((x0, max(width, 8), y0))
-    return max(height, 8), out
+def figure_bounds(posed, n_frames: int, yaws, positions: np.ndarray | None = None, head: int | None = None,
+                  head_radius: float = 0.0, chunk: int = 64) -> np.ndarray:  # fmt: skip
+    """Where the figure goes during the whole clip, seen from each yaw: ``[len(yaws), 4]`` rows of ``(x_lo, x_hi,
+    y_lo, y_hi)`` (metres; x along the view's right as :func:`_view` turns it, y up) around every vertex of
+    ``posed(f0, f1)`` (``[n, V, 3]``, frames ``f0:f1``) on every frame, the joints ``positions [F, J, 3]`` and
+    a ``head_radius`` ball around the joint ``head``. NaN where nothing is finite."""
+    out = np.tile(np.array([np.inf, -np.inf, np.inf, -np.inf]), (len(yaws), 1))
+    turns = np.array([[np.cos(y), np.sin(y)] for y in yaws])  # x' = cos * x + sin * z
+
+    def add(P: np.ndarray, pad: float = 0.0) -> None:
+        P = P[np.isfinite(P).all(-1)]
+        if not len(P):
+            return
+        u = P[:, [0, 2]] @ turns.T  # [n, views]
+        out[:, 0] = np.minimum(out[:, 0], u.min(0) - pad)
+        out[:, 1] = np.maximum(out[:, 1], u.max(0) + pad)
+        out[:, 2] = np.minimum(out[:, 2], P[:, 1].min() - pad)
+        out[:, 3] = np.maximum(out[:, 3], P[:, 1].max() + pad)
+
+    for f0 in range(0, n_frames, chunk):
+        add(np.asarray(posed(f0, min(n_frames, f0 + chunk))).reshape(-1, 3))
+    if positions is not None:
+        add(np.asarray(positions).reshape(-1, 3))
+        if head is not None:
+            add(np.asarray(positions)[:, head], head_radius)
+    out[~np.isfinite(out).all(1)] = np.nan
+    return out
+
+
+def framing(bounds: np.ndarray, yaws, size: int, margin: int = 12) -> tuple[float, int, list[tuple]]:
+    """The views of a figure that stays where ``bounds`` (:func:`figure_bounds`) says, over the whole clip: one
+    still camera a view (a jump is seen as a jump), the figure at ``size`` pixels for 2.1 m, or smaller where its
+    whole course would not fit a ``size`` square with ``margin`` pixels around it and the label's rows above.
+    Returns ``(scale, height, [(centre [3], x0, width, y0) per view])``: pixels per metre, the views' common
+    height, and each view's :func:`_view` centre and corner and its width, widths and the height rounded up to
+    multiples of 8. Every point inside ``bounds`` lands ``margin`` pixels or more inside its view (and below the
+    label's rows); the empty floor and sky around the figure are not drawn (or encoded)."""
+    b = np.asarray(bounds, np.float64)
+    if not np.isfinite(b).all():
+        b = np.tile([-0.5, 0.5, 0.0, 1.9], (len(yaws), 1))  # nothing to frame: a standing person's place
+    w_m = np.maximum(b[:, 1] - b[:, 0], 1e-3)
+    h_m = max(b[0, 3] - b[0, 2], 1e-3)
+    room = size - 2 * margin
+    scale = float(min(size / 2.1, (room - LABEL_PX) / h_m, *(room / w_m)))
+    ceil8 = lambda x: max(8, -(-int(np.ceil(x)) // 8) * 8)
+    height = ceil8(h_m * scale + 2 * margin + LABEL_PX)
+    views = []
+    for yaw, (x_lo, x_hi, y_lo, y_hi) in zip(yaws, b):
+        width = ceil8((x_hi - x_lo) * scale + 2 * margin)
+        mid = np.array([(x_lo + x_hi) / 2, (y_lo + y_hi) / 2, 0.0])
+        c, s_ = np.cos(yaw), np.sin(yaw)
+        centre = np.array([[c, 0, s_], [0, 1, 0], [-s_, 0, c]]).T @ mid  # turned, it is ``mid``
+        x0 = int(round(size / 2 - width / 2))  # the figure's middle in the middle of the view,
+        y0 = int(round(size / 2 - (height + LABEL_PX) / 2))  # and of the rows under the label
+        views.append((centre, x0, width, y0))
+    return scale, height, views
 
 
 def render_character_video(
@@ -142,27 +169,28 @@ def render_character_video(
     lod: tuple | None = None,
 ) -> None:
     """The skinned character, front and 3/4 views side by side: ``posed(f0, f1)`` gives the posed vertices
-    ``[n, V, 3]`` (metres) of frames ``f0:f1`` and ``positions [F, J, 3]`` its joints (the framing: each view
-    cropped to where the figure moves during the clip, :func:`framing`). ``size`` pixels for 2.1 m; the speech
-    ``audio`` muxed in. ``face``: ``(centre [F, 3], head [F, 3, 3], tris[, smooth])``: a close-up of
-    :data:`FACE_M` across, the square of the views' height, centred on ``centre`` and seen from in front of the
-    head (its rotation ``head``, :func:`head_view`), drawing ``tris`` (the head's triangles) only, the boxes
+    ``[n, V, 3]`` (metres) of frames ``f0:f1`` and ``positions [F, J, 3]`` its joints (``head``: the head's).
+    Each view is a still camera around everywhere the figure goes during the clip, a jump's highest hands and
+    head as its feet (:func:`figure_bounds`, :func:`framing`): ``size`` pixels for 2.1 m, less when that would
+    not hold the figure's whole course in a ``size`` square. The speech ``audio`` muxed in. ``face``:
+    ``(centre [F, 3], head [F, 3, 3], tris[, smooth])``: a close-up of :data:`FACE_M` across, the square of the
+    views' height, centred on ``centre`` and seen from in front of the head (its rotation ``head``,
+    :func:`head_view`), drawing ``tris`` (the head's triangles) only, the boxes
     around the vertex groups ``smooth`` (the eyes) anti-aliased (:func:`draw_close_up`). ``colors [V, 3]``: the
     vertices' colours (default: one skin). ``lod``: ``(A [n, V] sparse, tris [t, 3])`` from
     :func:`anima.render.lod.cluster_mean`: the front and 3/4 views draw the decimated mesh ``A @ V`` (the figure
     is a few hundred pixels tall there), the close-up the full head."""
     paint = SKIN if colors is None else np.ascontiguousarray(colors, np.float32)
-    centre = np.nanmedian(positions[:, 0], axis=0) + np.array([0.0, 0.05, 0.0])
-    scale = size / 2.1
     tris = np.ascontiguousarray(tris, np.int64)
     yaws = (0.0, np.deg2rad(-60))
-    height, crops = framing(positions, head, 0.16, yaws, size, centre, scale, margin=20)
-    x_at = np.cumsum([0] + [w for _, w, _ in crops] + ([height] if face is not None else []))
+    F = len(positions)
+    bounds = figure_bounds(posed, F, yaws, positions, head, 0.16)
+    scale, height, views = framing(bounds, yaws, size, margin=20)
+    x_at = np.cumsum([0] + [w for _, _, w, _ in views] + ([height] if face is not None else []))
     blank = np.full((height, int(x_at[-1]), 3), 28, np.uint8)
     put_label(blank, "front | 3/4 view" + (" | face" if face is not None else ""), inplace=True,
               x=8 + label_width("000.00 s  "))  # fmt: skip
     frame_size = even_size((blank.shape[1], height))
-    F = len(positions)
     if face is not None:
         fc, frot, ftris, *more = face
         head_v = np.unique(ftris)
@@ -184,7 +212,7 @@ def render_character_video(
         f, V = item
         canvas = blank.copy()
         B = V if A is None else A @ V
-        for k, (yaw, (x0, _, y0)) in enumerate(zip(yaws, crops)):
+        for k, (yaw, (centre, x0, _, y0)) in enumerate(zip(yaws, views)):
             X = _view(B, size, yaw, centre, scale, (x0, y0))
             draw_shaded(canvas[:, x_at[k] : x_at[k + 1]], X, body_tris, body_paint, back_faces=False)
         if face is not None:  # the head's own vertices only

@@ -1,6 +1,7 @@
-"""`anima export fbx` (issue 49): Blender's own FBX exporter writes the character with the take; Blender's FBX
-importer reads one skinned character back whose bones follow anima's own forward kinematics, and a second,
-independent reader (ufbx) agrees: bones, blend shapes, units, the same joint positions."""
+"""`anima export fbx`: Blender's own FBX exporter writes the character with the take; Blender's FBX importer
+reads one skinned character back whose bones follow anima's own forward kinematics, and a second, independent
+reader (ufbx, as Unity and Unreal read FBX) agrees: bones, blend shapes, units, the same joint positions and
+skinned vertices, unturned root nodes, a UV set and an embedded base-colour texture, the take's frames."""
 
 import os
 import shutil
@@ -89,6 +90,98 @@ def test_a_second_reader_agrees(take):
         assert len(err) >= 60 and max(err) < 0.005, (f, max(err))
 
 
+KTIME = 46_186_158_000  # FBX time units a second
+
+
+def _identity(node) -> bool:
+    t = node.local_transform
+    r, x, sc = t.rotation, t.translation, t.scale
+    turned = max(abs(r.x), abs(r.y), abs(r.z)) > 1e-5 or abs(r.w) < 1 - 1e-6
+    moved = max(abs(x.x), abs(x.y), abs(x.z)) > 1e-6
+    scaled = max(abs(sc.x - 1), abs(sc.y - 1), abs(sc.z - 1)) > 1e-5
+    return not (turned or moved or scaled)
+
+
+def test_what_an_engine_imports_unturned_textured_and_the_takes_frames(take):
+    """Read back with ufbx (default options), as Unity's and Unreal's importers read it: the scene root's
+    children (the armature's node, the mesh's) carry no rotation, translation or scale (the axes converted in the
+    data); the mesh has a UV set and one material whose base colour is an embedded texture that carries the
+    character's colours (at the middle of each triangle of more than a few pixels, the texture's colour is the
+    vertex colours' there); the take and the file's time span are the clip's frames; and skinned, with the blend
+    shapes, every vertex is where anima's own skinning puts it at three frames (within 1 mm)."""
+    import gc
+
+    import cv2
+    import ufbx
+
+    from anima.export.avatar import OnCharacter
+    from anima.facemodel.character import load_character, skin
+    from anima.io.sequence import read_sequence
+
+    _, fbx, d = take
+    seq = read_sequence(d / "capture.npz", landmarks=False)  # as the export read it
+    F, fps = seq.n_frames, seq.fps
+    ch, on = load_character(), OnCharacter(seq)
+    m, W = on.motion(), on.face()
+    D = ch.morph_dense().reshape(len(W[0]), -1)
+    picks = (0, F // 2, F - 1)
+    want = {f: skin(m["vertices"] + (W[f : f + 1].astype(np.float32) @ D).reshape(1, -1, 3), m["rest"],
+                    m["global"][f : f + 1], m["positions"][f : f + 1], ch)[0] for f in picks}  # fmt: skip
+    gc.disable()  # the bindings' objects point into the scene: each one held, none collected out of order
+    try:
+        s = ufbx.load_file(str(fbx))
+        keep = [s]
+        root = s.root_node
+        kids = list(root.children)
+        keep += [root, kids]
+        assert sorted(n.name for n in kids) == ["character", "rig"]
+        assert all(_identity(n) for n in kids), [(n.name, n.local_transform.rotation) for n in kids]
+        mesh = s.meshes[0]
+        keep.append(mesh)
+        assert [u.name for u in mesh.uv_sets] == ["UVMap"] and len(mesh.materials) == 1
+        mat = mesh.materials[0]
+        tex = mat.pbr.base_color.texture
+        keep += [mat, tex]
+        assert tex is not None and len(tex.content) > 10_000  # embedded
+        img = cv2.imdecode(np.frombuffer(bytes(tex.content), np.uint8), cv2.IMREAD_COLOR)[..., ::-1] / 255.0
+        assert img.shape == (2048, 2048, 3)
+        uv, col = mesh.vertex_uv, mesh.vertex_color
+        keep += [uv, col]
+        U = np.array([[p.x, p.y] for p in uv.values])[np.array(list(uv.indices))]
+        C = np.array([[c.x, c.y, c.z] for c in col.values])[np.array(list(col.indices))]  # sRGB, as the texture
+        faces = mesh.faces
+        keep.append(faces)
+        tri = np.array([[f.index_begin + k for k in range(3)] for f in faces if f.num_indices == 3])
+        area = 0.5 * np.abs(np.cross(U[tri[:, 1]] - U[tri[:, 0]], U[tri[:, 2]] - U[tri[:, 0]])) * 2048**2
+        big = tri[area > 8]
+        assert len(big) > 5000
+        mid_uv, mid_col = U[big].mean(1), C[big].mean(1)
+        px = np.clip((mid_uv * 2048 - 0.5).round().astype(int), 0, 2047)
+        got = img[2047 - px[:, 1], px[:, 0]]
+        err = np.abs(got - mid_col).max(-1) * 255
+        assert np.median(err) <= 2 and np.percentile(err, 95) <= 8, (np.median(err), np.percentile(err, 95))
+        away = np.abs(img - np.median(img.reshape(-1, 3), 0)).max(-1) > 0.2
+        assert 1e-4 < away.mean() < 0.2  # the skin, and the lips', brows', eyes' colours on it
+        stack = s.anim_stacks[0]
+        keep.append(stack)
+        assert stack.time_begin == pytest.approx(0) and stack.time_end == pytest.approx((F - 1) / fps, abs=1e-4)
+        props = s.settings.props
+        keep.append(props)
+        span = [props.find_prop(n).value_int / KTIME for n in ("TimeSpanStart", "TimeSpanStop")]
+        assert span == pytest.approx([0, (F - 1) / fps], abs=1e-4)
+        for f in picks:
+            e = ufbx.evaluate_scene(s, s.anim, f / fps, evaluate_skinning=True)
+            em = e.meshes[0]
+            sp = em.skinned_position
+            keep += [e, em, sp]
+            got = np.array([[v.x, v.y, v.z] for v in sp.values])[np.array(list(sp.indices))]
+            vi = np.array(list(mesh.vertex_indices))
+            err = np.linalg.norm(got - want[f][vi], axis=-1)
+            assert err.max() < 0.001, (f, err.max())
+    finally:
+        gc.enable()
+
+
 def test_centimetres_a_face_only_result_and_no_blender(take, cli, tmp_path):
     import ufbx
 
@@ -102,6 +195,10 @@ def test_centimetres_a_face_only_result_and_no_blender(take, cli, tmp_path):
     mesh = s.meshes[0]
     blend = mesh.blend_deformers[0]
     assert s.settings.unit_meters == pytest.approx(0.01) and len(blend.channels) == 53
+    root = s.root_node
+    kids = list(root.children)
+    rot = [n.local_transform.rotation for n in kids]
+    assert len(kids) == 2 and all(abs(r.w) > 1 - 1e-6 for r in rot)  # unturned in centimetres too
     node = s.find_node("Head")
     world = node.node_to_world
     head = world.c3

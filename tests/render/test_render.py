@@ -1,7 +1,7 @@
 """Renders: the rasterizer's banded (multi-threaded) pass against the single pass and both against the plain
 rule, the fused shaded-mesh kernel against raster + compose, the preview head's level of detail on the ICT
-head, the avatar preview's framing on a real capture, and the video writer's colours (RGB converted to YUV
-4:2:0 before the pipe)."""
+head, the avatar preview's framing on a real capture and on a real jump, and the video writer's colours (RGB
+converted to YUV 4:2:0 before the pipe)."""
 
 import numpy as np
 import pytest
@@ -144,38 +144,95 @@ def test_draw_shaded_equals_raster_then_compose():
         assert 0 < (both != front).any(-1).sum() < 0.02 * (both != 24).any(-1).sum()
 
 
+def _inside_every_view(V, yaws, scale, height, views, margin):
+    """Each view's pixels of the points ``V [..., 3]`` (every frame's vertices) as :func:`render_character_video`
+    places them: all at least ``margin`` pixels inside the view and under the label's rows."""
+    from anima.render.avatar import LABEL_PX, _view
+
+    for yaw, (centre, x0, w, y0) in zip(yaws, views):
+        X = _view(np.asarray(V).reshape(-1, 3), 512, yaw, centre, scale, (x0, y0))
+        col, row = X[:, 0], -X[:, 1]
+        assert col.min() >= margin - 1 and col.max() <= w - margin + 1, (yaw, col.min(), col.max(), w)
+        assert row.min() >= LABEL_PX + margin - 1 and row.max() <= height - margin + 1, (yaw, row.min(), row.max())
+
+
 def test_avatar_preview_frames_the_figure_on_real_motion(tmp_path):
     """The preview of a real capture (a TED-style gesture clip) draws the skinned character: each view is cropped
-    to where the figure moves, every joint of every frame stays inside its view, the body is drawn there (a
-    tall figure in each view), and the video has that size and the speech."""
+    to where the figure moves, every vertex of every frame stays inside its view, the figure keeps its size (512
+    pixels for 2.1 m), the body is drawn there (a tall figure in each view), and the video has that size and the
+    speech."""
     from anima.capture.config import CaptureConfig
     from anima.capture.run import run as capture
     from anima.core import rig
     from anima.export.avatar import character_motion
+    from anima.facemodel.character import load_character, skin
     from anima.io.assets import asset
     from anima.io.sequence import read_sequence
     from anima.io.video import probe_video, read_video
-    from anima.render.avatar import _view, framing
+    from anima.render.avatar import figure_bounds, framing
 
     clip = asset("gesture-video/tango-interviews/speaker8_jjRWaMCWs44_00-00-30.16_00-00-33.32.mp4")
     capture(clip, tmp_path / "c", CaptureConfig(max_frames=24), progress=False)
     seq = read_sequence(tmp_path / "c" / "capture.npz")
-    P = character_motion(seq)["positions"]
-    centre = np.nanmedian(P[:, 0], axis=0) + np.array([0.0, 0.05, 0.0])
-    yaws, scale = (0.0, np.deg2rad(-60)), 512 / 2.1
-    height, crops = framing(P, rig.HEAD, 0.16, yaws, 512, centre, scale, margin=20)
-    assert height <= 512 and sum(w for _, w, _ in crops) < 1024  # smaller than two full squares
-    for yaw, (x0, w, y0) in zip(yaws, crops):
-        uv = _view(P.reshape(-1, 3), 512, yaw, centre, scale, (x0, y0))
-        assert (uv[:, 0] >= 0).all() and (uv[:, 0] < w).all()
-        assert (-uv[:, 1] >= 0).all() and (-uv[:, 1] < height).all()
+    m, ch = character_motion(seq), load_character()
+    P = m["positions"]
+    posed = lambda f0, f1: skin(m["vertices"], m["rest"], m["global"][f0:f1], P[f0:f1], ch)
+    yaws = (0.0, np.deg2rad(-60))
+    scale, height, views = framing(figure_bounds(posed, len(P), yaws, P, rig.HEAD, 0.16), yaws, 512, margin=20)
+    assert scale == pytest.approx(512 / 2.1)  # a person who stays on the floor: the figure at its size
+    assert height <= 512 and sum(w for _, _, w, _ in views) < 1024  # smaller than two full squares
+    _inside_every_view(posed(0, len(P)), yaws, scale, height, views, 20)
     info = probe_video(tmp_path / "c" / "avatar.mp4")
     assert info.has_audio and info.n_frames == 24 and info.height <= 512 and info.width < 1024
     frames, _ = read_video(tmp_path / "c" / "avatar.mp4", max_frames=1)
     drawn = np.abs(frames[0].astype(int) - 28).max(-1) > 30
-    for x0, x1 in ((0, crops[0][1]), (crops[0][1], crops[0][1] + crops[1][1])):  # a standing figure in each view
+    w0, w1 = views[0][2], views[1][2]
+    for x0, x1 in ((0, w0), (w0, w0 + w1)):  # a standing figure in each view
         ys, xs = np.nonzero(drawn[40:, x0 : min(x1, drawn.shape[1])])
         assert len(ys) > 5000 and np.ptp(ys) > 0.7 * (drawn.shape[0] - 40) and np.ptp(ys) > 1.5 * np.ptp(xs)
+
+
+def test_avatar_preview_keeps_a_jump_whole_in_every_frame(tmp_path):
+    """A real jump (CMU's "jumping_5" on the character, as ``benchmarks/roundtrip_body.py`` puts it: the hips
+    rise half a metre, the arms swing up) in ``avatar.mp4``'s views: the figure's course is taller than the
+    2.1 m the views show a person standing in, and on every frame every vertex of the skinned character (head,
+    hands, feet) lands inside its view, 20 pixels or more from its edges and under the label's rows; in the
+    video, on the jump's highest frame, the figure is drawn whole (no drawn pixel on a view's edge)."""
+    import sys
+    from pathlib import Path
+
+    from anima.core import rig
+    from anima.facemodel.character import skin, vertex_colors
+    from anima.io.video import read_video
+    from anima.render.avatar import LABEL_PX, figure_bounds, framing, render_character_video
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    from roundtrip_body import clip, truth_motion
+
+    m = truth_motion(clip("cmu", "train/jumping/jumping_5", 0.0, 30.0), 25.0)
+    ch, P = m["ch"], m["positions"]
+    F = len(P)
+    posed = lambda f0, f1: skin(m["vertices"], m["rest"], m["global"][f0:f1], P[f0:f1], ch)
+    V = posed(0, F)
+    hips = P[:, rig.HIPS, 1]
+    assert hips.max() - np.median(hips) > 0.3  # a jump
+    assert V[..., 1].max() - V[..., 1].min() > 2.1  # its course would not fit the views at the figure's size
+    yaws = (0.0, np.deg2rad(-60))
+    scale, height, views = framing(figure_bounds(posed, F, yaws, P, rig.HEAD, 0.16), yaws, 512, margin=20)
+    assert 0.6 * 512 / 2.1 < scale < 512 / 2.1 and height <= 512
+    _inside_every_view(V, yaws, scale, height, views, 20)
+    render_character_video(tmp_path / "jump.mp4", 25.0, P, rig.HEAD, posed, ch.faces, colors=vertex_colors())
+    frames, _ = read_video(tmp_path / "jump.mp4")
+    assert frames.shape[1] == height and frames.shape[2] >= sum(w for _, _, w, _ in views)
+    top = frames[int(np.argmax(V[..., 1].max(-1)))]  # the frame where the figure reaches highest
+    x = 0
+    for _, _, w, _ in views:
+        view = top[:, x : x + w].astype(int)
+        drawn = np.abs(view - 28).max(-1) > 30
+        skin_tone = drawn & (view[..., 0] - view[..., 2] > 25)  # the figure, not the label's grey letters
+        assert drawn.sum() > 3000 and not skin_tone[:LABEL_PX].any()
+        assert not drawn[-4:].any() and not drawn[:, :4].any() and not drawn[:, -4:].any()
+        x += w
 
 
 def test_avatar_body_views_at_their_level_of_detail_look_the_same(captures):
