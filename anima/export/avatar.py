@@ -13,6 +13,8 @@ in one glTF file (``avatar.glb``), the speech beside it (``speech.wav``), and a 
 * **Face**: the character's 53 morph weights are chosen per frame so that its lids, brows, mouth corners and
   lips move as the fitted ICT face's do (:mod:`anima.facemodel.transfer`), not copied by name; a captured
   clip's brows, lids and lips then move as its landmarks show.
+  The file carries them as ARKit's 52 morph targets (``eyeBlinkLeft`` ... ``tongueOut``:
+  :func:`anima.facemodel.character.arkit_morphs`, :func:`~anima.facemodel.character.to_arkit`).
 * **One timeline, one unit**: the animation is sampled at the sequence's frame rate, in metres; the scene's
   ``extras`` carry the frame rate and the frame range (``tools/blender_import.py`` sets Blender's scene from
   them: Blender's own importer keeps them as the scene's custom properties but opens at 24 fps, 250 frames).
@@ -38,7 +40,16 @@ from anima.core.occlusion import hand_over_face
 from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
 from anima.errors import InputError
 from anima.export.vrm import character_vrm
-from anima.facemodel.character import eye_vertices, fit_shape, load_character, skin, tracked_measures, vertex_colors
+from anima.facemodel.character import (
+    arkit_morphs,
+    eye_vertices,
+    fit_shape,
+    load_character,
+    skin,
+    to_arkit,
+    tracked_measures,
+    vertex_colors,
+)
 from anima.facemodel.ict import load_face_model
 from anima.facemodel.neutral import faded, from_rest, is_captured, presented, rest_face
 from anima.facemodel.transfer import (
@@ -52,6 +63,7 @@ from anima.facemodel.transfer import (
     lower_lid_depths,
     lower_lid_rise,
 )
+from anima.io.arkit import ARKIT_NAMES
 from anima.io.atomic import atomic_path
 from anima.io.gltf import write_character_glb
 from anima.io.sequence import TrackedSequence
@@ -202,9 +214,9 @@ def write_avatar(
         ch.faces,
         ch.skin_joints,
         ch.skin_weights,
-        list(zip(ch.morph_index, ch.morph_delta)),
-        list(EXPR_NAMES),
-        weights,
+        list(zip(*arkit_morphs())),
+        ARKIT_NAMES,
+        to_arkit(weights),  # the file's morphs are ARKit's 52 (anima.io.arkit: the one table)
         seq.fps,
         extras,
         scene_extras,

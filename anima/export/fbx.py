@@ -1,20 +1,20 @@
 """``anima export fbx SEQUENCE --out take.fbx``: the character with the take, as binary FBX 7.4 for game engines
 and DCC tools (Unity's Mecanim, Unreal, Maya, MotionBuilder, Cascadeur).
 
-The writer is Blender's own FBX exporter, run headless: anima writes its ``avatar.glb`` (the skinned character
-in the person's proportions, the 53 face morphs, the rig named by ``--rig``, one timeline) into a temporary
-folder, Blender imports it with its glTF importer and exports it (``anima/export/blender/fbx_from_gltf.py``):
-the mesh and its skin, the armature, the face morphs as blend shapes, the armature's action and the blend
-shapes' weights baked on every frame. Units (the FBX header's ``UnitScaleFactor`` says which, and the importers
-read it): ``m`` (default: the unit is the metre, every value in metres, no node scaled; Unity imports it at 1
-unit = 1 m, Unreal converts it to its centimetres, Blender takes it 1:1) or ``cm`` (the unit is the centimetre,
-values in centimetres through an armature node scaled by 100, as Blender writes it: for Maya, MotionBuilder or
-Cascadeur scenes in cm). Axes: +Y up and -Z forward (the character faces +Z), converted in the data: the
-armature's and the mesh's nodes carry no rotation. Look: the character's colours baked into a
-:data:`TEXTURE_PX` square base-colour texture over a UV set, embedded, on one material. The file's time span
-and its take are the clip's frames. No Blender: exit 3 with the install line; a Blender that fails, or exits
-without writing the file: exit 3 with its last words; Ctrl-C or SIGTERM: Blender is killed, nothing written. A
-face-only result becomes the face on an idle body, and the export says so."""
+The writer is Blender's own FBX exporter, run headless: anima writes its ``avatar.glb`` (the skinned character in
+the person's proportions, the face morphs under ARKit's 52 names, the rig named by ``--rig``, one timeline) into a
+temporary folder, Blender imports it with its glTF importer and exports it
+(``anima/export/blender/fbx_from_gltf.py``): the mesh and its skin, the armature, the face morphs as blend shapes,
+the armature's action and the blend shapes' weights baked on every frame. Units (the FBX header's
+``UnitScaleFactor`` says which, and the importers read it): ``m`` (default: the unit is the metre, every value in
+metres, no node scaled; Unity imports it at 1 unit = 1 m, Unreal converts it to its centimetres, Blender takes it
+1:1) or ``cm`` (the unit is the centimetre, values in centimetres through an armature node scaled by 100, as Blender
+writes it: for Maya, MotionBuilder or Cascadeur scenes in cm). Axes: +Y up and -Z forward (the character faces +Z),
+converted in the data: the armature's and the mesh's nodes carry no rotation. Look: the character's colours baked
+into a :data:`TEXTURE_PX` square base-colour texture over a UV set, embedded, on one material. The file's time span
+and its take are the clip's frames. No Blender: exit 3 with the install line; a Blender that fails, or exits without
+writing the file: exit 3 with its last words; Ctrl-C or SIGTERM: Blender is killed, nothing written. A face-only
+result becomes the face on an idle body, and the export says so."""
 
 from __future__ import annotations
 

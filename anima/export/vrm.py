@@ -11,10 +11,9 @@ from pathlib import Path
 import numpy as np
 
 from anima.core import rig
-from anima.core.contract import EXPR_NAMES
 from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
-from anima.facemodel.character import load_character, skin, vertex_colors
-from anima.io.arkit import LIVE_LINK_COLUMNS, arkit_name, ict_to_arkit
+from anima.facemodel.character import arkit_morphs, load_character, skin, vertex_colors
+from anima.io.arkit import ARKIT_NAMES, LIVE_LINK_COLUMNS, ict_to_arkit
 from anima.io.gltf import write_character_glb
 from anima.render.raster import vertex_normals
 
@@ -80,12 +79,12 @@ def arkit_weights(expression: np.ndarray, expr_names) -> np.ndarray:
 
 def character_vrm(mesh_node: int, joint_nodes: dict[str, int]) -> dict:
     """The ``VRMC_vrm`` extension of anima's character: the humanoid map (every rig joint VRM names) and the 18
-    expression presets bound to the character's 53 morph targets (binds summing the ARKit columns each preset
-    reads; ``relaxed``: a soft smile with narrowed eyes; ``neutral``: nothing)."""
+    expression presets bound to the character's 52 ARKit morph targets
+    (:func:`anima.facemodel.character.arkit_morphs`; binds summing the ARKit columns each preset reads;
+    ``relaxed``: a soft smile with narrowed eyes; ``neutral``: nothing)."""
     vrm_name = rig.CONVENTIONS["vrm"]
     bones = {vrm_name[j]: {"node": int(n)} for j, n in joint_nodes.items() if vrm_name.get(j)}
-    index = {arkit_name(n): k for k, n in enumerate(EXPR_NAMES)}
-    index.update({arkit_name(n[:-2]): k for k, n in enumerate(EXPR_NAMES) if n.startswith("browInnerUp")})
+    index = {n: k for k, n in enumerate(LIVE_LINK_COLUMNS)}  # its morphs: ARKit's 52, in this order
 
     def binds(cols, w=1.0):
         ks = [index[c] for c in cols if c in index]
@@ -208,9 +207,9 @@ def write_character_avatar(path: str | Path, shape: str = "mean", pose: str = "T
         ch.faces,
         ch.skin_joints,
         ch.skin_weights,
-        list(zip(ch.morph_index, [d * a["scale"] for d in ch.morph_delta])),
-        list(EXPR_NAMES),
-        np.zeros((1, len(EXPR_NAMES))),
+        [(i, d * a["scale"]) for i, d in zip(*arkit_morphs())],
+        ARKIT_NAMES,
+        np.zeros((1, len(ARKIT_NAMES))),
         30.0,  # contract: not (one rest frame)
         {"anima": {"avatar": {"shape": shape, "pose": pose, "roll_deg": roll_deg}}},
         animated=~rig.LEAVES,

@@ -10,7 +10,10 @@ MakeHuman's CC0 body and Face Units, Apache-2.0 code; numpy and numba at run tim
   :func:`fit_shape` chooses ``c`` from a person's measured bone lengths.
 * **Skin**: four joints and weights a vertex (MakeHuman's Mixamo weights); :func:`skin` is linear blend
   skinning.
-* **Face**: 53 sparse morph targets named as the expression weights of every anima face frame.
+* **Face**: 53 sparse morph targets named as the expression weights of every anima face frame (ICT's names, what
+  anima's own code drives and draws); every file anima writes carries them as ARKit's 52 instead
+  (:func:`arkit_morphs`, :func:`to_arkit`: ``browInnerUp`` and ``cheekPuff`` one morph each, ``tongueOut`` made
+  from the character's tongue).
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import numpy as np
 from anima.core.contract import EXPR_NAMES, JOINT_NAMES, RIG_JOINTS
 from anima.errors import AssetNotFound
 from anima.facemodel.transfer import POINTS, face_points
+from anima.io.arkit import ARKIT_NAMES, arkit_sources, ict_to_arkit
 from anima.io.assets import package_data
 
 FILENAME = "character.npz"
@@ -366,3 +370,104 @@ def eye_vertices() -> tuple[np.ndarray, np.ndarray]:
     x = load_character().vertices[:, 0]
     left = x > np.median(x[eye])  # the character faces +z: its left is +x
     return np.flatnonzero(eye & left), np.flatnonzero(eye & ~left)
+
+
+# ---- the morphs as files carry them: ARKit's 52 ----------------------------------------------------------------
+
+TONGUE_OUT_M = 0.04
+"""How far ``tongueOut`` brings the tongue's tip forward (metres): about 2.5 cm past the lips, the root staying."""
+TONGUE_JAW = 0.35
+"""The jaw's part in ``tongueOut`` (as much as jawOpen at this weight): the incisors part by about 9 mm, the
+tongue's thickness, so the tongue passes between them."""
+TONGUE_DROOP = 0.5
+"""How far the tip hangs down over the lower lip, a share of :data:`TONGUE_OUT_M` (2 cm): seen from the front, the
+tongue then covers the lower lip, as a tongue stuck out does (0.15, lying straight out, read from the front as an
+open mouth)."""
+
+
+@lru_cache(maxsize=1)
+def tongue_vertices() -> np.ndarray:
+    """The tongue's vertices ``[n]`` (MakeHuman's tongue, part of the body's mesh): of the body's pieces (its
+    connected components) other than the skin, the one jawOpen moves most (the eyes do not move with the jaw)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    ch = load_character()
+    nb = ch.n_body
+    F = ch.faces[(ch.faces < nb).all(1)]
+    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    _, label = connected_components(coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(nb, nb)), directed=False)
+    jaw = np.zeros(nb)
+    k = EXPR_NAMES.index("jawOpen")
+    inside = ch.morph_index[k] < nb
+    jaw[ch.morph_index[k][inside]] = np.linalg.norm(ch.morph_delta[k][inside], axis=-1)
+    pieces = np.bincount(label)
+    moved = np.bincount(label, jaw) / pieces
+    moved[np.argmax(pieces)] = -1.0  # the skin
+    return np.flatnonzero(label == np.argmax(moved))
+
+
+def tongue_out() -> np.ndarray:
+    """The ``tongueOut`` morph's deltas ``[V, 3]`` (metres): the jaw opened :data:`TONGUE_JAW`; the tongue pushed
+    forward tip first (each vertex by :data:`TONGUE_OUT_M` times ``t ** 1.5``, ``t`` its place along the tongue,
+    0 at its root, 1 at its tip), its front brought between the parted incisors and its tip hung
+    :data:`TONGUE_DROOP` lower, over the lower lip."""
+    ch = load_character()
+    D = np.zeros((len(ch.vertices), 3))
+    k = EXPR_NAMES.index("jawOpen")
+    D[ch.morph_index[k]] = TONGUE_JAW * ch.morph_delta[k]
+    T = tongue_vertices()
+    X = ch.vertices[T] + D[T]
+    z = ch.vertices[T, 2]
+    t = (z - z.min()) / max(z.max() - z.min(), 1e-9)
+    gap = X[t > 0.8, 1].mean()  # the tongue's front, as high as the incisors' gap (where the asset has teeth)
+    if "teeth_upper" in ch.parts and "teeth_lower" in ch.parts:
+        edge = []
+        for part, end in (("teeth_upper", np.min), ("teeth_lower", np.max)):
+            a, b = ch.parts[part]
+            P = ch.vertices[a:b] + D[a:b]
+            edge.append(end(P[np.abs(P[:, 0]) < 0.01, 1]))  # the incisors: within 1 cm of the middle
+        gap = float(np.mean(edge))
+    D[T, 2] += TONGUE_OUT_M * t**1.5
+    D[T, 1] += (gap - X[t > 0.8, 1].mean()) * np.clip(t / 0.6, 0.0, 1.0) ** 2 - TONGUE_DROOP * TONGUE_OUT_M * t**3
+    return D
+
+
+@lru_cache(maxsize=1)
+def arkit_morphs() -> tuple[tuple, tuple]:
+    """The character's morph targets as every file anima writes carries them: ARKit's 52
+    (:data:`anima.io.arkit.ARKIT_NAMES` order), ``(vertex indices, deltas [n, 3] metres)`` each. Each is the sum of
+    the ICT-named morphs it is made of (:func:`anima.io.arkit.arkit_sources`: ``browInnerUp`` the two halves'
+    deltas, driven by their mean weight, :func:`to_arkit`; ``cheekPuff`` the same); ``tongueOut`` is made from the
+    character's own tongue (:func:`tongue_out`)."""
+    ch = load_character()
+    index, delta = [], []
+    for name, src in zip(ARKIT_NAMES, arkit_sources(EXPR_NAMES)):
+        if len(src) == 1:
+            index.append(ch.morph_index[src[0]])
+            delta.append(ch.morph_delta[src[0]])
+            continue
+        D = np.zeros((len(ch.vertices), 3))
+        for k in src:
+            D[ch.morph_index[k]] += ch.morph_delta[k]
+        if name == "tongueOut":
+            D = tongue_out()
+        i = np.flatnonzero(np.abs(D).max(1) > 0)
+        index.append(i)
+        delta.append(D[i])
+    return tuple(index), tuple(delta)
+
+
+def arkit_dense() -> np.ndarray:
+    """:func:`arkit_morphs` as dense deltas ``[52, V, 3]`` (float32)."""
+    out = np.zeros((len(ARKIT_NAMES), len(load_character().vertices), 3), np.float32)
+    for k, (i, d) in enumerate(zip(*arkit_morphs())):
+        out[k, i] = d
+    return out
+
+
+def to_arkit(weights: np.ndarray) -> np.ndarray:
+    """The character's 53 weights ``[F, 53]`` (``EXPR_NAMES`` order) as its 52 ARKit morphs' ``[F, 52]``
+    (:func:`arkit_morphs`), in 0..1: each the mean of the weights it is made of, as ``arkit.csv``'s columns are
+    (:func:`anima.io.arkit.ict_to_arkit`); ``tongueOut`` 0 (anima measures no tongue)."""
+    return np.clip(ict_to_arkit(np.asarray(weights, np.float64), list(EXPR_NAMES)), 0.0, 1.0)

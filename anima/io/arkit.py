@@ -4,6 +4,9 @@ Columns: ``Timecode, BlendShapeCount, EyeBlinkLeft ... TongueOut, HeadYaw, HeadP
 LeftEyeYaw ... RightEyeRoll``; Timecode ``HH:MM:SS:FF.mmm`` (frame number and its fraction).
 ICT names map to ARKit by dropping ``_L/_R`` for ``Left/Right``; ICT splits ``browInnerUp`` and
 ``cheekPuff`` into left/right, which are averaged. ``TongueOut`` and eye rotations are written as 0.
+
+The same table names the character's morph targets in every file anima writes (:data:`ARKIT_NAMES`: Apple's
+names, ``eyeBlinkLeft`` ... ``tongueOut``) and makes them from the 53 ICT-named ones (:func:`arkit_sources`).
 """
 
 from __future__ import annotations
@@ -83,6 +86,13 @@ HEAD_COLUMNS = [
 ]
 
 
+ARKIT_NAMES = [c[0].lower() + c[1:] for c in LIVE_LINK_COLUMNS]
+"""Apple's 52 ARKit blendshape names as perfect-sync rigs and engines' importers spell them (lower camelCase, as
+``ARFaceAnchor.BlendShapeLocation`` names its constants: ``eyeBlinkLeft``, ``browInnerUp``, ``cheekPuff``,
+``tongueOut``), in :data:`LIVE_LINK_COLUMNS` order: the character's morph targets in ``avatar.glb``, the ``.vrm``
+and the FBX (``anima.facemodel.character.arkit_morphs``)."""
+
+
 def header() -> list[str]:
     """The CSV's header row, as anima writes it."""
     return ["Timecode", "BlendShapeCount", *LIVE_LINK_COLUMNS, *HEAD_COLUMNS]
@@ -94,20 +104,31 @@ def arkit_name(ict: str) -> str:
     return base[0].upper() + base[1:] + side
 
 
-def ict_to_arkit(expression: np.ndarray, expr_names: list[str]) -> np.ndarray:
-    """``[F, 53]`` ICT weights -> ``[F, 52]`` ARKit weights in LIVE_LINK_COLUMNS order."""
-    F = expression.shape[0]
-    acc = np.zeros((F, len(LIVE_LINK_COLUMNS)))
-    cnt = np.zeros(len(LIVE_LINK_COLUMNS))
+def arkit_sources(expr_names) -> list[list[int]]:
+    """The one table from ICT's expression names to ARKit's 52: per :data:`LIVE_LINK_COLUMNS` column, the indices
+    into ``expr_names`` it is made of (``_L/_R`` for ``Left/Right``; ICT's two halves of ``browInnerUp`` and of
+    ``cheekPuff`` both go to the one ARKit channel; ``TongueOut``: none). A column's weight is its sources' mean
+    (:func:`ict_to_arkit`); a character's morph for it, their deltas summed."""
     col = {n: i for i, n in enumerate(LIVE_LINK_COLUMNS)}
+    out: list[list[int]] = [[] for _ in LIVE_LINK_COLUMNS]
     for j, n in enumerate(expr_names):
         a = arkit_name(n)
         if a not in col:
             a = arkit_name(n[:-2]) if n.endswith(("_L", "_R")) else a  # browInnerUp_L -> BrowInnerUp
         if a in col:
-            acc[:, col[a]] += expression[:, j]
-            cnt[col[a]] += 1
-    return acc / np.maximum(cnt, 1)
+            out[col[a]].append(j)
+    return out
+
+
+def ict_to_arkit(expression: np.ndarray, expr_names: list[str]) -> np.ndarray:
+    """``[F, 53]`` ICT weights -> ``[F, 52]`` ARKit weights in LIVE_LINK_COLUMNS order (each column its
+    :func:`arkit_sources`' mean; 0 where it has none)."""
+    acc = np.zeros((expression.shape[0], len(LIVE_LINK_COLUMNS)))
+    for c, src in enumerate(arkit_sources(expr_names)):
+        for j in src:
+            acc[:, c] += expression[:, j]
+        acc[:, c] /= max(len(src), 1)
+    return acc
 
 
 def timecode(i: int, fps: float) -> str:

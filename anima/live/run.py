@@ -4,9 +4,9 @@ One process: a reader thread delivers the newest frame (:mod:`anima.live.sources
 counted, instead of falling behind); each frame is tracked and fitted (:class:`anima.live.tracker.LiveTracker`)
 and goes, as one JSON message, to every page connected to ``/TOKEN/live`` (a WebSocket on the viewer's server,
 127.0.0.1 only): the source frame index, its capture time (ms since the epoch, so the page measures glass to
-avatar), the 65 joints' local rotations and the 53 expression weights; and to the outputs the config asks for
-(:data:`anima.live.sinks.SINKS`: Live Link Face, the VMC protocol). ``record`` writes the take as a result
-folder when it ends (:mod:`anima.live.take`)."""
+avatar), the 65 joints' local rotations and the character's 52 ARKit morph weights; and to the outputs the
+config asks for (:data:`anima.live.sinks.SINKS`: Live Link Face, the VMC protocol). ``record`` writes the take as a
+result folder when it ends (:mod:`anima.live.take`)."""
 
 from __future__ import annotations
 
@@ -25,11 +25,11 @@ from pathlib import Path
 import numpy as np
 
 from anima.core import rig
-from anima.core.contract import EXPR_NAMES
 from anima.errors import InputError
 from anima.export.retarget import LiveRetarget, avatar_front
 from anima.export.vrm import write_character_avatar
 from anima.facemodel.character import load_character
+from anima.io.arkit import ARKIT_NAMES
 from anima.io.atomic import copy_file, write_text
 from anima.io.outdir import OutputFolder, check_out_dir, holds_nothing
 from anima.io.validate import input_file
@@ -50,7 +50,7 @@ def _page(root: Path, title: str, fps: float, avatar: str | None = None, front: 
     data = {
         "schema": "anima.view", "version": 1, "kind": "live", "live": True, "title": title, "fps": fps,
         "frames": 1, "videos": [], "audio": None, "curves": {}, "marks": [], "ranges": [], "joints": {},
-        "summary": {}, "notes": [], "rig": list(rig.NAMES), "expr": list(EXPR_NAMES),
+        "summary": {}, "notes": [], "rig": list(rig.NAMES), "expr": ARKIT_NAMES,
     }  # fmt: skip
     if avatar is not None:  # the user's file as it is: the page moves its own bones (LiveRetarget)
         vrm = Path(avatar).suffix.lower() == ".vrm"

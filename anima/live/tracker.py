@@ -25,7 +25,7 @@ from anima.core.contract import JOINT_NAMES, LEG_JOINTS, N_EXPR, N_JOINTS
 from anima.core.rotations import matrix_to_quat, matrix_to_rotvec
 from anima.export.avatar import LiveCharacterFace
 from anima.export.retarget import LiveRetarget
-from anima.facemodel.character import load_character
+from anima.facemodel.character import load_character, to_arkit
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
 from anima.live.config import TRACKERS
@@ -210,8 +210,9 @@ def tracked(reader: PacedReader, tracker: LiveTracker, deadline: float | None, m
 
 def message(f: LiveFrame, avatar: LiveRetarget | None = None) -> str:
     """The page's message for one frame (JSON: ``i``, ``t_cap`` ms, ``t_sent`` ms, ``face``, ``q`` [65 x
-    (x, y, z, w)], ``w`` [53]: the character's face (:class:`anima.export.avatar.LiveCharacterFace`: from the
-    rest, by geometry, the lids from the landmarks) where a face was seen, else the fit's weights; with
+    (x, y, z, w)], ``w`` [52]: the character's face (:class:`anima.export.avatar.LiveCharacterFace`: from the
+    rest, by geometry, the lids from the landmarks) where a face was seen, else the fit's weights, as its ARKit
+    morphs' weights (:func:`anima.facemodel.character.to_arkit`, the page's ``expr`` names); with
     ``--avatar``, ``a``: the avatar's own node rotations, hips and morph weights from the ARKit weights measured
     from the rest face (:attr:`LiveFrame.shown`, :meth:`anima.export.retarget.LiveRetarget.frame`))."""
     q = np.round(matrix_to_quat(f.local), 4)
@@ -221,7 +222,7 @@ def message(f: LiveFrame, avatar: LiveRetarget | None = None) -> str:
         "face": f.face,
         "body": f.body is not None,
         "q": q.tolist(),
-        "w": np.round(f.expression if f.character is None else f.character, 3).tolist(),
+        "w": np.round(to_arkit((f.expression if f.character is None else f.character)[None])[0], 3).tolist(),
     }
     if avatar is not None:
         m["a"] = avatar.frame(f.local, f.shown, f.face)

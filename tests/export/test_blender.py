@@ -13,6 +13,8 @@ import pytest
 
 from anima.core import rig
 from anima.core.contract import EXPR_NAMES
+from anima.facemodel.character import to_arkit
+from anima.io.arkit import ARKIT_NAMES
 from anima.io.assets import asset
 from anima.io.sequence import read_sequence
 
@@ -115,7 +117,7 @@ def test_bvh_in_blender(results, kind, name, tmp_path):
 def test_avatar_is_one_skinned_human_with_its_own_timeline_in_blender(results, kind, name, tmp_path):
     """Issue 34: a capture of a half-body clip, a gesture result and a text2face result each open in Blender as
     one skinned human 1.5-1.95 m tall whose scene plays the whole clip at its rate; its joints are where anima
-    put them and its 53 face shape keys carry the weights; a workbench render from the front shows a standing
+    put them and its 52 face shape keys (ARKit's) carry the weights; a workbench render from the front shows a standing
     person (a tall silhouette with a head on top and two legs at the bottom)."""
     from anima.export.avatar import character_face, character_motion
 
@@ -130,11 +132,13 @@ def test_avatar_is_one_skinned_human_with_its_own_timeline_in_blender(results, k
     assert np.linalg.norm(np.diff(P, axis=0), axis=-1).max() < 0.20  # no joint jumps 20 cm in a frame
     for f in picks:
         np.testing.assert_allclose(np.array(got["pose_heads"][str(f)]), _blender_from_yup(P[f]), atol=1e-3)
-    assert got["shape_keys"] == 54  # Basis + the 53 expressions
+    assert got["shape_keys"] == 53  # Basis + ARKit's 52
     W = character_face(seq)  # the character's own weights (issue 48: by geometry, from the rest face)
+    A = to_arkit(W)  # as its ARKit morphs carry them
     for f in picks:
-        for k, n in enumerate(EXPR_NAMES):
-            assert got["shape_key_values"][str(f)][n] == pytest.approx(float(W[f, k]), abs=1e-5), (f, n)
+        assert sorted(got["shape_key_values"][str(f)]) == sorted(["Basis", *ARKIT_NAMES])
+        for k, n in enumerate(ARKIT_NAMES):
+            assert got["shape_key_values"][str(f)][n] == pytest.approx(float(A[f, k]), abs=1e-5), (f, n)
     jaw = seq.expression[:, seq.expr_names.index("jawOpen")]  # the mouth goes by name: the fitted jaw itself
     by_name = character_face(seq, lips=False)  # ... before a capture's lips are set from its landmarks
     np.testing.assert_allclose(by_name[seq.tracked, EXPR_NAMES.index("jawOpen")], np.clip(jaw[seq.tracked], 0, 1),

@@ -49,7 +49,7 @@ def test_blender_reads_one_skinned_character_that_follows_animas_bones(take, tmp
     assert len(arms) == 1 and len(got["bones"]) >= 60
     skinned = [m for m in got["meshes"] if m["armature_modifier"]]
     assert len(skinned) == 1 and skinned[0]["skinned_vertices"] >= 8000
-    assert len(got["shape_keys"]) >= 53  # the 53 face morphs as blend shapes (Blender adds its Basis)
+    assert len(got["shape_keys"]) >= 53  # the 52 ARKit face morphs as blend shapes, and Blender's Basis
     lo, hi = got["action_frame_range"]
     assert round(hi - lo) == F - 1  # the action spans the clip's frames (Blender's importer starts it at 1)
     m = character_motion(seq)
@@ -75,7 +75,7 @@ def test_a_second_reader_agrees(take):
     skin, blend = mesh.skin_deformers[0], mesh.blend_deformers[0]
     keep += [mesh, skin, blend]
     assert len(skin.clusters) >= 60 and mesh.num_vertices >= 8000
-    assert len(blend.channels) == 53
+    assert len(blend.channels) == 52  # ARKit's
     names = rig.preset_names("anima")
     for f in (0, seq.n_frames // 2, seq.n_frames - 1):
         e = ufbx.evaluate_scene(s, s.anim, f / seq.fps)
@@ -115,15 +115,15 @@ def test_what_an_engine_imports_unturned_textured_and_the_takes_frames(take):
     import ufbx
 
     from anima.export.avatar import OnCharacter
-    from anima.facemodel.character import load_character, skin
+    from anima.facemodel.character import arkit_dense, load_character, skin, to_arkit
     from anima.io.sequence import read_sequence
 
     _, fbx, d = take
     seq = read_sequence(d / "capture.npz", landmarks=False)  # as the export read it
     F, fps = seq.n_frames, seq.fps
     ch, on = load_character(), OnCharacter(seq)
-    m, W = on.motion(), on.face()
-    D = ch.morph_dense().reshape(len(W[0]), -1)
+    m, W = on.motion(), to_arkit(on.face())  # the file's face: its 52 ARKit morphs
+    D = arkit_dense().reshape(len(W[0]), -1)
     picks = (0, F // 2, F - 1)
     want = {f: skin(m["vertices"] + (W[f : f + 1].astype(np.float32) @ D).reshape(1, -1, 3), m["rest"],
                     m["global"][f : f + 1], m["positions"][f : f + 1], ch)[0] for f in picks}  # fmt: skip
@@ -194,7 +194,7 @@ def test_centimetres_a_face_only_result_and_no_blender(take, cli, tmp_path):
     s = ufbx.load_file(str(tmp_path / "face.fbx"))  # the bindings' objects point into the scene: each one held
     mesh = s.meshes[0]
     blend = mesh.blend_deformers[0]
-    assert s.settings.unit_meters == pytest.approx(0.01) and len(blend.channels) == 53
+    assert s.settings.unit_meters == pytest.approx(0.01) and len(blend.channels) == 52
     root = s.root_node
     kids = list(root.children)
     rot = [n.local_transform.rotation for n in kids]

@@ -19,8 +19,9 @@ from browser import chromium, console, have_browser, play_and_sample, requests, 
 from hostile_avatars import rigid_head, split_like_vroid, unseen_rig, with_mtoon_outline
 
 from anima.core import rig
-from anima.core.contract import EXPR_NAMES
 from anima.dataset.windows import read_clips
+from anima.facemodel.character import to_arkit
+from anima.io.arkit import ARKIT_NAMES
 from anima.io.assets import asset
 from anima.io.sequence import FLAG_LOW_CONFIDENCE, FLAG_NO_FACE, read_sequence
 
@@ -106,7 +107,7 @@ def test_capture_page_shows_the_artifact(results, browser):
     seq = read_sequence(results / "capture" / "capture.npz")
     from anima.export.avatar import character_face, character_motion
 
-    P, W = character_motion(seq)["positions"], character_face(seq)
+    P, W = character_motion(seq)["positions"], to_arkit(character_face(seq))  # as avatar.glb's ARKit morphs
     with served(results / "capture") as (url, _):
         browser.get(url)
         wait_ready(browser)
@@ -116,7 +117,8 @@ def test_capture_page_shows_the_artifact(results, browser):
         for f in (0, 17, 41, seq.n_frames - 1):
             s = state(browser, f)
             assert s["frame"] == f
-            for k, n in enumerate(EXPR_NAMES):  # the character's weights (issue 48), as avatar.glb carries them
+            assert sorted(s["morphs"]) == sorted(ARKIT_NAMES)
+            for k, n in enumerate(ARKIT_NAMES):  # the character's weights (issue 48), as avatar.glb carries them
                 assert s["morphs"][n] == pytest.approx(float(W[f, k]), abs=1e-4), (f, n)
             got = np.array([s["joints"][n] for n in rig.NAMES])
             np.testing.assert_allclose(got, P[f], atol=1e-3)
@@ -195,11 +197,11 @@ def test_text2face_page_from_disk(results, browser, tmp_path, cli):
     from anima.export.avatar import character_face, character_motion
 
     P = character_motion(seq)["positions"]  # text2face: the character standing at ease (issue 34)
-    W = character_face(seq)
+    W = to_arkit(character_face(seq))
     for f in (0, 23, 59):
         s = state(browser, f)
         np.testing.assert_allclose(np.array([s["joints"][n] for n in rig.NAMES]), P[f], atol=1e-3)
-        for k, n in enumerate(EXPR_NAMES):
+        for k, n in enumerate(ARKIT_NAMES):
             assert s["morphs"][n] == pytest.approx(float(W[f, k]), abs=1e-4), (f, n)
     jaw = seq.expression[:, seq.expr_names.index("jawOpen")]
     state(browser, int(np.argmin(jaw)))

@@ -1,8 +1,8 @@
 """Run inside Blender, not imported by anima (``blender -b --factory-startup --python fbx_from_gltf.py -- IN.glb
 OUT.fbx UNITS FPS TEXTURE_PX``; :func:`anima.export.fbx.export_fbx` does): import anima's ``avatar.glb`` with
 Blender's own glTF importer and write it with Blender's own FBX exporter as binary FBX 7.4: the skinned
-character, its shape keys (the 53 face morphs) as blend shapes, the armature's action and the shape keys'
-animation baked on every frame of the clip, the take's frames as the file's time span.
+character, its shape keys (the face morphs, ARKit's 52 names) as blend shapes, the armature's action and the shape
+keys' animation baked on every frame of the clip, the take's frames as the file's time span.
 
 * Axes: +Y up, -Z forward (the character faces +Z), converted in the data: the armature's and the mesh's nodes
   carry no rotation (an importer shows no turned root and adds no root bone).

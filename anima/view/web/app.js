@@ -255,8 +255,8 @@ function load3d() {
 }
 
 // ---- face morphs on the CPU ---------------------------------------------------------------------------------
-// The head has 53 morph targets over 11k vertices: blending them in the vertex shader costs 40 ms a frame on
-// a software GL (SwiftShader, no GPU). Each target moves few vertices, so the page keeps them sparse and
+// The head has 52 morph targets (ARKit's) over 11k vertices: blending them in the vertex shader costs 40 ms a
+// frame on a software GL (SwiftShader, no GPU). Each target moves few vertices, so the page keeps them sparse and
 // blends them here (a few ms), only when the weights change; three.js then draws a plain (skinned) mesh.
 let cpuMorph = null;
 function setupCpuMorph(mesh) {
@@ -933,7 +933,7 @@ api.faceOnScreen = () => {
 
 // ---- live (`anima live`): each WebSocket message poses the character ---------------------------------------
 // message: {i: source frame, t_cap: its capture time (ms since the epoch), q: [65 x [x, y, z, w]] local rotations
-// in V.rig order, w: [53] expression weights in V.expr order}
+// in V.rig order, w: [52] the character's ARKit morph weights in V.expr order}
 function connectLive() {
   api.live = api.live || { received: 0, latencies: [], frames: [], connects: 0, faces: 0 };
   const url = `ws://${location.host}${location.pathname.replace(/[^/]*$/, "")}live`;
