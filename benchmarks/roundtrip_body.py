@@ -29,7 +29,10 @@ the translation that best match the hips over the first second (a per-frame alig
 world joints after that one alignment), root error (mm, the hips), the hips' travel (path length) over the
 truth's (and in body heights: the captured character is shaped to the tracker's measures, the truth is the
 default character), the feet's contacts against the truth's (precision, recall), foot sliding (mm per frame,
-median over the truth's contact frames, the ankle's horizontal step), penetration (the lowest sole, m), jitter
+median over the truth's contact frames, the ankle's horizontal step), the feet on those stance frames (the ankle's
+height over the ball of the foot against the character's flat foot, the sole's pitch to the floor: a foot on
+tip-toe reads high on both; how high the sole is above the floor: a foot that should stand there floats),
+penetration (the lowest sole, m), jitter
 (mean joint acceleration, m/s^2) and, for the jumps, how high the hips rise (the 95th percentile of their
 height over its median). **Baseline**: the raw tracker, MediaPipe Holistic's world landmarks as capture stores
 them (pelvis-centred: no root, no floor).
@@ -132,7 +135,6 @@ def truth_motion(J: np.ndarray, fps: float):
             body[:, JOINT_NAMES.index(n)] = J[:, i] - pelvis
     body[:, JOINT_NAMES.index("neck")] = (J[:, 21] + J[:, 30]) / 2 - pelvis
     legs = {n: J[:, _CMU[n]] - pelvis for n in LEG_JOINTS if n in _CMU}
-    legs["left_heel"], legs["right_heel"] = legs["left_ankle"], legs["right_ankle"]
     legs["left_hip"], legs["right_hip"] = (
         body[:, JOINT_NAMES.index("left_hip")],
         body[:, JOINT_NAMES.index("right_hip")],
@@ -241,7 +243,35 @@ def metrics(P: np.ndarray, root: np.ndarray, truth: dict, fps: float, rest: np.n
                                                                            "RightToeBase", "LeftToe_End",
                                                                            "RightToe_End")], 0)  # fmt: skip
         out["lowest_sole_m"] = round(float(sole.min()), 3)
+        out.update(stance_feet(P[:F], rest, c))
     return out
+
+
+def stance_feet(P: np.ndarray, rest: np.ndarray, contact: np.ndarray) -> dict:
+    """On the truth's stance frames (``contact [F, 2]``): the ankle's height over the ball of the foot (the
+    character's own flat foot: the rest pose's) and the sole's angle to the floor (the ankle-to-toe-tip line's
+    pitch against the rest pose's; 0 flat, positive toes down), medians and the worst frame."""
+    over, pitch, above = [], [], []
+    for k, S in enumerate(("Left", "Right")):
+        f = np.flatnonzero(contact[:, k])
+        a, ball, tip = (P[f, rig.IX[f"{S}{n}"]] for n in ("Foot", "ToeBase", "Toe_End"))
+        over.append(a[:, 1] - ball[:, 1])
+        above.append(np.min([P[f, rig.IX[f"{S}{n}"], 1] - rest[rig.IX[f"{S}{n}"], 1]
+                             for n in ("Foot", "ToeBase", "Toe_End")], 0))  # fmt: skip
+        line = tip - a
+        r = rest[rig.IX[f"{S}Toe_End"]] - rest[rig.IX[f"{S}Foot"]]
+        pitch.append(
+            np.degrees(np.arcsin(-line[:, 1] / np.linalg.norm(line, axis=-1)) - np.arcsin(-r[1] / np.linalg.norm(r)))
+        )
+    over, pitch, above = np.concatenate(over), np.concatenate(pitch), np.concatenate(above)
+    flat = float(np.mean([rest[rig.IX[f"{S}Foot"], 1] - rest[rig.IX[f"{S}ToeBase"], 1] for S in ("Left", "Right")]))
+    return {"stance_ankle_over_ball_cm": round(100 * float(np.median(over)), 2),
+            "stance_ankle_over_ball_max_cm": round(100 * float(np.max(over)), 2),
+            "flat_foot_ankle_over_ball_cm": round(100 * flat, 2),
+            "stance_sole_pitch_deg": round(float(np.median(pitch)), 1),
+            "stance_sole_pitch_abs_max_deg": round(float(np.max(np.abs(pitch))), 1),
+            "stance_sole_above_floor_cm": round(100 * float(np.median(above)), 1),
+            "stance_sole_above_floor_p90_cm": round(100 * float(np.percentile(above, 90)), 1)}  # fmt: skip
 
 
 def raw_positions(seq) -> np.ndarray:

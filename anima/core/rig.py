@@ -26,6 +26,7 @@ import numpy as np
 from anima.core.bvh_math import _kabsch, _min_rotation, local_rotations
 from anima.core.contract import FINGERS, JOINT_NAMES, RIG_JOINTS, RIG_PARENTS
 from anima.core.filters import gaussian_smooth
+from anima.core.ground import runs
 from anima.core.rotations import matrix_to_rotvec, rotvec_to_matrix
 
 NAMES = RIG_JOINTS
@@ -133,6 +134,38 @@ def _flipped_runs(G: np.ndarray, fps: float, max_deg: float = FLIP_DEG, max_run_
     return out
 
 
+FACE_BLEND_S = 0.3
+"""Where the face fit's head rotation starts or stops (the face found again after a fast turn, or lost), the head
+eases between it and the body's own head line (ears and nose) over this long: the two can disagree by tens of
+degrees, and a snap between them is a pop."""
+
+
+def face_weight(seen: np.ndarray, n: int) -> np.ndarray:
+    """``[F]`` weights of the face's head rotation: 1 inside each run of ``seen`` frames, rising over its first
+    ``n`` frames and falling over its last ``n`` (not at the clip's ends, where nothing comes before or after),
+    0 where unseen."""
+    w = np.zeros(len(seen))
+    for a, b in runs(seen):
+        k = np.arange(a, b, dtype=np.float64)
+        up = np.ones(b - a) if a == 0 else np.minimum(1.0, (k - a + 1) / (n + 1))
+        down = np.ones(b - a) if b == len(seen) else np.minimum(1.0, (b - k) / (n + 1))
+        w[a:b] = np.minimum(up, down)
+    return w
+
+
+def bridge_short_gaps(R: np.ndarray, n: int) -> np.ndarray:
+    """Rotations ``[F, 3, 3]`` (NaN where unseen) with each gap of at most ``n`` frames between two seen frames
+    filled along the shortest arc from the one before to the one after (a face lost for a blink of the tracker
+    is not a reason to turn the head elsewhere)."""
+    seen = np.isfinite(R).all((-1, -2))
+    out = R.copy()
+    for a, b in runs(~seen):
+        if 0 < a and b < len(R) and b - a <= n:
+            t = (np.arange(a, b) - (a - 1)) / (b - a + 1)
+            out[a:b] = slerp_rot(np.broadcast_to(R[a - 1], (b - a, 3, 3)), np.broadcast_to(R[b], (b - a, 3, 3)), t)
+    return out
+
+
 def _globals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None, fps: float) -> np.ndarray:
     """Global rotations ``[F, J, 3, 3]`` of the upper body from the tracked joints (NaN where unseen; the legs
     and the end joints are left NaN for the caller)."""
@@ -160,7 +193,12 @@ def _globals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None, fp
     if head_rot is not None:
         face = np.where(np.isfinite(head_rot).all((-1, -2))[:, None, None], head_rot, np.nan)
     nose_dir = _aim(chest, np.array([0.0, 0.0, 1.0]), nose_t - head_t)
-    head = np.where(np.isfinite(face).all((-1, -2))[:, None, None], face, nose_dir)
+    face = bridge_short_gaps(face, int(round(2 * FACE_BLEND_S * fps)))
+    has_face = np.isfinite(face).all((-1, -2))
+    head = np.where(has_face[:, None, None], face, nose_dir)
+    w = face_weight(has_face, int(round(FACE_BLEND_S * fps)))  # the face lost and found: eased, never snapped
+    both = has_face & np.isfinite(nose_dir).all((-1, -2)) & (w < 1.0)
+    head[both] = slerp_rot(nose_dir[both], face[both], w[both])
     G[:, HEAD] = head
     G[:, IX["Neck"]] = slerp_rot(chest, head, 0.4)
     for S, s in (("Left", "left"), ("Right", "right")):
@@ -305,6 +343,16 @@ def standing_legs(G: np.ndarray, root: np.ndarray, rest: np.ndarray) -> None:
         G[:, IX[f"{S}ToeBase"]] = np.eye(3)
 
 
+def sole_direction(rest: np.ndarray, side: str) -> np.ndarray:
+    """The unit direction of a foot's sole in the rest pose (``side``: ``Left`` / ``Right``): heel to toe tip,
+    level with the floor (the rest foot stands flat), i.e. the ankle-to-toe-tip line with its height taken out.
+    A tracked heel-to-toe-tip line aims it, so a flat foot in the picture is a flat foot on the character
+    (the ankle-to-ball bone slopes down: aimed at the ankle-to-toe-tip line it stood the foot on its toes)."""
+    d = rest[IX[f"{side}Toe_End"]] - rest[IX[f"{side}Foot"]]
+    d = np.array([d[0], 0.0, d[2]])
+    return d / max(np.linalg.norm(d), 1e-9)
+
+
 def tracked_legs(G: np.ndarray, legs: dict, rest: np.ndarray) -> np.ndarray:
     """Legs from tracked knees and ankles (``legs``: ``{"left_knee": [F, 3], ...}`` hips-relative like the
     body); fills the leg joints of ``G`` where seen and returns the frames where both legs were seen."""
@@ -321,8 +369,11 @@ def tracked_legs(G: np.ndarray, legs: dict, rest: np.ndarray) -> np.ndarray:
         hang = _aim(g_up, off[foot], np.broadcast_to(np.array([0.0, -1.0, 0.0]), knee.shape))
         g_leg = np.where((~np.isfinite(g_leg).all((-1, -2)) & np.isfinite(g_up).all((-1, -2)))[:, None, None], hang,
                          g_leg)  # fmt: skip
-        toe = legs.get(f"{s}_foot_index")
-        g_foot = _aim(g_leg, off[IX[f"{S}ToeBase"]], toe - ankle) if toe is not None else g_leg
+        toe, heel = legs.get(f"{s}_foot_index"), legs.get(f"{s}_heel")
+        if toe is not None and heel is not None:  # the foot's pitch from its sole line, heel to toe tip
+            g_foot = _aim(g_leg, sole_direction(rest, S), toe - heel)
+        else:
+            g_foot = _aim(g_leg, off[IX[f"{S}ToeBase"]], toe - ankle) if toe is not None else g_leg
         g_foot = np.where(np.isfinite(g_foot).all((-1, -2))[:, None, None], g_foot, g_leg)  # the toe unseen
         seen = np.isfinite(g_up).all((-1, -2)) & np.isfinite(g_leg).all((-1, -2))
         ok &= seen

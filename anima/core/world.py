@@ -10,11 +10,12 @@ import numpy as np
 from anima.core import contact, ground, rig
 from anima.core.bvh_math import local_rotations
 from anima.core.contract import JOINT_NAMES
+from anima.core.filters import gaussian_smooth
 from anima.core.rotations import matrix_to_rotvec, rotvec_to_matrix
 
 MAX_STEP_DEG = 40.0
-"""No bone of any output turns more than this between two frames (a larger step is spread over the next
-frames): the same limit for capture, gesture and text2face."""
+"""No bone of any output turns its world direction more than this between two frames (a larger step is spread
+over the next frames): the same limit for capture, gesture and text2face."""
 LOST_S = 1.0
 """A hand or a leg unseen for longer than this is said in the report (with its frames)."""
 _FOOT = {"left": "Left", "right": "Right"}
@@ -66,12 +67,85 @@ def limit_steps(L: np.ndarray, max_deg: float = MAX_STEP_DEG) -> tuple[np.ndarra
     return out, cut
 
 
+def limit_world_steps(L: np.ndarray, rest: np.ndarray, root: np.ndarray, max_deg: float = MAX_STEP_DEG):
+    """Local rotations ``L`` whose every bone's world direction turns at most ``max_deg`` between two frames: the
+    limit of :func:`limit_steps` on each joint's world rotation (a bone's direction is its parent joint's world
+    rotation of its rest offset), so a finger whose hand turns too cannot add its turn to the hand's. Returns
+    (the local rotations, how many steps were cut)."""
+    G, _ = rig.forward(L, rest, root)
+    G, cut = limit_steps(G, max_deg)
+    if not cut:
+        return L, 0
+    L = local_rotations(G, rig.PARENTS_RIG)
+    L[:, rig.LEAVES] = np.eye(3)
+    return L, cut
+
+
 def _foot_low(P: np.ndarray, side: str, rest: np.ndarray) -> np.ndarray:
     """The height of a foot's sole ``[F]``: the lowest of its points (ankle, ball, toe tip) over its height in
     the rest pose, where the sole is flat on the floor (the joints sit inside the foot: a flat foot is 0, a
     foot on its toes is held up by them, one on its heel by the heel)."""
     return np.min([P[:, rig.IX[f"{_FOOT[side]}{n}"], 1] - rest[rig.IX[f"{_FOOT[side]}{n}"], 1] for n in _FOOT_POINTS],
                   0)  # fmt: skip
+
+
+def flat_foot(G: np.ndarray, rest: np.ndarray, S: str, w: np.ndarray) -> None:
+    """Level ``S``'s foot (``Left`` / ``Right``) by ``w [F]`` (0 keeps it, 1 lays its sole flat): the smallest
+    turn that brings the sole's heel-to-toe line level with the floor, so the foot keeps where it points and
+    only its pitch and roll about that line go. The toes follow the foot (they bend only where the foot is
+    free to lift its heel). ``G`` (global rotations) updated in place."""
+    sole = rig.sole_direction(rest, S)
+    foot, toe = rig.IX[f"{S}Foot"], rig.IX[f"{S}ToeBase"]
+    d = np.einsum("fij,j->fi", G[:, foot], sole)
+    level = d * [1.0, 0.0, 1.0]
+    on = (w > 0) & (np.linalg.norm(level, axis=-1) > 0.2)  # a foot pointing straight down has no level to keep
+    if not on.any():
+        return
+    flat = rig._aim(G[on, foot], sole, level[on])
+    G[on, foot] = rig.slerp_rot(G[on, foot], flat, w[on])
+    G[on, toe] = G[on, foot]
+
+
+def flat_feet(L: np.ndarray, rest: np.ndarray, root: np.ndarray, down: np.ndarray, fps: float) -> np.ndarray:
+    """Local rotations ``L`` with each foot laid flat where it is planted (``down [F, 2]``, left and right,
+    eased in and out as the feet are locked: :func:`anima.core.ground.lock_weights`); see :func:`flat_foot`."""
+    if not down.any():
+        return L
+    G, _ = rig.forward(L, rest, root)
+    for k, side in enumerate(("left", "right")):
+        flat_foot(G, rest, _FOOT[side], ground.lock_weights(down[:, k], fps))
+    L = local_rotations(G, rig.PARENTS_RIG)
+    L[:, rig.LEAVES] = np.eye(3)
+    return L
+
+
+REACH = 0.995
+"""A planted leg reaches its anchor at most this share of its full length (a knee locked straight pops)."""
+MAX_DROP_M = 0.08
+"""How far at most the hips come down so that planted feet reach the floor. Chosen on the body round trip's
+development takes (Human3.6M's walk, CMU's jump) and a standing clip (LivePortrait s13): 0 leaves the walk's
+planted feet 10.5 cm above the floor (median; 5.6 before the feet were laid flat), 0.08 leaves 3.0 with the
+hips 10 cm under the truth's (0.4 before), 0.15 leaves 0 with the hips 17 cm under it."""
+
+
+def _reach_drop(P: np.ndarray, rest: np.ndarray, goals: list, fps: float) -> np.ndarray:
+    """How far ``[F]`` the hips must come down for every planted ankle (``goals``: ``(side, target [F, 3],
+    weight [F])``) to reach its anchor's height within :data:`REACH` of its leg's length, the foot where the
+    legs put it across the floor (at most :data:`MAX_DROP_M`; smoothed over 0.1 s so the hips do not jerk). A
+    foot held above its floor anchor by a leg too short there floats."""
+    drop = np.zeros(len(P))
+    off = rig.rest_offsets(rest)
+    for side, target, w in goals:
+        S = _FOOT[side]
+        hip = P[:, rig.IX[f"{S}UpLeg"]]
+        reach = REACH * (np.linalg.norm(off[rig.IX[f"{S}Leg"]]) + np.linalg.norm(off[rig.IX[f"{S}Foot"]]))
+        across = np.sum((hip - P[:, rig.IX[f"{S}Foot"]])[:, ::2] ** 2, -1)  # where the legs put the foot
+        need = (hip[:, 1] - target[:, 1]) - np.sqrt(np.maximum(reach**2 - across, 0.0))
+        ok = (w > 0) & np.isfinite(need)
+        drop = np.maximum(drop, np.where(ok, np.clip(need, 0.0, MAX_DROP_M) * np.where(ok, w, 0.0), 0.0))
+    if not drop.any():
+        return drop
+    return np.maximum(gaussian_smooth(drop[:, None], 0.05 * fps)[:, 0], 0.0)
 
 
 def _standing_anchors(free: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
@@ -171,7 +245,11 @@ def solve(
         size = character_size(picture.body3d, rest)
         root[:, 0] += size * x
         root[:, 2] += size * z
-    L, cut = limit_steps(L)
+    L, cut = limit_world_steps(L, rest, root)
+    # contacts seen in the picture; planted feet will stand flat (the sole level, heel and toe down)
+    feet_down = np.zeros((F, 2), bool)
+    if feet is not None:
+        feet_down = ground.foot_contacts(feet, fps) & leg_seen[:, None]
     # height: the hips as high as the legs reach (the lowest foot point on the floor), plus flight
     G, P = rig.forward(L, rest, root)
     low = np.minimum(_foot_low(P, "left", rest), _foot_low(P, "right", rest)) - root[:, 1]
@@ -182,23 +260,24 @@ def solve(
     if seen is not None:  # the picture's hips above the floor, in the character's scale: crouches, jumps, sitting
         legs_say = (1 - w_leg) * legs_say + w_leg * seen
     root[:, 1] = legs_say
+    L = flat_feet(L, rest, root, feet_down, fps)  # after the height: the tracked feet's pitch is the legs' say
     G, P = rig.forward(L, rest, root)
     # contacts: tracked legs from the picture (else from the 3D feet); standing legs are planted
-    feet_down = np.zeros((F, 2), bool)
-    if feet is not None:
-        feet_down = ground.foot_contacts(feet, fps) & leg_seen[:, None]
-    elif leg_seen.any():
+    if feet is None and leg_seen.any():
         for k, side in enumerate(("left", "right")):
             h = _foot_low(P, side, rest)
             v = np.linalg.norm(np.gradient(P[:, rig.IX[f"{_FOOT[side]}Foot"], ::2], axis=0), axis=-1) * fps
             feet_down[:, k] = ground._clean_runs((h < ground.CONTACT_M) & (v < ground.CONTACT_SPEED) & leg_seen)
-    steps_total = 0
+        L = flat_feet(L, rest, root, feet_down, fps)
+        G, P = rig.forward(L, rest, root)
+    locks = np.stack([ground.lock_weights(feet_down[:, k], fps) for k in range(2)], 1)
+    steps_total, goals = 0, []
     for k, side in enumerate(("left", "right")):
         S = _FOOT[side]
         ankle = P[:, rig.IX[f"{S}Foot"]]
         sole = _foot_low(P, side, rest)
         target = ground.anchors(ankle - sole[:, None] * [0.0, 1.0, 0.0], feet_down[:, k], fps)  # sole on the floor
-        w = ground.lock_weights(feet_down[:, k], fps)
+        w = locks[:, k]
         if (~leg_seen).any():  # standing legs: planted, re-planted when the hips carry them too far
             free = ankle.copy()
             free[:, 1] = rest[rig.IX[f"{S}Foot"], 1]
@@ -207,7 +286,20 @@ def solve(
             target = np.where((stand > 0)[:, None], placed, target)
             w = np.maximum(w, stand)
             steps_total += int(len(ground.runs(steps & (stand > 0))))
+        goals.append((side, target, w))
+    drop = _reach_drop(P, rest, goals, fps)
+    if drop.any():  # hips too high for a planted foot to reach the floor: they come down, the feet stay down
+        root[:, 1] -= drop
+        G, P = rig.forward(local_rotations(G, rig.PARENTS_RIG), rest, root)
+    for side, target, w in goals:
         _ik_leg(G, P, rest, side, target, w)
+    L = local_rotations(G, rig.PARENTS_RIG)
+    L[:, rig.LEAVES] = np.eye(3)
+    G, P = rig.forward(L, rest, root)
+    for side in ("left", "right"):  # a free foot that reaches under the floor bends its knee, the hips stay
+        sole = _foot_low(P, side, rest)
+        up = np.minimum(sole, 0.0)[:, None] * [0.0, 1.0, 0.0]
+        _ik_leg(G, P, rest, side, P[:, rig.IX[f"{_FOOT[side]}Foot"]] - up, (sole < 0).astype(np.float64))
     L = local_rotations(G, rig.PARENTS_RIG)
     L[:, rig.LEAVES] = np.eye(3)
     G, P = rig.forward(L, rest, root)
@@ -226,7 +318,7 @@ def solve(
                     round(float(np.nanmedian(gap[:, k])), 3) if hands[:, k].any() else None for k in range(2)
                 ],  # fmt: skip
             }
-    L, cut2 = limit_steps(L)  # what the feet and hands moved obeys the same limit
+    L, cut2 = limit_world_steps(L, rest, root)  # what the feet and hands moved obeys the same limit
     if cut2:
         G, P = rig.forward(L, rest, root)
     cut += cut2
