@@ -64,4 +64,8 @@ class CaptureConfig:
     pose_model: str | None = None
     """Lifter checkpoint for --body-3d lifter (default: $ANIMA_HOME/models/pose_lifter.pt, where
     ``anima train pose`` writes)."""
+    posture: str = field(default="auto", metadata={"choices": ("auto", "seated", "standing")})
+    """How the character's legs stand where the video shows none: ``seated`` (thighs level, shins down: a
+    speaker at a desk), ``standing``, or ``auto`` (seated when the hips sit at the picture's bottom edge or
+    below it and no leg is seen; info.json says which and why)."""
     fit: FitConfig = field(default_factory=FitConfig)

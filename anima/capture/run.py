@@ -119,6 +119,7 @@ def run(
             seq.meta["source"]["path"] = os.path.abspath(video)
         if rest is not None:
             seq.meta["rest_face"] = {"channels": rest, "from": str(neutral)}
+        seq.meta["posture"] = cfg.posture
         s = seq.summary()
         s["capture_fps"] = round(tm.frames / max(tm.decode_track_s + tm.fit_s, 1e-9), 1)
         s["warnings"] = seq.meta.get("source", {}).get("warnings", []) + lost_warnings(seq)

@@ -14,7 +14,16 @@ from anima.export.fbx import UNITS
 from anima.export.formats import EXPORTS, FORMATS, export
 from anima.io.sequence import read_sequence
 
-CAPTURE_OPTIONS = ["max_frames", "smooth_sigma", "face_only", "max_gap", "fixed_bones", "body_3d", "pose_model"]
+CAPTURE_OPTIONS = [
+    "max_frames",
+    "smooth_sigma",
+    "face_only",
+    "max_gap",
+    "fixed_bones",
+    "body_3d",
+    "pose_model",
+    "posture",
+]
 
 
 @dataclass

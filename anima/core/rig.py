@@ -353,6 +353,43 @@ def sole_direction(rest: np.ndarray, side: str) -> np.ndarray:
     return d / max(np.linalg.norm(d), 1e-9)
 
 
+def seated_legs(body: np.ndarray, rest: np.ndarray) -> dict:
+    """Legs of a person seated on a chair, as :func:`tracked_legs` takes them (``{"left_hip": [F, 3], ...}``,
+    pelvis-relative, the body's metres): each thigh forward from its hip and level, each shin straight down,
+    the feet flat and forward, all turned with the hips (their left-right line; the chest's where the hips are
+    unseen). For a speaker seen from the waist up while seated, whose legs the picture never shows."""
+    t = lambda n: body[:, _T[n]].astype(np.float64)
+    across = t("left_hip") - t("right_hip")
+    chest = t("left_shoulder") - t("right_shoulder")
+    across = np.where(np.isfinite(across).all(-1, keepdims=True), across, chest)
+    across[:, 1] = 0.0
+    up = np.array([0.0, 1.0, 0.0])
+    fwd = _unit(np.cross(across, up))
+    fwd = np.where(np.isfinite(fwd).all(-1, keepdims=True), fwd, [0.0, 0.0, 1.0])
+    scale = np.nanmedian(np.linalg.norm(chest, axis=-1)) / max(
+        np.linalg.norm(rest[IX["LeftArm"]] - rest[IX["RightArm"]]), 1e-6
+    )
+    scale = float(scale) if np.isfinite(scale) and scale > 0 else 1.0
+    off = rest_offsets(rest) * scale
+    out = {}
+    hips = {}
+    for s in ("left", "right"):
+        hip = t(f"{s}_hip")
+        hips[s] = np.where(np.isfinite(hip).all(-1, keepdims=True), hip, (0.5 if s == "left" else -0.5) * across)
+    shin = np.linalg.norm(off[IX["LeftFoot"]])
+    floor = np.minimum(hips["left"][:, 1], hips["right"][:, 1]) - shin  # both feet on it, whatever the hips' roll
+    for S, s in (("Left", "left"), ("Right", "right")):
+        half = hips[s]
+        thigh, shin = np.linalg.norm(off[IX[f"{S}Leg"]]), np.linalg.norm(off[IX[f"{S}Foot"]])
+        drop = np.clip(half[:, 1] - shin - floor, 0.0, 0.8 * thigh)[:, None]  # the higher hip's thigh slopes
+        knee = half + fwd * np.sqrt(thigh**2 - drop**2) - up * drop
+        ankle = knee - up * shin
+        out[f"{s}_hip"], out[f"{s}_knee"], out[f"{s}_ankle"] = half, knee, ankle
+        out[f"{s}_heel"] = ankle - up * 0.05 * scale - fwd * 0.04 * scale
+        out[f"{s}_foot_index"] = ankle - up * 0.05 * scale + fwd * 0.16 * scale
+    return out
+
+
 def tracked_legs(G: np.ndarray, legs: dict, rest: np.ndarray) -> np.ndarray:
     """Legs from tracked knees and ankles (``legs``: ``{"left_knee": [F, 3], ...}`` hips-relative like the
     body); fills the leg joints of ``G`` where seen and returns the frames where both legs were seen."""

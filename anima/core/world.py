@@ -222,11 +222,13 @@ def solve(
     seed: int = 0,
     frames: int | None = None,
     surface: contact.TorsoSurface | None = None,
+    seated: bool = False,
 ) -> dict:
     """The motion on the rig, in the world: :func:`anima.core.rig.solve`'s (the same arguments; ``picture``:
     the clip's 2D evidence, :class:`anima.core.ground.Picture`) with the root in three dimensions, the feet
-    planted and on the floor, and every bone's step limited. Returns ``root``, ``local``, ``global``,
-    ``positions``, ``contact [F, 2]`` (left, right) and the ``report``."""
+    planted and on the floor, and every bone's step limited (``seated``: ``legs`` are a seated pose the picture
+    does not show: the hips stay on their chair, no travel, the feet go with the legs). Returns ``root``,
+    ``local``, ``global``, ``positions``, ``contact [F, 2]`` (left, right) and the ``report``."""
     mo = rig.solve(body, rest, fps, head_rot, image=None, legs=legs, seed=seed, frames=frames)
     L, root = mo["local"], mo["root"].copy()
     F = len(L)
@@ -240,7 +242,7 @@ def solve(
     leg_seen = np.asarray(mo.get("leg_seen", np.zeros(F, bool)), bool)
     mpp = ground.metres_per_pixel(picture, fps) if picture is not None else None
     feet = ground.feet_in_picture(picture, mpp, fps) if mpp is not None else None
-    if mpp is not None:
+    if mpp is not None and not seated:
         x, z = ground.picture_travel(picture, mpp, fps)
         size = character_size(picture.body3d, rest)
         root[:, 0] += size * x
@@ -263,7 +265,7 @@ def solve(
     L = flat_feet(L, rest, root, feet_down, fps)  # after the height: the tracked feet's pitch is the legs' say
     G, P = rig.forward(L, rest, root)
     # contacts: tracked legs from the picture (else from the 3D feet); standing legs are planted
-    if feet is None and leg_seen.any():
+    if feet is None and leg_seen.any() and not seated:
         for k, side in enumerate(("left", "right")):
             h = _foot_low(P, side, rest)
             v = np.linalg.norm(np.gradient(P[:, rig.IX[f"{_FOOT[side]}Foot"], ::2], axis=0), axis=-1) * fps

@@ -137,8 +137,11 @@ def character_motion(seq: TrackedSequence, seed: int = 0) -> dict:
         shape = {"measures": {}, "height_m": round(float(ch.vertices[:, 1].max()), 3)}
     V, rest = ch.shaped(coeffs)
     legs = legs_of(seq) if body is not None else None
+    posture = posture_of(seq, legs) if body is not None else None
+    if posture and posture[0] == "seated":
+        legs = rig.seated_legs(body, rest)
     mo = world.solve(body, rest, seq.fps, head_rotations(seq), picture_of(seq), legs, seed=seed, frames=seq.n_frames,
-                     surface=torso_surface(V, rest, ch))  # fmt: skip
+                     surface=torso_surface(V, rest, ch), seated=bool(posture and posture[0] == "seated"))  # fmt: skip
     idle = "idle: no body in this sequence, the default body stands at ease"
     report = {
         "body": "tracked" if body is not None else idle,
@@ -146,7 +149,40 @@ def character_motion(seq: TrackedSequence, seed: int = 0) -> dict:
         "shape_fit": shape["measures"],
         **mo["report"],
     }
+    if posture:
+        report["posture"] = f"{posture[0]} ({posture[1]})"
+        if posture[0] == "seated":
+            report["legs"] = "seated: the picture shows no legs; thighs level, shins down, feet on the floor"
     return {"coeffs": coeffs, "vertices": V, "rest": rest, **mo, "report": report}
+
+
+POSTURES = ("auto", "seated", "standing")
+BOTTOM_EDGE = 0.92
+"""``--posture auto``: a body whose hips sit at or under this share of the picture's height (or out of it) and
+whose legs the picture never shows is a speaker seen from the waist up, taken as seated (a desk, a chair, an
+interview); with legs in the picture, their tracked pose decides."""
+
+
+def posture_of(seq: TrackedSequence, legs: dict | None) -> tuple[str, str] | None:
+    """How the legs of ``seq``'s body stand when the picture does not show them: ``(posture, why)``, or None
+    when tracked legs decide. ``seq.meta["posture"]`` (``anima capture --posture``) is ``auto`` (default),
+    ``seated`` or ``standing``."""
+    asked = str(seq.meta.get("posture", "auto"))
+    if legs is not None and asked == "auto":
+        return None
+    if asked in ("seated", "standing"):
+        return asked, "--posture " + asked
+    if seq.body_image is None:  # generated motion (gesture, text2face): no picture to read a chair from
+        return None
+    hips = None
+    if seq.body_image is not None:
+        with np.errstate(all="ignore"):
+            y = np.nanmedian(seq.body_image[:, [JOINT_NAMES.index("left_hip"), JOINT_NAMES.index("right_hip")], 1])
+        hips = None if not np.isfinite(y) else float(y / seq.height)
+    if hips is None or hips >= BOTTOM_EDGE:
+        where = "out of the picture" if hips is None else f"at {hips:.0%} of its height"
+        return "seated", f"auto: the hips {where}, no legs seen"
+    return "standing", "auto: the hips in the picture, no legs seen"
 
 
 class OnCharacter:

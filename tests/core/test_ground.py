@@ -223,3 +223,28 @@ def test_the_head_eases_back_when_the_face_returns_and_bridges_a_short_loss():
     G = rig.solve(body, rest, fps, blink)["global"][:, rig.IX["Head"]]
     yaw = np.degrees(np.arctan2((G @ [0.0, 0.0, 1.0])[:, 0], (G @ [0.0, 0.0, 1.0])[:, 2]))
     assert np.abs(yaw[45:60] - yaw[44]).max() < 3.0, yaw[45:60]
+
+
+def test_a_speaker_seen_from_the_waist_up_sits(captures):
+    """PATS oliver1: John Oliver at his desk, his hips at the picture's bottom edge, no leg in the picture. With
+    --posture auto (the default) he sits: the thighs level, the shins down, the feet on the floor, and the
+    report says so and why; --posture standing stands him up."""
+    import dataclasses
+
+    from anima.export.avatar import character_motion
+
+    seq = captures["oliver1"]
+    m = character_motion(seq)
+    P = m["positions"]
+    assert m["report"]["posture"].startswith("seated (auto:"), m["report"]["posture"]
+    for S in ("Left", "Right"):
+        thigh = P[:, rig.IX[f"{S}Leg"]] - P[:, rig.IX[f"{S}UpLeg"]]
+        shin = P[:, rig.IX[f"{S}Foot"]] - P[:, rig.IX[f"{S}Leg"]]
+        pitch = np.degrees(np.arctan2(-thigh[:, 1], np.hypot(thigh[:, 0], thigh[:, 2])))
+        assert np.abs(pitch).max() < 10.0, pitch
+        assert (np.degrees(np.arccos(-shin[:, 1] / np.linalg.norm(shin, axis=-1))) < 15.0).all()
+    assert np.abs(_sole(P, m["rest"])).max() < 0.01
+    standing = dataclasses.replace(seq, meta={**seq.meta, "posture": "standing"})
+    m2 = character_motion(standing)
+    assert m2["report"]["posture"] == "standing (--posture standing)"
+    assert m2["root"][:, 1].mean() > m["root"][:, 1].mean() + 0.3  # the hips stand

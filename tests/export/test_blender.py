@@ -57,6 +57,8 @@ def results(tmp_path_factory, cli, gesture_ds):
         d / "capture",
         "--max-frames",
         "45",
+        "--posture",
+        "standing",  # the host sits at his desk; standing, the render shows a whole person's silhouette
         "--quiet",
         "--no-render",
     )

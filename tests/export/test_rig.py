@@ -1,6 +1,6 @@
 """The character's rig (issue 34): a full skeleton in a T-pose rest with exact export presets, the person's
 proportions chosen from the captured bone lengths, every tracked bone followed on the character's own lengths,
-standing legs with the feet on the floor, and joints that come back blending in instead of snapping."""
+legs seated or standing with the feet on the floor, and joints that come back blending in instead of snapping."""
 
 import dataclasses
 
@@ -84,8 +84,8 @@ def test_every_tracked_bone_is_followed_on_the_characters_own_lengths(captures, 
         steps = np.linalg.norm(np.diff(P, axis=0), axis=-1)
         assert steps.max() < 0.20, (name, steps.max())  # no joint jumps 20 cm in a frame (40 ms)
         feet = P[:, [rig.IX["LeftFoot"], rig.IX["RightFoot"]]]
-        assert feet[..., 1].min() > 0.03 and np.ptp(feet[..., 1]) < 0.01, name  # standing: the feet on the floor
-        assert m["report"]["legs"] == "standing"
+        assert feet[..., 1].min() > 0.03 and np.ptp(feet[..., 1]) < 0.01, name  # the feet on the floor
+        assert m["report"]["legs"].startswith("seated"), name  # hosts at their desks: hips at the bottom edge
 
 
 def test_the_character_has_the_persons_proportions(captures, motions):
