@@ -16,7 +16,7 @@ from anima.core.world import LOST_S, lost_runs
 from anima.errors import InputError
 from anima.export.avatar import body_of, legs_of
 from anima.export.motion import write_motion_outputs
-from anima.facemodel.neutral import is_captured, reference_rest
+from anima.facemodel.neutral import MAX_NEUTRAL, is_captured, not_neutral, reference_rest
 from anima.io.outdir import OutputFolder
 from anima.io.sequence import read_sequence
 from anima.io.validate import input_file
@@ -74,7 +74,13 @@ def neutral_reference(path: str, cfg: CaptureConfig, progress: bool = True) -> d
     if seq.tracked.sum() < MIN_REST_S * seq.fps:
         raise InputError(f"--neutral: no face in {path} (a face on {int(seq.tracked.sum())} frames; it needs "
                          f"{MIN_REST_S:g} s)")  # fmt: skip
-    return reference_rest(seq.expression, list(seq.expr_names), seq.tracked)
+    rest = reference_rest(seq.expression, list(seq.expr_names), seq.tracked)
+    strong = not_neutral(rest)
+    if strong:
+        shown = ", ".join(f"{n} {v:.2f}" for n, v in strong[:3])
+        raise InputError(f"--neutral: {path} is not a face at rest ({shown}; a rest stays under {MAX_NEUTRAL:g}): give "
+                         "a take of the person relaxed")  # fmt: skip
+    return rest
 
 
 def lost_warnings(seq) -> list[str]:

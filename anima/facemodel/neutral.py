@@ -74,6 +74,20 @@ def reference_rest(expression: np.ndarray, names: list[str], tracked: np.ndarray
     return out
 
 
+MAX_NEUTRAL = 0.45
+"""A ``--neutral`` take whose face holds a :data:`REST_CHANNELS` channel at or over this (its median) is not at
+rest, and is refused. A face at rest still reads some of them (the identity basis cannot hold every face's shape):
+CREMA-D actor 1001's neutral take reads up to 0.36 (mouthStretch_R, browDown_L); the same actor's happy take
+0.54 (mouthSmile_R) and disgusted take 0.59 (browDown_L), which are refused; his angry, sad and fearful takes
+(up to 0.45) are not told apart from a rest this way. Chosen on those six takes (development)."""
+
+
+def not_neutral(rest: dict[str, float]) -> list[tuple[str, float]]:
+    """The channels of a reference rest (:func:`reference_rest`) that say the take was not at rest, strongest
+    first: ``[(channel, value), ...]`` at or over :data:`MAX_NEUTRAL`."""
+    return sorted(((n, v) for n, v in rest.items() if v >= MAX_NEUTRAL), key=lambda x: -x[1])
+
+
 def stored_rest(meta: dict) -> dict[str, float] | None:
     """The rest face a sequence's ``meta`` names (``meta["rest_face"]["channels"]``, set by ``--neutral``), or
     None; channels outside :data:`REST_CHANNELS` and values outside [0, 0.95] are not taken."""

@@ -1146,6 +1146,20 @@ def test_an_export_keeps_a_csv_the_user_appended_to(tmp_path, cli):
     assert out.read_bytes() == edited
 
 
+def test_a_neutral_take_that_is_not_at_rest_is_refused(tmp_path, cli):
+    """``capture --neutral`` with the same actor's happy take (CREMA-D 1001: a smile held all clip): refused in
+    one line naming the strong channels, before the capture and before --out is made; his neutral take is
+    taken (its rest named in the sequence)."""
+    argv = ("--face-only", "--no-render", "--quiet")  # no --max-frames: it would cut the neutral take too
+    r = cli("capture", asset(D0), "--out", tmp_path / "a", "--neutral",
+            asset("emotion-clips/crema-d/1001_DFA_HAP_XX.flv"), *argv)  # fmt: skip
+    _refused(r, "is not a face at rest", "mouthSmile")
+    assert not (tmp_path / "a").exists()
+    r = cli("capture", asset(D0), "--out", tmp_path / "b", "--neutral",
+            asset("emotion-clips/crema-d/1001_DFA_NEU_XX.flv"), *argv)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+
+
 # --- Bounds on what a prompt or a speech file implies; nested JSON ---
 
 
