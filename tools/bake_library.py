@@ -4,6 +4,9 @@ data: what ``anima text2face PROMPT`` and ``anima gesture SPEECH`` use when no `
     .venv/bin/python tools/bake_library.py                  # builds a dataset of the chosen videos (~10 min)
     .venv/bin/python tools/bake_library.py --dataset DS     # or reads one already built from exactly them
 
+It writes with the function of ``anima library build`` (``anima.gesture.library.write_from_pairs``), which bakes a
+user's own footage the same way without the licence filter.
+
 The videos: every video under the data root whose repository's licence lets derived data ship with an MIT
 project (``anima.library.sources.SOURCES``: PATS, TANGO, CREMA-D, MEAD and the pose data stay out) and whose
 video's source falls in the training split (``anima.dataset.splits``), so no validation or test video of an
@@ -27,7 +30,7 @@ from anima.dataset import splits  # noqa: E402
 from anima.dataset.build import expand_videos  # noqa: E402
 from anima.io.assets import data_root  # noqa: E402
 from anima.io.outdir import sha256  # noqa: E402
-from anima.library.builtin import LIBRARY, write_library  # noqa: E402
+from anima.library.builtin import LIBRARY  # noqa: E402
 from anima.library.sources import SOURCES, licence_of  # noqa: E402
 
 
@@ -68,11 +71,10 @@ def main(argv=None) -> int:
 
 
 def bake(ds: Path, videos: list[Path], skipped: dict, root: Path, out: Path) -> int:
-    import numpy as np
-
+    """The library from the dataset ``ds`` of exactly ``videos``, written by the function ``anima library build``
+    writes with (:func:`anima.gesture.library.write_from_pairs`), with the licence table in its provenance."""
     from anima.dataset.windows import read_clips, read_windows
-    from anima.gesture.database import from_dataset
-    from anima.gesture.face import fit_speech_face
+    from anima.gesture.library import write_from_pairs
 
     clips = read_clips(ds)
     by_path = {str(v.resolve()): v for v in videos}
@@ -80,21 +82,13 @@ def bake(ds: Path, videos: list[Path], skipped: dict, root: Path, out: Path) -> 
     if unknown:
         print(f"bake_library: {ds} holds videos that are not the chosen ones: {unknown[:3]}", file=sys.stderr)
         return 2
-    db = from_dataset(ds, None)
-    w = read_windows(ds)
     rel = {str(v.resolve()): v.resolve().relative_to(root).as_posix() for v in videos}
-    face_clip = [f"{rel[str(Path(c.source).resolve())]}@{c.start_s:.2f}s" for c in clips]
-    gesture_source = [(rel.get(str(Path(s).resolve()), Path(s).name), float(t)) for s, t in db.source]
     manifest = json.loads((ds / "manifest.json").read_text())
     commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True).stdout
     provenance = {
         "what": "motion parameters only: ARKit-named expression weights + head rotation per frame (text2face), "
         "55-joint upper body + hands and 28 speech features per frame (gesture); no pixels, audio or identity",
         "videos": len(videos),
-        "face_clips": len(clips),
-        "face_seconds": round(sum(len(c.motion) for c in clips) / clips[0].fps, 1),
-        "gesture_windows": int(db.M),
-        "gesture_seconds_distinct": round(_distinct_s(db), 1),
         "split_rule": "anima.dataset.splits (by source, key path relative to the data root): training videos only",
         "split_rule_version": splits.rule(),
         "sources": [
@@ -106,36 +100,13 @@ def bake(ds: Path, videos: list[Path], skipped: dict, root: Path, out: Path) -> 
         "dataset_version": manifest.get("version"),
         "baked_with": f"tools/bake_library.py at commit {commit.strip()[:12]}",
     }
-    npz, meta = write_library(
-        out,
-        [c.motion for c in clips],
-        [c.events for c in clips],
-        face_clip,
-        clips[0].fps,
-        {"F": db.F, "P": db.P, "G": db.G, "S": db.S if db.S is not None else np.zeros((0,))},
-        gesture_source,
-        db.fps,
-        fit_speech_face(w.face),
-        provenance,
-    )
+
+    def name_of(src: str) -> str:
+        return rel.get(str(Path(src).resolve()), Path(src).name)
+
+    npz, meta, prov = write_from_pairs(out, clips, read_windows(ds), name_of, provenance)
     print(f"{npz} ({npz.stat().st_size / 1e6:.1f} MB), {meta}")
     return 0
-
-
-def _distinct_s(db) -> float:
-    """Seconds of distinct gesture motion (windows overlap)."""
-    per = {}
-    for s, t in db.source:
-        per.setdefault(s, []).append(t)
-    T = db.G.shape[1] / db.fps
-    total = 0.0
-    for ts in per.values():
-        ts = sorted(ts)
-        end = -1e9
-        for t in ts:
-            total += min(T, t + T - max(end, t)) if t + T > end else 0.0
-            end = max(end, t + T)
-    return total
 
 
 if __name__ == "__main__":

@@ -23,6 +23,9 @@ GESTURE_OPTIONS = [
     "keyword",
     "keyword_db",
     "no_repeat_s",
+    "stroke_rank",
+    "stroke_shift",
+    "variants",
     "blend",
 ]
 
@@ -45,6 +48,9 @@ class PromptMore:
     db: str | None = field(default=None, metadata={"metavar": "DB"})
     """dataset folder from `anima dataset build`: the timeline method's captured motion, instead of the built-in
     library's (with --with-builtin, as well)"""
+    library: str | None = field(default=None, metadata={"metavar": "LIBRARY"})
+    """a motion library from `anima library build` (its folder or .npz): its clips instead of the built-in
+    library's (with --db --with-builtin: beside the dataset's)"""
     no_video: bool = False
     """skip the MP4 render"""
 
@@ -55,6 +61,9 @@ class SpeechIn:
     """speech audio (WAV/MP3/FLAC or a video's audio; resampled to 16 kHz), at most 10 min"""
     db: str | None = field(default=None, metadata={"metavar": "DB"})
     """dataset folder from `anima dataset build` (k-NN search); default: the built-in motion library"""
+    library: str | None = field(default=None, metadata={"metavar": "LIBRARY"})
+    """a motion library from `anima library build` (its folder or .npz): its windows instead of the built-in
+    library's"""
     generator: str | None = field(default=None, metadata={"metavar": "GENERATOR"})
     """instead of the search: a section 4.4 generator checkpoint from `anima train gesture --model generator`"""
     out: str = field(default="", metadata={"required": True, "metavar": "OUT"})
@@ -92,8 +101,11 @@ def register(sub) -> None:
         "gesture",
         help="speech to 3D upper-body + hand gestures (controllable k-NN search)",
         description="Seed 004 Algorithm 1: every 8 frames (15 fps), the database windows of the "
-        "dataset's (audio, motion) pairs are pre-selected by pose continuity and ranked by audio "
-        "(cosine) + pose rank; the k-th best continues the motion. Controls restrict the search "
+        "dataset's (audio, motion) pairs (--db), of a motion library (--library, from `anima library build`) or of "
+        "the built-in library are pre-selected by pose continuity and ranked by audio "
+        "(cosine) + pose rank, + a stroke rank where the speech has stressed syllables; the k-th best continues "
+        "the motion, which is then re-timed by up to 2 frames so its strokes meet the stresses. Controls "
+        "restrict the search "
         "without retraining, in time ranges. With --generator, the §4.4 generator instead (it also "
         "gives the face). Writes into --out: gesture.npz (a tracked sequence), body.bvh, "
         "avatar.glb (the rig), speech.wav, avatar.mp4 (with the speech), with the generator also "
@@ -117,6 +129,7 @@ def cmd_text2face(a) -> int:
         command=command_line(a),
         db=a.db,
         preset=a.rig,
+        library=a.library,
     )
     notes(info["warnings"], "warning")
     return emit(
@@ -135,6 +148,7 @@ def cmd_gesture(a) -> int:
         render=not a.no_render,
         command=command_line(a),
         preset=a.rig,
+        library=a.library,
     )
     notes(info["notes"])
     return emit(info, a.json, lambda i: "wrote " + ", ".join(i["written"]) + "\n  time: " + time_split(i["time_s"]))

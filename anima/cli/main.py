@@ -28,6 +28,7 @@ COMMANDS = {
     "vmc": "capture",
     "audio": "audio",
     "dataset": "dataset",
+    "library": "library",
     "train": "train",
     "text2face": "generate",
     "gesture": "generate",
@@ -40,7 +41,6 @@ COMMANDS = {
 """Each top-level command -> the module of ``anima/cli`` that registers it, in the order ``--help`` lists
 them. A command line names one command, so only its module (and what that module imports) is loaded: a
 cold ``anima gesture`` starts in about half the time it takes to import every group."""
-
 
 ONE_BLAS_THREAD = {"gesture"}
 """Commands whose matrix products are all small (the gesture search's and the preview's): a pool of BLAS

@@ -42,6 +42,7 @@ SPEECH_DIM = 2 * SPEECH_STATIC_DIM  # 28: + first derivatives
 
 TEXT_FPS = 30.0  # the (text, motion) clips the dataset builder writes, and text2face's output rate
 GESTURE_FPS = 15.0  # the (audio, motion) windows (seed 004), the gesture models' rate
+CHARACTER_FPS = TEXT_FPS  # the rate generated motion plays on the character (gesture's files, text2face's)
 WINDOW = 64  # frames per (audio, motion) window
 HOP = 32  # frames between window starts
 

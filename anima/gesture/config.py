@@ -28,7 +28,18 @@ class GestureConfig:
     """The gesture database of a keyword: a dataset folder (repeatable)."""
     no_repeat_s: float = field(default=4.0, metadata={"range": (0.0, 60.0)})
     """Do not replay a stretch of database motion output within the last this-many seconds (variety; 0 = the
-    seed's search, which can loop over a few windows)."""
+    seed's search, which can loop over a few windows). With a motion library (built-in or --library) it is raised
+    to half the library's distinct seconds, at most 20; a mirrored or speed-varied copy counts as its source."""
+    stroke_rank: float = field(default=3.0, metadata={"range": (0.0, 100.0)})
+    """Weight of the stroke rank in the search: at a step with stressed syllables, candidates whose wrist-speed
+    peaks (strokes) fall on them rank higher, added to the seed's audio and pose ranks (0: the seed's ranking;
+    3 was the best of 0-4 on three speeches of none of the benchmark's speakers, docs/gesture.md)."""
+    stroke_shift: float = field(default=2.0, metadata={"range": (0.0, 4.0)})
+    """Re-time the motion so a stroke within this many frames (15 fps) of a stressed syllable meets it (local rate
+    within 1/1.35-1.35; 0: off)."""
+    variants: bool = True
+    """With a motion library (built-in or --library), also search its mirrored and speed-varied (1/1.15x, 1.15x)
+    copies (off: --no-variants)."""
     blend: bool = True
     """Blend the joins between database windows (inertialization over one 8-frame step; off: --no-blend, the
     seed's raw concatenation)."""

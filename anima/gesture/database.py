@@ -1,6 +1,14 @@
 """The matching database from the dataset builder's (audio, motion) windows (read through
 :func:`anima.dataset.windows.read_windows`: 55-joint skeleton + 28 speech features per frame, at the data's
-own frame rate)."""
+own frame rate), or from a motion library's (:mod:`anima.library.builtin`: the built-in one or one from
+``anima library build``).
+
+A library is small (the built-in one holds 40 s of gesture), so its database also holds **variants** of its
+motion (:func:`with_variants`, not in the seed): each video's stretch of windows mirrored left to right, and
+both the stretch and its mirror image played at 1/1.15 and 1.15 times their speed (the speech features resampled
+with them), cut into windows again. For the no-repeat rule every variant counts as its source stretch (its frames
+mapped back through :attr:`anima.gesture.knn.MatchDB.rate`): a variant gives the search other ways to continue and
+other looks, never a way to replay a stretch sooner."""
 
 from __future__ import annotations
 
@@ -9,9 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.core.contract import HOP
+from anima.core.skeleton import JOINT_NAMES
 from anima.errors import InputError
 from anima.gesture.features import POSE_OFFSETS, T_MATCH, audio_features, pose_features
-from anima.gesture.knn import MatchDB
+from anima.gesture.knn import MIRROR, MatchDB
 from anima.io.mapped import cache_key, file_stamp, mapped_arrays
 from anima.library import builtin
 
@@ -52,13 +62,119 @@ def from_dataset(folder: str | Path, split: str | None = "train") -> MatchDB:
     return MatchDB(a["F"], a["P"], a["G"], [tuple(x) for x in src], a["S"], fps=float(a["fps"]))
 
 
-def from_builtin() -> MatchDB:
+def from_builtin(variants: bool = True) -> MatchDB:
     """The matching database of the built-in motion library's windows (:mod:`anima.library.builtin`)."""
-    b = builtin.load()
+    return from_library(None, variants)
+
+
+def from_library(path: str | Path | None = None, variants: bool = True) -> MatchDB:
+    """The matching database of a motion library's windows: ``path`` a library from ``anima library build`` (its
+    folder or ``.npz``), None the built-in one; ``variants``: with :func:`with_variants`."""
+    b = builtin.load(builtin.resolve(path))
     g = b.gesture
     if not len(g["G"]):
-        raise InputError("the built-in motion library has no (audio, gesture) window: give --db DATASET")
-    return MatchDB(g["F"], g["P"], g["G"], b.gesture_source, g["S"], fps=b.gesture_fps)
+        where = "the built-in motion library" if path is None else f"the motion library {path}"
+        raise InputError(f"{where} has no (audio, gesture) window (its videos had no speech or no visible body)")
+    db = MatchDB(g["F"], g["P"], g["G"], b.gesture_source, g["S"], fps=b.gesture_fps)
+    return with_variants(db) if variants else db
+
+
+SPEEDS = (1 / 1.15, 1.15)  # source frames per output frame of the speed-varied copies
+_FLIP = np.array(
+    [JOINT_NAMES.index(n.replace("left", "@").replace("right", "left").replace("@", "right")) for n in JOINT_NAMES]
+)
+
+
+def mirrored(J: np.ndarray) -> np.ndarray:
+    """Joints ``[..., 55, 3]`` mirrored left to right (x is the body's left-right axis)."""
+    return J[..., _FLIP, :] * np.array([-1.0, 1.0, 1.0], J.dtype)
+
+
+def _stretches(db: MatchDB) -> list[tuple[str, int, np.ndarray, np.ndarray]]:
+    """Each video's windows joined where they overlap or touch: ``(video, first frame, joints [L, 55, 3], speech
+    [L, 28])``."""
+    T = db.G.shape[1]
+    by = {}
+    for i, (v, t) in enumerate(db.source):
+        by.setdefault(v, []).append((round(t * db.fps), i))
+    out = []
+    for v, items in by.items():
+        items.sort()
+        run = []
+        for f0, i in items + [(None, None)]:
+            if run and (f0 is None or f0 > run[-1][0] + T):
+                a, b = run[0][0], run[-1][0] + T
+                J = np.empty((b - a, db.G.shape[2]), np.float64)
+                S = np.empty((b - a, db.S.shape[2]), np.float64)
+                for g0, j in run:
+                    J[g0 - a : g0 - a + T] = db.G[j]
+                    S[g0 - a : g0 - a + T] = db.S[j]
+                out.append((v, a, J.reshape(b - a, -1, 3), S))
+                run = []
+            if f0 is not None:
+                run.append((f0, i))
+    return out
+
+
+def with_variants(db: MatchDB, speeds=SPEEDS, hop: int = HOP) -> MatchDB:
+    """``db`` with the mirrored and speed-varied copies of its motion (module docstring). Needs its speech
+    features (``S``)."""
+    if db.S is None or not db.M:
+        return db
+    T = db.G.shape[1]
+    F, P, G, S, src, rate = [db.F], [db.P], [db.G], [db.S], list(db.source), [np.ones(db.M)]
+    for video, a, J, Sp in _stretches(db):
+        L = len(J)
+        for mirror in (False, True):
+            for rho in (1.0, *speeds):
+                if rho == 1.0 and not mirror:
+                    continue  # the windows themselves
+                n = int(np.floor((L - 1) / rho)) + 1
+                if n < T:
+                    continue
+                t = np.arange(n) * rho
+                i0 = np.minimum(np.floor(t).astype(int), L - 2)
+                w = (t - i0)[:, None]
+                Jr = J[i0] * (1 - w[:, :, None]) + J[i0 + 1] * w[:, :, None]
+                Sr = Sp[i0] * (1 - w) + Sp[i0 + 1] * w
+                if mirror:
+                    Jr = mirrored(Jr)
+                Pr, Fr = pose_features(Jr), audio_features(Sr)
+                starts = list(range(0, n - T + 1, hop))
+                if starts[-1] < n - T and n - T - starts[-1] >= hop // 2:
+                    starts.append(n - T)  # the stretch's end too
+                for s0 in starts:
+                    F.append(Fr[None, s0 : s0 + T])
+                    P.append(Pr[None, s0 : s0 + T])
+                    G.append(Jr[None, s0 : s0 + T].reshape(1, T, -1).astype(db.G.dtype))
+                    S.append(Sr[None, s0 : s0 + T].astype(db.S.dtype))
+                    src.append((video + (MIRROR if mirror else ""), (a + s0 * rho) / db.fps))
+                    rate.append(np.array([rho]))
+    return MatchDB(
+        np.concatenate(F).astype(db.F.dtype),
+        np.concatenate(P).astype(db.P.dtype),
+        np.concatenate(G),
+        src,
+        np.concatenate(S),
+        db.fps,
+        np.concatenate(rate),
+    )
+
+
+def distinct_seconds(db: MatchDB) -> float:
+    """Seconds of distinct source motion in ``db`` (overlapping windows once; a variant, mirrored or speed-varied,
+    counts as its source)."""
+    vid, f0 = db.video_frames
+    rate = np.ones(db.M) if db.rate is None else np.asarray(db.rate, np.float64)
+    T = db.G.shape[1]
+    total = 0.0
+    for v in np.unique(vid):
+        spans = sorted((f0[m], f0[m] + T * rate[m]) for m in np.flatnonzero(vid == v))
+        end = -np.inf
+        for a, b in spans:
+            total += max(0.0, b - max(a, end))
+            end = max(end, b)
+    return total / db.fps
 
 
 def _arrays(folder, split) -> dict:
@@ -76,11 +192,16 @@ def _arrays(folder, split) -> dict:
 def _from_windows(folder: str | Path, split: str | None) -> MatchDB:
     from anima.dataset.windows import read_windows  # lazy: pyarrow, only when the cache is made
 
-    w = read_windows(folder, split)
+    return from_windows(read_windows(folder, split), f"{folder} (split {split})")
+
+
+def from_windows(w, where: str = "the windows") -> MatchDB:
+    """The matching database of (audio, motion) windows (:class:`anima.dataset.windows.Windows`): its full-body
+    windows, each pose feature looking ahead into the next window of its video (:func:`_with_future`)."""
     keep = np.flatnonzero(w.has_body) if w.n and w.length == T_MATCH else np.zeros(0, int)
     if not len(keep):
         raise InputError(
-            f"no usable (audio, motion) windows in {folder} (split {split}): build the dataset from "
+            f"no usable (audio, motion) windows in {where}: build the dataset from "
             "videos where the upper body and hands are visible and there is speech"
         )
     J = w.body[keep].reshape(len(keep), T_MATCH, -1, 3)

@@ -56,6 +56,9 @@ def union(main: MatchDB, extra: dict[str, MatchDB]) -> tuple[MatchDB, np.ndarray
         sum((list(d.source) for d in dbs), []),
         np.concatenate([d.S for d in dbs]) if has_s else None,
         main.fps,
+        None
+        if all(d.rate is None for d in dbs)
+        else np.concatenate([np.ones(d.M) if d.rate is None else d.rate for d in dbs]),
     )
     part = np.concatenate([np.full(d.M, i) for i, d in enumerate(dbs)])
     return u, part, names

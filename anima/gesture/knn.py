@@ -14,6 +14,8 @@ Three readings of the algorithm's text are made explicit here (both implementati
 * a window can only start where N frames fit (r <= T_MATCH - N), so that N output frames exist;
 * a database window with no frame allowed by the control is not a candidate (Algorithm 1 would keep its
   frame 0, which breaks the control).
+Optionally (``stroke``, :mod:`anima.gesture.strokes`; not in the seed), a third rank is added: how close each
+candidate's wrist-speed peaks fall to the speech's stresses in the step.
 Control masks require every frame of the N-frame window to satisfy the control (a departure: the seed's
 §5.3.2.1 looks at its first and last frame only, ``every_frame=False``; see :meth:`MatchDB.start_mask`).
 
@@ -33,7 +35,9 @@ import numpy as np
 from anima.core.contract import GESTURE_FPS
 from anima.gesture.features import N_STEP, T_MATCH
 from anima.gesture.post import one_skeleton, skeleton_lengths
+from anima.gesture.strokes import StrokeTerm, stroke_distance
 
+MIRROR = "#mirror"  # the source name of a mirrored copy of a video's motion: "video#mirror" (a library's variants)
 N_PROJ = 48  # principal directions of the pose feature used for the lower bounds
 N_FIRST = 24  # of which the first bound reads the first 24 for every frame
 
@@ -61,6 +65,7 @@ class MatchDB:
     source: list = field(default_factory=list)  # per window: (video, start_s)
     S: np.ndarray | None = None  # (M, T, 28) per-frame speech features (for the cGAN refiner)
     fps: float = GESTURE_FPS  # the windows' frame rate (from the data)
+    rate: np.ndarray | None = None  # (M,) source frames per frame: a speed-varied copy's (None: all 1)
 
     _layout: _Layout | None = None
 
@@ -78,6 +83,7 @@ class MatchDB:
             [self.source[i] for i in idx] if self.source else [],
             None if self.S is None else self.S[idx],
             self.fps,
+            None if self.rate is None else self.rate[idx],
         )
 
     @property
@@ -92,10 +98,13 @@ class MatchDB:
 
     @property
     def video_frames(self) -> tuple[np.ndarray, np.ndarray]:
-        """Per window: its video (an index) and its first frame in that video's timeline."""
+        """Per window: its video (an index; a mirrored copy, source ``video#mirror``, counts as ``video``) and
+        its first frame in that video's timeline (for a speed-varied copy, the source frame of its first frame;
+        :attr:`rate` source frames per frame from there)."""
         if getattr(self, "_vf", None) is None:
-            names = sorted({v for v, _ in self.source}) if self.source else []
-            vid = np.array([names.index(v) for v, _ in self.source]) if self.source else np.arange(self.M)
+            key = [v.removesuffix(MIRROR) for v, _ in self.source]
+            names = sorted(set(key))
+            vid = np.array([names.index(v) for v in key]) if self.source else np.arange(self.M)
             f0 = np.array([round(t * self.fps) for _, t in self.source]) if self.source else np.zeros(self.M, int)
             self._vf = (vid, f0)
         return self._vf
@@ -117,6 +126,14 @@ class MatchDB:
             J = self.G.reshape(self.M * self.G.shape[1], -1, 3)
             self._g_rig = one_skeleton(J, self.bone_lengths).reshape(self.G.shape)
         return self._g_rig
+
+    @property
+    def stroke_dist(self) -> np.ndarray:
+        """Per window and frame, the distance (frames, capped) to the window's nearest gesture stroke
+        (:func:`anima.gesture.strokes.stroke_distance`): the search's stroke term reads it."""
+        if getattr(self, "_stroke_dist", None) is None:
+            self._stroke_dist = stroke_distance(self.G, self.fps)
+        return self._stroke_dist
 
     def audio_norms(self) -> np.ndarray:
         """|f| per database frame, computed as the literal search computes it (float64, per row)."""
@@ -208,28 +225,53 @@ def _cosine(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def recent_mask(db: MatchDB, picks: list, mask: np.ndarray, steps: int) -> np.ndarray:
     """``mask`` without the starts whose N frames would replay source frames output in the last ``steps``
-    steps (same video, overlapping frames): the output cannot loop over one stretch of motion. A continuation
-    is never affected (its frames are new). Where that leaves no candidate, ``mask`` as it was. Not in the
-    seed (its database had hours of windows to choose from); 0 turns it off."""
-    if steps <= 0 or not picks:
-        return mask
+    steps (same video, overlapping frames; a speed-varied copy's frames are mapped back to its source's through
+    :attr:`MatchDB.rate`): the output cannot loop over one stretch of motion. A continuation is never affected
+    (its frames are new). Where that leaves no candidate, the same over the last half as many steps, and so on
+    (at 0, ``mask`` as it was). Not in the seed (its database had hours of windows to choose from); 0 turns it
+    off."""
+    while steps > 0 and picks:
+        out = _without_recent(db, picks[-steps:], mask)
+        if out.any():
+            return out
+        steps //= 2
+    return mask
+
+
+def _without_recent(db: MatchDB, recent: list, mask: np.ndarray) -> np.ndarray:
     vid, f0 = db.video_frames
     out = mask.copy()
     s = np.arange(mask.shape[1])
-    for m, r in picks[-steps:]:
-        e = f0[m] + r  # first source frame of that step
+    if db.rate is None:
+        for m, r in recent:
+            e = f0[m] + r  # first source frame of that step
+            same = vid == vid[m]
+            start = f0[same][:, None] + s[None]
+            out[same] &= ~((start > e - N_STEP) & (start < e + N_STEP))
+        return out
+    rate = np.asarray(db.rate, np.float64)
+    for m, r in recent:  # source frames [a, b) of that step against each start's [a', b')
+        a = f0[m] + r * rate[m]
+        b = a + N_STEP * rate[m]
         same = vid == vid[m]
-        start = f0[same][:, None] + s[None]
-        out[same] &= ~((start > e - N_STEP) & (start < e + N_STEP))
-    return out if out.any() else mask
+        start = f0[same][:, None] + s[None] * rate[same][:, None]
+        out[same] &= ~((start < b) & (start + N_STEP * rate[same][:, None] > a))
+    return out
 
 
 def search_literal(
-    db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray, control: list | None = None, no_repeat_steps: int = 0
+    db: MatchDB,
+    F_in: np.ndarray,
+    k: int,
+    p_init: np.ndarray,
+    control: list | None = None,
+    no_repeat_steps: int = 0,
+    stroke: StrokeTerm | None = None,
 ) -> tuple[np.ndarray, list]:
     """Algorithm 1 as written (Python loops). ``control``: per search step a (M, T) window-start mask or
-    None; ``no_repeat_steps``: see :func:`recent_mask`. Returns the gestures (T, 165) and the chosen (window,
-    frame) per step."""
+    None; ``no_repeat_steps``: see :func:`recent_mask`; ``stroke``: a third rank, the candidates' stroke
+    alignment with the step's stresses (:class:`anima.gesture.strokes.StrokeTerm`; None: the seed's two ranks).
+    Returns the gestures (T, 165) and the chosen (window, frame) per step."""
     T = len(F_in)
     G, picks = [], []
     p_prev = np.asarray(p_init, np.float64)
@@ -254,6 +296,10 @@ def search_literal(
         if not cand:
             raise ValueError("no database window satisfies the control")
         comb = _relrank(np.array(fd)) + _relrank(np.array(pd))
+        cm, cr = np.array([c[0] for c in cand]), np.array([c[1] for c in cand])
+        extra = None if stroke is None else stroke.ranks(step, cm, cr)
+        if extra is not None:
+            comb = comb + extra
         order = np.argsort(comb, kind="stable")
         m, r = cand[int(order[min(k, len(order) - 1)])]
         n = min(N_STEP, T - t)
@@ -410,7 +456,13 @@ def _rank_sum(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
 
 
 def search(
-    db: MatchDB, F_in: np.ndarray, k: int, p_init: np.ndarray, control: list | None = None, no_repeat_steps: int = 0
+    db: MatchDB,
+    F_in: np.ndarray,
+    k: int,
+    p_init: np.ndarray,
+    control: list | None = None,
+    no_repeat_steps: int = 0,
+    stroke: StrokeTerm | None = None,
 ) -> tuple[np.ndarray, list]:
     """The same search, fast: a numba pass over all windows and frames per step (partial distance search),
     then the ranking on the M pre-selected candidates. Identical output to :func:`search_literal`."""
@@ -463,6 +515,9 @@ def search(
         _audio_distance(Fdb, F_norm, m_ok, r_ok, b, float(np.sqrt((b * b).sum(-1))), fd)
         comb = comb_buf[: len(m_ok)]
         _rank_sum(fd, pd, comb)
+        extra = None if stroke is None else stroke.ranks(step, m_ok, r_ok)
+        if extra is not None:
+            comb = comb + extra
         key = comb * len(comb) + np.arange(len(comb))  # the stable order of comb, as unique keys
         kk = min(k, len(key) - 1)
         j = int(np.argpartition(key, kk)[kk])

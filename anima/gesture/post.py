@@ -9,6 +9,8 @@
   the output does not change size when it switches between speakers.
 * :func:`smooth`: the seed's temporal filter of the learned generators' output (Gaussian, sigma 1.5 frames,
   seed 004 §4.5).
+* :func:`to_rate`: the motion at the character's frame rate (the models work at 15 frames a second; the
+  character plays at 30), a cubic through the frames, so a turn is spread over the frames between them.
 """
 
 from __future__ import annotations
@@ -87,3 +89,18 @@ def finish_knn(
         joins = [t for t in joins_of(picks, n_step) if t // n_step not in (raw_steps or set())]
         J = blend_joins(J, joins, n_step)
     return one_skeleton(J, lengths)
+
+
+def to_rate(x: np.ndarray, fps: float, new_fps: float) -> np.ndarray:
+    """``x [F, ...]`` sampled at ``fps`` -> the same span at ``new_fps`` (a cubic spline through the frames, not
+    past the last one; unchanged when the rates match). ``F`` frames become ``floor((F - 1) * new_fps / fps) + 1``."""
+    from scipy.interpolate import CubicSpline
+
+    x = np.asarray(x)
+    if abs(new_fps - fps) < 1e-9 or len(x) < 2:
+        return x.copy()
+    t = np.arange(len(x)) / fps
+    new = np.arange(int(np.floor((len(x) - 1) * new_fps / fps + 1e-6)) + 1) / new_fps
+    if len(x) < 4:
+        return np.stack([np.interp(new, t, c) for c in x.reshape(len(x), -1).T], -1).reshape((len(new),) + x.shape[1:])
+    return CubicSpline(t, x, axis=0, bc_type="natural")(new).astype(x.dtype)

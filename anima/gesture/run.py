@@ -12,18 +12,21 @@ from pathlib import Path
 import numpy as np
 
 from anima.audio.features import read_audio, speech_features
+from anima.audio.stress import find_stresses
 from anima.core.clock import Stopwatch
+from anima.core.contract import CHARACTER_FPS
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
 from anima.export.motion import write_motion_outputs
 from anima.gesture.config import GestureConfig
 from anima.gesture.control import parse_control, speed_steps, step_masks
-from anima.gesture.database import from_builtin, from_dataset
+from anima.gesture.database import distinct_seconds, from_dataset, from_library
 from anima.gesture.face import fit_speech_face, talking_face
 from anima.gesture.features import N_STEP, audio_features
 from anima.gesture.keywords import keyword_masks, parse_keyword, union
 from anima.gesture.knn import search
-from anima.gesture.post import finish_knn, joins_of, one_skeleton
+from anima.gesture.post import finish_knn, joins_of, one_skeleton, to_rate
+from anima.gesture.strokes import StrokeTerm, alignment, place_strokes
 from anima.io.mapped import cache_key, file_stamp, mapped_arrays
 from anima.io.outdir import OutputFolder, check_out_dir
 from anima.library import builtin
@@ -43,16 +46,21 @@ def synthesize(
     no_repeat_s: float = 4.0,
     sw: Stopwatch | None = None,
     control_every_frame: bool = True,
+    stroke_rank: float = 0.0,
+    stroke_shift: float = 0.0,
 ) -> tuple[np.ndarray, dict]:
     """k-NN search (and, with ``refiner`` from ``anima.gesture.refine.load_refiner``, the cGAN refinement)
     at the database's frame rate. ``keywords`` (``anima.gesture.keywords.Keyword``) switch the search to
     ``keyword_dbs[word]`` (MatchDB) while the word is spoken. ``blend``: inertialized joins
-    (:mod:`anima.gesture.post`); the output is always re-posed on the database's one skeleton. ``sw``: a
-    stopwatch given the stages ``speech``, ``search`` and ``post``."""
+    (:mod:`anima.gesture.post`); the output is always re-posed on the database's one skeleton. ``stroke_rank``,
+    ``stroke_shift``: strokes on the speech's stresses (:mod:`anima.gesture.strokes`; 0, the default here: the
+    seed's timing; the command's defaults are :class:`GestureConfig`'s). ``sw``: a stopwatch given the stages
+    ``speech``, ``search`` and ``post``."""
     sw = sw or Stopwatch()
     fps = db.fps
     with sw("speech"):
-        feats, notes = read_speech(speech_path, fps)
+        x, feats, notes = _read(speech_path, fps)
+        stress = find_stresses(x) if stroke_rank > 0 or stroke_shift > 0 else None
     T = len(feats.features)
     F_in = audio_features(feats.features)
     if init == "mean":
@@ -78,12 +86,20 @@ def synthesize(
     if T > db.M * db.P.shape[1]:
         notes.append("the speech is longer than the database: database windows are reused")
     with sw("search"):
-        G, picks = search(db, F_in, k, p0, masks, no_repeat_steps=round(no_repeat_s * fps / N_STEP))
+        stroke = None
+        if stress is not None and stroke_rank > 0:
+            stroke = StrokeTerm.of(db.stroke_dist, stress.frames(fps), n_steps, N_STEP, stroke_rank)
+        G, picks = search(db, F_in, k, p0, masks, no_repeat_steps=round(no_repeat_s * fps / N_STEP), stroke=stroke)
     with sw("post"):
         raw = speed_steps(controls or [], n_steps, N_STEP / fps)
         J = finish_knn(G, picks, db.bone_lengths, N_STEP, blend=blend, raw_steps=raw)
         if refiner is not None:  # the refiner works on the blended output, and keeps the one skeleton
             J = one_skeleton(refiner.refine(feats.features[: len(J)], J), db.bone_lengths)
+        placed = None
+        if stress is not None and stroke_shift > 0:  # a speed control's steps keep their timing
+            keep = [(i * N_STEP, (i + 1) * N_STEP) for i in sorted(raw)]
+            J, placed = place_strokes(J, stress.frames(fps), fps, stroke_shift, keep=keep)
+            J = one_skeleton(J, db.bone_lengths)
     joins = joins_of(picks, N_STEP)
     info = {
         "frames": len(G),
@@ -99,6 +115,17 @@ def synthesize(
     }
     if used is not None:
         info["database_per_step"] = used
+    if stress is not None:
+        a = alignment(J, stress.times_s, fps)
+        info["strokes"] = {
+            "stresses": len(stress.times_s),
+            "rank_weight": stroke_rank,
+            "max_shift_frames": stroke_shift,
+            "moved": placed["moved"] if placed else 0,
+            "mean_shift_frames": placed["mean_shift_frames"] if placed else 0.0,
+            "stresses_with_a_stroke_within_0.1_s": round(a.get("stresses_hit", float("nan")), 3),
+            "strokes_per_s": round(a["strokes_per_s"], 2),
+        }
     return J, info
 
 
@@ -130,11 +157,33 @@ MAX_SPEECH_S = 600.0
 """The longest speech ``anima gesture`` takes (10 min, as ``anima text2face``'s longest clip): without videos
 that is about 8 s and 0.8 GB; a longer file is refused before the search, after decoding at most this much (its
 --help states it)."""
+LIBRARY_NO_REPEAT_MAX_S = 20.0
+"""With a motion library, the no-repeat span grows to half its distinct seconds, up to this
+(:class:`GestureConfig`'s ``no_repeat_s``)."""
+
+
+def library_no_repeat_s(db, no_repeat_s: float) -> float:
+    """The no-repeat span for a motion library's database: ``no_repeat_s``, raised to half the library's distinct
+    seconds (variants counted as their source) up to :data:`LIBRARY_NO_REPEAT_MAX_S`; 0 stays 0."""
+    if no_repeat_s <= 0:
+        return no_repeat_s
+    return max(no_repeat_s, min(LIBRARY_NO_REPEAT_MAX_S, distinct_seconds(db) / 2))
+
+
+OUTPUT_FPS = CHARACTER_FPS
+"""The rate of every file ``anima gesture`` writes (the character's, as text2face's): the models work at
+15 frames a second (the seed's), and their motion is carried to 30 by a cubic through its frames."""
 
 
 def read_speech(speech_path: str, fps: float):
     """Speech features at ``fps`` (any audio rate, resampled to 16 kHz mono; at most :data:`MAX_SPEECH_S`), and
     notes for the user."""
+    _, feats, notes = _read(speech_path, fps)
+    return feats, notes
+
+
+def _read(speech_path: str, fps: float):
+    """``(samples at 16 kHz, features, notes)``: :func:`read_speech` with the samples."""
     x = read_audio(speech_path, max_s=MAX_SPEECH_S)
     feats = speech_features(x, fps)
     if len(feats.features) < N_STEP:
@@ -142,7 +191,7 @@ def read_speech(speech_path: str, fps: float):
     notes = (
         ["the speech is silent (below -60 dBFS): gestures follow the database's quiet moments"] if feats.silent else []
     )
-    return feats, notes
+    return x, feats, notes
 
 
 def generate(speech_path: str, gen) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -167,12 +216,13 @@ def run(
     command: str | None = None,
     progress: bool = False,
     preset: str = "anima",
+    library: str | None = None,
 ) -> dict:
-    """``anima gesture``: check every input, then search (``db``) or generate (``generator``) and write the
-    result folder. Returns the run's info (notes, controls, files written, and ``time_s``: seconds per stage,
-    start-up included)."""
+    """``anima gesture``: check every input, then search (``db``, or the motion ``library``: ``anima library
+    build``'s, default the built-in one) or generate (``generator``) and write the result folder. Returns the
+    run's info (notes, controls, files written, and ``time_s``: seconds per stage, start-up included)."""
     sw = Stopwatch()
-    inputs = [speech, db, generator, refiner, *(spec.partition("=")[2] for spec in cfg.keyword_db)]
+    inputs = [speech, db, generator, refiner, library, *(spec.partition("=")[2] for spec in cfg.keyword_db)]
     check_out_dir(out, inputs=inputs)  # a user's folder is refused before anything is read
     if not Path(speech).is_file():
         raise InputError(f"speech file not found: {speech}")
@@ -182,6 +232,9 @@ def run(
         raise InputError("--control, --refiner and --keyword apply to the k-NN search (--db), not to --generator")
     if generator and db:
         raise InputError("give --db DATASET (k-NN search) or --generator CHECKPOINT, not both")
+    if library and (db or generator):
+        raise InputError("--library is the k-NN search's database instead of --db's, and not for --generator")
+    lib_path = None if db or generator else builtin.resolve(library)  # a bad --library fails before any work
     kw_folders = {}
     for spec in cfg.keyword_db:
         word, sep, folder = spec.partition("=")
@@ -206,8 +259,13 @@ def run(
                     from anima.gesture.refine import load_refiner  # lazy: torch
 
                     ref = load_refiner(refiner)
-                match_db = from_dataset(db, None if cfg.all_splits else "train") if db else from_builtin()
+                match_db = from_dataset(db, None if cfg.all_splits else "train") if db else None
+                if match_db is None:
+                    match_db = from_library(library, cfg.variants)
                 kw_dbs = {w: from_dataset(f, None) for w, f in kw_folders.items()}
+            no_repeat = cfg.no_repeat_s
+            if not db and no_repeat > 0:  # a small library: keep its stretches apart for longer
+                no_repeat = library_no_repeat_s(match_db, no_repeat)
             J, info = synthesize(
                 speech,
                 match_db,
@@ -219,20 +277,28 @@ def run(
                 keywords,
                 kw_dbs,
                 blend=cfg.blend,
-                no_repeat_s=cfg.no_repeat_s,
+                no_repeat_s=no_repeat,
                 control_every_frame=not cfg.control_ends_only,
                 sw=sw,
+                stroke_rank=cfg.stroke_rank,
+                stroke_shift=cfg.stroke_shift,
             )
             with sw("face"):
                 S = info.pop("speech_features")
                 if db:
                     face, face_note = talking_face_of(db, S, info["fps"], cfg.seed)
                 else:
-                    face, face_note = talking_face(S, info["fps"], builtin.load().speech_face, cfg.seed), None
+                    face, face_note = talking_face(S, info["fps"], builtin.load(lib_path).speech_face, cfg.seed), None
             info = {k: v for k, v in info.items() if k != "picks"} | {"database_windows": match_db.M}
-            info["database"] = str(db) if db else builtin.summary()
+            info["no_repeat_s"] = round(no_repeat, 2)
+            info["database"] = str(db) if db else builtin.summary(lib_path)
+            if not db and cfg.variants:
+                info["library_variants"] = "mirrored and speed-varied (1/1.15x, 1.15x) copies of its windows"
             info["notes"] = info.get("notes", []) + ([face_note] if face_note else [])
             info["face"] = FACE_NOTE
+        info["motion_fps"], info["fps"] = info["fps"], OUTPUT_FPS  # the character's rate, not the models'
+        J, face = to_rate(J, info["motion_fps"], OUTPUT_FPS), to_rate(face, info["motion_fps"], OUTPUT_FPS)
+        info["frames"] = len(J)
         seq = generated_sequence(
             info["fps"],
             face=face,

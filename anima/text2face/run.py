@@ -33,10 +33,12 @@ def run(
     command: str | None = None,
     db: str | Path | None = None,
     preset: str = "anima",
+    library: str | Path | None = None,
 ) -> dict:
     """``anima text2face``: a sentence -> a result folder (``motion.npz``, ``arkit.csv``, ``face.glb``,
     ``face.mp4``, ``info.json``; :func:`anima.export.motion.write_motion_outputs`). ``--out`` is checked
-    before the model loads. Returns the run's info (frames, fps, seed, sampling time, warnings, files)."""
+    before the model loads. ``library``: a motion library from ``anima library build`` in place of the built-in
+    one. Returns the run's info (frames, fps, seed, sampling time, warnings, files)."""
     cfg = cfg or PromptConfig()
     seed = cfg.seed
     require_prompt(prompt)
@@ -49,9 +51,12 @@ def run(
             raise InputError("--checkpoint is for --method model; the timeline method reads --db")
         if cfg.with_builtin and not db:
             raise InputError("--with-builtin adds the built-in library to --db's clips: give --db too")
-        return _timeline(prompt, out, cfg, db, video, progress, command, preset)
-    if db:
-        raise InputError("--db is for the timeline method; --method model reads --checkpoint")
+        if library and db and not cfg.with_builtin:
+            raise InputError("--db replaces the library: give --db or --library (or both with --with-builtin)")
+        lib = builtin.resolve(library)  # a bad --library fails before any work
+        return _timeline(prompt, out, cfg, db, video, progress, command, preset, lib)
+    if db or library:
+        raise InputError("--db and --library are for the timeline method; --method model reads --checkpoint")
     from anima.text2face.generate import Generator  # lazy: torch
 
     with OutputFolder(out, kind="text2face", command=command, inputs=[checkpoint]) as od:
@@ -84,9 +89,10 @@ MAX_TIMELINE_FRAMES = 18_000
 events imply alike (``anima text2face --help`` states it)."""
 
 
-def _library(db, with_builtin: bool) -> Library:
-    """The timeline method's clips: ``--db``'s (all its splits: the user's own clips), the built-in library's
-    when there is no ``--db`` or ``--with-builtin`` asks for both."""
+def _library(db, with_builtin: bool, lib: Path = builtin.LIBRARY) -> Library:
+    """The timeline method's clips: ``--db``'s (all its splits: the user's own clips), the motion library's
+    (``lib``: the built-in one, or ``--library``'s) when there is no ``--db`` or ``--with-builtin`` asks for
+    both."""
     motions, events, sources = [], [], []
     if db:
         clips = read_clips(db)
@@ -96,14 +102,19 @@ def _library(db, with_builtin: bool) -> Library:
         events += [c.events for c in clips]
         sources += [c.clip_id for c in clips]
     if not db or with_builtin:
-        b = builtin.load()
+        b = builtin.load(lib)
+        if abs(b.face_fps - TEXT_FPS) > 1e-6 and b.face_motion:
+            raise InputError(f"{lib}: clips at {b.face_fps} fps; the timeline method works at {TEXT_FPS}")
         motions += b.face_motion
         events += b.face_events
-        sources += [f"built-in:{c}" for c in b.face_clip]
+        sources += [f"{'built-in' if lib == builtin.LIBRARY else 'library'}:{c}" for c in b.face_clip]
     return Library.from_clips(motions, events, sources, TEXT_FPS)
 
 
-def _timeline(prompt, out, cfg: PromptConfig, db, video: bool, progress: bool, command, preset: str = "anima") -> dict:
+def _timeline(
+    prompt, out, cfg: PromptConfig, db, video: bool, progress: bool, command, preset: str = "anima",
+    lib: Path = builtin.LIBRARY,
+) -> dict:  # fmt: skip
     """The timeline method (:mod:`anima.text2face.compose`): the prompt's events from the dataset's captured
     segments. ``info.json`` records how the prompt was read, what was not understood, and where every event's
     motion comes from."""
@@ -116,13 +127,15 @@ def _timeline(prompt, out, cfg: PromptConfig, db, video: bool, progress: bool, c
             f"{n} frames asked: the timeline method makes at most {MAX_TIMELINE_FRAMES} "
             f"({MAX_TIMELINE_FRAMES / fps / 60:.0f} min)"
         )
-    with OutputFolder(out, kind="text2face", command=command, inputs=[db]) as od:
-        lib = _library(db, cfg.with_builtin)
+    with OutputFolder(
+        out, kind="text2face", command=command, inputs=[db, None if lib == builtin.LIBRARY else lib]
+    ) as od:
+        clips = _library(db, cfg.with_builtin, lib)
         t = time.perf_counter()
         plan = parse(prompt)
         if not plan.events and plan.unknown:  # words the lexicon lacks: try the sentence encoder
             plan = parse(prompt, get_encoder("minilm"))
-        motion, record = compose(plan, lib, n, cfg.seed, max_frames=MAX_TIMELINE_FRAMES)
+        motion, record = compose(plan, clips, n, cfg.seed, max_frames=MAX_TIMELINE_FRAMES)
         info = {
             "prompt": plan.text,
             "frames": len(motion),
@@ -130,7 +143,7 @@ def _timeline(prompt, out, cfg: PromptConfig, db, video: bool, progress: bool, c
             "seed": cfg.seed,
             "method": "timeline",
             "dataset": str(db) if db else None,
-            "library": ("--db and " if db else "") + builtin.summary() if (not db or cfg.with_builtin) else str(db),
+            "library": ("--db and " if db else "") + builtin.summary(lib) if (not db or cfg.with_builtin) else str(db),
             "understood": [
                 {k: v for k, v in vars(e).items() if k != "words"} | {"from_words": e.words} for e in plan.events
             ],

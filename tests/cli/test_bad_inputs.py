@@ -882,6 +882,16 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
         for v in vals:
             add(f"text2face {opt} {v}", "text2face", "a woman smiles", opt, v, "--out", out / "tl", "--no-video")
     add("text2face --out is a file", "text2face", "a woman smiles", "--out", files["text"])
+    for k in ("missing", "unicode_missing", "dir", "empty", "random", "text", "cut", "png", "wav", "noface"):
+        add(f"library build {k}", "library", "build", files[k], "--out", out / f"lb_{k}", "--quiet")
+    add("library build --out is a file", "library", "build", pats, "--out", files["text"], "--quiet")
+    add("library build --out a user's npz", "library", "build", pats, "--out", npz["zeros"], "--quiet")
+    add("library build --max-frames 0", "library", "build", pats, "--out", out / "lb_mf", "--max-frames", "0")
+    for k in ("missing", "dir", "text"):
+        add(f"gesture --library {k}", "gesture", speech, "--library", files[k], "--out", out / "gl", "--no-render")
+        add(f"text2face --library {k}", "text2face", "a woman smiles", "--library", files[k], "--out", out / "tlb")
+    add("gesture --library and --db", "gesture", speech, "--library", files["dir"], "--db", ds["corrupt_shard"],
+        "--out", out / "gld")  # fmt: skip
     for opt, vals in (
         ("--steps", ["0", "-1", "abc"]),
         ("--lr", ["0", "nan", "-1"]),

@@ -227,7 +227,7 @@ def test_generator_commands(ds, wav, tmp_path, cli):
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
     n = info["frames"]
-    assert abs(n - 75) <= 1 and info["model"] == "adversarial"  # 5 s at 15 fps
+    assert abs(n - 149) <= 2 and info["model"] == "adversarial"  # 5 s: 75 frames at the model's 15 fps, written at 30
     from anima.io.sequence import read_sequence
 
     seq = read_sequence(out / "gesture.npz")  # one tracked sequence: the generator's face and body
@@ -239,7 +239,7 @@ def test_generator_commands(ds, wav, tmp_path, cli):
     assert json.loads(r.stdout)["kind"] == "moglow"
     r = cli("gesture", str(wav), "--generator", str(flow), "--out", str(tmp_path / "m"), "--no-render", "--json")
     assert r.returncode == 0, r.stderr
-    assert json.loads(r.stdout)["model"] == "moglow" and abs(json.loads(r.stdout)["frames"] - 75) <= 1
+    assert json.loads(r.stdout)["model"] == "moglow" and abs(json.loads(r.stdout)["frames"] - 149) <= 2
     r = cli(
         "gesture", str(wav), "--generator", str(ck), "--out", str(tmp_path / "h"), "--control", "left_wrist_height>=p85"
     )

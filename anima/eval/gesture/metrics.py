@@ -167,3 +167,27 @@ def fold_count(sources, folds: int, by_speaker: bool = True) -> int:
     """How many folds ``folds`` can be: at least 2, at most the speakers (``by_speaker``) or the videos."""
     groups = {speaker_of(s) for s in sources} if by_speaker else set(sources)
     return max(2, min(folds, len(groups)))
+
+
+def replayed(
+    source: list, rate, picks: list, fps: float, n_step: int, span_s: float, fold_mirror: bool = True
+) -> float:
+    """Loops: the share of an output's search steps whose source motion (same video, overlapping frames) was
+    already output within the previous ``span_s`` seconds. ``source``: the database's ``(video, start_s)`` per
+    window, ``rate``: its source frames per frame (None: 1), ``picks``: the search's ``(window, start)`` per step;
+    with ``fold_mirror`` a mirrored copy (``video#mirror``) counts as its source."""
+    if len(picks) < 2:
+        return 0.0
+    rate = np.ones(len(source)) if rate is None else np.asarray(rate, np.float64)
+    spans = []
+    for m, r in picks:
+        video, t = source[m]
+        if fold_mirror:
+            video = video.removesuffix("#mirror")  # anima.gesture.knn.MIRROR
+        a = t * fps + r * rate[m]
+        spans.append((video, a, a + n_step * rate[m]))
+    back = int(round(span_s * fps / n_step))
+    hits = 0
+    for i, (v, a, b) in enumerate(spans[1:], 1):
+        hits += any(w == v and a < d and c < b for w, c, d in spans[max(0, i - back) : i])
+    return hits / (len(spans) - 1)
