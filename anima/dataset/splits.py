@@ -15,7 +15,8 @@ A video's split is decided by its *source group*, never by its file alone or its
    other's) join one group, named by its smallest source key; so a clip copied under two folders, re-encoded
    or re-cropped cannot sit on two sides. Each row says why it was grouped (``grouped_with``).
 4. The group's split: a hash of its name against :data:`TEST` and :data:`VAL` (so adding videos never moves
-   another video's split).
+   another video's split). A group of videos outside the data root lands by its content instead (the smallest
+   sha256 of its files), so the same videos under differently named folders get the same splits.
 
 ``table(videos)`` returns all of it per video; ``anima dataset build`` writes it into the manifest
 (``split_table``) and each row carries its video's split.
@@ -249,10 +250,21 @@ def table(videos: list[str | Path], root: Path | None = None, fingerprints: dict
             if same_recording(fh, other):
                 union(source[p], s, "the same face crops (re-cropped or scaled)")
         faces.append((fh, source[p]))
+    base = (root or data_root()).resolve()
+    members: dict[str, list[str]] = {}
+    for p in paths:
+        members.setdefault(find(source[p]), []).append(p)
+    side = {}
+    for g, ps in members.items():
+        outside = all(not Path(p).is_relative_to(base) for p in ps)
+        shas = sorted(fps[p][0] for p in ps if p in fps)
+        # videos outside the data root: their names group them, their content decides the side (a folder renamed
+        # or a copy under another folder keeps its split); the shared data keeps the rule by its source names
+        side[g] = split_of_group(f"content:{shas[0]}") if outside and shas else split_of_group(g)
     out = {}
     for p in paths:
         g = find(source[p])
-        out[p] = {"key_path": keys[p], "source": source[p], "group": g, "split": split_of_group(g),
+        out[p] = {"key_path": keys[p], "source": source[p], "group": g, "split": side[g],
                   "grouped_with": dict(sorted(why.get(source[p], {}).items()))}  # fmt: skip
     return out
 
@@ -260,4 +272,5 @@ def table(videos: list[str | Path], root: Path | None = None, fingerprints: dict
 def rule() -> dict:
     """What a manifest records of the rule its splits came from."""
     return {"salt": SALT, "test": TEST, "val": VAL, "near_bits": NEAR, "face_frames": FACE_FRAMES,
-            "face_near_bits": FACE_NEAR, "face_min_frames": FACE_MIN_FRAMES, "module": __name__}  # fmt: skip
+            "face_near_bits": FACE_NEAR, "face_min_frames": FACE_MIN_FRAMES, "outside_the_data_root": "by content",
+            "module": __name__}  # fmt: skip

@@ -101,3 +101,21 @@ def test_one_recording_under_two_names_is_found_by_its_face_crops(tmp_path):
     assert len(lines) == 2 and all("one recording" in line for line in lines), lines
     fa, fb, fc = (splits.face_hashes(p) for p in (a, b, c))
     assert len(fa) >= 10 and splits.same_recording(fa, fb) and not splits.same_recording(fa, fc)
+
+
+def test_videos_outside_the_data_root_land_by_content_not_by_their_folders_name(tmp_path):
+    """The same three talking clips copied into folders ``a/`` and ``b/c/`` (outside the data root) and split
+    twice: each clip lands on the same side both times (the side a group lands on is decided by its files'
+    content; before, the folder's name was in the key and moved reagan_clip1 from val to test)."""
+    rels = [f"styletalk-samples/samples/source_video/video/{n}.mp4" for n in ("andrew_clip_1", "reagan_clip1",
+                                                                            "Obama_clip1")]  # fmt: skip
+    got = []
+    for folder in (tmp_path / "a", tmp_path / "b" / "c"):
+        folder.mkdir(parents=True)
+        paths = []
+        for r in rels:
+            shutil.copyfile(asset(r), folder / r.rsplit("/", 1)[1])
+            paths.append(folder / r.rsplit("/", 1)[1])
+        t = splits.table(paths, tmp_path / "nowhere")
+        got.append({r["key_path"].rsplit("/", 1)[1]: r["split"] for r in t.values()})
+    assert got[0] == got[1], got
