@@ -1,15 +1,20 @@
-"""The body's round trip with ground truth (issue 47): real mocap with global trajectories played on anima's
+"""The body's round trip with ground truth: real mocap with global trajectories played on anima's
 character, filmed by a camera in Blender (a still one and one that pans to follow), captured back with anima's
 capture, and compared with the truth.
 
-    python benchmarks/roundtrip_body.py            # writes benchmarks/results/roundtrip_body.json (~10 min)
+    python benchmarks/roundtrip_body.py            # writes benchmarks/results/roundtrip_body.json (~15-20 min)
 
 **Truth.** Real mocap with global trajectories: Human3.6M's world poses (``pose3d/derived/
 h36m_3d17_world_mm_10fps_allsubjects.npz``, S9 "Walking", 5 s from 2 s in, 10 fps resampled to 25 by cubic
 splines; Human3.6M's research terms: nothing of it leaves this machine) and a CMU jumping clip
 (``pose3d/derived/cmu_dmgnn_38j_mm_30fps.npz``, "train/jumping/jumping_2", the first 5 s, 30 fps; free for any
 use; its vertical trajectory is kept, the horizontal one of this conversion is not trusted: the walks' feet
-slide in it, so CMU's walks are not used). Each is put on the character (``anima.core.rig.solve`` on its
+slide in it, so CMU's walks are not used). Fast motion: CMU's "test/basketball/basketball_1" and
+"test/soccer/soccer_1", 2.5 s each from 2 s in (their fastest stretch; the wrists reach 2-3 m/s at the 80th
+percentile; the feet of this conversion slide, so the truth has no stance frames). A hand resting on the
+chest, which no clip shows: Human3.6M S9 "Posing" (3.5 s from 7.5 s in: standing, facing the camera) with the
+right arm posed by a two-bone IK (:func:`put_hand_on_chest`: 0.8 s reaching in, the palm held 2 s on the left
+of the character's skinned chest, 0.5 s letting go). Each is put on the character (``anima.core.rig.solve`` on its
 joints, the hips' trajectory scaled by the character's hip height over the actor's) and written as the
 character's glTF. The character's joints by its own forward
 kinematics are the truth; a foot is in contact where its truth moves under 0.25 m/s within 5 cm of its
@@ -34,7 +39,13 @@ height over the ball of the foot against the character's flat foot, the sole's p
 tip-toe reads high on both; how high the sole is above the floor: a foot that should stand there floats),
 penetration (the lowest sole, m), jitter
 (mean joint acceleration, m/s^2) and, for the jumps, how high the hips rise (the 95th percentile of their
-height over its median). **Baseline**: the raw tracker, MediaPipe Holistic's world landmarks as capture stores
+height over its median). The fast clips add the arms' (shoulders, elbows, wrists) and the legs' W-MPJPE, the
+arms' tracked fraction as capture counts it (``joint_groups_tracked``), the wrists' error on the fastest 20 % of
+wrist frames (by the truth's wrist speed) and the largest per-frame turn of any body bone's world direction
+(degrees; the truth's beside it). The hand on the chest adds, on the hold frames, the palm's distance to the
+captured character's own skinned torso (as ``tests/core/test_ground.py`` measures it), its depth over the
+torso's front along the chest's forward axis (the side view's error) and the frames capture held the hand on it.
+**Baseline**: the raw tracker, MediaPipe Holistic's world landmarks as capture stores
 them (pelvis-centred: no root, no floor).
 """
 
@@ -67,7 +78,15 @@ from anima.render.raster import vertex_normals
 
 CMU = "pose3d/derived/cmu_dmgnn_38j_mm_30fps.npz"
 H36M = "pose3d/derived/h36m_3d17_world_mm_10fps_allsubjects.npz"
-CLIPS = {"walking": ("h36m", "S9/Walking", 2.0, 5.0), "jumping": ("cmu", "train/jumping/jumping_2", 0.0, 5.0)}
+CLIPS = {"walking": ("h36m", "S9/Walking", 2.0, 5.0), "jumping": ("cmu", "train/jumping/jumping_2", 0.0, 5.0),
+         "basketball": ("cmu", "test/basketball/basketball_1", 2.0, 2.5),
+         "soccer": ("cmu", "test/soccer/soccer_1", 2.0, 2.5),
+         "hand_on_chest": ("h36m", "S9/Posing", 7.5, 3.5)}  # fmt: skip
+FAST = ("basketball", "soccer")
+# the hand on the chest (posed by IK on the clip): seconds before, reaching in, held, letting go
+CHEST_TIMES = (0.2, 0.8, 2.0, 0.5)
+ARMS = ("LeftArm", "RightArm", "LeftForeArm", "RightForeArm", "LeftHand", "RightHand")
+LEGS = ("LeftUpLeg", "RightUpLeg", "LeftLeg", "RightLeg", "LeftFoot", "RightFoot")
 FPS = 25.0
 DISTANCE_M, SIZE = 4.5, 720
 # Human3.6M's 17 joints -> the CMU indices _CMU uses (for one conversion of both): pelvis 0, r_hip 1, r_knee 2,
@@ -124,7 +143,60 @@ def clip(kind: str, name: str, start_s: float, seconds: float) -> np.ndarray:
     return _resample(J, fps, start_s, seconds)
 
 
-def truth_motion(J: np.ndarray, fps: float):
+def torso_vertices(ch) -> np.ndarray:
+    """The character's torso vertices (those whose main skin joint is the hips or a spine joint)."""
+    main = ch.skin_joints[np.arange(len(ch.skin_joints)), np.argmax(ch.skin_weights, 1)]
+    return np.isin(main, [rig.IX[n] for n in ("Hips", "Spine", "Spine1", "Spine2")])
+
+
+def palm_centre(P: np.ndarray, S: str) -> np.ndarray:
+    """The palm's centre ``[..., 3]`` as tests/core/test_ground.py measures it (wrist and index/middle knuckles)."""
+    k = [rig.IX[f"{S}Hand{x}1"] for x in ("Index", "Middle")]
+    return 0.5 * P[..., rig.IX[f"{S}Hand"], :] + 0.5 * P[..., k, :].mean(-2)
+
+
+def put_hand_on_chest(L, G, P, rest, V, ch, fps):
+    """The right palm brought onto the left of the chest (over the heart, the fingers across the chest, the
+    thumb up, the palm on the character's skinned torso surface plus the hand's thickness) by a two-bone IK of
+    the arm: :data:`CHEST_TIMES`; the wrist's path from where the clip has it bulges 10 cm forwards. Returns the
+    new locals and the hold frames ``[F]``."""
+    from anima.core.contact import HAND_THICKNESS_M, TorsoSurface
+
+    F = len(L)
+    lead, reach, held, out = (int(round(x * fps)) for x in CHEST_TIMES)
+    w = np.zeros(F)
+    ramp = lambda n: 0.5 - 0.5 * np.cos(np.pi * np.arange(1, n + 1) / (n + 1))
+    w[lead : lead + reach] = ramp(reach)
+    w[lead + reach : lead + reach + held] = 1.0
+    w[lead + reach + held : lead + reach + held + out] = ramp(out)[::-1]
+    hold = w == 1.0
+    chest = rig.IX["Spine2"]
+    surf = TorsoSurface.from_mesh(V, rest[chest], torso_vertices(ch))
+    spot = np.array([0.05, 0.04, 0.0])
+    spot[2] = surf.front(spot[None])[0] + HAND_THICKNESS_M
+    R0 = np.array([[-1.0, 0, 0], [0, 0, 1], [0, 1, 0]])  # rest (fingers -x, palm -y) -> fingers +x, palm -z
+    sh, arm, fore, hand = (rig.IX[n] for n in ("RightShoulder", "RightArm", "RightForeArm", "RightHand"))
+    palm_off = palm_centre(rest, "Right") - rest[hand]
+    a, b = np.linalg.norm(rest[fore] - rest[arm]), np.linalg.norm(rest[hand] - rest[fore])
+    Gc = G[:, chest]
+    Gh_t = Gc @ R0
+    W_t = P[:, chest] + np.einsum("fij,j->fi", Gc, spot) - np.einsum("fij,j->fi", Gh_t, palm_off)
+    fwd = np.einsum("fij,j->fi", Gc, [0.0, 0.0, 1.0])
+    W = (1 - w)[:, None] * P[:, hand] + w[:, None] * W_t + 0.1 * np.sin(np.pi * w)[:, None] * fwd
+    pole_t = np.einsum("fij,j->fi", Gc, rig._unit(np.array([-1.0, -1.0, -0.3])))
+    pole = (1 - w)[:, None] * rig._unit(P[:, fore] - P[:, arm]) + w[:, None] * pole_t
+    on = w > 0
+    el = rig._two_bone(P[on, arm], W[on], a, b, pole[on])
+    Ga = rig._aim(G[on, sh], rest[fore] - rest[arm], el - P[on, arm])
+    Gf = rig._aim(Ga, rest[hand] - rest[fore], W[on] - el)
+    Gh = rig.slerp_rot(G[on, hand], Gh_t[on], w[on])
+    L = L.copy()
+    T = lambda M: np.swapaxes(M, -1, -2)
+    L[on, arm], L[on, fore], L[on, hand] = T(G[on, sh]) @ Ga, T(Ga) @ Gf, T(Gf) @ Gh
+    return L, hold
+
+
+def truth_motion(J: np.ndarray, fps: float, on_chest: bool = False):
     """The clip on the character: its rig motion (rotations from the clip's joints, the hips where the clip's
     are, scaled to the character) and the character's rest."""
     pelvis = J[:, 0]
@@ -151,7 +223,20 @@ def truth_motion(J: np.ndarray, fps: float):
                                                                       "RightToeBase")], 0)  # fmt: skip
     root[:, 1] -= np.percentile(sole, 2)  # the truth stands on the floor
     G, P = rig.forward(mo["local"], rest, root)
-    return {"local": mo["local"], "root": root, "global": G, "positions": P, "rest": rest, "vertices": V, "ch": ch}
+    hold = None
+    if on_chest:
+        mo["local"], hold = put_hand_on_chest(mo["local"], G, P, rest, V, ch, fps)
+        G, P = rig.forward(mo["local"], rest, root)
+    return {
+        "hold": hold,
+        "local": mo["local"],
+        "root": root,
+        "global": G,
+        "positions": P,
+        "rest": rest,
+        "vertices": V,
+        "ch": ch,
+    }
 
 
 def write_take(m: dict, fps: float, path: Path) -> Path:
@@ -228,12 +313,13 @@ def metrics(P: np.ndarray, root: np.ndarray, truth: dict, fps: float, rest: np.n
         a = P[:F, rig.IX[f"{S}Foot"], ::2]
         both = c[1:, k] & c[:-1, k]
         slide.append(np.linalg.norm(np.diff(a, axis=0), axis=-1)[both])
+    slide = np.concatenate(slide)
     acc = np.nanmean(np.linalg.norm(np.diff(P[:F, idx], 2, axis=0), axis=-1)) * fps * fps
     out = {
         "w_mpjpe_mm": round(1000 * float(np.nanmean(err)), 1),
         "root_error_mm": round(1000 * float(np.nanmean(np.linalg.norm(root[:F] - Tr[:F], axis=-1))), 1),
         "hips_travel_ratio": round(float(path(root) / max(path(Tr), 1e-6)), 3),
-        "foot_sliding_mm_per_frame": round(1000 * float(np.nanmedian(np.concatenate(slide))), 2),
+        "foot_sliding_mm_per_frame": round(1000 * float(np.median(slide)), 2) if len(slide) else None,
         "contact_frames": int(c.sum()),
         "jitter_m_s2": round(float(acc), 2),
         "hips_rise_m": round(float(np.percentile(root[:F, 1], 95) - np.median(root[:F, 1])), 3),
@@ -243,7 +329,8 @@ def metrics(P: np.ndarray, root: np.ndarray, truth: dict, fps: float, rest: np.n
                                                                            "RightToeBase", "LeftToe_End",
                                                                            "RightToe_End")], 0)  # fmt: skip
         out["lowest_sole_m"] = round(float(sole.min()), 3)
-        out.update(stance_feet(P[:F], rest, c))
+        if c.any():  # (a clip whose truth never plants a foot has no stance frames)
+            out.update(stance_feet(P[:F], rest, c))
     return out
 
 
@@ -274,6 +361,81 @@ def stance_feet(P: np.ndarray, rest: np.ndarray, contact: np.ndarray) -> dict:
             "stance_sole_above_floor_p90_cm": round(100 * float(np.percentile(above, 90)), 1)}  # fmt: skip
 
 
+def _err(P: np.ndarray, T: np.ndarray, names) -> np.ndarray:
+    idx = [rig.IX[n] for n in names]
+    return np.linalg.norm(P[:, idx] - T[:, idx], axis=-1)
+
+
+def fast_metrics(P: np.ndarray, truth: dict, fps: float, seq) -> dict:
+    """Fast motion: the arms' and legs' W-MPJPE (mm), the arms' tracked fraction as capture counts it, the
+    wrists' error (mm) on the fastest 20 % of wrist frames (by the truth's wrist speed) against all, the arms'
+    error with each motion's hips put together (the limbs without the root's), and the largest per-frame turn
+    (degrees) of any body bone's world direction (fingers left out), captured and true."""
+    T = truth["positions"]
+    F = min(len(P), len(T))
+    P, T = P[:F], T[:F]
+    wr = [rig.IX["LeftHand"], rig.IX["RightHand"]]
+    speed = np.linalg.norm(np.gradient(T[:, wr], axis=0), axis=-1) * fps
+    fast = speed >= np.percentile(speed, 80)
+    ew = _err(P, T, ("LeftHand", "RightHand"))
+
+    def turn(Q):
+        body = [j for j, n in enumerate(rig.NAMES) if rig.PARENTS_RIG[j] >= 0
+                and (not n.startswith(("LeftHand", "RightHand")) or n in ("LeftHand", "RightHand"))]  # fmt: skip
+        d = Q[:, body] - Q[:, rig.PARENTS_RIG[body]]
+        d = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
+        a = np.degrees(np.arccos(np.clip((d[1:] * d[:-1]).sum(-1), -1, 1)))
+        f, k = np.unravel_index(np.nanargmax(a), a.shape)
+        return round(float(a[f, k]), 1), rig.NAMES[body[k]], int(f)
+
+    mx, bone, at = turn(P)
+    rel = _err(P - P[:, rig.HIPS, None], T - T[:, rig.HIPS, None], ARMS)
+    groups = seq.body_summary()["joint_groups_tracked"]
+    return {"arms_w_mpjpe_mm": round(1000 * float(np.nanmean(_err(P, T, ARMS))), 1),
+            "legs_w_mpjpe_mm": round(1000 * float(np.nanmean(_err(P, T, LEGS))), 1),
+            "arms_tracked": groups["arms"], "hands_tracked": [groups["left_hand"], groups["right_hand"]],
+            "arms_mpjpe_hips_relative_mm": round(1000 * float(np.nanmean(rel)), 1),
+            "wrist_error_mm": round(1000 * float(np.nanmean(ew)), 1),
+            "wrist_error_fastest20_mm": round(1000 * float(np.nanmean(ew[fast])), 1),
+            "truth_wrist_speed_p80_m_s": round(float(np.percentile(speed, 80)), 2),
+            "max_bone_turn_deg": mx, "max_bone_turn_bone": bone, "max_bone_turn_frame": at,
+            "truth_max_bone_turn_deg": turn(T)[0]}  # fmt: skip
+
+
+def chest_metrics(m: dict, truth: dict, F: int) -> dict:
+    """The right hand held on the chest: on the hold frames, the palm's distance (cm) to the captured
+    character's own skinned torso (as tests/core/test_ground.py measures it) and the truth's to its own; the
+    palm's depth over the torso's front along the chest's forward axis (cm, the side view's error: positive in
+    front of it); the frames capture's contact held the right hand."""
+    from anima.core.contact import TorsoSurface
+    from anima.facemodel.character import skin
+
+    ch = load_character()
+    torso = torso_vertices(ch)
+    hold = np.flatnonzero(truth["hold"][:F])
+    chest = rig.IX["Spine2"]
+
+    def dist(Vr, rest, G, P):
+        Vs = skin(Vr, rest, G[hold], P[hold], ch)
+        pc = palm_centre(P[hold], "Right")
+        d = np.array([np.linalg.norm(Vs[i][torso] - pc[i], axis=-1).min() for i in range(len(hold))])
+        surf = TorsoSurface.from_mesh(Vr, rest[chest], torso)
+        loc = np.einsum("fji,fj->fi", G[hold, chest], pc - P[hold, chest])
+        return d, loc[:, 2] - surf.front(loc)
+
+    d, gap = dist(m["vertices"], m["rest"], m["global"], m["positions"])
+    dt, gt = dist(truth["vertices"], truth["rest"], truth["global"], truth["positions"])
+    hc = m["hand_contact"][:F]
+    return {"hold_frames": int(len(hold)),
+            "palm_to_torso_cm": round(100 * float(np.median(d)), 1),
+            "palm_to_torso_max_cm": round(100 * float(np.max(d)), 1),
+            "truth_palm_to_torso_cm": round(100 * float(np.median(dt)), 1),
+            "palm_depth_over_torso_cm": round(100 * float(np.nanmedian(gap)), 1),
+            "truth_palm_depth_over_torso_cm": round(100 * float(np.nanmedian(gt)), 1),
+            "right_hand_contact_on_hold": round(float(hc[hold, 1].mean()), 3),
+            "hand_contact_frames": [int(x) for x in hc.sum(0)]}  # fmt: skip
+
+
 def raw_positions(seq) -> np.ndarray:
     """The raw tracker's joints on rig indices (pelvis-centred, no root), NaN where it has none."""
     P = np.full((seq.n_frames, rig.N_RIG, 3), np.nan)
@@ -288,7 +450,7 @@ def raw_positions(seq) -> np.ndarray:
 def run_case(name: str, pan: bool, work: Path, cache: Path | None = None) -> dict:
     """One clip and camera; ``cache``: a folder keeping the rendered video and its capture (reused when there)."""
     J, fps = clip(*CLIPS[name]), FPS
-    truth = truth_motion(J, fps)
+    truth = truth_motion(J, fps, on_chest=name == "hand_on_chest")
     t0 = time.perf_counter()
     key = f"{name}_{'pan' if pan else 'still'}"
     if cache is not None and (cache / f"{key}.npz").is_file():
@@ -321,6 +483,10 @@ def run_case(name: str, pan: bool, work: Path, cache: Path | None = None) -> dic
     raw = raw_positions(seq) + truth["root"][:1]  # the tracker's pelvis-centred joints where the truth starts
     base = metrics(raw, np.tile(truth["root"][:1], (seq.n_frames, 1)), truth, fps, None)
     Tr = truth["root"]
+    if name in FAST:
+        ours.update(fast_metrics(P, truth, fps, seq))
+    if truth["hold"] is not None:
+        ours.update(chest_metrics(m, truth, F))
     return {"clip": name, "source": " ".join(map(str, CLIPS[name])), "frames": F, "fps": round(fps, 2),
             "camera": "panning to follow" if pan else "still",
             "truth_hips_rise_m": round(float(np.percentile(Tr[:, 1], 95) - np.median(Tr[:, 1])), 3),

@@ -12,7 +12,9 @@ least). Where the picture says the hand is on the body, the depth is replaced, a
   :data:`MIN_UPPER_ARM` of their length in the picture (a hand held out in front of the body, gesturing, has
   its forearm pointing at the camera and foreshortened to half); the hand rests there (it moves less than
   :data:`REST_SPEED` shoulder widths a second relative to the torso); and the tracked depth is plausible (the
-  palm at most :data:`MAX_GAP_M` in front of the torso's joints); at least :data:`MIN_S` long.
+  palm at most :data:`MAX_GAP_M` in front of the torso's joints); at least :data:`MIN_S` long. Where the hand
+  tracker lost the hand (a hand flat on the chest, its back to the camera, is the one it loses most), the pose's
+  wrist stands in for the palm.
 * **Placement** (:func:`place_hands`): the palm's centre moves along the camera's axis (the world's z: its
   picture position stays) onto the character's torso surface (:class:`TorsoSurface`, measured on the
   character's rest mesh in the chest's frame), plus the hand's thickness; the arm reaches it by a two-bone IK
@@ -31,7 +33,7 @@ from anima.core.contract import JOINT_NAMES
 from anima.core.filters import gaussian_smooth
 
 REST_SPEED = 0.6
-MAX_GAP_M = 0.40
+MAX_GAP_M = 0.50  # the tracker put a palm held on the chest 39-41 cm in front of the torso's joints (round trip)
 MIN_S = 0.25
 CHEST_FRACTION = 0.6
 MIN_FOREARM = 0.80
@@ -46,6 +48,13 @@ _PALM = ("hand_wrist", "hand_index_mcp", "hand_middle_mcp", "hand_ring_mcp", "ha
 def palm(points: np.ndarray, side: str) -> np.ndarray:
     """The palm's centre ``[F, D]`` from the 55 joints ``[F, 55, D]`` (pixels or metres)."""
     return np.mean([points[:, _J[f"{side}_{n}"]] for n in _PALM], 0)
+
+
+def palm_or_wrist(points: np.ndarray, side: str) -> np.ndarray:
+    """:func:`palm`, or the pose's wrist where the hand tracker lost the hand (a hand flat on the chest, its
+    back to the camera, is the hand it loses most)."""
+    c = palm(points, side)
+    return np.where(np.isfinite(c).all(-1, keepdims=True), c, points[:, _J[f"{side}_wrist"]])
 
 
 def _inside(p: np.ndarray, quad: np.ndarray) -> np.ndarray:
@@ -82,7 +91,7 @@ def hand_contacts(pic: ground.Picture, fps: float) -> np.ndarray:
     torso_z = np.where(seen > 0, np.nansum(Z, 0) / np.maximum(seen, 1), np.nan)
     out = np.zeros((pic.n, 2), bool)
     for k, side in enumerate(("left", "right")):
-        c = palm(px, side)
+        c = palm_or_wrist(px, side)
         rel = (c - centre[:, 0]) / np.maximum(width, 1.0)[:, None]
         ok = np.isfinite(rel).all(-1)
         if ok.sum() < 2:
@@ -90,7 +99,7 @@ def hand_contacts(pic: ground.Picture, fps: float) -> np.ndarray:
         r = np.where(ok[:, None], rel, 0.0)
         r = gaussian_smooth(r, 0.1 * fps) if len(r) > 1 else r
         speed = np.linalg.norm(np.gradient(r, axis=0), axis=-1) * fps if len(r) > 1 else np.zeros(len(r))
-        gap = palm(P3, side)[:, 2] - torso_z
+        gap = palm_or_wrist(P3, side)[:, 2] - torso_z
         top = (px[:, _J["left_shoulder"]] + px[:, _J["right_shoulder"]]) / 2
         bottom = (px[:, _J["left_hip"]] + px[:, _J["right_hip"]]) / 2
         axis = bottom - top
