@@ -31,6 +31,7 @@ from pathlib import Path
 
 from anima.io.assets import data_root
 from anima.io.outdir import sha256
+from anima.io.video import sampled_frames
 
 TEST = 0.2  # fraction of source groups on the test side (by hash of the group's name)
 VAL = 0.2  # and on the validation side
@@ -146,40 +147,24 @@ def face_hashes(path: str | Path, detector=None, n: int = FACE_FRAMES) -> list[i
     ``detector``: a MediaPipe ``FaceDetection`` to reuse (else one is opened and closed here)."""
     import cv2
     import mediapipe as mp
-    import numpy as np
 
     if detector is None:
         with mp.solutions.face_detection.FaceDetection(model_selection=1, min_detection_confidence=0.5) as det:
             return face_hashes(path, det, n)
-    cap = cv2.VideoCapture(str(path))
     out = []
-    try:
-        fps = cap.get(cv2.CAP_PROP_FPS) or 25.0
-        total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
-        last = max(0, min(total - 1, int(FACE_SECONDS * (fps if 1 <= fps <= 240 else 25.0))))
-        want = set(np.linspace(0, last, n).astype(int).tolist())
-        for i in range(last + 1):
-            if i not in want:
-                if not cap.grab():
-                    break
-                continue
-            ok, f = cap.read()
-            if not ok:
-                break
-            h, w = f.shape[:2]
-            found = detector.process(cv2.cvtColor(f, cv2.COLOR_BGR2RGB)).detections
-            if not found:
-                continue
-            b = max((d.location_data.relative_bounding_box for d in found), key=lambda r: r.width)
-            cx, cy = (b.xmin + b.width / 2) * w, (b.ymin + b.height / 2) * h
-            side = FACE_CROP * max(b.width * w, b.height * h)
-            x0, y0 = int(max(0, cx - side / 2)), int(max(0, cy - side / 2))
-            crop = f[y0 : int(min(h, cy + side / 2)), x0 : int(min(w, cx + side / 2))]
-            if crop.size:
-                g = cv2.resize(cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY), (32, 32), interpolation=cv2.INTER_AREA)
-                out.append(int.from_bytes(cv2.img_hash.pHash(g)[0].tobytes(), "little"))
-    finally:
-        cap.release()
+    for f in sampled_frames(path, FACE_SECONDS, n):
+        h, w = f.shape[:2]
+        found = detector.process(cv2.cvtColor(f, cv2.COLOR_BGR2RGB)).detections
+        if not found:
+            continue
+        b = max((d.location_data.relative_bounding_box for d in found), key=lambda r: r.width)
+        cx, cy = (b.xmin + b.width / 2) * w, (b.ymin + b.height / 2) * h
+        side = FACE_CROP * max(b.width * w, b.height * h)
+        x0, y0 = int(max(0, cx - side / 2)), int(max(0, cy - side / 2))
+        crop = f[y0 : int(min(h, cy + side / 2)), x0 : int(min(w, cx + side / 2))]
+        if crop.size:
+            g = cv2.resize(cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY), (32, 32), interpolation=cv2.INTER_AREA)
+            out.append(int.from_bytes(cv2.img_hash.pHash(g)[0].tobytes(), "little"))
     return out
 
 

@@ -35,7 +35,7 @@ from anima.gesture.face import fit_speech_face
 from anima.gesture.features import audio_features, pose_features
 from anima.io.outdir import OutputFolder, check_out_dir, check_out_file, record_out_file, sha256
 from anima.io.owned import npz as npz_check
-from anima.io.video import probe_video
+from anima.io.video import probe_video, sampled_frames
 from anima.library import builtin
 
 PERSON_FRAMES = 6  # frames sampled per video to see a person before any capture
@@ -88,27 +88,12 @@ def check_person(video: Path, n: int = PERSON_FRAMES) -> None:
     import cv2
     import mediapipe as mp
 
-    cap = cv2.VideoCapture(str(video))
-    try:
-        fps = cap.get(cv2.CAP_PROP_FPS) or 25.0
-        total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
-        last = max(0, min(total - 1, int(PERSON_SECONDS * (fps if 1 <= fps <= 240 else 25.0))))
-        want = set(np.linspace(0, last, n).astype(int).tolist())
-        seen = 0
-        with mp.solutions.pose.Pose(static_image_mode=True, model_complexity=1, min_detection_confidence=0.5) as pose:
-            for i in range(last + 1):
-                if i not in want:
-                    if not cap.grab():
-                        break
-                    continue
-                ok, f = cap.read()
-                if not ok:
-                    break
-                seen += 1
-                if pose.process(cv2.cvtColor(f, cv2.COLOR_BGR2RGB)).pose_landmarks is not None:
-                    return
-    finally:
-        cap.release()
+    seen = 0
+    with mp.solutions.pose.Pose(static_image_mode=True, model_complexity=1, min_detection_confidence=0.5) as pose:
+        for f in sampled_frames(video, PERSON_SECONDS, n):
+            seen += 1
+            if pose.process(cv2.cvtColor(f, cv2.COLOR_BGR2RGB)).pose_landmarks is not None:
+                return
     raise InputError(f"no person found in {video} ({seen} frames sampled in its first {PERSON_SECONDS:g} s)")
 
 

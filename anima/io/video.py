@@ -325,6 +325,30 @@ def iter_frame_range(
             return
 
 
+def sampled_frames(path: str | os.PathLike, seconds: float, n: int) -> Iterator[np.ndarray]:
+    """``n`` frames (BGR, OpenCV's) evenly spaced over a video's first ``seconds``, read in order (seeking is
+    slower than decoding here, and unreliable in old codecs); fewer when the video ends first."""
+    import cv2
+
+    cap = cv2.VideoCapture(str(path))
+    try:
+        fps = cap.get(cv2.CAP_PROP_FPS) or 25.0
+        total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+        last = max(0, min(total - 1, int(seconds * (fps if 1 <= fps <= 240 else 25.0))))
+        want = set(np.linspace(0, last, n).astype(int).tolist())
+        for i in range(last + 1):
+            if i not in want:
+                if not cap.grab():
+                    break
+                continue
+            ok, f = cap.read()
+            if not ok:
+                break
+            yield f
+    finally:
+        cap.release()
+
+
 def read_video(path: str | os.PathLike, max_frames: int | None = None) -> tuple[np.ndarray, VideoInfo]:
     """Decode a whole (short) video into ``(T, H, W, 3)`` uint8."""
     info = probe_video(path)
