@@ -69,6 +69,9 @@ def check_file(p: Path, frames: int | None) -> str | None:
             if p.name == ".anima-folder":  # anima's marker: written atomically, always readable
                 json.loads(p.read_text())
                 return None
+            if p.name.endswith(".anima.json"):  # the record beside an exported file: written after it, atomically
+                json.loads(p.read_text())
+                return None
             return None if ".anima-tmp-" in p.name or p.name == ".anima.lock" else f"unknown hidden file {p.name}"
         if p.suffix == ".npz":
             read_sequence(p, landmarks=False)

@@ -537,7 +537,7 @@ def test_text2face_timeline_command_and_its_refusals(ds, tmp_path, cli):
     assert r.returncode == 0 and "not understood: qwerty" in r.stderr
     for args, msg in [
         (("a person smiles", "--with-builtin"), "give --db too"),
-        (("a person smiles", "--method", "model", "--db", str(ds)), "--db is for the timeline"),
+        (("a person smiles", "--method", "model", "--db", str(ds)), "--db and --library are for the timeline"),
         (("a person smiles", "--length", "20000"), "at most 18000"),
         (("a person nods five times", "--db", str(ds), "--length", "30"), "at least"),
         (("a person smiles", "--db", str(tmp_path / "nods")), "no dataset"),
