@@ -114,7 +114,7 @@ def _worker_threads(threads: int) -> None:
 
 def _worker_row(ev_name: str, name: str, cfg) -> dict:
     ev = next(e for e in EVALUATIONS if e.name == ev_name)
-    return run_row(ev, name, cfg)
+    return run_row(ev, name, cfg) | {"threads": int(os.environ.get("OMP_NUM_THREADS", "0")) or None}
 
 
 def run_rows(
@@ -125,14 +125,15 @@ def run_rows(
 ) -> dict:
     """Run each row (evaluation, name, config) as its command does; a refusal is recorded as skipped, a
     failure as failed, and neither stops the others. ``jobs`` > 1: rows side by side in fresh processes, each
-    with ``cores // jobs`` threads, the long rows started first; the result keeps the rows' order.
+    with ``cores // jobs`` threads (one row as well: a resumed run's last row runs as it would have in the
+    first run), the long rows started first; the result keeps the rows' order; each row says its ``threads``.
     ``on_row(rows so far)`` after each row ends (the caller saves them: a run stopped later keeps them)."""
-    if jobs <= 1 or len(rows) <= 1:
+    if jobs <= 1 or not rows:  # one row left of a resumed --jobs 2 run still gets its share, not every core
         out = {}
         for ev, name, cfg in rows:
             if progress:
                 progress(f"{name}: {ev.command(cfg)}")
-            out[name] = run_row(ev, name, cfg)
+            out[name] = run_row(ev, name, cfg) | {"threads": os.cpu_count()}
             if on_row:
                 on_row(dict(out))
         return out

@@ -172,6 +172,11 @@ def test_eval_all_saves_each_row_as_it_ends(gesture_ds, tmp_path):
     seen = []
     out = run_rows(rows, on_row=lambda done: seen.append(dict(done)))
     assert seen == [out] and out["landmarks"]["status"] == "ok"
+    # the one row left of a --jobs 2 run runs in a worker with its share of the cores, as in the first run
+    import os
+
+    two = run_rows(rows, jobs=2)
+    assert two["landmarks"]["status"] == "ok" and two["landmarks"]["threads"] == max(1, (os.cpu_count() or 1) // 2)
 
 
 def test_a_resumed_run_keeps_only_rows_of_the_same_clean_commit_and_data(tmp_path):
