@@ -140,7 +140,17 @@ def foreign_entries(folder: Path) -> list[str]:
     if _managed(marker) or marker.get("running"):
         return []
     listed = {n.split("/")[0] for n in marker["files"]}
-    return [n for n in user if n not in listed and not (n == MANIFEST and _anima_manifest(folder))]
+    return [n for n in user if n not in listed and not (n == MANIFEST and _anima_manifest(folder))
+            and not _anima_subfolder(folder / n)]  # fmt: skip
+
+
+def _anima_subfolder(p: Path) -> bool:
+    """A folder (not a link) inside a result that is itself one of anima's (its own marker): another command's
+    result written there (``./dev demo`` puts text2face's inside the capture's), anima's, never the user's."""
+    try:
+        return stat.S_ISDIR(os.lstat(p).st_mode) and read_marker(p) is not None
+    except OSError:
+        return False
 
 
 def changed_entries(folder: Path) -> list[str]:

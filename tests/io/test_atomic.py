@@ -137,6 +137,11 @@ def test_anima_writes_only_into_its_own_folders(tmp_path):
     with pytest.raises(InputError, match="did not write .*mine.txt"):  # the folder is no longer anima's alone
         OutputFolder(empty, kind="demo")
     (empty / "mine.txt").unlink()
+    with OutputFolder(empty / "nested", kind="demo") as od:  # another anima result inside this one: anima's
+        write_json(od.file("n.json"), {})
+    with OutputFolder(empty, kind="demo") as od:
+        write_json(od.file("a.json"), {"again": 2})
+    assert (empty / "nested" / "n.json").is_file()
     (empty / "a.json").write_text('{"edited": true}')  # a file anima wrote, edited by the user
     with pytest.raises(InputError, match="a.json changed since anima wrote it"):
         with OutputFolder(empty, kind="demo") as od:
