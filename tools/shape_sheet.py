@@ -1,6 +1,6 @@
 """The character's 52 ARKit shapes on one sheet: its head from the front, each channel alone at 1.0, labelled
-with its name (the rest face first, to compare), drawn by anima's own rasterizer; ``docs/arkit_shapes.png``,
-referenced from docs/face_rig.md.
+with its name (the rest face first, to compare; mouthClose over jawOpen, as ARKit means it), drawn by anima's own
+rasterizer; ``docs/arkit_shapes.png``, referenced from docs/face_rig.md.
 
     python tools/shape_sheet.py [--out docs/arkit_shapes.png] [--cell 150] [--columns 9]
 
@@ -54,6 +54,8 @@ def sheet(cell: int = 150, columns: int = 9) -> np.ndarray:
     tris, col = head_triangles(ch), vertex_colors()
     centre = face_centre(V)
     shapes = [("(rest)", np.zeros_like(V)), *zip(ARKIT_NAMES, D)]
+    k = ARKIT_NAMES.index("mouthClose")  # closes the lips over an open jaw: drawn so, as ARKit's reference does
+    shapes[k + 1] = ("mouthClose+jawOpen", D[k] + D[ARKIT_NAMES.index("jawOpen")])
     rows = -(-len(shapes) // columns)
     out = np.zeros((rows * (cell + LABEL), columns * cell, 3), np.uint8)
     out[:] = BACKGROUND

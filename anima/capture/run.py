@@ -107,10 +107,12 @@ def run(
     audio_optional: bool = False,
     preset: str = "anima",
     neutral: str | None = None,
+    body: str | None = None,
 ) -> dict:
     """Capture ``video`` into ``out``; returns the sequence summary with the capture speed, the total time,
     the files written and the warnings. ``neutral``: a clip (or ``capture.npz``) of the same person at rest,
-    whose face is taken as the rest (:func:`neutral_reference`) instead of the clip's own estimate."""
+    whose face is taken as the rest (:func:`neutral_reference`) instead of the clip's own estimate. ``body``: the
+    character's build (:data:`anima.facemodel.character.BUILDS`; default neutral)."""
     cfg = cfg or CaptureConfig()
     od = OutputFolder(out, kind="capture", command=command, inputs=[video, audio, cfg.pose_model, neutral])
     check_capture_inputs(cfg, video, audio, audio_optional, neutral)
@@ -141,6 +143,7 @@ def run(
             progress=progress,
             sw=sw,
             preset=preset,
+            body=body,
         )
     return s | {
         "total_s": round(time.perf_counter() - t0, 2),

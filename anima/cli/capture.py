@@ -6,12 +6,13 @@ from dataclasses import dataclass, field
 
 from anima.capture import run as capture
 from anima.capture.config import CaptureConfig
-from anima.cli.common import JsonQuiet, Rig, add_args, command_line, emit, notes, time_split
+from anima.cli.common import Body, JsonQuiet, Rig, add_args, command_line, emit, notes, time_split
 from anima.cli.options import add_options, config_from_args
 from anima.errors import InputError
 from anima.export import livelink, vmc
 from anima.export.fbx import UNITS
 from anima.export.formats import EXPORTS, FORMATS, export
+from anima.facemodel.character import BUILDS
 from anima.io.sequence import read_sequence
 
 CAPTURE_OPTIONS = [
@@ -66,6 +67,9 @@ class ExportArgs:
     """BVH only: resample to this rate (1-240), e.g. 15 for gesture work"""
     units: str = field(default="m", metadata={"choices": UNITS})
     """FBX only: the file's unit, m (default: Unity 1:1, Unreal converts) or cm (Maya, MotionBuilder scenes)"""
+    body: str | None = field(default=None, metadata={"choices": BUILDS})
+    """avatar, bvh, vrma, fbx: the character's build, neutral, female or male (default: the one FILE was made
+    with, else neutral)"""
 
 
 @dataclass
@@ -102,7 +106,7 @@ def register(sub) -> None:
     )
     add_args(c, CaptureIn)
     add_options(c, CaptureConfig, CAPTURE_OPTIONS)
-    add_args(c, CaptureOut, Rig, JsonQuiet)
+    add_args(c, CaptureOut, Rig, Body, JsonQuiet)
     c.set_defaults(func=cmd_capture)
 
     i = sub.add_parser(
@@ -166,6 +170,7 @@ def cmd_capture(a) -> int:
         audio_optional=a.audio_optional,
         preset=a.rig,
         neutral=a.neutral,
+        body=a.body,
     )
     return emit(s, a.json, summary_table)
 
@@ -177,7 +182,7 @@ def cmd_info(a) -> int:
 def cmd_export(a) -> int:
     if a.units != "m" and a.format != "fbx":
         raise InputError("--units applies to the FBX export only")
-    path, said = export(a.format, a.file, a.out, a.fps, a.rig, a.units)
+    path, said = export(a.format, a.file, a.out, a.fps, a.rig, a.units, a.body)
     notes(said)
     print(f"wrote {path}")
     return 0

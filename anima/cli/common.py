@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 from anima.cli.options import add_options
 from anima.core.rig import PRESETS as RIG_PRESETS  # the conventions' one table
+from anima.facemodel.character import BUILDS, DEFAULT_BUILD
 
 
 def command_line(a: argparse.Namespace) -> str:
@@ -48,6 +49,13 @@ class Rig:
     rig: str = field(default="anima", metadata={"choices": RIG_PRESETS})
     """joint names of body.bvh and avatar.glb: anima (Mixamo-style, no prefix), mixamo (mixamorig:), vrm (VRM 1.0
     humanoid) or unreal (UE mannequin); the same skeleton (docs/rig.md)"""
+
+
+@dataclass
+class Body:
+    body: str = field(default=DEFAULT_BUILD, metadata={"choices": BUILDS})
+    """the character's build in avatar.glb, body.bvh and avatar.mp4: neutral (neither sex's: a nearly flat chest,
+    shoulders and hips between), female or male; the captured proportions adjust its size and limbs (docs/rig.md)"""
 
 
 @dataclass

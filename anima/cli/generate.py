@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from anima.cli.common import Json, Rig, add_args, command_line, emit, notes, time_split
+from anima.cli.common import Body, Json, Rig, add_args, command_line, emit, notes, time_split
 from anima.cli.options import add_options, config_from_args
 from anima.core.events import EMOTIONS, VOCABULARY
 from anima.gesture import run as gesture
@@ -94,7 +94,7 @@ def register(sub) -> None:
     )
     add_args(tf, PromptIn)
     add_options(tf, PromptConfig, PROMPT_OPTIONS)
-    add_args(tf, PromptMore, Rig, Json)
+    add_args(tf, PromptMore, Rig, Body, Json)
     tf.set_defaults(func=cmd_text2face)
 
     ge = sub.add_parser(
@@ -113,7 +113,7 @@ def register(sub) -> None:
     )
     add_args(ge, SpeechIn)
     add_options(ge, GestureConfig, GESTURE_OPTIONS)
-    add_args(ge, SpeechMore, Rig, Json)
+    add_args(ge, SpeechMore, Rig, Body, Json)
     ge.set_defaults(func=cmd_gesture)
 
 
@@ -130,6 +130,7 @@ def cmd_text2face(a) -> int:
         db=a.db,
         preset=a.rig,
         library=a.library,
+        body=a.body,
     )
     notes(info["warnings"], "warning")
     return emit(
@@ -149,6 +150,7 @@ def cmd_gesture(a) -> int:
         command=command_line(a),
         preset=a.rig,
         library=a.library,
+        body=a.body,
     )
     notes(info["notes"])
     return emit(info, a.json, lambda i: "wrote " + ", ".join(i["written"]) + "\n  time: " + time_split(i["time_s"]))

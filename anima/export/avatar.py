@@ -3,9 +3,10 @@ expressions on its own face) shaped like the person, moved by the sequence on th
 in one glTF file (``avatar.glb``), the speech beside it (``speech.wav``), and a preview video
 (``avatar.mp4``).
 
-* **Shape**: the captured bone lengths (shoulder width, upper arm, forearm, hip width) choose the character's
-  shape (:func:`anima.facemodel.character.fit_shape`); the fit's error per measure is reported. A sequence
-  without a body gets the mean adult.
+* **Shape**: the character's build (``--body``: neutral, female or male, :data:`anima.facemodel.character.BUILDS`,
+  recorded in the sequence's ``meta["body"]``; default neutral) is its form; the captured bone lengths (shoulder
+  width, upper arm, forearm, hip width) then adjust it (:func:`anima.facemodel.character.fit_shape`); the fit's
+  error per measure is reported. A sequence without a body gets the build as it is.
 * **Motion**: the tracked or generated body retargeted onto the character's own proportions; the head turns
   with the face fit's rotation where the sequence has a face; the legs stand with a weight shift unless the
   clip tracked them; a sequence without a body (a face-only capture, text2face) stands at ease (breathing,
@@ -41,7 +42,10 @@ from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
 from anima.errors import InputError
 from anima.export.vrm import character_vrm
 from anima.facemodel.character import (
+    BUILDS,
+    DEFAULT_BUILD,
     arkit_morphs,
+    build_coeffs,
     eye_vertices,
     fit_shape,
     load_character,
@@ -124,17 +128,27 @@ def head_rotations(seq: TrackedSequence) -> np.ndarray | None:
     return R
 
 
+def build_of(seq: TrackedSequence) -> str:
+    """The character's build for ``seq`` (:data:`anima.facemodel.character.BUILDS`): ``seq.meta["body"]`` (``--body``,
+    recorded with the sequence), else :data:`~anima.facemodel.character.DEFAULT_BUILD`."""
+    build = seq.meta.get("body") or DEFAULT_BUILD
+    if build not in BUILDS:
+        raise InputError(f"this sequence asks for the body {build!r}; anima's are {', '.join(BUILDS)}")
+    return str(build)
+
+
 def character_motion(seq: TrackedSequence, seed: int = 0) -> dict:
     """The sequence on the character (see the module docstring): ``coeffs``, ``vertices`` (the shaped rest
     mesh), ``rest`` (its rest joints), the rig motion (``root``, ``local``, ``global``, ``positions``) and a
-    ``report`` (shape fit, legs, body)."""
+    ``report`` (build, shape fit, legs, body)."""
     ch = load_character()
     body = body_of(seq)
+    build = build_of(seq)
     if body is not None:
-        coeffs, shape = fit_shape(tracked_measures(body), ch)
+        coeffs, shape = fit_shape(tracked_measures(body), ch, build=build)
     else:
-        coeffs = np.zeros(ch.n_components)
-        shape = {"measures": {}, "height_m": round(float(ch.vertices[:, 1].max()), 3)}
+        coeffs = build_coeffs(build)
+        shape = {"measures": {}, "height_m": round(float(ch.shaped(coeffs)[0][:, 1].max()), 3)}
     V, rest = ch.shaped(coeffs)
     legs = legs_of(seq) if body is not None else None
     posture = posture_of(seq, legs) if body is not None else None
@@ -145,6 +159,7 @@ def character_motion(seq: TrackedSequence, seed: int = 0) -> dict:
     idle = "idle: no body in this sequence, the default body stands at ease"
     report = {
         "body": "tracked" if body is not None else idle,
+        "build": build,
         "height_m": shape["height_m"],
         "shape_fit": shape["measures"],
         **mo["report"],
@@ -229,6 +244,7 @@ def write_avatar(
             "unit": UNIT,
             "rig": {"preset": preset, "joints": rig.N_RIG, "conventions": "docs/rig.md"},
             "character": ch.provenance.get("licences", {}),
+            "build": m["report"]["build"],
         }
     }
     # frames as Blender numbers them after import (the first sample at frame 0)

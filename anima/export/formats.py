@@ -9,13 +9,14 @@ from pathlib import Path
 import numpy as np
 
 from anima.core import rig
+from anima.core.contract import EXPR_NAMES
 from anima.core.rotations import matrix_to_euler, matrix_to_quat
 from anima.errors import InputError
-from anima.export.avatar import OnCharacter, character_motion, write_avatar
+from anima.export.avatar import OnCharacter, character_face, character_motion, write_avatar
 from anima.export.fbx import blender, export_fbx
 from anima.export.vrm import arkit_weights, vrm_expressions
+from anima.facemodel.character import BUILDS
 from anima.facemodel.ict import load_face_model
-from anima.facemodel.neutral import presented
 from anima.io.arkit import write_live_link_csv
 from anima.io.bvh import write_bvh
 from anima.io.gltf import write_glb, write_vrma
@@ -25,9 +26,10 @@ from anima.io.validate import MAX_FRAMES
 
 
 def export_arkit_csv(seq: TrackedSequence, path: str | Path) -> Path:
-    """53 ICT weights as the 52 ARKit columns of a Live Link Face CSV, with head yaw, pitch and roll."""
+    """The character's face (:func:`anima.export.avatar.character_face`: what ``avatar.glb`` shows) as the 52 ARKit
+    columns of a Live Link Face CSV, with head yaw, pitch and roll."""
     ypr = matrix_to_euler(seq.rotation_matrices())
-    return write_live_link_csv(path, presented(seq)[0], seq.expr_names, seq.fps, ypr)
+    return write_live_link_csv(path, character_face(seq), list(EXPR_NAMES), seq.fps, ypr)
 
 
 def export_glb(seq: TrackedSequence, path: str | Path, animate_head: bool = True) -> Path:
@@ -41,7 +43,7 @@ def export_glb(seq: TrackedSequence, path: str | Path, animate_head: bool = True
         skin.triangles(),
         skin.expr_deltas,
         skin.expr_names,
-        presented(seq)[0],
+        character_face(seq)[:, [list(EXPR_NAMES).index(n) for n in skin.expr_names]],
         seq.fps,
         q,
     )
@@ -83,7 +85,7 @@ def export_vrma(seq: TrackedSequence, path: str | Path) -> Path:
     m = character_motion(seq)
     vrm = rig.CONVENTIONS["vrm"]
     humanoid = {vrm[n]: j for j, n in enumerate(rig.NAMES) if vrm[n]}
-    expr = vrm_expressions(arkit_weights(presented(seq)[0], seq.expr_names) * seq.tracked[:, None])
+    expr = vrm_expressions(arkit_weights(character_face(seq), list(EXPR_NAMES)))
     extras = {"anima": {"fps": seq.fps, "frames": seq.n_frames, "unit": "metre", "body": m["report"]["body"],
                         "expressions": "anima.export.vrm.VRM_PRESETS"}}  # fmt: skip
     return write_vrma(
@@ -139,6 +141,8 @@ EXPORTS: dict[str, ExportFormat] = {
 }  # fmt: skip
 """``anima export FORMAT``: every format, by name (the command line lists them from here)."""
 FORMATS = tuple(EXPORTS)
+ON_CHARACTER = ("avatar", "bvh", "vrma", "fbx")
+"""The exports made on the character (its build, ``--body``, shapes them)."""
 
 
 def export_file(fmt: str, sequence_path: str | Path, out: str | Path, **options) -> Path:
@@ -148,19 +152,27 @@ def export_file(fmt: str, sequence_path: str | Path, out: str | Path, **options)
 
 def export(
     fmt: str, sequence_path: str | Path, out: str | Path, fps: float | None = None, preset: str = "anima",
-    units: str = "m",
+    units: str = "m", body: str | None = None,
 ) -> tuple[Path, list[str]]:  # fmt: skip
     """``anima export FORMAT FILE --out OUT``: read a tracked sequence and write one export (``preset``: the
-    joint names of a BVH, an avatar or an FBX; ``units``: an FBX's). Returns the file and notes for the user."""
+    joint names of a BVH, an avatar or an FBX; ``units``: an FBX's; ``body``: the character's build
+    (:data:`anima.facemodel.character.BUILDS`), default the one the sequence was made with). Returns the file and
+    notes for the user."""
     if fmt not in EXPORTS:
         raise InputError(f"unknown export format {fmt!r}: {', '.join(FORMATS)}")
     spec = EXPORTS[fmt]
     check_out_file(out, inputs=[sequence_path], suffixes=spec.suffixes)
     if fps is not None and fmt != "bvh":
         raise InputError("--fps applies to the BVH export only")
+    if body is not None and fmt not in ON_CHARACTER:
+        raise InputError(f"--body applies to the character's exports only ({', '.join(ON_CHARACTER)})")
+    if body is not None and body not in BUILDS:
+        raise InputError(f"unknown body {body!r}: {', '.join(BUILDS)}")
     if fmt == "fbx":
         blender()  # no writer: exit 3 with the install line, before the sequence is read
-    seq = read_sequence(sequence_path, landmarks=False)
+    seq = read_sequence(sequence_path)  # the landmarks too: the face the character shows
+    if body is not None:
+        seq.meta["body"] = body
     if spec.needs_face and not seq.tracked.any():
         raise InputError(f"no frame of {sequence_path} has a face: no {fmt} export can be made from it")
     notes = spec.write(seq, Path(out), {"fps": fps, "preset": preset, "units": units})

@@ -11,9 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.core.contract import EXPR_NAMES
 from anima.core.rotations import matrix_to_euler, rotvec_to_matrix
 from anima.errors import InputError
-from anima.facemodel.neutral import presented
+from anima.export.avatar import character_face
 from anima.io.arkit import HEAD_COLUMNS, LIVE_LINK_COLUMNS, ict_to_arkit
 from anima.io.livelink import pack
 from anima.io.sequence import TrackedSequence, read_sequence
@@ -34,7 +35,7 @@ def livelink_rows(expression: np.ndarray, expr_names, rotation: np.ndarray, trac
 
 def livelink_values(seq: TrackedSequence) -> np.ndarray:
     """``[F, 61]``: a sequence's Live Link Face values (:func:`livelink_rows`)."""
-    return livelink_rows(presented(seq)[0], seq.expr_names, seq.rotation, seq.tracked)
+    return livelink_rows(character_face(seq), list(EXPR_NAMES), seq.rotation, seq.tracked)
 
 
 class Sender:
@@ -76,7 +77,7 @@ def send(
         raise InputError("--subject: a name of 1 to 256 bytes (Unreal lists the source under it)")
     if not 1 <= loops <= 10_000:
         raise InputError("--loops: 1 to 10000")
-    seq = read_sequence(sequence, landmarks=False)
+    seq = read_sequence(sequence)  # the landmarks too: the face the character shows
     if not seq.tracked.any():
         raise InputError(f"no frame of {sequence} has a face: Live Link Face carries a face")
     values = livelink_values(seq)

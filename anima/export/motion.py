@@ -38,6 +38,7 @@ from anima.core.clock import Stopwatch
 from anima.core.occlusion import hand_over_face
 from anima.export.avatar import OnCharacter, body_of, render_avatar_preview, write_avatar, write_speech
 from anima.export.formats import export_arkit_csv, export_bvh, export_glb
+from anima.facemodel.character import BUILDS
 from anima.facemodel.neutral import presented
 from anima.io.atomic import write_json
 from anima.io.outdir import OutputFolder
@@ -56,12 +57,19 @@ def write_motion_outputs(
     progress: bool = True,
     sw: Stopwatch | None = None,
     preset: str = "anima",
+    body: str | None = None,
 ) -> dict[str, Path]:
     """Write the output set of ``seq`` (see the module table); returns ``{role: path}``. The exports (CSV,
     glTF, BVH, speech) are written on a thread beside the videos. ``sw``: a stopwatch given the stages
     ``write`` (the sequence, ``info.json``, and the exports when nothing is rendered) and ``render`` (the
-    videos, with the exports beside them)."""
+    videos, with the exports beside them). ``body``: the character's build (``--body``,
+    :data:`anima.facemodel.character.BUILDS`), recorded in the sequence (``meta["body"]``) so that its exports
+    make the same character; None: the sequence's own, else the default."""
     sw = sw or Stopwatch()
+    if body is not None:
+        if body not in BUILDS:
+            raise ValueError(f"unknown body {body!r}; one of {', '.join(BUILDS)}")
+        seq.meta["body"] = body
     with sw("write"):
         files = {"sequence": write_sequence(seq, out.file(name))}  # first: everything else is made from it
     speech = _speech_source(seq, source_video, audio)

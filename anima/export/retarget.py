@@ -33,9 +33,8 @@ from anima.core import rig
 from anima.core.contract import EXPR_NAMES
 from anima.core.rotations import matrix_to_quat
 from anima.errors import InputError, SchemaError
-from anima.export.avatar import body_of, character_motion
+from anima.export.avatar import body_of, character_face, character_motion
 from anima.export.vrm import VRM_PRESETS, arkit_weights, vrm_expressions
-from anima.facemodel.neutral import presented
 from anima.io.arkit import LIVE_LINK_COLUMNS, arkit_name
 from anima.io.atomic import write_json
 from anima.io.gltf import write_with_animation
@@ -526,7 +525,7 @@ def run(result: str | Path, avatar: str | Path, out: str | Path, command: str | 
     g, hum = load_avatar(avatar)
     if out.suffix.lower() == ".vrm" and g.vrm is None:
         raise InputError(f"--out {out}: a .vrm needs a VRM avatar; {avatar} is a plain glTF (write a .glb)")
-    seq = read_sequence(seq_path, landmarks=False)
+    seq = read_sequence(seq_path)  # the landmarks too: the face the character shows
     F = seq.n_frames
     tracks: list = []
     report: dict = {
@@ -551,7 +550,7 @@ def run(result: str | Path, avatar: str | Path, out: str | Path, command: str | 
         }
     else:
         report["body"] = "none in this sequence: the face only (the avatar keeps its rest pose)"
-    arkit = arkit_weights(presented(seq)[0], seq.expr_names) * seq.tracked[:, None]
+    arkit = arkit_weights(character_face(seq), list(EXPR_NAMES))  # what anima's character shows
     ftracks, report["face"] = face_tracks(g, arkit)
     if not seq.tracked.any():
         report["face"]["note"] = "no face in this sequence: the expressions stay at 0"

@@ -27,12 +27,12 @@ import numpy as np
 from tqdm import tqdm
 
 from anima.core import rig
+from anima.core.contract import EXPR_NAMES
 from anima.core.rotations import matrix_to_quat
 from anima.errors import InputError
-from anima.export.avatar import character_motion
+from anima.export.avatar import character_face, character_motion
 from anima.export.retarget import find_sequence
 from anima.export.vrm import arkit_weights, vrm_expressions
-from anima.facemodel.neutral import presented
 from anima.io.arkit import LIVE_LINK_COLUMNS
 from anima.io.osc import FloatMessages, bundle, message
 from anima.io.sequence import read_sequence
@@ -133,9 +133,9 @@ def send(result: str | Path, to: str, loops: int = 1, progress: bool = True) -> 
     target = parse_vmc(to, "--to")
     if not 1 <= loops <= 1_000_000:
         raise InputError("--loops: 1 to 1,000,000")
-    seq = read_sequence(find_sequence(result), landmarks=False)
+    seq = read_sequence(find_sequence(result))  # the landmarks too: the face the character shows
     m = character_motion(seq)
-    blends = blend_values(arkit_weights(presented(seq)[0], seq.expr_names) * seq.tracked[:, None])
+    blends = blend_values(arkit_weights(character_face(seq), list(EXPR_NAMES)))
     out = VmcSender(target, m["rest"])
     F, fps = seq.n_frames, seq.fps
     t0 = time.perf_counter()

@@ -12,7 +12,7 @@ import numpy as np
 
 from anima.core import rig
 from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
-from anima.facemodel.character import arkit_morphs, load_character, skin, vertex_colors
+from anima.facemodel.character import BUILDS, arkit_morphs, build_coeffs, load_character, skin, vertex_colors
 from anima.io.arkit import ARKIT_NAMES, LIVE_LINK_COLUMNS, ict_to_arkit
 from anima.io.gltf import write_character_glb
 from anima.render.raster import vertex_normals
@@ -120,14 +120,17 @@ def character_vrm(mesh_node: int, joint_nodes: dict[str, int]) -> dict:
 
 # ---- the character as an avatar in a chosen shape and rest pose --------------------------------------------
 
-SHAPES = ("mean", "child", "tall", "heavy")
-"""Test and demo shapes of the character: the adult mean; ``tall`` and ``heavy`` +2.5 standard deviations along
-the shape component that most raises the height / the hip width over the height; ``child`` the mean scaled to
-1.1 m (the adult shape space has no children: a proportion test of size, not a child's anatomy)."""
+SHAPES = ("mean", "child", "tall", "heavy", *BUILDS)
+"""Shapes of the character: its builds (:data:`anima.facemodel.character.BUILDS`: neutral, female, male); and for
+tests and demos the adult mean; ``tall`` and ``heavy`` +2.5 standard deviations along the shape component that
+most raises the height / the hip width over the height; ``child`` the mean scaled to 1.1 m (the adult shape space
+has no children: a proportion test of size, not a child's anatomy)."""
 
 
 def _shape_coeffs(ch, which: str) -> tuple[np.ndarray, float]:
     K = ch.n_components
+    if which in BUILDS:
+        return build_coeffs(which), 1.0
     if which in ("mean", "child"):
         return np.zeros(K), (1.1 / float(ch.vertices[:, 1].max()) if which == "child" else 1.0)
     top = int(np.argmax(ch.vertices[:, 1]))

@@ -7,11 +7,13 @@ MakeHuman's CC0 body and Face Units, Apache-2.0 code; numpy and numba at run tim
   rig's rest pose: a T-pose in the character's frame (+x its left, +y up, +z forward), palms down, feet on y = 0.
 * **Shape**: ``vertices + c @ shape_vertices`` and ``joints + c @ shape_joints`` for coefficients ``c [K]``
   (principal components of 160 adult phenotypes: gender, age, muscle, weight, height, proportions);
-  :func:`fit_shape` chooses ``c`` from a person's measured bone lengths.
+  :func:`fit_shape` chooses ``c`` from a person's measured bone lengths, starting from a build (:data:`BUILDS`:
+  male, female, neutral).
 * **Skin**: four joints and weights a vertex (MakeHuman's Mixamo weights); :func:`skin` is linear blend
   skinning.
 * **Face**: 53 sparse morph targets named as the expression weights of every anima face frame (ICT's names, what
-  anima's own code drives and draws); every file anima writes carries them as ARKit's 52 instead
+  anima's own code drives and draws): ICT's own shapes carried onto this head (``tools/bake_face_morphs.py``),
+  the eyes' MakeHuman's; every file anima writes carries them as ARKit's 52 instead
   (:func:`arkit_morphs`, :func:`to_arkit`: ``browInnerUp`` and ``cheekPuff`` one morph each, ``tongueOut`` made
   from the character's tongue).
 """
@@ -48,6 +50,7 @@ class Character:
     morph_delta: tuple  # 53 x [n_k, 3] metres
     provenance: dict = field(default_factory=dict)
     parts: dict = field(default_factory=dict)  # name -> (first vertex, end): body, teeth_upper, teeth_lower, lashes
+    brows: np.ndarray | None = None  # [n] the brows' vertices (coloured as brows)
 
     @property
     def n_body(self) -> int:
@@ -118,6 +121,7 @@ def load_character() -> Character:
         morph_delta=tuple(d["morph_delta"][off[k] : off[k + 1]].astype(np.float64) for k in range(len(off) - 1)),
         provenance=json.loads(str(d["provenance"])),
         parts={n: (int(vo[i]), int(vo[i + 1])) for i, n in enumerate(names_p)},
+        brows=d["brow_vertices"].astype(np.int64) if "brow_vertices" in d else None,
     )
 
 
@@ -199,6 +203,42 @@ def tracked_measures(body: np.ndarray) -> dict[str, float]:
     return out
 
 
+BUILDS = ("neutral", "female", "male")
+"""The character's builds (``--body``): anny's adult at the middle of every phenotype (25 years, average muscle,
+weight, height and proportions) as a man (``male``), a woman (``female``) and between the two (``neutral``: anny's
+gender 0.5, nearly flat-chested), each as coefficients of the shape space (``data/character_builds.json``, baked by
+``tools/bake_builds.py``). A capture's measured proportions are fitted from its build (:func:`fit_shape`)."""
+DEFAULT_BUILD = "neutral"
+"""The build when none is asked for: neither sex's, so no person gets the other sex's body by default."""
+BUILDS_FILE = "character_builds.json"
+
+
+@lru_cache(maxsize=1)
+def load_builds() -> dict[str, np.ndarray]:
+    """``{build: coefficients [K]}`` of :data:`BUILDS` (``data/character_builds.json``; made for the character's
+    shape space, whose fingerprint the file records and a test checks). Missing, damaged or not the character's
+    number of coefficients: AssetNotFound (exit 3)."""
+    p = package_data(BUILDS_FILE)
+    if not p.is_file():
+        raise AssetNotFound(f"the character's builds {p} are missing: reinstall anima (or python tools/bake_builds.py)")
+    try:
+        doc = json.loads(p.read_text())
+        out = {b: np.asarray(doc["builds"][b]["coeffs"], np.float64) for b in BUILDS}
+        K = load_character().n_components
+        if any(c.shape != (K,) or not np.isfinite(c).all() for c in out.values()):
+            raise ValueError(f"not {K} finite coefficients a build")
+    except (OSError, KeyError, TypeError, ValueError) as e:
+        raise AssetNotFound(f"the character's builds {p} are damaged ({e}): reinstall anima") from None
+    return out
+
+
+def build_coeffs(build: str = DEFAULT_BUILD) -> np.ndarray:
+    """The shape coefficients ``[K]`` of ``build`` (one of :data:`BUILDS`); another name: ValueError."""
+    if build not in BUILDS:
+        raise ValueError(f"unknown build {build!r}; one of {', '.join(BUILDS)}")
+    return load_builds()[build].copy()
+
+
 PRIOR_WEIGHT = 0.05
 HEIGHT_RANGE_M = (1.52, 1.93)  # an adult's; MediaPipe's metric scale runs small, so the fit is kept inside it
 
@@ -209,15 +249,19 @@ def _height(ch: Character, c: np.ndarray) -> float:
     return float(V)  # the feet stay on y = 0 in every shape (the bake puts them there)
 
 
-def fit_shape(measured: dict[str, float], ch: Character | None = None, prior: float = 2.0) -> tuple[np.ndarray, dict]:
-    """Shape coefficients whose character has the ``measured`` body measures (relative least squares; each
-    coefficient held within the adult phenotypes' spread: ``prior`` standard deviations weigh like a 5 %
-    error), by Gauss-Newton; and a report: per measure the captured and the character's value and the error
-    in %, the character's height."""
+def fit_shape(
+    measured: dict[str, float], ch: Character | None = None, prior: float = 2.0, build: str = DEFAULT_BUILD
+) -> tuple[np.ndarray, dict]:
+    """Shape coefficients whose character has the ``measured`` body measures, starting from ``build`` (one of
+    :data:`BUILDS`) and held near it (relative least squares; each coefficient's departure from the build's
+    weighed against the adult phenotypes' spread: ``prior`` standard deviations weigh like a 5 % error), by
+    Gauss-Newton: the measures adjust the size and the limbs, the build gives the body its form. And a report:
+    per measure the captured and the character's value and the error in %, the character's height, the build."""
     ch = ch or load_character()
     K = ch.n_components
     names = [n for n in MEASURES if n in measured and np.isfinite(measured[n]) and measured[n] > 0]
-    c = np.zeros(K)
+    c0 = build_coeffs(build)  # the builds belong to the shipped character's shape space
+    c = c0.copy()
     if names:
         target = np.array([measured[n] for n in names])
         sd = np.maximum(ch.shape_sdev, 1e-9)
@@ -226,7 +270,7 @@ def fit_shape(measured: dict[str, float], ch: Character | None = None, prior: fl
             h0 = _height(ch, c)
             lo, hi = HEIGHT_RANGE_M
             hinge = lambda h: 10.0 * (max(0.0, lo - h) + max(0.0, h - hi)) / lo
-            r = np.concatenate([(m0 - target) / target, PRIOR_WEIGHT * c / (prior * sd), [hinge(h0)]])
+            r = np.concatenate([(m0 - target) / target, PRIOR_WEIGHT * (c - c0) / (prior * sd), [hinge(h0)]])
             Jac = np.zeros((len(r), K))
             for k in range(K):
                 e = np.zeros(K)
@@ -252,6 +296,7 @@ def fit_shape(measured: dict[str, float], ch: Character | None = None, prior: fl
         },
         "not_measured": [n for n in MEASURES if n not in names],
         "height_m": round(float(V[:, 1].max() - V[:, 1].min()), 3),
+        "build": build,
     }
     return c, report
 
@@ -309,8 +354,8 @@ def vertex_colors() -> np.ndarray:
     """The character's colours per vertex ``[V, 3]`` (:data:`COLOURS`), its face's regions found by what its own
     expressions move (no painted texture in the CC0 assets): the eyeballs are what the eyeLook morphs turn and
     the blink does not (irises and pupils where they face forward), their sockets shaded (:data:`SOCKET_SHADE`);
-    the brows, the band the brow morphs move
-    above the upper lids; the lips, what mouthPucker and mouthFunnel move most around the mouth; the inside of
+    the brows, the asset's ``brow_vertices`` (the band MakeHuman's brow Face Units moved most, kept by
+    ``tools/bake_face_morphs.py``); the lips, what mouthPucker and mouthFunnel move most around the mouth; the inside of
     the mouth, the head's vertices behind the lips (the tongue). The teeth and the lashes (:attr:`Character.parts`)
     have their own colours."""
     ch = load_character()
@@ -341,9 +386,12 @@ def vertex_colors() -> np.ndarray:
         out[ball] = COLOURS["sclera"]
         out[ball & (ang < 30)] = COLOURS["iris"]
         out[ball & (ang < 12)] = COLOURS["pupil"]
-        brow = mag(f"browInnerUp_{s}", f"browOuterUp_{s}")
-        band = (V[:, 1] > top + 0.012) & (V[:, 1] < top + 0.030)
-        out[(brow > 0.55 * brow.max()) & band & head & ~ball] = COLOURS["brow"]
+        if ch.brows is None:  # an asset baked before its brows were kept: the band its brow morphs move
+            brow = mag(f"browInnerUp_{s}", f"browOuterUp_{s}")
+            band = (V[:, 1] > top + 0.012) & (V[:, 1] < top + 0.030)
+            out[(brow > 0.55 * brow.max()) & band & head & ~ball] = COLOURS["brow"]
+    if ch.brows is not None:
+        out[ch.brows] = COLOURS["brow"]
     x0, x1 = sorted((P["corner_L"][0], P["corner_R"][0]))
     taper = np.sqrt(np.clip(1.0 - ((V[:, 0] - (x0 + x1) / 2) / ((x1 - x0) / 2)) ** 2, 0.0, 1.0))  # 0 at the corners
     corner_y = (P["corner_L"][1] + P["corner_R"][1]) / 2
@@ -374,8 +422,9 @@ def eye_vertices() -> tuple[np.ndarray, np.ndarray]:
 
 # ---- the morphs as files carry them: ARKit's 52 ----------------------------------------------------------------
 
-TONGUE_OUT_M = 0.04
-"""How far ``tongueOut`` brings the tongue's tip forward (metres): about 2.5 cm past the lips, the root staying."""
+TONGUE_OUT_M = 0.05
+"""How far ``tongueOut`` brings the tongue's tip forward (metres), the root staying: about 2.5 cm past the lips, once
+the jaw's share (:data:`TONGUE_JAW`; ICT's jawOpen swings the chin back as it drops) has drawn it back."""
 TONGUE_JAW = 0.35
 """The jaw's part in ``tongueOut`` (as much as jawOpen at this weight): the incisors part by about 9 mm, the
 tongue's thickness, so the tongue passes between them."""

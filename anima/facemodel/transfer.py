@@ -95,34 +95,33 @@ EYE_SHOWN = (
     (0.0, 0.1, 0.2, 0.3, 0.4, 0.45, 0.5, 0.55, 0.6, 0.65, 0.7, 0.8, 0.9, 1.0, 1.1),
     (0.0, 0.125, 0.25, 0.375, 0.5, 0.75, 1.0),
     (
-        (0.154, 0.161, 0.18, 0.203, 0.223, 0.226, 0.256, 0.316, 0.479, 0.604, 0.634, 0.752, 0.907, 0.997, 1.057),
-        (0.154, 0.161, 0.18, 0.203, 0.223, 0.245, 0.256, 0.328, 0.537, 0.604, 0.682, 0.752, 0.91, 0.997, 1.057),
-        (0.154, 0.174, 0.18, 0.203, 0.224, 0.245, 0.271, 0.447, 0.537, 0.626, 0.682, 0.778, 0.91, 0.997, 1.057),
-        (0.154, 0.174, 0.197, 0.21, 0.239, 0.245, 0.271, 0.447, 0.55, 0.63, 0.697, 0.795, 0.91, 0.997, 1.057),
-        (0.157, 0.178, 0.197, 0.219, 0.239, 0.245, 0.355, 0.482, 0.599, 0.63, 0.697, 0.795, 0.91, 1.007, 1.057),
-        (0.16, 0.198, 0.204, 0.231, 0.239, 0.289, 0.523, 0.549, 0.599, 0.66, 0.713, 0.827, 0.933, 1.007, 1.057),
-        (0.174, 0.208, 0.227, 0.231, 0.369, 0.412, 0.524, 0.587, 0.611, 0.676, 0.737, 0.843, 0.935, 1.018, 1.057),
+        (0.158, 0.163, 0.164, 0.189, 0.21, 0.219, 0.227, 0.242, 0.52, 0.604, 0.686, 0.794, 0.912, 0.988, 1.041),
+        (0.158, 0.163, 0.164, 0.192, 0.21, 0.219, 0.227, 0.302, 0.52, 0.604, 0.692, 0.794, 0.912, 0.988, 1.045),
+        (0.158, 0.165, 0.169, 0.192, 0.21, 0.219, 0.256, 0.465, 0.596, 0.639, 0.692, 0.813, 0.912, 0.988, 1.045),
+        (0.158, 0.165, 0.182, 0.192, 0.21, 0.219, 0.269, 0.472, 0.596, 0.639, 0.692, 0.824, 0.912, 0.988, 1.045),
+        (0.158, 0.165, 0.187, 0.192, 0.21, 0.222, 0.269, 0.472, 0.608, 0.639, 0.704, 0.824, 0.912, 0.988, 1.045),
+        (0.158, 0.181, 0.187, 0.192, 0.21, 0.262, 0.498, 0.599, 0.625, 0.668, 0.732, 0.828, 0.912, 0.988, 1.045),
+        (0.158, 0.186, 0.187, 0.192, 0.254, 0.449, 0.556, 0.609, 0.634, 0.679, 0.748, 0.841, 0.92, 0.988, 1.045),
     ),
 )
 """The character's eyes as its close-up shows them: ``(gaps, squints, reads)``, its lids' gap (over its rest gap,
 :meth:`Transfer.lid_gaps`), its eyeSquint weight (the lower lid risen), and ``reads [squints, gaps]``, the eye's
 opening Face Mesh reads there (over what it reads at rest with no squint; the reader's measure of
 :func:`eye_ratios`), increasing along both. Read back, the closing upper lid reads as its gap down to about 0.65,
-then falls fast (0.6 reads 0.48, 0.55 reads 0.32) to a shut eye's 0.15-0.2: a tracker sees the lid's edge meet
-the iris and calls the eye shut. With the lower lid risen the cliff comes at smaller gaps (0.55 reads 0.45 at
-eyeSquint 0.25, 0.59 at 1): the same gap shows more of the iris. Measured on the character alone (no video; three
-head poses, both eyes, the lids swept shut and open again at each squint; the eyes drawn anti-aliased as the
-close-up draws them, :func:`anima.render.avatar.draw_close_up`): the reads' lower third (their 33rd percentile,
-so that the gap is chosen on the open side of the cliff), fitted increasing in the gap and in the squint
-together: ``python benchmarks/face_readback.py --calibrate`` (``benchmarks/results/eye_calibration.json``); a
-test measures it again."""
+then falls fast (0.6 reads 0.52, 0.55 reads 0.24) to a shut eye's 0.16-0.2: a tracker sees the lid's edge meet the
+iris and calls the eye shut. With the lower lid risen the cliff comes at smaller gaps (0.55 reads 0.47 at eyeSquint
+0.375, 0.61 at 1): the same gap shows more of the iris. Measured on the character alone (no video; three head poses,
+both eyes, the lids swept shut and open again at each squint; the eyes drawn anti-aliased as the close-up draws them,
+:func:`anima.render.avatar.draw_close_up`): the reads' lower third (their 33rd percentile, so that the gap is chosen
+on the open side of the cliff), fitted increasing in the gap and in the squint together: ``python
+benchmarks/face_readback.py --calibrate`` (``benchmarks/results/eye_calibration.json``); a test measures it again."""
 
 
 LIPS = (13, 14, 10, 152)
 """Face Mesh's points of the mouth's opening: (inner upper lip, inner lower lip) on the midline, over the face's
 height (forehead, chin): the same measure a face tracker reads back from a render."""
 
-LIP_SHOWN = (0.0041, 0.396)
+LIP_SHOWN = (0.0082, 0.452)
 """The character's close-up, read back by Face Mesh (the mouth's opening, :data:`LIPS`): ``offset + slope * gap``
 for its lip gap ``gap`` above rest (face sizes, :meth:`Transfer.lip_gaps`), the jaw opening from rest to 0.6.
 Measured on the character alone (no video): ``python benchmarks/face_readback.py --calibrate``
@@ -137,11 +136,11 @@ sweep)."""
 BROWS = {"L": (334, 362, 263), "R": (105, 33, 133)}
 """Face Mesh's points of each brow, the person's left and right: (the brow, the eye's two corners)."""
 
-BROW_SHOWN = 0.22
+BROW_SHOWN = 0.277
 """The character's brows as its close-up shows them: the brows' height Face Mesh reads (:func:`brow_heights`, face
 heights, from rest) per face size its brow points rise (:meth:`Transfer.brow_rise`), the brows swept from
-browDown 1 through rest to browInnerUp and browOuterUp 1: the reader sees about half of what the points move (in
-face heights, the lips' :data:`LIP_SHOWN` slope of 0.4 would be all of it). Measured on the character alone (no
+browDown 1 through rest to browInnerUp and browOuterUp 1: the reader sees about three fifths of what the points move
+(in face heights, the lips' :data:`LIP_SHOWN` slope of 0.45 would be all of it). Measured on the character alone (no
 video; three head poses, both brows): ``python benchmarks/face_readback.py --calibrate``
 (``benchmarks/results/brow_calibration.json``); a test measures it again."""
 
@@ -331,7 +330,8 @@ def face_points(V: np.ndarray, D: np.ndarray, names: list[str]) -> tuple[np.ndar
     c = np.flatnonzero(mid & (up > 0.5 * up[mid].max()))
     out["upper_lip"] = int(c[np.argmin(V[c, 1])])  # the inner edge: the lowest of the upper lip's midline
     lo = mag("mouthLowerDown_L") + mag("mouthLowerDown_R")
-    c = np.flatnonzero(mid & (lo > 0.5 * lo[mid].max()))
+    front = V[:, 2] > V[out["upper_lip"], 2] - 0.1 * size  # the lip, not the mouth's inside behind it
+    c = np.flatnonzero(mid & front & (lo > 0.5 * lo[mid & front].max()))
     out["lower_lip"] = int(c[np.argmax(V[c, 1])])
     return np.array([out[p] for p in POINTS]), size
 

@@ -217,9 +217,11 @@ def run(
     progress: bool = False,
     preset: str = "anima",
     library: str | None = None,
+    body: str | None = None,
 ) -> dict:
     """``anima gesture``: check every input, then search (``db``, or the motion ``library``: ``anima library
-    build``'s, default the built-in one) or generate (``generator``) and write the result folder. Returns the
+    build``'s, default the built-in one) or generate (``generator``) and write the result folder (``body``: the
+    character's build, :data:`anima.facemodel.character.BUILDS`; default neutral). Returns the
     run's info (notes, controls, files written, and ``time_s``: seconds per stage, start-up included)."""
     sw = Stopwatch()
     inputs = [speech, db, generator, refiner, library, *(spec.partition("=")[2] for spec in cfg.keyword_db)]
@@ -311,6 +313,7 @@ def run(
         )
         od.info = info
         files = write_motion_outputs(
-            seq, od, "gesture.npz", audio=str(speech), render=render, info=info, progress=progress, sw=sw, preset=preset
-        )
+            seq, od, "gesture.npz", audio=str(speech), render=render, info=info, progress=progress, sw=sw,
+            preset=preset, body=body,
+        )  # fmt: skip
     return info | {"written": [str(p) for p in files.values()], "time_s": sw.report()}

@@ -236,7 +236,7 @@ def _meta_of(path: Path, raw) -> dict:
 def read_sequence(path: str | Path, landmarks: bool = True) -> TrackedSequence:
     """Read and validate a tracked sequence (see the module docstring). Every problem is one clear error:
     :class:`InputError` (missing, not an npz, damaged, inconsistent) or :class:`SchemaError` (another schema, a
-    newer version). ``landmarks=False`` skips the raw landmarks (``None``), which summaries and exports do
+    newer version). ``landmarks=False`` skips the raw landmarks (``None``), which summaries do
     not need (they are most of the file's memory)."""
     path = input_file(path, "tracked sequence")
     headers = npz_headers(path)

@@ -54,8 +54,10 @@ class LiveFrame:
 
     @property
     def shown(self) -> np.ndarray:
-        """The ARKit weights the outputs send (Live Link, VMC, ``--avatar``): measured from the running rest face
-        where there is one, else the fit's."""
+        """The weights the outputs send (Live Link, VMC, ``--avatar``): the character's face, what the page shows;
+        without one (no face model yet), the fit measured from the running rest face, else the fit's."""
+        if self.character is not None:
+            return self.character
         return self.expression if self.presented is None else self.presented
 
 

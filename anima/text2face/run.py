@@ -34,11 +34,13 @@ def run(
     db: str | Path | None = None,
     preset: str = "anima",
     library: str | Path | None = None,
+    body: str | None = None,
 ) -> dict:
     """``anima text2face``: a sentence -> a result folder (``motion.npz``, ``arkit.csv``, ``face.glb``,
     ``face.mp4``, ``info.json``; :func:`anima.export.motion.write_motion_outputs`). ``--out`` is checked
     before the model loads. ``library``: a motion library from ``anima library build`` in place of the built-in
-    one. Returns the run's info (frames, fps, seed, sampling time, warnings, files)."""
+    one. ``body``: the character's build (:data:`anima.facemodel.character.BUILDS`; default neutral). Returns the
+    run's info (frames, fps, seed, sampling time, warnings, files)."""
     cfg = cfg or PromptConfig()
     seed = cfg.seed
     require_prompt(prompt)
@@ -54,7 +56,7 @@ def run(
         if library and db and not cfg.with_builtin:
             raise InputError("--db replaces the library: give --db or --library (or both with --with-builtin)")
         lib = builtin.resolve(library)  # a bad --library fails before any work
-        return _timeline(prompt, out, cfg, db, video, progress, command, preset, lib)
+        return _timeline(prompt, out, cfg, db, video, progress, command, preset, lib, body)
     if db or library:
         raise InputError("--db and --library are for the timeline method; --method model reads --checkpoint")
     from anima.text2face.generate import Generator  # lazy: torch
@@ -80,7 +82,9 @@ def run(
         }
         seq = generated_sequence(gen.fps, face=motion, meta={"generated_by": "anima text2face", **info})
         od.info = info
-        files = write_motion_outputs(seq, od, "motion.npz", render=video, info=info, progress=progress, preset=preset)
+        files = write_motion_outputs(
+            seq, od, "motion.npz", render=video, info=info, progress=progress, preset=preset, body=body
+        )
     return info | {"written": [str(p) for p in files.values()]}
 
 
@@ -113,7 +117,7 @@ def _library(db, with_builtin: bool, lib: Path = builtin.LIBRARY) -> Library:
 
 def _timeline(
     prompt, out, cfg: PromptConfig, db, video: bool, progress: bool, command, preset: str = "anima",
-    lib: Path = builtin.LIBRARY,
+    lib: Path = builtin.LIBRARY, body: str | None = None,
 ) -> dict:  # fmt: skip
     """The timeline method (:mod:`anima.text2face.compose`): the prompt's events from the dataset's captured
     segments. ``info.json`` records how the prompt was read, what was not understood, and where every event's
@@ -156,5 +160,7 @@ def _timeline(
         }
         seq = generated_sequence(fps, face=motion, meta={"generated_by": "anima text2face --method timeline"})
         od.info = info
-        files = write_motion_outputs(seq, od, "motion.npz", render=video, info=info, progress=progress, preset=preset)
+        files = write_motion_outputs(
+            seq, od, "motion.npz", render=video, info=info, progress=progress, preset=preset, body=body
+        )
     return info | {"written": [str(p) for p in files.values()]}

@@ -29,11 +29,12 @@ from pathlib import Path
 import numpy as np
 
 from anima import __version__
-from anima.core.contract import FACE_DIM, N_EXPR, TEXT_FPS
+from anima.core.contract import EXPR_NAMES, FACE_DIM, N_EXPR, TEXT_FPS
 from anima.core.skeleton import JOINT_NAMES, LEFT_HAND, RIGHT_HAND
 from anima.dataset.storage import check_dataset
 from anima.dataset.windows import read_clips
 from anima.errors import AssetNotFound, InputError, SchemaError
+from anima.export.avatar import character_face
 from anima.export.formats import export_glb, export_vrma
 from anima.export.framing import generated_sequence
 from anima.export.retarget import avatar_front, find_humanoid, in_t_pose, load_avatar
@@ -191,18 +192,15 @@ def _sequence_view(folder: Path, kind: str, out: Path, notes: list, wrote: list)
     seq_path = confined(folder, SEQUENCES[kind])
     if seq_path is None:
         raise InputError(f"{folder}: {SEQUENCES[kind]} is not a regular file of the folder")
-    seq = read_sequence(seq_path, landmarks=False)
+    seq = read_sequence(seq_path)
     info = {}
     if _inside(folder, "info.json", notes):
         info = read_json(folder / "info.json", "info.json")
         if not isinstance(info, dict):
             raise SchemaError(f"{folder / 'info.json'}: not a JSON object")
     F = seq.n_frames
-    curves = {
-        n: [round(float(x), 4) for x in seq.expression[:, seq.expr_names.index(n)]]
-        for n in CURVES
-        if n in seq.expr_names and seq.tracked.any()
-    }
+    shown = character_face(seq) if seq.tracked.any() else None  # the weights every export carries
+    curves = {n: [round(float(x), 4) for x in shown[:, EXPR_NAMES.index(n)]] for n in CURVES if shown is not None}
     marks, ranges = [], []
     if kind == "capture":
         for f in np.flatnonzero(seq.flags & FLAG_NO_FACE):
@@ -423,7 +421,7 @@ def _avatar_view(folder: Path, kind: str, avatar: Path, out: Path, notes: list, 
         how = "vrma" if g.vrm is not None and in_t_pose(g, hum) else "retarget"
     with tempfile.TemporaryDirectory(prefix="anima-view-") as tmp:
         if how == "vrma":
-            vrma = Path(export_vrma(read_sequence(seq_path, landmarks=False), Path(tmp) / "take.vrma")).read_bytes()
+            vrma = Path(export_vrma(read_sequence(seq_path), Path(tmp) / "take.vrma")).read_bytes()
             glb_bytes = avatar.read_bytes()
             info = {"avatar": avatar.name, "as": "VRM with a VRM Animation (three-vrm)", "vrm": True}
         else:

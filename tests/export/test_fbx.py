@@ -119,7 +119,7 @@ def test_what_an_engine_imports_unturned_textured_and_the_takes_frames(take):
     from anima.io.sequence import read_sequence
 
     _, fbx, d = take
-    seq = read_sequence(d / "capture.npz", landmarks=False)  # as the export read it
+    seq = read_sequence(d / "capture.npz")  # as the export read it (the landmarks set the lids, lips, brows)
     F, fps = seq.n_frames, seq.fps
     ch, on = load_character(), OnCharacter(seq)
     m, W = on.motion(), to_arkit(on.face())  # the file's face: its 52 ARKit morphs

@@ -14,6 +14,7 @@ import pytest
 from hostile_avatars import unseen_rig
 
 from anima.core import rig
+from anima.core.contract import EXPR_NAMES
 from anima.core.rotations import matrix_to_quat, quat_to_matrix, rotvec_to_matrix
 from anima.io.arkit import ARKIT_NAMES
 from anima.io.assets import asset
@@ -160,22 +161,22 @@ def test_faces_reach_arkit_morphs_or_vrm_expressions(avatars, captures, tmp_path
     """The capture blinks and talks: on the character's VRM its ARKit-named morphs carry the weights; on a VRM
     the project never saw whose morphs have other names, its blink and viseme expressions move (read back
     through the expression binds from the written animation) and follow the source."""
+    from anima.export.avatar import character_face
     from anima.export.retarget import run
     from anima.export.vrm import arkit_weights, vrm_expressions
-    from anima.facemodel.neutral import presented
     from anima.io.gltf_read import read_gltf
     from anima.io.sequence import read_sequence, write_sequence
 
     seq_path = write_sequence(captures["oliver1"], tmp_path / "c.npz")
-    seq = read_sequence(seq_path, landmarks=False)
-    face = presented(seq)[0]  # the capture's face measured from the speaker's rest face (issue 48)
-    want = vrm_expressions(arkit_weights(face, seq.expr_names) * seq.tracked[:, None])
+    seq = read_sequence(seq_path)
+    face = character_face(seq)  # what anima's character shows, so what every export carries
+    want = vrm_expressions(arkit_weights(face, list(EXPR_NAMES)))
     rep = run(seq_path, avatars["character VRM (mean, T)"], tmp_path / "a.vrm")
     assert rep["face"]["via"] == "morph targets named like ARKit" and len(rep["face"]["found_a_home"]) == 52
     g = read_gltf(tmp_path / "a.vrm")
     (node, _), (_, w) = next(iter((k, v) for k, v in g.animation(0).items() if k[1] == "weights"))
     k = g.doc["meshes"][g.nodes[node]["mesh"]]["extras"]["targetNames"].index("eyeBlinkLeft")
-    np.testing.assert_allclose(w[:, k], np.clip(seq.expression[:, seq.expr_names.index("eyeBlink_L")], 0, 1), atol=1e-6)
+    np.testing.assert_allclose(w[:, k], face[:, EXPR_NAMES.index("eyeBlink_L")], atol=1e-6)
 
     # a VRM whose morph targets are not named like ARKit (as VRoid's are not): the expression presets
     src = read_gltf(avatars["character VRM (mean, T)"])
@@ -197,9 +198,9 @@ def test_faces_reach_arkit_morphs_or_vrm_expressions(avatars, captures, tmp_path
             expect[:, b["index"]] += want.get(name, 0.0) * b["weight"]
     np.testing.assert_allclose(w, np.clip(expect, 0, 1), atol=1e-5)  # every preset through its binds
     for morph, ict, name in (("eyeBlinkLeft", "eyeBlink_L", "blink"), ("jawOpen", "jawOpen", "aa")):  # they move
-        k, i = ARKIT_NAMES.index(morph), seq.expr_names.index(ict)  # with the face
+        k, i = ARKIT_NAMES.index(morph), EXPR_NAMES.index(ict)  # with the face
         assert any(b["index"] == k for b in presets[name]["morphTargetBinds"])
-        assert np.ptp(w[:, k]) > 0.2 and np.corrcoef(w[:, k], seq.expression[:, i])[0, 1] > 0.95, morph
+        assert np.ptp(w[:, k]) > 0.2 and np.corrcoef(w[:, k], face[:, i])[0, 1] > 0.95, morph
 
 
 def test_cli_and_refusals(cli, avatars, captures, sources, tmp_path):

@@ -383,7 +383,8 @@ def test_the_characters_lower_lids_rise_as_the_video_shows(d0_capture):
         free = (q > 0.01) & (q < 0.99) & np.isfinite(seen[:, k])
         assert free.sum() > 20 and np.ptp(seen[free, k]) > 0.05, (s, free.sum())
         slope = np.polyfit(seen[free, k], lids[free, k], 1)[0]
-        assert np.corrcoef(seen[free, k], lids[free, k])[0, 1] > 0.99 and slope == pytest.approx(gap, rel=0.02), s
+        # within 3 %: cheekSquint (ICT's shape, AU6) lifts the lower lid a little too
+        assert np.corrcoef(seen[free, k], lids[free, k])[0, 1] > 0.99 and slope == pytest.approx(gap, rel=0.03), s
 
 
 @pytest.mark.slow
@@ -676,7 +677,7 @@ def test_a_neutral_reference_keeps_a_clip_long_expression(tmp_path):
         k = [i for i, n in enumerate(EXPR_NAMES) if n.startswith(base + "_")]
         return float(character_face(seq)[seq.tracked][:, k].mean())
 
-    N, A = (read_sequence(d / "capture.npz", landmarks=False) for d in (neu, ang))
+    N, A = (read_sequence(d / "capture.npz") for d in (neu, ang))  # as exported: the landmarks set lids, brows
     assert mean(N, "mouthSmile") < 0.1 and mean(N, "browDown") < 0.1
     assert mean(A, "browDown") > mean(N, "browDown") + 0.05  # measured 0.137 against 0.052
     assert mean(A, "browDown") > mean(A, "browDown", own=True) + 0.03  # its own estimate: 0.088 (neutral's 0.091)

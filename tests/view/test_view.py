@@ -19,6 +19,7 @@ from browser import chromium, console, have_browser, play_and_sample, requests, 
 from hostile_avatars import rigid_head, split_like_vroid, unseen_rig, with_mtoon_outline
 
 from anima.core import rig
+from anima.core.contract import EXPR_NAMES
 from anima.dataset.windows import read_clips
 from anima.facemodel.character import to_arkit
 from anima.io.arkit import ARKIT_NAMES
@@ -365,10 +366,10 @@ def test_missing_videos_and_an_older_result(results, browser, tmp_path, cli):
     notes = browser.find_element("id", "notes").text
     assert "the 3D plays alone" in notes and "head alone" in notes and "moved" in notes
     assert browser.execute_script("return document.querySelectorAll('video').length") == 0
-    from anima.facemodel.neutral import presented
+    from anima.export.avatar import character_face
 
     seq = read_sequence(old / "capture.npz")
-    W = presented(seq)[0]  # the fitted head's own morphs, the face measured from the speaker's rest (issue 48)
+    W = character_face(seq)[:, [EXPR_NAMES.index(n) for n in seq.expr_names]]  # the face every export carries
     for f in (10, 50):
         s = state(browser, f)
         for k, n in enumerate(seq.expr_names):
@@ -398,13 +399,13 @@ def test_a_users_vrm_plays_the_result_in_three_vrm(results, browser, tmp_path):
     each shows the avatar's face close up, its mouth opening and shutting with the source's, and so do a glTF
     rig anima never wrote (random bone axes, facing -z), a VRM drawn by MToon with an outline and one made of a
     face mesh and a body mesh (VRoid's ways)."""
-    from anima.export.avatar import character_motion
+    from anima.export.avatar import character_face, character_motion
     from anima.export.vrm import arkit_weights, vrm_expressions, write_character_avatar
 
     seq = read_sequence(results / "capture" / "capture.npz")
     P = character_motion(seq)["positions"]
     vrm_of = {v: k for k, v in rig.CONVENTIONS["vrm"].items() if v}
-    want = vrm_expressions(arkit_weights(seq.expression, seq.expr_names) * seq.tracked[:, None])
+    want = vrm_expressions(arkit_weights(character_face(seq), list(EXPR_NAMES)))  # the face every export carries
     frames = list(range(0, seq.n_frames, 5))
     shut, wide = (frames[int(k(want["aa"][frames]))] for k in (np.argmin, np.argmax))  # the mouth least and most open
     t_vrm = write_character_avatar(tmp_path / "t.vrm")
