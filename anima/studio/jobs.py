@@ -71,7 +71,7 @@ class Progress:
             if desc in bars and i >= self.stage and total > 0:
                 if i > self.stage:
                     self.stage, self.bars = i, {}
-                self.bars[desc] = min(1.0, n / total)
+                self.bars[desc] = max(self.bars.get(desc, 0.0), min(1.0, n / total))  # a bar drawn again
                 return True
         return False
 
@@ -79,7 +79,8 @@ class Progress:
         """(stage, fraction of the command done, fraction of the stage done or None when it has no bar)."""
         name, bars, share = self.plan[self.stage]
         before = sum(s for _, _, s in self.plan[: self.stage])
-        stage = sum(self.bars.values()) / len(self.bars) if bars and self.bars else (0.0 if bars else None)
+        # a stage's bars run side by side (the videos and the avatar's render): each counts, seen yet or not
+        stage = sum(self.bars.get(b, 0.0) for b in bars) / len(bars) if bars else None
         return name, before + share * (stage or 0.0), stage
 
 
@@ -333,7 +334,7 @@ class Jobs:
 
             def update(p=prog, base=base, share=share):
                 stage, frac, sf = p.state()
-                total = base + share * frac
+                total = max(job["progress"], base + share * frac)  # shown progress never goes back
                 elapsed = time.time() - job["started"]
                 eta = elapsed * (1 - total) / total if total > 0.04 and elapsed > 0.5 else None
                 job.update(stage=stage, stage_progress=sf, progress=round(total, 4),
