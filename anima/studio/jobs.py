@@ -54,6 +54,9 @@ _BAR = re.compile(r"^\s*([A-Za-z][\w .-]{0,40}?):\s+\d{1,3}%\|[^|]*\|\s*(\d+)/(\
 _ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
 CHILD_ENV = {"TQDM_MININTERVAL": "0.2", "PYTHONUNBUFFERED": "1"}
 KILL_WAIT_S = 5.0
+PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])
+"""The folder that holds this ``anima``: first on the commands' path, so a job runs the studio's own anima (not
+another copy an environment may name)."""
 
 
 def new_id() -> str:
@@ -377,7 +380,8 @@ class Jobs:
         """Run ``python -m anima ARGV`` in the job's folder, its bars read into ``prog``; (exit code, the error's
         line)."""
         folder = self.folder(job["id"])
-        env = os.environ | CHILD_ENV
+        path = [PACKAGE_ROOT] + ([os.environ["PYTHONPATH"]] if os.environ.get("PYTHONPATH") else [])
+        env = os.environ | CHILD_ENV | {"PYTHONPATH": os.pathsep.join(path)}
         with self.lock:
             if self.closing or job.get("_cancel"):
                 return 130, "cancelled"

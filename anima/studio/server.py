@@ -38,6 +38,7 @@ from anima.view.serve import HOST, FileHandler, open_server
 STATIC = Path(__file__).parent / "static"
 DEFAULT_MAX_UPLOAD_MB = 2048
 MAX_PROMPT = 2000
+DRAIN = 8 * 2**20  # the rest of a refused upload read (and dropped) when it is no more than this
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,200}$")
 OPTIONS = {"face_only": bool, "rig": str, "max_seconds": (int, float)}
 
@@ -72,12 +73,12 @@ class Studio:
 
     # --- a new job -------------------------------------------------------------------------------------------
 
-    def submit(self, rfile, length: int, content_type: str) -> dict:
+    def submit(self, body: uploads.Body, content_type: str) -> dict:
         """Read an upload into a new job's folder and make the job (failed, with the reason, when a file is not
         what the job needs); an :class:`UploadError` (and no job folder left) when the request itself is wrong."""
         jid, folder = self.jobs.reserve()
         try:
-            form = uploads.read_form(rfile, length, content_type, folder, self.max_upload)
+            form = uploads.read_form(body, content_type, folder, self.max_upload)
             kind, options, extra = self._fields(form)
             return self._make(jid, folder, kind, form, options, extra)
         except BaseException:
@@ -163,6 +164,8 @@ class Studio:
         except AnimaError as e:
             error = uploads.one_line(e)
             commands = []
+            for f in folder.glob("upload-*"):  # a refused file is not kept
+                f.unlink(missing_ok=True)
         return self.jobs.create(kind, title, commands, options, id=jid, error=error, avatar=avatar and avatar.name,
                                 **extra)  # fmt: skip
 
@@ -375,9 +378,11 @@ class StudioHandler(FileHandler):
             mb = self.studio.max_upload / 2**20
             return self._error(413, f"the upload is {length / 2**20:,.0f} MB; the limit is {mb:,.0f} MB "
                                     "(anima studio --max-upload-mb)")  # fmt: skip
+        body = uploads.Body(self.rfile, length)
         try:
-            job = self.studio.submit(self.rfile, length, self.headers.get("Content-Type", ""))
+            job = self.studio.submit(body, self.headers.get("Content-Type", ""))
         except UploadError as e:
+            body.drain(DRAIN)
             return self._error(e.status, str(e))
         except AnimaError as e:
             return self._error(400, uploads.one_line(e))

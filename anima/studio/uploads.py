@@ -45,7 +45,7 @@ def boundary_of(content_type: str) -> bytes:
     return m.group(1).strip().encode()
 
 
-class _Body:
+class Body:
     """At most ``length`` bytes of ``rfile``: reading past them, or a body that ends early, is an error."""
 
     def __init__(self, rfile, length: int):
@@ -54,7 +54,7 @@ class _Body:
     def read(self, n: int) -> bytes:
         n = min(n, self.left)
         if n <= 0:
-            return b""
+            raise UploadError(400, "the form ends before its closing boundary")
         try:
             data = self.rfile.read1(n) if hasattr(self.rfile, "read1") else self.rfile.read(n)
         except (OSError, TimeoutError):
@@ -64,14 +64,24 @@ class _Body:
         self.left -= len(data)
         return data
 
+    def drain(self, most: int) -> None:
+        """Read and drop what is left of a refused body (up to ``most`` bytes), so that the client, still sending,
+        reads the answer instead of a reset connection."""
+        if self.left > most:
+            return
+        try:
+            while self.left > 0:
+                self.read(CHUNK)
+        except (UploadError, OSError):
+            pass
 
-def read_form(rfile, length: int, content_type: str, folder: Path, max_file: int) -> dict:
-    """Parse a multipart body of ``length`` bytes: text fields (``kind``, ``prompt``, ``source``, ``options``) as
+
+def read_form(body: Body, content_type: str, folder: Path, max_file: int) -> dict:
+    """Parse a multipart ``body``: text fields (``kind``, ``prompt``, ``source``, ``options``) as
     strings; file fields (``file``, ``avatar``) written to ``folder/upload-<field>`` (the studio's names) and given
     as their paths, each at most ``max_file`` bytes. Anything else (an unknown or repeated field, a part without
     a name, a body that is not well formed or ends early) is an :class:`UploadError`."""
     delim = b"\r\n--" + boundary_of(content_type)
-    body = _Body(rfile, length)
     buf = b"\r\n"
     out: dict = {}
     # the preamble, up to the first delimiter
@@ -142,7 +152,7 @@ def _part_name(head: bytes) -> tuple[str, bool]:
     raise UploadError(400, "a multipart part without Content-Disposition")
 
 
-def _until(body: _Body, buf: bytes, delim: bytes, sink) -> bytes:
+def _until(body: Body, buf: bytes, delim: bytes, sink) -> bytes:
     """Feed ``sink`` the part's bytes up to the next delimiter; returns what follows the delimiter."""
     keep = len(delim) - 1
     while True:
@@ -156,7 +166,7 @@ def _until(body: _Body, buf: bytes, delim: bytes, sink) -> bytes:
         buf += body.read(CHUNK)
 
 
-def _stream(body: _Body, buf: bytes, delim: bytes, dest: Path, max_file: int, name: str) -> bytes:
+def _stream(body: Body, buf: bytes, delim: bytes, dest: Path, max_file: int, name: str) -> bytes:
     tmp = temp_sibling(dest)
     size = 0
     try:

@@ -5,6 +5,7 @@ hand, so nothing of the studio's own code is on the client's side)."""
 from __future__ import annotations
 
 import json
+import os
 import re
 import secrets
 import signal
@@ -15,6 +16,7 @@ import urllib.error
 import urllib.request
 from pathlib import Path
 
+REPO = Path(__file__).resolve().parents[2]
 CLIP = "gesture-video/pats-crops/noah2_gt.mp4"  # a talking man, 9.6 s, used by no other test
 SHORT = "gesture-video/pats-crops/oliver4_gt.mp4"  # 3.2 s
 
@@ -22,6 +24,8 @@ SHORT = "gesture-video/pats-crops/oliver4_gt.mp4"  # 3.2 s
 class Studio:
     def __init__(self, root: Path, *args, cwd: Path | None = None, env: dict | None = None):
         self.root = Path(root)
+        env = dict(os.environ if env is None else env)
+        env["PYTHONPATH"] = str(REPO)  # this checkout's anima, wherever the studio's working folder is
         self.p = subprocess.Popen(
             [sys.executable, "-m", "anima", "studio", "--root", str(root), "--no-browser", *map(str, args)],
             stdout=subprocess.PIPE,
