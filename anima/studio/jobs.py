@@ -182,8 +182,16 @@ class Jobs:
                                        "stage_progress", "eta_s", "error", "options", "source")}  # fmt: skip
         out["outputs"] = self.outputs(job)
         out["exports"] = {n: {"state": x["state"], "error": x.get("error")} for n, x in job.get("exports", {}).items()}
-        out["takes"] = sorted(TAKES) if job.get("kind") in SEQUENCES and job["state"] == "done" else []
+        out["takes"] = self.takes(job)
         return out
+
+    def takes(self, job: dict) -> list[str]:
+        """The take files a finished job can be asked for (a BVH needs a body: not of text2face, nor of a face-only
+        capture)."""
+        if job.get("kind") not in SEQUENCES or job.get("state") != "done":
+            return []
+        bodiless = job["kind"] == "text2face" or job.get("options", {}).get("face_only")
+        return sorted(n for n in TAKES if not (bodiless and n == "take.bvh"))
 
     def listing(self) -> list[dict]:
         with self.lock:

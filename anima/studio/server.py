@@ -30,7 +30,7 @@ from urllib.parse import parse_qs, unquote, urlsplit
 from anima.errors import AnimaError, InputError
 from anima.io.outdir import claim_folder, confined
 from anima.studio import uploads
-from anima.studio.jobs import KINDS, RETARGET_SHARE, RIGS, SEQUENCES, TAKES, Jobs, dumps, remove_job
+from anima.studio.jobs import KINDS, RETARGET_SHARE, RIGS, SEQUENCES, Jobs, dumps, remove_job
 from anima.studio.uploads import UploadError
 from anima.view.export import build_view
 from anima.view.serve import HOST, FileHandler, open_server
@@ -308,7 +308,7 @@ class StudioHandler(FileHandler):
         jobs = self.studio.jobs
         if job["state"] != "done":
             return self._error(409, f"job {job['id']} is {job['state']}: no files yet")
-        if name in TAKES and job["kind"] in SEQUENCES and name not in jobs.outputs(job):
+        if name in jobs.takes(job) and name not in jobs.outputs(job):
             x = jobs.take(job, name)
             if x["state"] == "failed":
                 return self._error(422, f"{name} could not be made: {x.get('error')}")

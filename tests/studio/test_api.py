@@ -12,6 +12,7 @@ import time
 import pytest
 from studio_client import Studio, rising_in_steps
 
+from anima.io.assets import asset
 from anima.io.outdir import check_complete
 from anima.view.export import detect
 
@@ -67,6 +68,8 @@ def test_text2face_reaches_done_with_progress_in_steps(studio):
     vrma = studio.take(r["id"], "take.vrma")
     assert vrma[:4] == b"glTF"
     assert "take.vrma" in studio.job(r["id"])["outputs"]
+    assert studio.job(r["id"])["takes"] == ["take.fbx", "take.vrma"]  # no BVH of a face without a body
+    assert studio.request("GET", f"/api/jobs/{r['id']}/files/take.bvh")[0] == 404
 
 
 def test_a_capture_of_an_unseen_talking_clip_gives_fbx_and_vrma(studio, clip):
@@ -106,6 +109,34 @@ def test_a_capture_of_an_unseen_talking_clip_gives_fbx_and_vrma(studio, clip):
     assert studio.request("GET", f"/api/jobs/{r['id']}/files/job.json")[0] == 404  # only the result's files
     assert studio.request("GET", f"/api/jobs/{r['id']}/files/..%2Fjob.json")[0] == 404
     print(f"capture of 8 s: {took:.1f} s to done; {len(steps)} progress steps")
+
+
+def test_gestures_for_speech_on_your_avatar_and_a_retarget_job(studio):
+    """A speech file with a VRM: gestures, then the motion on the VRM (one job, its stages in turn); a retarget job
+    puts a finished job's motion on the avatar, and its viewer page is built with it."""
+    speech = asset("videoretalking-examples/examples/audio/1.wav").read_bytes()
+    vrm = asset("avatars/VRMC_materials_mtoon_UV_Animation_Test.vrm").read_bytes()
+    status, r = studio.submit({"kind": "gesture", "options": json.dumps({"rig": "mixamo"})},
+                              {"file": speech, "avatar": vrm})  # fmt: skip
+    assert status == 201 and r["state"] == "queued", r
+    j, seen = studio.wait(r["id"], 120)
+    assert j["state"] == "done", (j, seen)
+    rising_in_steps(seen)
+    stages = [st for s, _, st, _ in seen if s == "running"]
+    assert stages.index("rendering") < stages.index("retargeting"), stages
+    assert {"gesture.npz", "avatar.glb", "body.bvh", "speech.wav", "retargeted.vrm"} <= set(j["outputs"]), j
+    assert b"mixamorig:" in studio.take(r["id"], "take.bvh")[:4000]  # the joint names asked for
+    status, _, out = studio.request("GET", f"/api/jobs/{r['id']}/files/retargeted.vrm")
+    assert status == 200 and out[:4] == b"glTF"
+    # a retarget job: the motion of a finished job on an avatar sent now
+    status, t = studio.submit({"kind": "retarget", "source": r["id"]}, {"avatar": vrm})
+    assert status == 201, t
+    j, _ = studio.wait(t["id"], 60)
+    assert j["state"] == "done" and j["outputs"] == ["retargeted.vrm"], j
+    for name in ("index.html", "view-data.js", "avatar-glb.js"):
+        status, _, body = studio.request("GET", f"/view/{studio.token}/{t['id']}/{name}", token=None)
+        assert status == 200 and body, name
+    assert studio.submit({"kind": "retarget", "source": "20200101-000000-000000"}, {"avatar": vrm})[0] == 400
 
 
 def test_cancel_a_running_and_a_queued_job_and_the_queue_goes_on(studio, clip):
