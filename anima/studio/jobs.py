@@ -148,6 +148,7 @@ class Jobs:
             "kind": kind,
             "title": title,
             "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            "created_s": time.time(),
             "state": "queued",
             "progress": 0.0,
             "stage": "queued",
@@ -195,7 +196,8 @@ class Jobs:
 
     def listing(self) -> list[dict]:
         with self.lock:
-            return [self.public(j) for j in sorted(self.jobs.values(), key=lambda j: j["id"], reverse=True)]
+            newest = sorted(self.jobs.values(), key=lambda j: (j.get("created_s", 0.0), j["id"]), reverse=True)
+            return [self.public(j) for j in newest]
 
     def result(self, job: dict) -> Path:
         return self.folder(job["id"]) / RESULT

@@ -10,11 +10,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 from browser import chromium, console, have_browser, wait_ready
-from studio_client import REPO, Studio
+from studio_client import CLIP, REPO, Studio
+
+from anima.io.assets import asset
 
 pytestmark = pytest.mark.slow
 SHOTS = Path(os.environ.get("ANIMA_TEST_ARTIFACTS", REPO / "test-artifacts")) / "studio"
 BACKGROUND = np.array([0x1C, 0x1C, 0x1C])
+DROP_JS = """
+const dt = new DataTransfer();
+dt.items.add(new File(["this is not a video\\n".repeat(50)], "holiday.mp4", {type: "video/mp4"}));
+const drop = new DragEvent("drop", {dataTransfer: dt, bubbles: true, cancelable: true});
+document.getElementById("drop").dispatchEvent(drop);
+"""
 JOB_JS = """
 const li = document.querySelector(`#jobs .job[data-id="${arguments[0]}"]`) || (arguments[0] ? null
   : document.querySelector('#jobs .job'));
@@ -41,6 +49,18 @@ def shot(b, name: str) -> np.ndarray:
     return cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)[..., ::-1]
 
 
+def new_job(b, known: set, timeout: float = 30) -> str:
+    """The id of a job the page lists that is not in ``known``."""
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        ids = b.execute_script("return studio.jobs.map(j => j.id)")
+        fresh = [i for i in ids if i not in known]
+        if fresh:
+            return fresh[0]
+        time.sleep(0.05)
+    raise AssertionError(f"no new job on the page; console: {console(b)}")
+
+
 def follow(b, jid: str | None, until, timeout: float = 180) -> list[dict]:
     """The job's row as the page shows it, sampled every 50 ms until ``until(row)``."""
     rows = []
@@ -62,9 +82,17 @@ def test_a_video_dropped_on_the_page_reaches_the_viewer_and_the_fbx_comes_home(p
     with chromium() as b:
         b.execute_cdp_cmd("Browser.setDownloadBehavior", {"behavior": "allow", "downloadPath": str(downloads)})
         b.get(page.url)
-        b.find_element("id", "file").send_keys(str(short_clip))  # what a drop on the page hands the same code
-        rows = follow(b, None, lambda r: r["state"] in ("done", "failed", "cancelled"))
-        jid = rows[-1]["id"]
+        # a drop (a synthetic one: the DataTransfer a drag hands the page) of a text file named like a video
+        b.execute_script(DROP_JS)
+        jid = new_job(b, set())
+        rows = follow(b, jid, lambda r: r["state"] != "queued", 30)
+        assert rows[-1]["state"] == "failed", rows
+        err = b.execute_script(f"return document.querySelector('#jobs .job[data-id=\"{jid}\"] .err').textContent")
+        assert "not a video" in err, err
+        # a real clip, given to the file input (what the page's drop handler hands the same code)
+        b.find_element("id", "file").send_keys(str(short_clip))
+        jid = new_job(b, {jid})
+        rows = follow(b, jid, lambda r: r["state"] in ("done", "failed", "cancelled"))
         assert rows[-1]["state"] == "done", rows
         bars = [r["bar"] for r in rows if r["state"] == "running" and r["bar"] is not None]
         assert bars == sorted(bars) and len({v for v in bars if 0 < v < 100}) >= 3, rows  # a bar that rises
@@ -99,14 +127,9 @@ def test_a_video_dropped_on_the_page_reaches_the_viewer_and_the_fbx_comes_home(p
         assert fbx.read_bytes().startswith(b"Kaydara FBX Binary")
         assert fbx.read_bytes() == (page.root / jid / "result" / "take.fbx").read_bytes()
         # a second job, running, beside the finished one (the picture of docs/studio.md); then cancelled
-        b.find_element("id", "file").send_keys(str(short_clip.parent / "noah2_gt.mp4"))
-        t0 = time.time()
-        while time.time() - t0 < 30:
-            rows = b.execute_script("return studio.jobs.filter(j => j.state !== 'done').map(j => j.id)")
-            if rows:
-                break
-            time.sleep(0.05)
-        second = rows[0]
+        known = set(b.execute_script("return studio.jobs.map(j => j.id)"))
+        b.find_element("id", "file").send_keys(str(asset(CLIP)))
+        second = new_job(b, known)
         follow(b, second, lambda r: r["state"] == "running" and (r["bar"] or 0) >= 30, 120)
         shot(b, "running")
         b.find_element("css selector", f'#jobs .job[data-id="{second}"] button[data-act="cancel"]').click()
