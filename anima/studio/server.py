@@ -164,6 +164,7 @@ class Studio:
         except AnimaError as e:
             error = uploads.one_line(e)
             commands = []
+            title = f"{kind}: the file was refused"
             for f in folder.glob("upload-*"):  # a refused file is not kept
                 f.unlink(missing_ok=True)
         return self.jobs.create(kind, title, commands, options, id=jid, error=error, avatar=avatar and avatar.name,
