@@ -14,8 +14,9 @@ def register(sub) -> None:
         "In the page: drop a video (capture), a speech file (gesture) or type a sentence (text2face), choose the "
         "options that matter (face only, the rig's joint names, your own VRM / glTF avatar), follow each job's "
         "progress in a queue (one job at a time, cancellable), open a finished job in the viewer and download "
-        "avatar.glb, FBX, VRM Animation, BVH and arkit.csv. Every job is an ordinary anima result folder under "
-        f"--root (default {default_root()}): every command and `anima view` work on it. Needs no network; "
+        "avatar.glb, FBX, VRM Animation, BVH and arkit.csv. Each job is a folder under --root (default "
+        f"{default_root()}) whose result/ is an ordinary anima result folder: every command and `anima view` work "
+        "on it. Needs no network; "
         "stops with Ctrl-C (docs/studio.md).",
     )
     p.add_argument("--root", metavar="DIR", default=None, help="the folder of the studio's jobs and results "
