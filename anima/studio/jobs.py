@@ -207,6 +207,13 @@ class Jobs:
         with the motion."""
         if job.get("state") != "done":
             return []
+        try:  # read again only when a file came or went (the page asks every 0.4 s)
+            stamp = (os.stat(self.result(job)).st_mtime_ns if job["kind"] in SEQUENCES else 0,
+                     os.stat(self.folder(job["id"])).st_mtime_ns)  # fmt: skip
+        except OSError:
+            return []
+        if job.get("_outputs", (None,))[0] == stamp:
+            return list(job["_outputs"][1])
         names = []
         if job["kind"] in SEQUENCES:
             try:
@@ -215,7 +222,8 @@ class Jobs:
                 names = []
             names += [n for n in TAKES if confined(self.result(job), n) is not None]
         names += [n for n in ("retargeted.vrm", "retargeted.glb") if confined(self.folder(job["id"]), n)]
-        return sorted(dict.fromkeys(names))
+        job["_outputs"] = (stamp, sorted(dict.fromkeys(names)))
+        return list(job["_outputs"][1])
 
     def file(self, job: dict, name: str) -> Path | None:
         """The path of one of :meth:`outputs`."""

@@ -353,6 +353,8 @@ class StudioHandler(FileHandler):
             folder = self.studio.view_folder(job)
         except AnimaError as e:
             return self._error(409, uploads.one_line(e))
+        except OSError:
+            return self._error(409, f"the result of job {job['id']} is no longer there")
         p = confined(folder, name)
         if p is None:
             return self._refuse(HTTPStatus.NOT_FOUND)
