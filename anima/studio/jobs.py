@@ -4,11 +4,11 @@ made by anima's own command. Jobs run one at a time, in the order they came, eac
 ``python -m anima COMMAND ...`` in its own process group: cancelling kills the group, and a crash of the command
 cannot take the studio down.
 
-Progress is what the command already shows: its tqdm bars (``track``, ``render``, ``avatar``) on stderr. The
-child gets ``TQDM_MININTERVAL`` (tqdm reads its defaults from ``TQDM_*``) so the bars are drawn often enough to
-follow; each bar line (``desc: 45%|...| 90/200 [...]``) is read and mapped onto the job's stages
-(:data:`PLANS`, shares measured on real runs). The take files (``take.fbx``, ``take.vrma``, ``take.bvh``) are made
-on request by ``anima export`` into the result folder, queued like jobs and kept there."""
+Progress is what the command already shows: its tqdm bars (``track``, ``render``, ``avatar``) on stderr, drawn
+every 0.1 s at most whether or not stderr is a terminal; each bar line (``desc: 45%|...| 90/200 [...]``) is read
+and mapped onto the job's stages (:data:`PLANS`, shares measured on real runs). The take files (``take.fbx``,
+``take.vrma``, ``take.bvh``) are made on request by ``anima export`` into the result folder, queued like jobs and
+kept there."""
 
 from __future__ import annotations
 
@@ -52,7 +52,7 @@ PLANS = {
 RETARGET_SHARE = 0.1  # of a job whose motion is also put on the person's avatar
 _BAR = re.compile(r"^\s*([A-Za-z][\w .-]{0,40}?):\s+\d{1,3}%\|[^|]*\|\s*(\d+)/(\d+)\b")
 _ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
-CHILD_ENV = {"TQDM_MININTERVAL": "0.2", "PYTHONUNBUFFERED": "1"}
+CHILD_ENV = {"PYTHONUNBUFFERED": "1"}
 KILL_WAIT_S = 5.0
 PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])
 """The folder that holds this ``anima``: first on the commands' path, so a job runs the studio's own anima (not
