@@ -157,15 +157,24 @@ def test_cancel_a_running_and_a_queued_job_and_the_queue_goes_on(studio, clip):
     assert studio.request("DELETE", f"/api/jobs/{c['id']}")[0] == 409  # done: nothing to cancel
 
 
-def test_earlier_results_are_listed_after_a_restart(studio, tmp_path):
+def test_earlier_results_are_listed_after_a_restart(studio, clip):
+    """Stopped while a job runs and another waits: the running one is cancelled with the reason, the waiting one
+    runs when the studio is started again, and every finished job is listed with its files."""
     _, before = studio.get_json("/api/jobs")
     done = {j["id"]: j["outputs"] for j in before["jobs"] if j["state"] == "done"}
     assert len(done) >= 3
+    _, running = studio.submit({"kind": "capture"}, {"file": clip})
+    _, waiting = studio.submit({"kind": "text2face", "prompt": "she raises her brows"})
+    studio.wait(running["id"], 60, until=("running",))
     studio.stop()
     again = Studio(studio.root)
     try:
+        j = again.job(running["id"])
+        assert j["state"] == "cancelled" and "stopped" in j["error"], j
+        j, _ = again.wait(waiting["id"], 120)
+        assert j["state"] == "done", j
         _, after = again.get_json("/api/jobs")
-        assert {j["id"]: j["outputs"] for j in after["jobs"] if j["state"] == "done"} == done
+        assert {j["id"]: j["outputs"] for j in after["jobs"] if j["state"] == "done"} == done | {j["id"]: j["outputs"]}
         jid = next(iter(done))
         assert again.request("GET", f"/api/jobs/{jid}/files/avatar.glb")[0] == 200
         assert again.request("GET", "/api/jobs", token=studio.token)[0] == 403  # a new run, a new token
