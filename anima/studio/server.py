@@ -28,7 +28,7 @@ from pathlib import Path
 from urllib.parse import parse_qs, unquote, urlsplit
 
 from anima.errors import AnimaError, InputError
-from anima.io.outdir import claim_folder, confined
+from anima.io.outdir import claim_folder, confined, lock_folder, unlock_folder
 from anima.studio import uploads
 from anima.studio.jobs import KINDS, RETARGET_SHARE, RIGS, SEQUENCES, Jobs, dumps, remove_job
 from anima.studio.uploads import UploadError
@@ -61,6 +61,11 @@ class Studio:
 
     def __init__(self, root: Path, max_upload: int):
         self.root = claim_folder(root, kind="studio", flag="--root")
+        try:  # one studio per root: two would run the same queued jobs
+            self.lock = lock_folder(self.root)
+        except InputError:
+            raise InputError(f"--root {self.root}: another anima studio is using this folder; stop it or give "
+                             "another --root") from None  # fmt: skip
         self.max_upload = max_upload
         self.jobs = Jobs(self.root)
         self.views_dir = Path(tempfile.mkdtemp(prefix="anima-studio-"))
@@ -70,6 +75,7 @@ class Studio:
     def close(self) -> None:
         self.jobs.close()
         shutil.rmtree(self.views_dir, ignore_errors=True)
+        unlock_folder(self.lock)
 
     # --- a new job -------------------------------------------------------------------------------------------
 

@@ -7,9 +7,11 @@ import json
 import os
 import re
 import socket
+import subprocess
+import sys
 
 import pytest
-from studio_client import Studio, multipart
+from studio_client import REPO, Studio, multipart
 
 pytestmark = pytest.mark.slow
 MB = "multipart/form-data; boundary=b"
@@ -128,6 +130,13 @@ def test_malformed_forms_are_a_4xx_with_a_reason(hostile, body, ctype, status):
     got, _, out = hostile.request("POST", "/api/jobs", body, {"Content-Type": ctype})
     assert got == status, out
     assert json.loads(out)["error"]
+    answers(hostile)
+
+
+def test_a_second_studio_on_the_same_root_is_refused(hostile):
+    argv = [sys.executable, "-m", "anima", "studio", "--root", str(hostile.root), "--no-browser"]
+    r = subprocess.run(argv, capture_output=True, text=True, timeout=60, env=os.environ | {"PYTHONPATH": str(REPO)})
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "another anima studio" in r.stderr, r.stderr
     answers(hostile)
 
 
