@@ -1,7 +1,8 @@
 """``anima studio``'s page in a real browser (headless Chromium, as the viewer's tests drive it): a video given to
 the page's file input (what a drop hands it) becomes a job whose bar rises while it runs, the finished job opens
 in anima's viewer with the character drawn, and the FBX button brings ``take.fbx`` home. A second job is
-cancelled from its button. Screenshots land in ``test-artifacts/studio/`` (look at them)."""
+cancelled from its button; a sentence typed into the page becomes a text2face job that opens in the viewer (no
+BVH offered for a face). Screenshots land in ``test-artifacts/studio/`` (look at them)."""
 
 import os
 import time
@@ -135,4 +136,21 @@ def test_a_video_dropped_on_the_page_reaches_the_viewer_and_the_fbx_comes_home(p
         b.find_element("css selector", f'#jobs .job[data-id="{second}"] button[data-act="cancel"]').click()
         rows = follow(b, second, lambda r: r["state"] in ("cancelled", "done", "failed"), 60)
         assert rows[-1]["state"] == "cancelled", rows
+        # a sentence typed into the page: a text2face job, opened in the viewer when done
+        known = set(b.execute_script("return studio.jobs.map(j => j.id)"))
+        b.find_element("id", "prompt").send_keys("she smiles, then blinks twice")
+        b.find_element("css selector", "#textform button").click()
+        third = new_job(b, known)
+        rows = follow(b, third, lambda r: r["state"] in ("cancelled", "done", "failed"), 120)
+        assert rows[-1]["state"] == "done", rows
+        t0 = time.time()
+        while b.execute_script("return studio.openId") != third and time.time() - t0 < 10:
+            time.sleep(0.05)
+        names = b.execute_script("return [...document.querySelectorAll('#downloads button')].map(x => x.dataset.file)")
+        assert {"take.fbx", "take.vrma", "arkit.csv"} <= set(names) and "take.bvh" not in names, names
+        b.switch_to.frame(b.find_element("id", "viewer"))
+        wait_ready(b, 90)
+        title = b.execute_script("return document.getElementById('title').textContent")
+        b.switch_to.default_content()
+        assert "she smiles, then blinks twice" in title, title
         assert not [c for c in console(b) if "SEVERE" in c and "favicon" not in c], console(b)
