@@ -32,6 +32,7 @@ LAYERS: dict[str, int] = {
     "view": 7,  # features (independent of each other)
     "live": 8,  # real time: a live source tracked into the page, Live Link, VMC, a take; live re-enactment
     "eval": 8,  # metrics and evaluation runners
+    "studio": 8,  # the local web app: jobs run by the commands of the features, their results in the viewer
     "cli": 9,
     "__main__": 10,  # the command line, and `python -m anima`
 }

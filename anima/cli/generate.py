@@ -148,6 +148,7 @@ def cmd_gesture(a) -> int:
         refiner=a.refiner,
         render=not a.no_render,
         command=command_line(a),
+        progress=not a.json,
         preset=a.rig,
         library=a.library,
         body=a.body,

@@ -82,8 +82,9 @@ class _RequestReader(io.RawIOBase):
         return self.sock.recv_into(b)
 
 
-class _Handler(BaseHTTPRequestHandler):
-    """GET/HEAD of the files of one flat folder under ``/TOKEN/``, with ``Range`` (HTTP 206), no caching."""
+class FileHandler(BaseHTTPRequestHandler):
+    """GET/HEAD of the files of one flat folder under ``/TOKEN/``, with ``Range`` (HTTP 206), no caching. ``anima
+    studio`` extends it (its API beside the files): :meth:`send_file` sends any file the subclass resolved."""
 
     root: Path
     token: str
@@ -191,6 +192,10 @@ class _Handler(BaseHTTPRequestHandler):
         p, status = self._file()
         if p is None:
             return self._refuse(status, head_only)
+        return self.send_file(p, head_only)
+
+    def send_file(self, p: Path, head_only: bool = False) -> None:
+        """Answer with the file ``p`` (resolved and checked by the caller), or the part a ``Range`` asks for."""
         try:
             fh = open(p, "rb")
         except OSError:
@@ -296,14 +301,14 @@ class _Server(ThreadingHTTPServer):
 
 
 def open_server(
-    root: Path, port: int | None, token: str | None = None, live=None
+    root: Path, port: int | None, token: str | None = None, live=None, handler: type | None = None
 ) -> tuple[ThreadingHTTPServer, str | None]:
     """A server of ``root`` on 127.0.0.1: ``port``, or a free one (and a note) when that one is taken. Its
     files are under ``/TOKEN/`` (``server.token``); with ``live`` (a :class:`anima.view.ws.Broadcaster`),
-    ``/TOKEN/live`` is its WebSocket."""
+    ``/TOKEN/live`` is its WebSocket. ``handler``: a subclass of :class:`FileHandler` to answer instead."""
     token = token or secrets.token_urlsafe(18)
     attrs = {"root": Path(root), "token": token, "hosts": frozenset(), "live": live}
-    handler = type("Handler", (_Handler,), attrs)
+    handler = type("Handler", (handler or FileHandler,), attrs)
     note = None
     try:
         server = _Server((HOST, port or 0), handler)
