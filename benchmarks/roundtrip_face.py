@@ -30,10 +30,11 @@ over 1 s, then 0.5 s at rest; blinks (AU45: four blinks in 3 s, each closing ove
 mouthRollLower moving like talk: smoothed random curves, syllables 3-5 a second; no smile), then 1 s at rest.
 Each clip is an H.264 video (:class:`anima.io.video.VideoWriter`).
 
-**Capture.** :func:`anima.capture.pipeline.capture_face` (``anima capture --face-only``, the shipped defaults),
-then the weights a user gets: :func:`anima.facemodel.neutral.presented` (the clip's rest face taken out: what
-``arkit.csv``, Live Link, glTF and the character carry; ``arkit.csv`` also averages browInnerUp_L/R and
-cheekPuff_L/R into one ARKit column and clips to [0, 1], as here), and the fit before that (``fit``) beside it.
+**Capture.** :func:`anima.capture.pipeline.capture_face` (``anima capture --face-only``, the shipped defaults), then
+the weights a user gets: :func:`anima.export.avatar.character_face` (the clip's rest face taken out, the lids, lips
+and brows set from the landmarks: what ``arkit.csv``, Live Link, glTF and the character carry; ``arkit.csv`` also
+averages browInnerUp_L/R and cheekPuff_L/R into one ARKit column and clips to [0, 1], as here), and the fit before
+that (``fit``) beside it.
 
 **Metrics** (every frame of every clip unless said; ``frames`` and ``identities`` say what stands behind a
 number; intervals are over identities: each identity's number with its two views pooled, then their mean, min
@@ -63,6 +64,8 @@ import numpy as np
 
 from anima.capture.config import CaptureConfig
 from anima.capture.pipeline import capture_face
+from anima.core.contract import EXPR_NAMES
+from anima.export.avatar import character_face
 from anima.facemodel.ict import GEOMETRY_RANGES, load_face_model
 from anima.facemodel.neutral import presented
 from anima.io.atomic import write_json
@@ -320,7 +323,8 @@ def run_clip(model, ident: int, coef: np.ndarray, view_name: str, combos, speech
     t1 = time.perf_counter()
     seq = capture_face(str(video), CaptureConfig(face_only=True), progress=False)
     t2 = time.perf_counter()
-    G, rest = presented(seq)
+    rest = presented(seq)[1]
+    G = character_face(seq)[:, [EXPR_NAMES.index(n) for n in seq.expr_names]]  # what every export carries
     F = min(len(W), seq.n_frames)
     clip = {
         "identity": ident, "view": view_name, "truth": W[:F], "got": np.clip(G[:F], 0, 1),
@@ -523,7 +527,7 @@ def main() -> None:
         "views": {v: VIEWS[v] for v in views}, "combinations": {c: COMBOS[c] for c in combos},
         "speech": {"seconds": speech_s, "channels": SPEECH}, "fps": FPS, "size": SIZE,
         "capture": "anima.capture.pipeline.capture_face (anima capture --face-only), then "
-                   "anima.facemodel.neutral.presented (what arkit.csv carries)",
+                   "anima.export.avatar.character_face (what arkit.csv and every export carry)",
         "reader": f"mediapipe {mediapipe.__version__}", "machine": "2 cores, no GPU",
         "clips": [{k: c[k] for k in ("identity", "view", "frames_rendered", "frames_captured", "render_s",
                                      "capture_s", "rest_taken")} | {"face_found": round(float(c["tracked"].mean()), 4)}

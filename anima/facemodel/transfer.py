@@ -286,6 +286,29 @@ def keep_mean(x: np.ndarray, mean: float) -> np.ndarray:
     return np.clip(lo * x, 0.0, 1.0) if np.clip(x, 0.0, 1.0).mean() > mean else np.clip(x, 0.0, 1.0)
 
 
+SHUT_READ = 0.2
+"""What a tracker reads of a shut eye (its opening over the open eye's, :func:`eye_opening`): the lids the export
+carries close fully there (:func:`lid_closure`). Chosen on the face round trip's development identities
+(``benchmarks/roundtrip_face.py``, identities 0-2; left eye's error and r over all frames): a held blink (truth 1)
+reached eyeBlink 0.50 through the close-up's calibration (:data:`EYE_SHOWN`, which keeps Face Mesh reading the
+character as it reads the person; error 0.07, r 0.68), 0.58 with the opening taken as the gap (0.07, 0.70), 0.71 /
+0.75 / 0.78 closing linearly from the open eye to a shut reading of 0.2 / 0.3 / 0.4 (0.11 / 0.13 / 0.19: talking
+eyes narrowed), 0.89 by the fit alone (0.18, 0.66); the opening itself down to :data:`LID_KNEE`, then closing to 0
+at 0.2: 0.70 (0.07, 0.75)."""
+
+
+LID_KNEE = 0.6
+"""Down to this opening (of the open eye's) the lids' gap is the opening itself: a talking eye keeps its size."""
+
+
+def lid_closure(opening: np.ndarray, shut=SHUT_READ, knee=LID_KNEE) -> np.ndarray:
+    """The lid gap (over the rest gap) an eye's ``opening`` (over the open eye; :func:`eye_opening`) asks for: the
+    opening itself down to ``knee`` (:data:`LID_KNEE`), from there linear to 0 at ``shut`` (:data:`SHUT_READ`),
+    0 under it; at most 1.5; NaN stays NaN."""
+    x = np.asarray(opening, np.float64)
+    return np.clip(np.where(x < knee, knee * (x - shut) / (knee - shut), x), 0.0, 1.5)
+
+
 def lid_gap(opening: np.ndarray, squint=0.0, shown=EYE_SHOWN) -> np.ndarray:
     """The character's lid gap (over its rest gap) whose close-up shows an eye's ``opening`` (over the open eye;
     :func:`eye_opening`) with its eyeSquint weight ``squint`` (a number, or one per opening): the inverse of each
@@ -520,12 +543,13 @@ class Transfer:
         out[:, c] = np.where(seen, np.clip(close, 0.0, 1.0), out[:, c])
         return out
 
-    def follow_lids(self, Wc: np.ndarray, opening: np.ndarray, names, shown=EYE_SHOWN) -> np.ndarray:
+    def follow_lids(self, Wc: np.ndarray, opening: np.ndarray, names, shown=SHUT_READ) -> np.ndarray:
         """The character's weights ``Wc [F, 53]`` (named ``names``) with each eye's lids set so that its close-up
         shows the person's opening: ``opening [F, 2]`` (left, right) is each eye's opening over its open eye
         (:func:`eye_opening`: 1 open, 0 shut; NaN where not seen, left as it is). The gap of the character's
-        lids is its rest gap times :func:`lid_gap` of that at the frame's eyeSquint weight (through ``shown``,
-        :data:`EYE_SHOWN`; ``None``: the opening itself), by eyeBlink (closing) or eyeWide (opening wider), the
+        lids is its rest gap times :func:`lid_closure` of that (``shown``: the shut reading, :data:`SHUT_READ`; a
+        table such as :data:`EYE_SHOWN`: :func:`lid_gap` at the frame's eyeSquint weight, so that the close-up
+        reads as the video; ``None``: the opening itself), by eyeBlink (closing) or eyeWide (opening wider), the
         other channels kept."""
         out = np.array(Wc, np.float64)
         ix = {n: i for i, n in enumerate(names)}
@@ -533,6 +557,8 @@ class Transfer:
         for k, s in enumerate(("L", "R")):
             if shown is None:
                 gaps = np.clip(opening[:, k], 0.0, 1.5)
+            elif np.isscalar(shown):
+                gaps = lid_closure(opening[:, k], float(shown))
             else:
                 gaps = lid_gap(opening[:, k], out[:, ix[f"eyeSquint_{s}"]], shown)
             dy = self._gap_change(s)

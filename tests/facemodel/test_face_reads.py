@@ -193,7 +193,7 @@ def test_the_characters_lids_open_as_the_video_shows(d0_capture):
     from scipy.stats import spearmanr
 
     from anima.export.avatar import character_face
-    from anima.facemodel.transfer import EYE_SHOWN, eye_opening, lid_gap
+    from anima.facemodel.transfer import EYE_SHOWN, LID_KNEE, SHUT_READ, eye_opening, lid_closure, lid_gap
 
     t = _transfer()
     rest = t.lid_gaps(np.zeros((1, 53)))[0]
@@ -216,9 +216,14 @@ def test_the_characters_lids_open_as_the_video_shows(d0_capture):
     assert lid_gap(np.array([0.0, min(reads[0])])).max() == 0.0 and 0.55 < lid_gap(np.array([0.5]))[0] < 0.65
     assert lid_gap(np.array([0.5]), 1.0)[0] < lid_gap(np.array([0.5]))[0] - 0.05  # the lower lid risen: less gap
     assert np.isnan(lid_gap(np.array([np.nan]))[0]) and lid_gap(np.array([9.0]))[0] == 1.5
-    calibrated = t.follow_lids(W, opening, EXPR_NAMES)  # the left eye at eyeSquint 0.3
+    calibrated = t.follow_lids(W, opening, EXPR_NAMES, shown=EYE_SHOWN)  # the left eye at eyeSquint 0.3
     asked = np.stack([lid_gap(opening[:3, 0], 0.3), lid_gap(opening[:3, 1], 0.0)], -1)
     np.testing.assert_allclose(t.lid_gaps(calibrated[:3]) / rest, asked, atol=0.02)
+    # what every export carries: the opening itself down to the knee, then shut at the shut reading
+    closed = t.follow_lids(W, opening, EXPR_NAMES)
+    np.testing.assert_allclose(t.lid_gaps(closed[:3]) / rest, lid_closure(opening[:3]), atol=0.02)
+    x = np.array([0.0, SHUT_READ, (SHUT_READ + LID_KNEE) / 2, LID_KNEE, 0.8, 1.2, np.nan])
+    np.testing.assert_allclose(lid_closure(x), [0.0, 0.0, LID_KNEE / 2, LID_KNEE, 0.8, 1.2, np.nan])
 
     seq = d0_capture
     seen = eye_opening(seq.landmarks, seq.tracked, seq.width, seq.height)
