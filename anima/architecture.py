@@ -18,6 +18,7 @@ LAYERS: dict[str, int] = {
     "architecture": 0,
     "core": 0,  # pure maths, conventions, the data contract
     "io": 1,  # files: assets, artifacts, checkpoints, writers
+    "track": 1,  # trackers: the models that find faces, bodies and hands in frames (MediaPipe)
     "facemodel": 2,
     "audio": 2,  # models of data: the face model, speech features
     "render": 3,

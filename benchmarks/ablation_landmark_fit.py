@@ -19,10 +19,10 @@ import scipy.io as sio
 
 from anima.capture.config import FitConfig
 from anima.capture.landmark_sets import calibration_samples
-from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.eval.landmarks import aflw_items, fit_image_68
 from anima.eval.metrics import nme_bbox
 from anima.io.atomic import write_json
+from anima.track.mediapipe import FaceMeshTracker
 
 
 def score(items, tracker, cfg: FitConfig) -> dict:

@@ -22,7 +22,6 @@ from pathlib import Path
 os.environ.setdefault("GLOG_minloglevel", "2")
 
 from anima.capture.config import CaptureConfig
-from anima.capture.holistic import HolisticTracker
 from anima.capture.pipeline import capture_video
 from anima.export.avatar import character_motion
 from anima.facemodel.correspondence import load_correspondence
@@ -30,6 +29,7 @@ from anima.facemodel.ict import load_face_model
 from anima.io.assets import asset
 from anima.io.atomic import write_json
 from anima.io.video import iter_frames, probe_video
+from anima.track.mediapipe import HolisticTracker
 
 
 def raw_holistic(path: str) -> float:

@@ -22,13 +22,13 @@ os.environ.setdefault("GLOG_minloglevel", "2")
 import numpy as np
 
 from anima.capture.config import CaptureConfig
-from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.capture.pipeline import capture_face, fit_landmark_sequence
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
 from anima.io.assets import asset
 from anima.io.atomic import write_json
 from anima.io.video import iter_frames, probe_video
+from anima.track.mediapipe import FaceMeshTracker
 
 
 def raw_mediapipe(path: str, n: int) -> tuple[float, np.ndarray]:

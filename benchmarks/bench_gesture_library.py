@@ -33,6 +33,7 @@ import platform
 import sys
 import time
 from collections import defaultdict
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -54,7 +55,7 @@ from anima.eval.gesture.metrics import (  # noqa: E402
 from anima.gesture.config import GestureConfig  # noqa: E402
 from anima.gesture.database import distinct_seconds, from_library, with_variants  # noqa: E402
 from anima.gesture.knn import MatchDB  # noqa: E402
-from anima.gesture.run import library_no_repeat_s, synthesize  # noqa: E402
+from anima.gesture.run import SEED_SEARCH, library_no_repeat_s, synthesize  # noqa: E402
 from anima.gesture.strokes import alignment  # noqa: E402
 from anima.io.assets import data_root  # noqa: E402
 from anima.io.atomic import write_json  # noqa: E402
@@ -115,13 +116,9 @@ def no_repeat_for(db: MatchDB, library_rule: bool) -> float:
 
 
 def gestures(speech: str, db: MatchDB, cond: dict) -> tuple[np.ndarray, dict]:
-    return synthesize(
-        speech,
-        db,
-        no_repeat_s=no_repeat_for(db, cond["library_no_repeat"]),
-        stroke_rank=cond["stroke_rank"],
-        stroke_shift=cond["stroke_shift"],
-    )
+    cfg = replace(SEED_SEARCH, no_repeat_s=no_repeat_for(db, cond["library_no_repeat"]),
+                  stroke_rank=cond["stroke_rank"], stroke_shift=cond["stroke_shift"])  # fmt: skip
+    return synthesize(speech, db, cfg)
 
 
 def windows_of(J: np.ndarray, T: int = 64, hop: int = 32) -> np.ndarray:

@@ -45,7 +45,6 @@ def main() -> None:
     a = ap.parse_args()
     from anima.capture.config import CaptureConfig
     from anima.capture.fit import LandmarkBasis, choose_keyframes, fit_frames, fit_identity
-    from anima.capture.mediapipe_face import FaceMeshTracker
     from anima.core.camera import mediapipe_to_camera
     from anima.facemodel.correspondence import load_correspondence
     from anima.facemodel.ict import load_face_model
@@ -54,6 +53,7 @@ def main() -> None:
     from anima.reenact.pipeline import Reenactor
     from anima.reenact.render import composite
     from anima.reenact.synth import adaptive_sigma, nearest, weighted_median_listing1, weights
+    from anima.track.mediapipe import FaceMeshTracker
 
     with tempfile.TemporaryDirectory() as tmp:
         ups = []

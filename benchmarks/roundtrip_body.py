@@ -64,7 +64,8 @@ import numpy as np
 
 from anima.capture.config import CaptureConfig
 from anima.capture.pipeline import capture_video
-from anima.core import rig
+from anima.core import kinematics, rig
+from anima.core.character import CharacterMesh, Motion, Skeleton
 from anima.core.contract import JOINT_NAMES, LEG_JOINTS
 from anima.core.rotations import matrix_to_quat
 from anima.export.avatar import character_motion
@@ -183,12 +184,12 @@ def put_hand_on_chest(L, G, P, rest, V, ch, fps):
     W_t = P[:, chest] + np.einsum("fij,j->fi", Gc, spot) - np.einsum("fij,j->fi", Gh_t, palm_off)
     fwd = np.einsum("fij,j->fi", Gc, [0.0, 0.0, 1.0])
     W = (1 - w)[:, None] * P[:, hand] + w[:, None] * W_t + 0.1 * np.sin(np.pi * w)[:, None] * fwd
-    pole_t = np.einsum("fij,j->fi", Gc, rig._unit(np.array([-1.0, -1.0, -0.3])))
-    pole = (1 - w)[:, None] * rig._unit(P[:, fore] - P[:, arm]) + w[:, None] * pole_t
+    pole_t = np.einsum("fij,j->fi", Gc, kinematics.unit(np.array([-1.0, -1.0, -0.3])))
+    pole = (1 - w)[:, None] * kinematics.unit(P[:, fore] - P[:, arm]) + w[:, None] * pole_t
     on = w > 0
-    el = rig._two_bone(P[on, arm], W[on], a, b, pole[on])
-    Ga = rig._aim(G[on, sh], rest[fore] - rest[arm], el - P[on, arm])
-    Gf = rig._aim(Ga, rest[hand] - rest[fore], W[on] - el)
+    el = kinematics.two_bone(P[on, arm], W[on], a, b, pole[on])
+    Ga = kinematics.aim(G[on, sh], rest[fore] - rest[arm], el - P[on, arm])
+    Gf = kinematics.aim(Ga, rest[hand] - rest[fore], W[on] - el)
     Gh = rig.slerp_rot(G[on, hand], Gh_t[on], w[on])
     L = L.copy()
     T = lambda M: np.swapaxes(M, -1, -2)
@@ -242,12 +243,12 @@ def truth_motion(J: np.ndarray, fps: float, on_chest: bool = False):
 def write_take(m: dict, fps: float, path: Path) -> Path:
     ch = m["ch"]
     F = len(m["root"])
-    write_character_glb(
-        path, rig.preset_names("anima"), rig.PARENTS_RIG, m["rest"], m["root"], matrix_to_quat(m["local"]),
-        m["vertices"], vertex_normals(m["vertices"], ch.faces), ch.faces, ch.skin_joints, ch.skin_weights,
-        list(zip(ch.morph_index, ch.morph_delta)), [f"m{k}" for k in range(len(ch.morph_index))],
-        np.zeros((F, len(ch.morph_index))), fps, {}, {"anima_fps": fps}, animated=~rig.LEAVES,
-    )  # fmt: skip
+    skeleton = Skeleton(rig.preset_names("anima"), rig.PARENTS_RIG, m["rest"])
+    morphs = list(zip(ch.morph_index, ch.morph_delta))
+    c = CharacterMesh(skeleton, m["vertices"], vertex_normals(m["vertices"], ch.faces), ch.faces, ch.skin_joints,
+                      ch.skin_weights, morphs, [f"m{k}" for k in range(len(morphs))])  # fmt: skip
+    motion = Motion(m["root"], matrix_to_quat(m["local"]), fps, np.zeros((F, len(ch.morph_index))), ~rig.LEAVES)
+    write_character_glb(path, c, motion, {}, {"anima_fps": fps})
     return path
 
 

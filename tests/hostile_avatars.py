@@ -172,6 +172,7 @@ def unseen_rig(path, seed=3, arkit=False):
     rotations mean nothing to anima's rig), the whole body facing -z, names ``mixamorig1_*``; its morph targets
     named ``shape0``... (none found by name), or ``arkit``: as ARKit names them."""
     from anima.core import rig
+    from anima.core.character import CharacterMesh, Motion, Skeleton
     from anima.core.contract import EXPR_NAMES
     from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
     from anima.export.vrm import character_avatar
@@ -189,12 +190,13 @@ def unseen_rig(path, seed=3, arkit=False):
     local = np.einsum("jba,jbc->jac", R[par], R)
     local[rig.HIPS] = R[rig.HIPS]
     morphs = list(EXPR_NAMES) if arkit else [f"shape{k}" for k in range(len(ch.morph_index))]
-    return write_character_glb(
-        path, ["mixamorig1_" + n for n in rig.NAMES], rig.PARENTS_RIG, J, J[rig.HIPS][None],
-        matrix_to_quat(local)[None], V, vertex_normals(V, ch.faces), ch.faces, ch.skin_joints, ch.skin_weights,
-        list(zip(ch.morph_index, ch.morph_delta)), morphs,
-        np.zeros((1, len(ch.morph_index))), 30.0, animated=~rig.LEAVES, rest_rotations=R,
+    character = CharacterMesh(
+        Skeleton(["mixamorig1_" + n for n in rig.NAMES], rig.PARENTS_RIG, J, R), V, vertex_normals(V, ch.faces),
+        ch.faces, ch.skin_joints, ch.skin_weights, list(zip(ch.morph_index, ch.morph_delta)), morphs,
     )  # fmt: skip
+    weights = np.zeros((1, len(ch.morph_index)))
+    motion = Motion(J[rig.HIPS][None], matrix_to_quat(local)[None], 30.0, weights, ~rig.LEAVES)
+    return write_character_glb(path, character, motion)
 
 
 def with_mtoon_outline(src: Path, dst: Path) -> Path:

@@ -13,7 +13,6 @@ import numpy as np
 from anima.capture.config import FitConfig
 from anima.capture.fit import LandmarkBasis, fit_frames, fit_identity
 from anima.capture.landmark_sets import calibration_samples
-from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.core.camera import camera_to_image, mediapipe_to_camera
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
@@ -21,6 +20,7 @@ from anima.facemodel.landmarks68 import FILENAME, calibrate
 from anima.io.assets import package_data
 from anima.io.atomic import write_text
 from anima.io.outdir import check_out_file
+from anima.track import get
 
 
 def calibrate_ibug68(radius_cm: float = 1.2) -> dict:
@@ -29,7 +29,7 @@ def calibrate_ibug68(radius_cm: float = 1.2) -> dict:
     model, corr, cfg = load_face_model(), load_correspondence(), FitConfig()
     basis = LandmarkBasis.build(model, corr, cfg.use_iris)
     uvs, gts, names = [], [], []
-    with FaceMeshTracker(static_image_mode=True) as tr:
+    with get().face_mesh(static=True) as tr:
         for s in calibration_samples():
             lm = tr(np.ascontiguousarray(s.rgb))
             if lm is None:

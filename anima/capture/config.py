@@ -5,6 +5,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from anima.track import DEFAULT as DEFAULT_TRACKER
+from anima.track import TRACKERS
+
 
 @dataclass
 class FitConfig:
@@ -50,6 +53,8 @@ class CaptureConfig:
     """Fit chunks of frames on a worker thread while MediaPipe tracks (hides most of the fitting time)."""
     face_only: bool = False
     """Track the face only (MediaPipe face mesh: the fast path); otherwise Holistic: face, body and hands."""
+    tracker: str = field(default=DEFAULT_TRACKER, metadata={"choices": tuple(TRACKERS)})
+    """The tracker that finds the face, body and hands (docs/architecture.md says how to add one)."""
     body_min_conf: float = 0.5
     """Body joints with a pose visibility below this are dropped before interpolation."""
     max_gap: int = field(default=8, metadata={"range": (0, 10_000)})

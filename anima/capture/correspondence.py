@@ -8,7 +8,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.core.camera import mediapipe_to_camera
 from anima.errors import InputError
 from anima.facemodel.correspondence import (
@@ -22,12 +21,13 @@ from anima.facemodel.ict import load_face_model
 from anima.io.assets import asset, package_data
 from anima.io.outdir import check_out_file
 from anima.io.validate import npz_headers
+from anima.track import get
 
 
 def mediapipe_template(images: list[np.ndarray]) -> np.ndarray:
     """Generalised-Procrustes mean of MediaPipe landmarks (camera space) over RGB images."""
     shapes = []
-    with FaceMeshTracker(static_image_mode=True) as tr:
+    with get().face_mesh(static=True) as tr:
         for im in images:
             lm = tr(im)
             if lm is not None:

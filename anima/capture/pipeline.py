@@ -1,4 +1,5 @@
-"""Monocular face capture: decode -> MediaPipe face mesh (video mode) -> ICT fit -> smoothing -> artifact."""
+"""Monocular face capture: decode -> the tracker's face mesh or holistic model (video mode, :mod:`anima.track`)
+-> ICT fit -> smoothing -> artifact."""
 
 from __future__ import annotations
 
@@ -16,9 +17,8 @@ from anima.capture.body import assemble, clean
 from anima.capture.camera_motion import BackgroundMotion
 from anima.capture.config import CaptureConfig
 from anima.capture.fit import FrameFit, LandmarkBasis, choose_keyframes, fit_frames, fit_identity, landmark_error
-from anima.capture.holistic import HolisticTracker
-from anima.capture.mediapipe_face import N_LANDMARKS, FaceMeshTracker
 from anima.core.camera import mediapipe_to_camera
+from anima.core.contract import N_FACE_LANDMARKS as N_LANDMARKS
 from anima.core.filters import gaussian_smooth
 from anima.core.rotations import matrix_to_rotvec
 from anima.core.skeleton import JOINT_NAMES, PARENTS
@@ -29,6 +29,7 @@ from anima.io.sequence import FLAG_LOW_CONFIDENCE, FLAG_NO_FACE, TrackedSequence
 from anima.io.video import VideoInfo, iter_frame_range, iter_frames, probe_video
 from anima.pose3d.config import default_checkpoint
 from anima.pose3d.infer import lift_frames, replace_body
+from anima.track import DEFAULT, get
 
 MIN_SIZE = 32  # px; smaller videos cannot hold a trackable face
 NO_FACE = np.full((N_LANDMARKS, 3), np.nan, np.float32)  # a frame's landmarks where no face was found
@@ -65,13 +66,14 @@ def track_landmarks(
     warnings_out: list[str] | None = None,
     on_frame=None,
     on_progress=None,
+    tracker: str = DEFAULT,
 ) -> np.ndarray:
-    """Run MediaPipe face mesh over the video; ``[F, 478, 3]`` normalised landmarks, NaN where no face.
+    """Run the ``tracker``'s face mesh over the video; ``[F, 478, 3]`` normalised landmarks, NaN where no face.
     ``on_frame(landmarks)`` is called after each frame (used to fit while tracking), ``on_progress(1)`` too
     (a build's frame counter)."""
     out = []
-    with FaceMeshTracker(static_image_mode=False) as tracker:
-        for _, lm in _each_frame(info, tracker, max_frames, progress, warnings_out, on_progress):
+    with get(tracker).face_mesh(static=False) as model:
+        for _, lm in _each_frame(info, model, max_frames, progress, warnings_out, on_progress):
             out.append(NO_FACE.copy() if lm is None else lm)
             if on_frame is not None:
                 on_frame(out[-1])
@@ -219,13 +221,7 @@ def fit_landmark_sequence(
     flags[low] |= FLAG_LOW_CONFIDENCE
     meta = dict(meta or {})
     meta.update(
-        tracker={
-            "name": "mediapipe.face_mesh",
-            "version": _mp_version(),
-            "refine_landmarks": True,
-            "mode": "video",
-            "landmarks": N_LANDMARKS,
-        },
+        tracker=get(cfg.tracker).face_provenance(),
         face_model={
             "name": "ICT-FaceKit light",
             "n_identity": int(basis.ident.shape[-1]),
@@ -294,12 +290,6 @@ def with_seen_blinks(expr: np.ndarray, names: list[str], lm: np.ndarray, found: 
     return out
 
 
-def _mp_version() -> str:
-    import mediapipe
-
-    return getattr(mediapipe, "__version__", "?")
-
-
 def track_holistic(
     info: VideoInfo,
     max_frames: int | None = None,
@@ -307,13 +297,14 @@ def track_holistic(
     warnings_out: list[str] | None = None,
     on_face=None,
     on_progress=None,
+    tracker: str = DEFAULT,
 ):
-    """Run MediaPipe Holistic over the video. Returns (face landmarks ``[F, 478, 3]`` NaN where no face,
-    list of :class:`HolisticFrame`). ``on_progress(1)`` is called after each frame."""
+    """Run the ``tracker``'s holistic model over the video. Returns (face landmarks ``[F, 478, 3]`` NaN where no
+    face, list of :class:`anima.track.HolisticFrame`). ``on_progress(1)`` is called after each frame."""
     lms, frames = [], []
     background = BackgroundMotion()
-    with HolisticTracker() as tracker:
-        for image, fr in _each_frame(info, tracker, max_frames, progress, warnings_out, on_progress):
+    with get(tracker).holistic() as model:
+        for image, fr in _each_frame(info, model, max_frames, progress, warnings_out, on_progress):
             fr.camera_step = background(image, fr.pose)
             frames.append(fr)
             lms.append(NO_FACE.copy() if fr.face is None else fr.face)
@@ -326,7 +317,7 @@ def track_holistic(
 
 @dataclass
 class Tracked:
-    """What tracking a video gave: face landmarks ``[F, 478, 3]`` (NaN where no face), Holistic's frames,
+    """What tracking a video gave: face landmarks ``[F, 478, 3]`` (NaN where no face), the holistic frames,
     decoding warnings, and (for a video tracked in chunks) how it was cut."""
 
     landmarks: np.ndarray
@@ -336,9 +327,15 @@ class Tracked:
 
 
 def track_holistic_range(
-    info: VideoInfo, start: int, stop: int, warmup: int = 0, times: np.ndarray | None = None, on_progress=None
+    info: VideoInfo,
+    start: int,
+    stop: int,
+    warmup: int = 0,
+    times: np.ndarray | None = None,
+    on_progress=None,
+    tracker: str = DEFAULT,
 ) -> Tracked:
-    """MediaPipe Holistic over frames ``start`` to ``stop - 1`` only (one chunk of a long video, see
+    """The ``tracker``'s holistic model over frames ``start`` to ``stop - 1`` only (one chunk of a long video, see
     :func:`anima.io.video.iter_frame_range`). Tracking starts ``warmup`` frames earlier and those frames are
     dropped: in video mode MediaPipe carries each frame's regions of interest and its pose smoothing to the next
     frame, so a chunk that started cold would differ from the whole-video run for its first frames.
@@ -347,9 +344,9 @@ def track_holistic_range(
     errs: list[str] = []
     first = max(0, start - warmup)
     background = BackgroundMotion()
-    with HolisticTracker() as tracker:
+    with get(tracker).holistic() as model:
         for k, image in iter_frame_range(info, first, stop, times=times, errors=errs):
-            fr = tracker(image)
+            fr = model(image)
             fr.camera_step = background(image, fr.pose)
             if k < start:
                 continue
@@ -466,7 +463,9 @@ def capture_video(
         t0 = time.perf_counter()
         if tracked is None:
             stream = StreamingPrefit(info.width, info.height, cfg) if cfg.stream else None
-            lm, frames = track_holistic(info, cfg.max_frames, progress, warns, on_face=stream, on_progress=on_progress)
+            lm, frames = track_holistic(
+                info, cfg.max_frames, progress, warns, on_face=stream, on_progress=on_progress, tracker=cfg.tracker
+            )
             found = np.isfinite(lm).all(axis=(1, 2))
             prefit = stream.result(len(lm)) if stream is not None and found.any() else None
             if stream is not None and not found.any():
@@ -484,7 +483,7 @@ def capture_video(
                 prefit = stream.result(len(lm))
         t1 = time.perf_counter()
         body = assemble(frames, info.width, info.height, info.fps)
-        tracker = "mediapipe.holistic (model_complexity=1)"
+        tracker = get(cfg.tracker).body_provenance()
         if cfg.body_3d == "lifter":
             tracker += " + " + _lift_body(body, frames, info.width, info.height, cfg.pose_model)
         elif cfg.body_3d != "mediapipe":
@@ -543,7 +542,9 @@ def capture_face(
     warns = list(info.warnings)
     t0 = time.perf_counter()
     stream = StreamingPrefit(info.width, info.height, cfg) if cfg.stream else None
-    lm = track_landmarks(info, cfg.max_frames, progress, warns, on_frame=stream, on_progress=on_progress)
+    lm = track_landmarks(
+        info, cfg.max_frames, progress, warns, on_frame=stream, on_progress=on_progress, tracker=cfg.tracker
+    )
     found = np.isfinite(lm).all(axis=(1, 2))
     prefit = stream.result(len(lm)) if stream is not None else None
     t1 = time.perf_counter()

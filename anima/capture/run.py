@@ -22,6 +22,7 @@ from anima.io.sequence import read_sequence
 from anima.io.validate import input_file
 from anima.io.video import probe_video
 from anima.pose3d.config import default_checkpoint
+from anima.track import get
 
 MIN_REST_S = 0.5
 """A ``--neutral`` clip needs a face on at least this long."""
@@ -31,8 +32,10 @@ def check_capture_inputs(
     cfg: CaptureConfig, video: str, audio: str | None = None, audio_optional: bool = False, neutral: str | None = None
 ) -> None:
     """Fail before tracking on what would fail after it: an unreadable video, ``--audio`` (unless
-    ``audio_optional``) or ``--neutral`` clip, a lifter run without a body, a bad checkpoint."""
+    ``audio_optional``) or ``--neutral`` clip, a lifter run without a body, a bad checkpoint, an unknown or
+    uninstalled tracker."""
     probe_video(input_file(video, "video"))
+    get(cfg.tracker).check()
     if neutral is not None:
         _neutral_source(neutral)
     if audio is not None and not audio_optional:

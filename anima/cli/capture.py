@@ -19,6 +19,7 @@ CAPTURE_OPTIONS = [
     "max_frames",
     "smooth_sigma",
     "face_only",
+    "tracker",
     "max_gap",
     "fixed_bones",
     "body_3d",

@@ -69,7 +69,7 @@ def cmd_all(a) -> int:
         raise InputError(f"{cfg.db}: the dataset needs (audio, motion) windows and (text, motion) clips")
     say = None if a.json else (lambda line: print(f"anima eval all: {line}", file=sys.stderr, flush=True))
     command = " ".join(["anima", *sys.argv[1:]])
-    r = run_all(cfg.db, out, cfg.work, cfg.quick, cfg.only or None, say, command, cfg.jobs, cfg.resume)
+    r = run_all(dataclasses.replace(cfg, out=str(out)), say, command)
     summary = {
         "results": str(Path(out) / "results.json"),
         "summary": str(Path(out) / "summary.md"),

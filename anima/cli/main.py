@@ -17,7 +17,7 @@ os.environ.setdefault("GLOG_minloglevel", "2")
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
 
 from anima import __version__
-from anima.errors import AnimaError
+from anima.errors import AnimaError, extra_missing
 
 COMMANDS = {
     "studio": "studio",
@@ -163,11 +163,10 @@ def main(argv: list[str] | None = None) -> int:
             return 130
         if a.debug:
             raise
-        print(
-            f"anima: internal error: {type(e).__name__}: {_one_line(e)} (rerun with --debug for details)",
-            file=sys.stderr,
-        )
-        return 1
+        err = extra_missing(e, f"anima {a.command}")  # an optional library not installed: its extra, exit 3
+        why = f"error: {_one_line(err)}" if err else f"internal error: {type(e).__name__}: {_one_line(e)}"
+        print(f"anima: {why}{'' if err else ' (rerun with --debug for details)'}", file=sys.stderr)
+        return err.exit_code if err else 1
 
 
 def _stdout_done() -> None:

@@ -31,6 +31,7 @@ import numpy as np
 from anima.core import ground
 from anima.core.contract import JOINT_NAMES
 from anima.core.filters import gaussian_smooth
+from anima.core.kinematics import aim, two_bone
 
 REST_SPEED = 0.6
 MAX_GAP_M = 0.50  # the tracker put a palm held on the chest 39-41 cm in front of the torso's joints (round trip)
@@ -110,7 +111,7 @@ def hand_contacts(pic: ground.Picture, fps: float) -> np.ndarray:
             along = (fore >= MIN_FOREARM) & (upper >= MIN_UPPER_ARM)
             chest = down <= CHEST_FRACTION
             c_ok = ok & _inside(c, quad) & chest & along & (speed < REST_SPEED) & (gap < MAX_GAP_M) & (gap > -0.2)
-        out[:, k] = ground._clean_runs(c_ok, min_len=max(2, int(round(MIN_S * fps))), max_gap=2)
+        out[:, k] = ground.clean_runs(c_ok, min_len=max(2, int(round(MIN_S * fps))), max_gap=2)
     return out
 
 
@@ -147,10 +148,11 @@ class TorsoSurface:
         return out
 
 
-def place_hands(G, P, rest, contact, surface: TorsoSurface, chest: int, arms: dict, fps: float, aim, two_bone):
+def place_hands(G, P, rest, contact, surface: TorsoSurface, chest: int, arms: dict, fps: float):
     """Move the palms of the hands in ``contact [F, 2]`` onto ``surface`` along the world's z (in place on the
     global rotations ``G [F, J, 3, 3]``; ``P`` their positions). ``arms``: per side the rig indices
-    ``(shoulder_parent, arm, forearm, hand, [knuckles])``; ``aim`` and ``two_bone`` the rig's aiming and IK.
+    ``(shoulder_parent, arm, forearm, hand, [knuckles])``; the arm bent by two-bone IK
+    (:mod:`anima.core.kinematics`).
     Returns the palms' distance to the surface ``[F, 2]`` after placement (NaN off contact)."""
     gap = np.full((len(G), 2), np.nan)
     for k, side in enumerate(("left", "right")):

@@ -31,8 +31,9 @@ they face the camera), +z towards the camera.
   second in the picture, its track smoothed over :data:`FOOT_SIGMA_FRAMES`), for at least three frames
   (two-frame gaps closed).
 * **Locking** (:func:`lock_feet`): a planted foot stays where it landed: its ankle held at the landing point
-  by a two-bone leg IK (hip, knee, ankle; the knee keeps the plane the tracked leg bent in), blended in and out
-  over :data:`LOCK_BLEND_S`; a foot never goes under the floor (the root rises instead).
+  by a two-bone leg IK (hip, knee, ankle: :func:`anima.core.kinematics.two_bone`; the knee keeps the plane
+  the tracked leg bent in), blended in and out over :data:`LOCK_BLEND_S`; a foot never goes under the floor
+  (the root rises instead).
 """
 
 from __future__ import annotations
@@ -294,7 +295,9 @@ def runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(d[::2], d[1::2]))
 
 
-def _clean_runs(mask: np.ndarray, min_len: int = 3, max_gap: int = 2) -> np.ndarray:
+def clean_runs(mask: np.ndarray, min_len: int = 3, max_gap: int = 2) -> np.ndarray:
+    """``mask`` with gaps of at most ``max_gap`` frames inside its runs closed and runs shorter than ``min_len``
+    dropped."""
     out = np.asarray(mask, bool).copy()
     for a, b in runs(~out):  # close short gaps inside contacts
         if a > 0 and b < len(out) and b - a <= max_gap:
@@ -311,7 +314,7 @@ def foot_contacts(feet: dict, fps: float) -> np.ndarray:
     with np.errstate(all="ignore"):
         low = np.nanmin(np.where(feet["seen"], h, np.nan), 1, keepdims=True)
         c = (h - low < CONTACT_M) & (low < FLIGHT_M) & (v < CONTACT_SPEED) & feet["seen"]
-    return np.stack([_clean_runs(c[:, k]) for k in range(2)], 1)
+    return np.stack([clean_runs(c[:, k]) for k in range(2)], 1)
 
 
 def air_height(feet: dict) -> np.ndarray:
@@ -321,20 +324,6 @@ def air_height(feet: dict) -> np.ndarray:
         low = np.nanmin(h, 1)
     low = np.where(np.isfinite(low), low, 0.0)
     return np.maximum(low - AIR_DEADBAND_M, 0.0)
-
-
-def two_bone(hip: np.ndarray, target: np.ndarray, a: float, b: float, pole: np.ndarray) -> np.ndarray:
-    """Knee positions ``[F, 3]`` of legs of lengths ``a`` (thigh) and ``b`` (shin) from ``hip`` reaching for
-    ``target`` with the knee bending towards ``pole`` (``[F, 3]``; its part along the leg is ignored)."""
-    d = target - hip
-    n = np.linalg.norm(d, axis=-1)
-    n_c = np.clip(n, abs(a - b) + 1e-4, a + b - 1e-4)
-    u = d / np.maximum(n, 1e-9)[:, None]
-    x = (a * a - b * b + n_c * n_c) / (2 * n_c)
-    h = np.sqrt(np.maximum(a * a - x * x, 0.0))
-    side = pole - (pole * u).sum(-1, keepdims=True) * u
-    side = side / np.maximum(np.linalg.norm(side, axis=-1, keepdims=True), 1e-9)
-    return hip + u * x[:, None] + side * h[:, None]
 
 
 def lock_weights(contact: np.ndarray, fps: float) -> np.ndarray:

@@ -23,10 +23,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from anima.core.bvh_math import _kabsch, _min_rotation, local_rotations
+from anima.core import kinematics
 from anima.core.contract import FINGERS, JOINT_NAMES, RIG_JOINTS, RIG_PARENTS
 from anima.core.filters import gaussian_smooth
 from anima.core.ground import runs
+from anima.core.kinematics import aim, fit_rotation, local_rotations, two_bone, unit
 from anima.core.rotations import matrix_to_rotvec, rotvec_to_matrix
 
 NAMES = RIG_JOINTS
@@ -54,18 +55,8 @@ def rest_offsets(rest: np.ndarray) -> np.ndarray:
 
 def forward(L: np.ndarray, rest: np.ndarray, root: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Global rotations and positions ``[F, J, 3, 3]``, ``[F, J, 3]`` of local rotations ``L`` with the hips at
-    ``root [F, 3]``."""
-    off = rest_offsets(rest)
-    G = np.empty_like(L)
-    P = np.empty(L.shape[:2] + (3,))
-    for j in range(N_RIG):
-        p = PARENTS_RIG[j]
-        if p < 0:
-            G[:, j], P[:, j] = L[:, j], root
-        else:
-            G[:, j] = G[:, p] @ L[:, j]
-            P[:, j] = P[:, p] + np.einsum("fij,j->fi", G[:, p], off[j])
-    return G, P
+    ``root [F, 3]`` (:func:`anima.core.kinematics.forward` on the rig)."""
+    return kinematics.forward(L, PARENTS_RIG, rest_offsets(rest), root)
 
 
 def slerp_rot(A: np.ndarray, B: np.ndarray, t) -> np.ndarray:
@@ -74,28 +65,7 @@ def slerp_rot(A: np.ndarray, B: np.ndarray, t) -> np.ndarray:
     return A @ rotvec_to_matrix(d * np.asarray(t, np.float64)[..., None])
 
 
-def _unit(v):
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
-
-
-def _aim(parent_G, rest_vec, target_vec):
-    """The parent's rotation followed by the smallest rotation that points ``rest_vec`` (carried by the parent)
-    along ``target_vec`` (the bone keeps its parent's twist). NaN where the target is unseen."""
-    cur = np.einsum("fij,j->fi", parent_G, rest_vec)
-    G = _min_rotation(cur, target_vec) @ parent_G
-    G[~np.isfinite(target_vec).all(-1)] = np.nan
-    return G
-
-
-def _fit(rest_vecs, target_vecs):
-    """Best rigid rotation of the rest vectors ``[n, 3]`` onto the targets ``[F, n, 3]`` (unit-weighted); NaN
-    where a target is unseen."""
-    ok = np.isfinite(target_vecs).all((-1, -2))
-    A = np.broadcast_to(_unit(rest_vecs), target_vecs.shape)
-    G = np.full(target_vecs.shape[:1] + (3, 3), np.nan)
-    if ok.any():
-        G[ok] = _kabsch(A[ok], _unit(target_vecs[ok]))
-    return G
+# the rig's own earlier names, kept for the body round trip benchmark (benchmarks/roundtrip_body.py)
 
 
 def _tracked(body: np.ndarray, name: str) -> np.ndarray:
@@ -179,8 +149,8 @@ def _globals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None, fp
     up_t = upright(neck - pelvis, np.isfinite(lh).all(-1) & np.isfinite(rh).all(-1), fps)
     mid_r = (r("LeftArm") + r("RightArm")) / 2
     up_r = mid_r - r("Hips")
-    chest = _fit(np.stack([r("LeftArm") - r("RightArm"), up_r]), np.stack([ls - rs, up_t], 1))
-    hips = _fit(np.stack([r("LeftUpLeg") - r("RightUpLeg"), up_r]), np.stack([lh - rh, up_t], 1))
+    chest = fit_rotation(np.stack([r("LeftArm") - r("RightArm"), up_r]), np.stack([ls - rs, up_t], 1))
+    hips = fit_rotation(np.stack([r("LeftUpLeg") - r("RightUpLeg"), up_r]), np.stack([lh - rh, up_t], 1))
     no_hips = ~np.isfinite(hips).all((-1, -2)) & np.isfinite(chest).all((-1, -2))
     hips[no_hips] = slerp_rot(np.eye(3), chest[no_hips], 1 / 3)  # the hips unseen: a third of the chest's turn
     G[:, HIPS] = hips
@@ -192,7 +162,7 @@ def _globals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None, fp
     face = np.full((F, 3, 3), np.nan)
     if head_rot is not None:
         face = np.where(np.isfinite(head_rot).all((-1, -2))[:, None, None], head_rot, np.nan)
-    nose_dir = _aim(chest, np.array([0.0, 0.0, 1.0]), nose_t - head_t)
+    nose_dir = aim(chest, np.array([0.0, 0.0, 1.0]), nose_t - head_t)
     face = bridge_short_gaps(face, int(round(2 * FACE_BLEND_S * fps)))
     has_face = np.isfinite(face).all((-1, -2))
     head = np.where(has_face[:, None, None], face, nose_dir)
@@ -202,15 +172,15 @@ def _globals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None, fp
     G[:, HEAD] = head
     G[:, IX["Neck"]] = slerp_rot(chest, head, 0.4)
     for S, s in (("Left", "left"), ("Right", "right")):
-        sh = _aim(chest, r(f"{S}Arm") - mid_r, t(f"{s}_shoulder") - neck)
+        sh = aim(chest, r(f"{S}Arm") - mid_r, t(f"{s}_shoulder") - neck)
         G[:, IX[f"{S}Shoulder"]] = sh
-        arm = _aim(sh, r(f"{S}ForeArm") - r(f"{S}Arm"), t(f"{s}_elbow") - t(f"{s}_shoulder"))
+        arm = aim(sh, r(f"{S}ForeArm") - r(f"{S}Arm"), t(f"{s}_elbow") - t(f"{s}_shoulder"))
         G[:, IX[f"{S}Arm"]] = arm
-        fore = _aim(arm, r(f"{S}Hand") - r(f"{S}ForeArm"), t(f"{s}_wrist") - t(f"{s}_elbow"))
+        fore = aim(arm, r(f"{S}Hand") - r(f"{S}ForeArm"), t(f"{s}_wrist") - t(f"{s}_elbow"))
         G[:, IX[f"{S}ForeArm"]] = fore
         knuckles = [f"{s}_hand_{f.lower()}_mcp" for f in FINGERS[1:]]
         wrist = t(f"{s}_hand_wrist")
-        hand = _fit(
+        hand = fit_rotation(
             np.stack([r(f"{S}Hand{f}1") - r(f"{S}Hand") for f in FINGERS[1:]]),
             np.stack([t(k) - wrist for k in knuckles], 1),
         )
@@ -221,7 +191,7 @@ def _globals(body: np.ndarray, rest: np.ndarray, head_rot: np.ndarray | None, fp
             parent = hand
             for k in range(1, 4):
                 a, b = t(f"{s}_hand_{f.lower()}_{seg[k - 1]}"), t(f"{s}_hand_{f.lower()}_{seg[k]}")
-                g = _aim(parent, r(f"{S}Hand{f}{k + 1}") - r(f"{S}Hand{f}{k}"), b - a)
+                g = aim(parent, r(f"{S}Hand{f}{k + 1}") - r(f"{S}Hand{f}{k}"), b - a)
                 # a finger bone that turns more than FINGER_FLIP_DEG in one frame is the tracker's (fingers
                 # crossing, seen edge-on): held and blended like the hand's flips
                 g[_flipped_runs(g, fps, FINGER_FLIP_DEG)] = np.nan
@@ -310,19 +280,6 @@ def _run_depth(mask: np.ndarray) -> np.ndarray:
     return np.where(mask, np.minimum(i - last_off, next_off - i), 0).astype(np.float64)
 
 
-def _two_bone(hip, target, a, b, pole):
-    """Knee positions ``[F, 3]`` of legs of lengths ``a`` (thigh) and ``b`` (shin) from ``hip`` reaching for
-    ``target`` with the knee bending towards ``pole`` (unit ``[F, 3]``)."""
-    d = target - hip
-    n = np.linalg.norm(d, axis=-1)
-    n_c = np.clip(n, abs(a - b) + 1e-4, a + b - 1e-4)
-    u = d / np.maximum(n, 1e-9)[:, None]
-    x = (a * a - b * b + n_c * n_c) / (2 * n_c)
-    h = np.sqrt(np.maximum(a * a - x * x, 0.0))
-    side = _unit(pole - (pole * u).sum(-1, keepdims=True) * u)
-    return hip + u * x[:, None] + side * h[:, None]
-
-
 def standing_legs(G: np.ndarray, root: np.ndarray, rest: np.ndarray) -> None:
     """Legs of a person standing with the feet under the hips (the rest pose's feet, moved with the root's
     horizontal travel) for hips at ``root``: the knees from two-bone IK bending forwards, the feet flat and
@@ -336,9 +293,9 @@ def standing_legs(G: np.ndarray, root: np.ndarray, rest: np.ndarray) -> None:
         target = rest[foot] + travel
         a, b = np.linalg.norm(off[leg]), np.linalg.norm(off[foot])
         pole = np.einsum("fij,j->fi", G[:, HIPS], np.array([0.0, 0.0, 1.0]))
-        knee = _two_bone(hip, target, a, b, pole)
-        G[:, up] = _aim(G[:, HIPS], off[leg], knee - hip)
-        G[:, leg] = _aim(G[:, up], off[foot], target - knee)
+        knee = two_bone(hip, target, a, b, pole)
+        G[:, up] = aim(G[:, HIPS], off[leg], knee - hip)
+        G[:, leg] = aim(G[:, up], off[foot], target - knee)
         G[:, foot] = np.eye(3)
         G[:, IX[f"{S}ToeBase"]] = np.eye(3)
 
@@ -364,7 +321,7 @@ def seated_legs(body: np.ndarray, rest: np.ndarray) -> dict:
     across = np.where(np.isfinite(across).all(-1, keepdims=True), across, chest)
     across[:, 1] = 0.0
     up = np.array([0.0, 1.0, 0.0])
-    fwd = _unit(np.cross(across, up))
+    fwd = unit(np.cross(across, up))
     fwd = np.where(np.isfinite(fwd).all(-1, keepdims=True), fwd, [0.0, 0.0, 1.0])
     scale = np.nanmedian(np.linalg.norm(chest, axis=-1)) / max(
         np.linalg.norm(rest[IX["LeftArm"]] - rest[IX["RightArm"]]), 1e-6
@@ -400,17 +357,17 @@ def tracked_legs(G: np.ndarray, legs: dict, rest: np.ndarray) -> np.ndarray:
         hip, knee, ankle = legs.get(f"{s}_hip"), legs.get(f"{s}_knee"), legs.get(f"{s}_ankle")
         if hip is None or knee is None or ankle is None:
             return np.zeros(len(G), bool)
-        g_up = _aim(G[:, HIPS], off[leg], knee - hip)
-        g_leg = _aim(g_up, off[foot], ankle - knee)
+        g_up = aim(G[:, HIPS], off[leg], knee - hip)
+        g_leg = aim(g_up, off[foot], ankle - knee)
         # the thigh seen, the shin not (a seated person cut off at the knees): the shin hangs straight down
-        hang = _aim(g_up, off[foot], np.broadcast_to(np.array([0.0, -1.0, 0.0]), knee.shape))
+        hang = aim(g_up, off[foot], np.broadcast_to(np.array([0.0, -1.0, 0.0]), knee.shape))
         g_leg = np.where((~np.isfinite(g_leg).all((-1, -2)) & np.isfinite(g_up).all((-1, -2)))[:, None, None], hang,
                          g_leg)  # fmt: skip
         toe, heel = legs.get(f"{s}_foot_index"), legs.get(f"{s}_heel")
         if toe is not None and heel is not None:  # the foot's pitch from its sole line, heel to toe tip
-            g_foot = _aim(g_leg, sole_direction(rest, S), toe - heel)
+            g_foot = aim(g_leg, sole_direction(rest, S), toe - heel)
         else:
-            g_foot = _aim(g_leg, off[IX[f"{S}ToeBase"]], toe - ankle) if toe is not None else g_leg
+            g_foot = aim(g_leg, off[IX[f"{S}ToeBase"]], toe - ankle) if toe is not None else g_leg
         g_foot = np.where(np.isfinite(g_foot).all((-1, -2))[:, None, None], g_foot, g_leg)  # the toe unseen
         seen = np.isfinite(g_up).all((-1, -2)) & np.isfinite(g_leg).all((-1, -2))
         ok &= seen
@@ -525,7 +482,7 @@ def _relaxed_hand(J: np.ndarray, s: str, wrist: np.ndarray, down: np.ndarray, pa
     curled a little towards the palm, the thumb forwards; lengths from the character's rest hand."""
     S = s.capitalize()
     r = lambda n: rest[IX[f"{S}{n}"]]
-    side = _unit(np.cross(palm, down))  # across the knuckles, from the little finger to the index
+    side = unit(np.cross(palm, down))  # across the knuckles, from the little finger to the index
     if (side @ np.array([0.0, 0.0, 1.0])).mean() < 0:
         side = -side
     J[:, _T[f"{s}_hand_wrist"]] = wrist
@@ -536,13 +493,13 @@ def _relaxed_hand(J: np.ndarray, s: str, wrist: np.ndarray, down: np.ndarray, pa
         p = wrist + down * np.linalg.norm(r(f"Hand{F_}1") - r("Hand")) + side * off
         J[:, _T[f"{s}_hand_{f}_mcp"]] = p
         for k, (seg, ln) in enumerate(zip(("pip", "dip", "tip"), lens), 1):
-            p = p + ln * _unit(down + 0.35 * k * palm)
+            p = p + ln * unit(down + 0.35 * k * palm)
             J[:, _T[f"{s}_hand_{f}_{seg}"]] = p
     fwd = np.broadcast_to(np.array([0.0, 0.0, 1.0]), wrist.shape)
     p = wrist + down * 0.03 + side * 0.03
     J[:, _T[f"{s}_hand_thumb_cmc"]] = p
     for seg in ("mcp", "ip", "tip"):
-        p = p + 0.03 * _unit(down + fwd + 0.3 * palm)
+        p = p + 0.03 * unit(down + fwd + 0.3 * palm)
         J[:, _T[f"{s}_hand_thumb_{seg}"]] = p
 
 
@@ -564,12 +521,12 @@ def idle_body(F: int, rest: np.ndarray, fps: float, seed: int = 0) -> np.ndarray
         upper = np.linalg.norm(rest[IX[f"{S}ForeArm"]] - rest[IX[f"{S}Arm"]])
         fore = np.linalg.norm(rest[IX[f"{S}Hand"]] - rest[IX[f"{S}ForeArm"]])
         swing = 0.03 * np.sin(2 * np.pi * t / 5.5 + rng.uniform(0, 6.3))
-        elbow = sh + upper * _unit(np.stack([np.full(F, sx * 0.12), -np.ones(F), swing], -1))
-        wrist = elbow + fore * _unit(np.stack([np.full(F, sx * 0.05), -np.ones(F), 0.3 + swing], -1))
+        elbow = sh + upper * unit(np.stack([np.full(F, sx * 0.12), -np.ones(F), swing], -1))
+        wrist = elbow + fore * unit(np.stack([np.full(F, sx * 0.05), -np.ones(F), 0.3 + swing], -1))
         put(f"{s}_shoulder", sh)
         put(f"{s}_elbow", elbow)
         put(f"{s}_wrist", wrist)
-        _relaxed_hand(J, s, wrist, _unit(wrist - elbow), np.array([-sx, 0.0, 0.0]), rest)
+        _relaxed_hand(J, s, wrist, unit(wrist - elbow), np.array([-sx, 0.0, 0.0]), rest)
     put("neck", (J[:, _T["left_shoulder"]] + J[:, _T["right_shoulder"]]) / 2)
     head = J[:, _T["neck"]] + (rest[HEAD] - (rest[IX["LeftArm"]] + rest[IX["RightArm"]]) / 2) + np.array([0, 0.08, 0])
     put("head", head)

@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 
 from anima.core import contact, ground, rig
-from anima.core.bvh_math import local_rotations
 from anima.core.contract import JOINT_NAMES
 from anima.core.filters import gaussian_smooth
+from anima.core.kinematics import aim, local_rotations, two_bone
 from anima.core.rotations import matrix_to_rotvec, rotvec_to_matrix
 
 MAX_STEP_DEG = 40.0
@@ -101,7 +101,7 @@ def flat_foot(G: np.ndarray, rest: np.ndarray, S: str, w: np.ndarray) -> None:
     on = (w > 0) & (np.linalg.norm(level, axis=-1) > 0.2)  # a foot pointing straight down has no level to keep
     if not on.any():
         return
-    flat = rig._aim(G[on, foot], sole, level[on])
+    flat = aim(G[on, foot], sole, level[on])
     G[on, foot] = rig.slerp_rot(G[on, foot], flat, w[on])
     G[on, toe] = G[on, foot]
 
@@ -184,9 +184,9 @@ def _ik_leg(G: np.ndarray, P: np.ndarray, rest: np.ndarray, side: str, target: n
     hip, knee, ankle = P[on, up], P[on, leg], P[on, foot]
     goal = ankle + (target[on] - ankle) * w[on, None]
     a, b = np.linalg.norm(off[leg]), np.linalg.norm(off[foot])
-    new_knee = ground.two_bone(hip, goal, a, b, knee - hip)
-    Gu = rig._aim(G[on, rig.HIPS], off[leg], new_knee - hip)
-    Gl = rig._aim(Gu, off[foot], goal - new_knee)
+    new_knee = two_bone(hip, goal, a, b, knee - hip)
+    Gu = aim(G[on, rig.HIPS], off[leg], new_knee - hip)
+    Gl = aim(Gu, off[foot], goal - new_knee)
     G[on, up], G[on, leg] = Gu, Gl
 
 
@@ -233,12 +233,7 @@ def solve(
     L, root = mo["local"], mo["root"].copy()
     F = len(L)
     report = dict(mo["report"])
-    never = [rig.IX[n] for n in report.get("joints_never_seen", [])]
-    if never:  # an arm the clip never shows hangs at ease (the rig's rest would hold it out in a T)
-        idle = rig.solve(None, rest, fps, head_rot, image=None, seed=seed, frames=F)["local"]
-        L = L.copy()
-        L[:, never] = idle[:, never]
-        report["never_seen"] = "the idle body's pose (arms hanging at ease)"
+    L = _idle_where_never_seen(L, report, rest, fps, head_rot, seed)
     leg_seen = np.asarray(mo.get("leg_seen", np.zeros(F, bool)), bool)
     mpp = ground.metres_per_pixel(picture, fps) if picture is not None else None
     feet = ground.feet_in_picture(picture, mpp, fps) if mpp is not None else None
@@ -252,16 +247,8 @@ def solve(
     feet_down = np.zeros((F, 2), bool)
     if feet is not None:
         feet_down = ground.foot_contacts(feet, fps) & leg_seen[:, None]
-    # height: the hips as high as the legs reach (the lowest foot point on the floor), plus flight
-    G, P = rig.forward(L, rest, root)
-    low = np.minimum(_foot_low(P, "left", rest), _foot_low(P, "right", rest)) - root[:, 1]
-    air = ground.air_height(feet) if feet is not None else np.zeros(F)
     w_leg = np.asarray(mo["leg_weight"], np.float64)  # tracked legs' share, 0 where the legs stand
-    legs_say = -low + w_leg * air  # standing or tracked, the lowest foot point is on the floor
-    seen = ground.hips_in_picture(feet, legs_say, fps) if feet is not None else None
-    if seen is not None:  # the picture's hips above the floor, in the character's scale: crouches, jumps, sitting
-        legs_say = (1 - w_leg) * legs_say + w_leg * seen
-    root[:, 1] = legs_say
+    root[:, 1] = _hips_height(L, rest, root, feet, w_leg, fps)
     L = flat_feet(L, rest, root, feet_down, fps)  # after the height: the tracked feet's pitch is the legs' say
     G, P = rig.forward(L, rest, root)
     # contacts: tracked legs from the picture (else from the 3D feet); standing legs are planted
@@ -269,9 +256,63 @@ def solve(
         for k, side in enumerate(("left", "right")):
             h = _foot_low(P, side, rest)
             v = np.linalg.norm(np.gradient(P[:, rig.IX[f"{_FOOT[side]}Foot"], ::2], axis=0), axis=-1) * fps
-            feet_down[:, k] = ground._clean_runs((h < ground.CONTACT_M) & (v < ground.CONTACT_SPEED) & leg_seen)
+            feet_down[:, k] = ground.clean_runs((h < ground.CONTACT_M) & (v < ground.CONTACT_SPEED) & leg_seen)
         L = flat_feet(L, rest, root, feet_down, fps)
         G, P = rig.forward(L, rest, root)
+    goals, steps_total = _foot_goals(P, rest, feet_down, leg_seen, w_leg, fps)
+    G, L, P = _plant_feet(G, P, rest, root, goals, fps)
+    hands = np.zeros((F, 2), bool)
+    if picture is not None and surface is not None:
+        hands = contact.hand_contacts(picture, fps)
+        if hands.any():
+            G, L, P, report["hand_contact"] = _hands_on_torso(G, P, rest, root, hands, surface, fps)
+    L, cut2 = limit_world_steps(L, rest, root)  # what the feet and hands moved obeys the same limit
+    if cut2:
+        G, P = rig.forward(L, rest, root)
+    cut += cut2
+    # never under the floor: a frame whose lowest foot point is below it raises the root
+    low = np.minimum(_foot_low(P, "left", rest), _foot_low(P, "right", rest))
+    lift = np.maximum(-low, 0.0)
+    if lift.any():
+        root[:, 1] += lift
+        G, P = rig.forward(L, rest, root)
+    report.update(_grounding_report(P, rest, root, feet_down, fps, mpp is not None, feet, cut, steps_total))
+    if body is not None:
+        report["lost"] = lost_runs(body, legs, fps)
+    return {"root": root, "local": L, "global": G, "positions": P, "contact": feet_down, "hand_contact": hands,
+            "report": report}  # fmt: skip
+
+
+def _idle_where_never_seen(L, report: dict, rest, fps: float, head_rot, seed: int) -> np.ndarray:
+    """``L`` with the joints the clip never shows (``report["joints_never_seen"]``) at the idle body's pose: an
+    arm never seen hangs at ease (the rig's rest would hold it out in a T); says so in ``report``."""
+    never = [rig.IX[n] for n in report.get("joints_never_seen", [])]
+    if never:
+        idle = rig.solve(None, rest, fps, head_rot, image=None, seed=seed, frames=len(L))["local"]
+        L = L.copy()
+        L[:, never] = idle[:, never]
+        report["never_seen"] = "the idle body's pose (arms hanging at ease)"
+    return L
+
+
+def _hips_height(L, rest, root, feet: dict | None, w_leg: np.ndarray, fps: float) -> np.ndarray:
+    """The hips' height ``[F]``: as high as the legs reach (the lowest foot point on the floor), plus flight;
+    where the picture shows the hips above the floor, its height (in the character's scale) for the tracked
+    legs' share ``w_leg``: crouches, jumps, sitting."""
+    G, P = rig.forward(L, rest, root)
+    low = np.minimum(_foot_low(P, "left", rest), _foot_low(P, "right", rest)) - root[:, 1]
+    air = ground.air_height(feet) if feet is not None else np.zeros(len(L))
+    legs_say = -low + w_leg * air  # standing or tracked, the lowest foot point is on the floor
+    seen = ground.hips_in_picture(feet, legs_say, fps) if feet is not None else None
+    if seen is not None:
+        legs_say = (1 - w_leg) * legs_say + w_leg * seen
+    return legs_say
+
+
+def _foot_goals(P, rest, feet_down, leg_seen, w_leg, fps: float) -> tuple[list, int]:
+    """Per foot ``(side, target [F, 3], weight [F])``: where it is held (its contact's landing point, the sole on
+    the floor; standing legs planted and re-planted when the hips carry them too far), and the standing legs'
+    steps."""
     locks = np.stack([ground.lock_weights(feet_down[:, k], fps) for k in range(2)], 1)
     steps_total, goals = 0, []
     for k, side in enumerate(("left", "right")):
@@ -289,6 +330,12 @@ def solve(
             w = np.maximum(w, stand)
             steps_total += int(len(ground.runs(steps & (stand > 0))))
         goals.append((side, target, w))
+    return goals, steps_total
+
+
+def _plant_feet(G, P, rest, root, goals: list, fps: float):
+    """``(G, L, P)`` with the feet held at their ``goals`` by leg IK (the hips lowered, in ``root``, where a
+    planted foot could not reach the floor) and a free foot that reaches under the floor bending its knee."""
     drop = _reach_drop(P, rest, goals, fps)
     if drop.any():  # hips too high for a planted foot to reach the floor: they come down, the feet stay down
         root[:, 1] -= drop
@@ -305,36 +352,22 @@ def solve(
     L = local_rotations(G, rig.PARENTS_RIG)
     L[:, rig.LEAVES] = np.eye(3)
     G, P = rig.forward(L, rest, root)
-    hands = np.zeros((F, 2), bool)
-    if picture is not None and surface is not None:
-        hands = contact.hand_contacts(picture, fps)
-        if hands.any():
-            gap = contact.place_hands(G, P, rest, hands, surface, rig.IX["Spine2"], _ARMS, fps, rig._aim,
-                                      ground.two_bone)  # fmt: skip
-            L = local_rotations(G, rig.PARENTS_RIG)
-            L[:, rig.LEAVES] = np.eye(3)
-            G, P = rig.forward(L, rest, root)
-            report["hand_contact"] = {
-                "fraction": [round(float(hands[:, k].mean()), 3) for k in range(2)],
-                "palm_to_torso_m": [
-                    round(float(np.nanmedian(gap[:, k])), 3) if hands[:, k].any() else None for k in range(2)
-                ],  # fmt: skip
-            }
-    L, cut2 = limit_world_steps(L, rest, root)  # what the feet and hands moved obeys the same limit
-    if cut2:
-        G, P = rig.forward(L, rest, root)
-    cut += cut2
-    # never under the floor: a frame whose lowest foot point is below it raises the root
-    low = np.minimum(_foot_low(P, "left", rest), _foot_low(P, "right", rest))
-    lift = np.maximum(-low, 0.0)
-    if lift.any():
-        root[:, 1] += lift
-        G, P = rig.forward(L, rest, root)
-    report.update(_grounding_report(P, rest, root, feet_down, fps, mpp is not None, feet, cut, steps_total))
-    if body is not None:
-        report["lost"] = lost_runs(body, legs, fps)
-    return {"root": root, "local": L, "global": G, "positions": P, "contact": feet_down, "hand_contact": hands,
-            "report": report}  # fmt: skip
+    return G, L, P
+
+
+def _hands_on_torso(G, P, rest, root, hands, surface: contact.TorsoSurface, fps: float):
+    """``(G, L, P, report)`` with the palms in contact (``hands [F, 2]``) put on the torso's ``surface``."""
+    gap = contact.place_hands(G, P, rest, hands, surface, rig.IX["Spine2"], _ARMS, fps)
+    L = local_rotations(G, rig.PARENTS_RIG)
+    L[:, rig.LEAVES] = np.eye(3)
+    G, P = rig.forward(L, rest, root)
+    report = {
+        "fraction": [round(float(hands[:, k].mean()), 3) for k in range(2)],
+        "palm_to_torso_m": [
+            round(float(np.nanmedian(gap[:, k])), 3) if hands[:, k].any() else None for k in range(2)
+        ],  # fmt: skip
+    }
+    return G, L, P, report
 
 
 def _floor_said(feet: dict | None) -> str:

@@ -32,6 +32,7 @@ from pathlib import Path
 from anima.io.assets import data_root
 from anima.io.outdir import sha256
 from anima.io.video import sampled_frames
+from anima.track import get
 
 TEST = 0.2  # fraction of source groups on the test side (by hash of the group's name)
 VAL = 0.2  # and on the validation side
@@ -143,21 +144,21 @@ def fingerprint(path: str | Path, detector=None) -> tuple[str, int | None, list[
 def face_hashes(path: str | Path, detector=None, n: int = FACE_FRAMES) -> list[int]:
     """64-bit perceptual hashes (OpenCV's pHash) of the largest face's crop (:data:`FACE_CROP` times its box,
     32 x 32 grey) at ``n`` evenly spaced frames of the video's first :data:`FACE_SECONDS` (those where
-    MediaPipe's face detector finds one), read in order (seeking costs more than decoding here).
-    ``detector``: a MediaPipe ``FaceDetection`` to reuse (else one is opened and closed here)."""
+    the tracker's face detector finds one: :meth:`anima.track.Tracker.face_boxes`), read in order (seeking costs
+    more than decoding here). ``detector``: an opened face detector to reuse (else one is opened and closed
+    here)."""
     import cv2
-    import mediapipe as mp
 
     if detector is None:
-        with mp.solutions.face_detection.FaceDetection(model_selection=1, min_detection_confidence=0.5) as det:
+        with get().face_boxes() as det:
             return face_hashes(path, det, n)
     out = []
     for f in sampled_frames(path, FACE_SECONDS, n):
         h, w = f.shape[:2]
-        found = detector.process(cv2.cvtColor(f, cv2.COLOR_BGR2RGB)).detections
+        found = detector(cv2.cvtColor(f, cv2.COLOR_BGR2RGB))
         if not found:
             continue
-        b = max((d.location_data.relative_bounding_box for d in found), key=lambda r: r.width)
+        b = max(found, key=lambda r: r.width)
         cx, cy = (b.xmin + b.width / 2) * w, (b.ymin + b.height / 2) * h
         side = FACE_CROP * max(b.width * w, b.height * h)
         x0, y0 = int(max(0, cx - side / 2)), int(max(0, cy - side / 2))
@@ -209,11 +210,7 @@ def table(videos: list[str | Path], root: Path | None = None, fingerprints: dict
                 fps[p] = fingerprints[p]
             elif Path(p).is_file():
                 if det is None:
-                    import mediapipe as mp
-
-                    det = stack.enter_context(
-                        mp.solutions.face_detection.FaceDetection(model_selection=1, min_detection_confidence=0.5)
-                    )
+                    det = stack.enter_context(get().face_boxes())
                 try:
                     fps[p] = fingerprint(p, det)
                 except OSError:

@@ -23,58 +23,70 @@ Both read with pyarrow, pandas, ``ray.data.read_parquet(folder/shards/<kind>)`` 
 
 from __future__ import annotations
 
+from functools import cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from anima.errors import InputError, SchemaError
 from anima.io.atomic import atomic_path
 from anima.io.validate import read_json
 
+if TYPE_CHECKING:
+    import pyarrow as pa
+
 SCHEMA = "anima.dataset"
 VERSION = 1
 KINDS = ("text_motion", "audio_motion")
 
-TEXT_SCHEMA = pa.schema(
-    [
-        ("clip_id", pa.string()),
-        ("video_id", pa.string()),
-        ("split", pa.string()),
-        ("source", pa.string()),
-        ("start_s", pa.float64()),
-        ("end_s", pa.float64()),
-        ("fps", pa.float32()),
-        ("n_frames", pa.int32()),
-        ("motion", pa.list_(pa.float32())),
-        ("texts", pa.list_(pa.string())),
-        ("attributes", pa.string()),
-        ("gender", pa.string()),
-        ("provenance", pa.string()),
-    ]
-)
-AUDIO_SCHEMA = pa.schema(
-    [
-        ("window_id", pa.string()),
-        ("video_id", pa.string()),
-        ("split", pa.string()),
-        ("source", pa.string()),
-        ("start_s", pa.float64()),
-        ("fps", pa.float32()),
-        ("n_frames", pa.int32()),
-        ("body", pa.list_(pa.float32())),
-        ("face", pa.list_(pa.float32())),
-        ("speech", pa.list_(pa.float32())),
-        ("provenance", pa.string()),
-    ]
-)
-SCHEMAS = {"text_motion": TEXT_SCHEMA, "audio_motion": AUDIO_SCHEMA}
+
+@cache
+def schemas() -> dict:
+    """``{kind: pyarrow schema}`` (pyarrow loads here, not on import: reading a manifest needs no Arrow)."""
+    import pyarrow as pa
+
+    text = pa.schema(
+        [
+            ("clip_id", pa.string()),
+            ("video_id", pa.string()),
+            ("split", pa.string()),
+            ("source", pa.string()),
+            ("start_s", pa.float64()),
+            ("end_s", pa.float64()),
+            ("fps", pa.float32()),
+            ("n_frames", pa.int32()),
+            ("motion", pa.list_(pa.float32())),
+            ("texts", pa.list_(pa.string())),
+            ("attributes", pa.string()),
+            ("gender", pa.string()),
+            ("provenance", pa.string()),
+        ]
+    )
+    audio = pa.schema(
+        [
+            ("window_id", pa.string()),
+            ("video_id", pa.string()),
+            ("split", pa.string()),
+            ("source", pa.string()),
+            ("start_s", pa.float64()),
+            ("fps", pa.float32()),
+            ("n_frames", pa.int32()),
+            ("body", pa.list_(pa.float32())),
+            ("face", pa.list_(pa.float32())),
+            ("speech", pa.list_(pa.float32())),
+            ("provenance", pa.string()),
+        ]
+    )
+    return {"text_motion": text, "audio_motion": audio}
 
 
 def write_shard(rows: list[dict], path: Path, kind: str) -> Path:
     """Write rows atomically (temp file + rename): a killed build never leaves a half-written shard."""
-    schema = SCHEMAS[kind]
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    schema = schemas()[kind]
     cols = {f.name: [r[f.name] for r in rows] for f in schema}
     for f in schema:
         if pa.types.is_list(f.type) and f.type.value_type == pa.float32():
@@ -109,14 +121,18 @@ def check_dataset(folder: str | Path) -> dict:
 
 def read_table(folder: str | Path, kind: str, split: str | None = None) -> pa.Table:
     """All shards of ``kind`` (optionally one split) as one pyarrow Table."""
+    import pyarrow as pa
+    import pyarrow.compute  # for pa.compute
+    import pyarrow.parquet as pq
+
     check_dataset(folder)
     files = sorted((Path(folder) / "shards" / kind).glob("*.parquet"))
     if not files:
-        return SCHEMAS[kind].empty_table()
+        return schemas()[kind].empty_table()
     tables = []
     for f in files:
         try:
-            tables.append(pq.read_table(f, schema=SCHEMAS[kind]))
+            tables.append(pq.read_table(f, schema=schemas()[kind]))
         except (pa.ArrowException, OSError, ValueError) as e:
             raise InputError(
                 f"{f}: damaged Parquet shard ({str(e).splitlines()[0][:120]}); rebuild its video with "

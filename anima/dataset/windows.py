@@ -14,8 +14,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.compute  # for pa.compute
 
 from anima.core.contract import BODY_DIM, FACE_DIM, SPEECH_DIM
 from anima.dataset.storage import read_table
@@ -83,10 +81,12 @@ def _array(values, n: int, dim: int, what: str, row: str) -> np.ndarray:
 def _list_column(t, name: str, n_frames: np.ndarray, dim: int, ids: list) -> np.ndarray:
     """A list column of ``t`` as one ``[rows, T, dim]`` float32 array, read by Arrow in one pass (no Python
     object per value); every row must hold ``n_frames x dim`` values."""
+    import pyarrow.compute as pc  # Arrow loads with the table it reads (read_table), not on import
+
     col = t[name].combine_chunks() if t.num_rows else None
     if col is None:
         return np.zeros((0, 0, dim), np.float32)
-    sizes = pa.compute.list_value_length(col).to_numpy(zero_copy_only=False)
+    sizes = pc.list_value_length(col).to_numpy(zero_copy_only=False)
     bad = np.flatnonzero(sizes != n_frames * dim)
     if len(bad):
         i = int(bad[0])

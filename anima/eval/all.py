@@ -29,13 +29,13 @@ from threadpoolctl import threadpool_limits
 
 from anima import __version__
 from anima.errors import AnimaError, InputError, SchemaError
+from anima.eval.config import AllEval
 from anima.eval.registry import EVALUATIONS, Context, Evaluation
 from anima.eval.registry import rows as registry_rows
 from anima.io.assets import data_root, shown_path
 from anima.io.atomic import write_json, write_text
 from anima.io.outdir import OutputFolder, sha256
-from anima.io.validate import MAX_JSON_BYTES, MAX_JSON_DEPTH
-from anima.io.validate import _depth as depth
+from anima.io.validate import MAX_JSON_BYTES, MAX_JSON_DEPTH, json_depth
 
 
 def commit() -> str | None:
@@ -226,7 +226,7 @@ def read_results(out: str | os.PathLike) -> dict | list | None:
         raise nested from None
     except (OSError, ValueError):  # (UnicodeDecodeError is a ValueError)
         return None
-    if depth(old, MAX_JSON_DEPTH) > MAX_JSON_DEPTH:
+    if json_depth(old, MAX_JSON_DEPTH) > MAX_JSON_DEPTH:
         raise nested
     return old
 
@@ -256,23 +256,13 @@ def finished_rows(out: Path, prov: dict, quick: bool) -> tuple[dict, float]:
         return {}, 0.0
 
 
-def run_all(
-    db: str,
-    out: str | os.PathLike,
-    work: str | os.PathLike | None = None,
-    quick: bool = False,
-    only: list[str] | None = None,
-    progress: Callable[[str], None] | None = None,
-    command: str | None = None,
-    jobs: int = 1,
-    resume: bool = False,
-) -> dict:
-    """Run the rows (``only``: these by name; ``jobs``: side by side, :func:`run_rows`) into ``out``:
-    ``results.json`` (provenance, rows, total time)
+def run_all(cfg: AllEval, progress: Callable[[str], None] | None = None, command: str | None = None) -> dict:
+    """Run the rows of ``cfg`` (``only``: these by name; ``jobs``: side by side, :func:`run_rows`; ``resume``:
+    keep a stopped run's finished rows) into ``cfg.out``: ``results.json`` (provenance, rows, total time)
     and ``summary.md``, written as one result folder (a manifest last)."""
-
-    out = Path(out)
-    work = Path(work) if work else out / "text2face_work"
+    db, quick, jobs, only = cfg.db, cfg.quick, cfg.jobs, cfg.only or None
+    out = Path(cfg.out)
+    work = Path(cfg.work) if cfg.work else out / "text2face_work"
     rows = registry_rows(Context(str(db), out, work, quick))
     if only:
         unknown = sorted(set(only) - {name for _, name, _ in rows})
@@ -284,10 +274,10 @@ def run_all(
         t0 = time.perf_counter()
         prov = provenance(db, jobs)
 
-        kept, before_s = finished_rows(od.path, prov, quick) if resume else ({}, 0.0)
+        kept, before_s = finished_rows(od.path, prov, quick) if cfg.resume else ({}, 0.0)
         kept = {name: kept[name] for _, name, _ in rows if name in kept}
         before_s = before_s if kept else 0.0  # the stopped run's time is part of this one's
-        if progress and resume:
+        if progress and cfg.resume:
             progress(f"resumed: {', '.join(kept) or 'no row'} kept from the stopped run (same commit and data)")
         todo = [r for r in rows if r[1] not in kept]
 

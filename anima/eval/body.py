@@ -15,6 +15,7 @@ from anima.core.skeleton import LEFT_HAND, RIGHT_HAND
 from anima.eval.config import BodyEval
 from anima.io.assets import asset
 from anima.io.video import probe_video
+from anima.track import get
 
 DEFAULT_SETS = [
     "gesture-video/pats-crops/*.mp4",
@@ -26,7 +27,7 @@ DEFAULT_SETS = [
 def body_report_clip(path: str, cfg: CaptureConfig | None = None, max_frames: int | None = None) -> dict:
     cfg = cfg or CaptureConfig()
     info = probe_video(path)
-    _, frames = track_holistic(info, max_frames, progress=False)
+    _, frames = track_holistic(info, max_frames, progress=False, tracker=cfg.tracker)
     raw = assemble(frames, info.width, info.height, info.fps)
     c = clean(raw, cfg.body_min_conf, cfg.max_gap, cfg.body_sigma, False)
     ok_raw = np.isfinite(raw.joints).all(-1)
@@ -48,16 +49,14 @@ def body_report_clip(path: str, cfg: CaptureConfig | None = None, max_frames: in
 
 def hand_images_report() -> list[dict]:
     import cv2
-    import mediapipe as mp
 
     rows = []
-    with mp.solutions.hands.Hands(static_image_mode=True, max_num_hands=4, model_complexity=1) as hands:
+    with get().hands(static=True, max_hands=4) as hands:
         for p in sorted(glob.glob(str(asset("hand-images")) + "/**/*.jpg", recursive=True)):
             img = cv2.imread(p)
-            r = hands.process(np.ascontiguousarray(img[:, :, ::-1]))
-            n = len(r.multi_hand_landmarks or [])
-            scores = [round(h.classification[0].score, 3) for h in (r.multi_handedness or [])]
-            rows.append({"image": p.split("/")[-1], "hands_found": n, "scores": scores})
+            found = hands(np.ascontiguousarray(img[:, :, ::-1]))
+            scores = [round(h.score, 3) for h in found]
+            rows.append({"image": p.split("/")[-1], "hands_found": len(found), "scores": scores})
     return rows
 
 

@@ -26,7 +26,6 @@ import scipy.io as sio
 
 from anima.capture.config import FitConfig
 from anima.capture.fit import LandmarkBasis, fit_frames, fit_identity
-from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.core.camera import camera_to_image, mediapipe_to_camera
 from anima.eval.config import LandmarksEval
 from anima.eval.metrics import nme_bbox, pct
@@ -34,6 +33,7 @@ from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
 from anima.facemodel.landmarks68 import ibug68_vertices
 from anima.io.assets import asset
+from anima.track import get
 
 GROUPS = {
     "jaw": range(17),
@@ -101,7 +101,7 @@ def fit_image_68(rgb: np.ndarray, tracker, cfg: FitConfig | None = None) -> dict
 def evaluate_aflw(progress: bool = False) -> dict:
     items = aflw_items()
     rows = []
-    with FaceMeshTracker(static_image_mode=True) as tr:
+    with get().face_mesh(static=True) as tr:
         for jpg, mat in items:
             rgb = cv2.imread(str(jpg))[:, :, ::-1]
             gt = sio.loadmat(str(mat))["pt3d_68"][:2].T.astype(np.float64)

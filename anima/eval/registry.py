@@ -29,6 +29,7 @@ from anima.eval.config import (
     StabilityEval,
     Text2FaceEval,
 )
+from anima.eval.text2face.prompts import load_suite
 from anima.io.assets import shown_path
 
 
@@ -104,8 +105,6 @@ def _check_gesture(cfg: GestureEval) -> None:
 def _check_text2face(cfg: Text2FaceEval) -> None:
     check_dataset(cfg.dataset)
     if cfg.prompts is not None:
-        from anima.eval.text2face.prompts import load_suite
-
         load_suite(cfg.prompts or None)  # a bad suite fails before any model loads
 
 

@@ -34,13 +34,14 @@ from pathlib import Path
 import numpy as np
 
 from anima.core import rig, world
+from anima.core.character import Motion
 from anima.core.contact import TorsoSurface
 from anima.core.contract import EXPR_NAMES, JOINT_NAMES, LEG_JOINTS
 from anima.core.ground import Picture
 from anima.core.occlusion import hand_over_face
 from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
 from anima.errors import InputError
-from anima.export.vrm import character_vrm
+from anima.export.vrm import character_mesh, character_vrm
 from anima.facemodel.character import (
     BUILDS,
     DEFAULT_BUILD,
@@ -67,14 +68,12 @@ from anima.facemodel.transfer import (
     lower_lid_depths,
     lower_lid_rise,
 )
-from anima.io.arkit import ARKIT_NAMES
 from anima.io.atomic import atomic_path
 from anima.io.gltf import write_character_glb
 from anima.io.sequence import TrackedSequence
 from anima.io.video import FFMPEG
 from anima.render.avatar import render_character_video
 from anima.render.lod import cluster_mean
-from anima.render.raster import vertex_normals
 
 UNIT = "metre"
 
@@ -254,28 +253,10 @@ def write_avatar(
         "anima_frame_end": int(F) - 1,
         "anima_unit": UNIT,
     }
-    write_character_glb(
-        path,
-        rig.preset_names(preset),
-        rig.PARENTS_RIG,
-        m["rest"],
-        m["root"],
-        matrix_to_quat(m["local"]),
-        m["vertices"],
-        vertex_normals(m["vertices"], ch.faces),
-        ch.faces,
-        ch.skin_joints,
-        ch.skin_weights,
-        list(zip(*arkit_morphs())),
-        ARKIT_NAMES,
-        to_arkit(weights),  # the file's morphs are ARKit's 52 (anima.io.arkit: the one table)
-        seq.fps,
-        extras,
-        scene_extras,
-        animated=~rig.LEAVES,
-        doc_extensions=_vrm_extension(path),
-        colors=vertex_colors(),
-    )
+    character = character_mesh(rig.preset_names(preset), m["rest"], m["vertices"], list(zip(*arkit_morphs())))
+    # the file's morphs are ARKit's 52 (anima.io.arkit: the one table)
+    motion = Motion(m["root"], matrix_to_quat(m["local"]), seq.fps, to_arkit(weights), ~rig.LEAVES)
+    write_character_glb(path, character, motion, extras, scene_extras, doc_extensions=_vrm_extension(path))
     return {"kind": "character", "joints": rig.N_RIG, "preset": preset, "unit": UNIT, **extras["anima"], **m["report"]}
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from anima.core import rig
+from anima.core.character import Motion, Skeleton
 from anima.core.contract import EXPR_NAMES
 from anima.core.rotations import matrix_to_euler, matrix_to_quat
 from anima.errors import InputError
@@ -88,10 +89,8 @@ def export_vrma(seq: TrackedSequence, path: str | Path) -> Path:
     expr = vrm_expressions(arkit_weights(character_face(seq), list(EXPR_NAMES)))
     extras = {"anima": {"fps": seq.fps, "frames": seq.n_frames, "unit": "metre", "body": m["report"]["body"],
                         "expressions": "anima.export.vrm.VRM_PRESETS"}}  # fmt: skip
-    return write_vrma(
-        path, rig.preset_names("vrm"), rig.PARENTS_RIG, m["rest"], m["root"], matrix_to_quat(m["local"]), seq.fps,
-        humanoid, expr, extras,
-    )  # fmt: skip
+    skeleton = Skeleton(rig.preset_names("vrm"), rig.PARENTS_RIG, m["rest"])
+    return write_vrma(path, skeleton, Motion(m["root"], matrix_to_quat(m["local"]), seq.fps), humanoid, expr, extras)
 
 
 def resample_motion(root: np.ndarray, local: np.ndarray, fps: float, new_fps: float) -> tuple[np.ndarray, np.ndarray]:

@@ -31,6 +31,7 @@ import numpy as np
 
 from anima.core import rig
 from anima.core.contract import EXPR_NAMES
+from anima.core.kinematics import parents_first
 from anima.core.rotations import matrix_to_quat
 from anima.errors import InputError, SchemaError
 from anima.export.avatar import body_of, character_face, character_motion
@@ -38,7 +39,7 @@ from anima.export.vrm import VRM_PRESETS, arkit_weights, vrm_expressions
 from anima.io.arkit import LIVE_LINK_COLUMNS, arkit_name
 from anima.io.atomic import write_json
 from anima.io.gltf import write_with_animation
-from anima.io.gltf_read import Gltf, _order, read_gltf
+from anima.io.gltf_read import Gltf, read_gltf
 from anima.io.outdir import check_out_file, record_out_file
 from anima.io.sequence import read_sequence
 from anima.io.validate import read_json
@@ -325,7 +326,7 @@ def _fk(g: Gltf, Wrot: dict[int, np.ndarray], hips: int, hips_w: np.ndarray) -> 
             i = int(g.parents[i])
     W: dict[int, np.ndarray] = {}
     eye = np.tile(np.eye(4), (F, 1, 1))
-    for i in [i for i in _order(g.parents) if i in needed]:
+    for i in [i for i in parents_first(g.parents) if i in needed]:
         p = g.parents[i]
         Pw = W[p] if p >= 0 else eye
         L0 = g.local(i)

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from anima.core import rig
+from anima.core.character import CharacterMesh, Motion, Skeleton
 from anima.core.rotations import matrix_to_quat, rotvec_to_matrix
 from anima.facemodel.character import BUILDS, arkit_morphs, build_coeffs, load_character, skin, vertex_colors
 from anima.io.arkit import ARKIT_NAMES, LIVE_LINK_COLUMNS, ict_to_arkit
@@ -182,12 +183,28 @@ def character_avatar(shape: str = "mean", pose: str = "T", roll_deg: float = 0.0
     return {"rest": J, "rest_rot": R, "vertices": V, "coeffs": c, "scale": scale}
 
 
+def character_mesh(
+    names: list[str],
+    rest: np.ndarray,
+    vertices: np.ndarray,
+    morphs: list[tuple[np.ndarray, np.ndarray]],
+    rest_rotations: np.ndarray | None = None,
+) -> CharacterMesh:
+    """anima's character as the writers take it: its rig (joints ``names``, at ``rest [J, 3]``, rest world
+    rotations ``rest_rotations``) and its skinned mesh at ``vertices`` (normals, skin, vertex colours) with the
+    morph targets ``morphs`` named as ARKit's 52."""
+    ch = load_character()
+    return CharacterMesh(
+        Skeleton(names, rig.PARENTS_RIG, rest, rest_rotations), vertices, vertex_normals(vertices, ch.faces),
+        ch.faces, ch.skin_joints, ch.skin_weights, morphs, ARKIT_NAMES, vertex_colors(),
+    )  # fmt: skip
+
+
 def write_character_avatar(path: str | Path, shape: str = "mean", pose: str = "T", roll_deg: float = 0.0,
                            preset: str | None = None) -> Path:  # fmt: skip
     """anima's character as an avatar file: ``.vrm`` (VRM 1.0: humanoid map, 18 expression presets, meta) or
     ``.glb`` with the joints named by ``preset`` (default mixamo), in ``shape`` and ``pose`` (see
     :func:`character_avatar`); its one animation holds the rest pose (one frame)."""
-    ch = load_character()
     a = character_avatar(shape, pose, roll_deg)
     vrm = Path(path).suffix.lower() == ".vrm"
     names = rig.preset_names("vrm" if vrm and preset is None else preset or "mixamo")
@@ -198,25 +215,9 @@ def write_character_avatar(path: str | Path, shape: str = "mean", pose: str = "T
     local[rig.HIPS] = Rw[rig.HIPS]
     quats = matrix_to_quat(local)[None]
     ext = {"VRMC_vrm": character_vrm(J, {n: j for j, n in enumerate(rig.NAMES)})} if vrm else None
-    return write_character_glb(
-        path,
-        names,
-        rig.PARENTS_RIG,
-        a["rest"],
-        a["rest"][rig.HIPS][None],
-        quats,
-        a["vertices"],
-        vertex_normals(a["vertices"], ch.faces),
-        ch.faces,
-        ch.skin_joints,
-        ch.skin_weights,
-        [(i, d * a["scale"]) for i, d in zip(*arkit_morphs())],
-        ARKIT_NAMES,
-        np.zeros((1, len(ARKIT_NAMES))),
-        30.0,  # contract: not (one rest frame)
-        {"anima": {"avatar": {"shape": shape, "pose": pose, "roll_deg": roll_deg}}},
-        animated=~rig.LEAVES,
-        rest_rotations=Rw,
-        doc_extensions=ext,
-        colors=vertex_colors(),
-    )
+    morphs = [(i, d * a["scale"]) for i, d in zip(*arkit_morphs())]
+    character = character_mesh(names, a["rest"], a["vertices"], morphs, rest_rotations=Rw)
+    fps = 30.0  # contract: not (one rest frame)
+    motion = Motion(a["rest"][rig.HIPS][None], quats, fps, np.zeros((1, len(ARKIT_NAMES))), ~rig.LEAVES)
+    extras = {"anima": {"avatar": {"shape": shape, "pose": pose, "roll_deg": roll_deg}}}
+    return write_character_glb(path, character, motion, extras, doc_extensions=ext)

@@ -31,6 +31,7 @@ from anima.errors import AssetNotFound, InputError
 from anima.facemodel.ict import FaceModel
 from anima.io.assets import package_data
 from anima.io.atomic import write_npz
+from anima.track.mediapipe import face_mesh_triangles
 
 FILENAME = "mediapipe_ict_correspondence.npz"
 ANCHORS_MP = np.array([33, 133, 362, 263, 1, 61, 291, 152])
@@ -84,17 +85,7 @@ class Correspondence:
 
 def mediapipe_triangles() -> np.ndarray:
     """Triangles of MediaPipe's face mesh from its tessellation edges (3-cliques), ``(T, 3)``."""
-    from mediapipe.python.solutions.face_mesh_connections import FACEMESH_TESSELATION
-
-    nb: dict[int, set] = {}
-    for a, b in FACEMESH_TESSELATION:
-        nb.setdefault(a, set()).add(b)
-        nb.setdefault(b, set()).add(a)
-    tris = set()
-    for a, b in FACEMESH_TESSELATION:
-        for c in nb[a] & nb[b]:
-            tris.add(tuple(sorted((a, b, c))))
-    return np.array(sorted(tris), np.int32)
+    return face_mesh_triangles()
 
 
 def procrustes_mean(shapes: list[np.ndarray]) -> np.ndarray:

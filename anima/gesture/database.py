@@ -19,6 +19,7 @@ import numpy as np
 
 from anima.core.contract import HOP
 from anima.core.skeleton import JOINT_NAMES
+from anima.dataset.windows import read_windows
 from anima.errors import InputError
 from anima.gesture.features import POSE_OFFSETS, T_MATCH, audio_features, pose_features
 from anima.gesture.knn import MIRROR, MatchDB
@@ -190,8 +191,6 @@ def _arrays(folder, split) -> dict:
 
 
 def _from_windows(folder: str | Path, split: str | None) -> MatchDB:
-    from anima.dataset.windows import read_windows  # lazy: pyarrow, only when the cache is made
-
     return from_windows(read_windows(folder, split), f"{folder} (split {split})")
 
 

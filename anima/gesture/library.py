@@ -28,7 +28,7 @@ from anima.core.contract import BODY_DIM, FACE_DIM, GESTURE_FPS, N_JOINTS, SPEEC
 from anima.dataset.build import VIDEO_EXT, expand_videos, video_payload
 from anima.dataset.config import BuildConfig, FilterConfig
 from anima.dataset.storage import check_dataset
-from anima.dataset.windows import ClipRow, Windows, clip_events
+from anima.dataset.windows import ClipRow, Windows, clip_events, read_clips, read_windows
 from anima.errors import InputError
 from anima.gesture.database import distinct_seconds, from_windows
 from anima.gesture.face import fit_speech_face
@@ -37,6 +37,7 @@ from anima.io.outdir import OutputFolder, check_out_dir, check_out_file, record_
 from anima.io.owned import npz as npz_check
 from anima.io.video import probe_video, sampled_frames
 from anima.library import builtin
+from anima.track import get
 
 PERSON_FRAMES = 6  # frames sampled per video to see a person before any capture
 PERSON_SECONDS = 30.0  # contract: not (... within its first this-many seconds of video)
@@ -83,16 +84,15 @@ def collect(inputs: list[str]) -> tuple[list[Path], list[Path]]:
 
 
 def check_person(video: Path, n: int = PERSON_FRAMES) -> None:
-    """Refuse a video in which MediaPipe's pose detector finds nobody in ``n`` frames evenly spaced over its first
+    """Refuse a video in which the tracker's pose model finds nobody in ``n`` frames evenly spaced over its first
     :data:`PERSON_SECONDS` seconds (read in order: seeking is unreliable in old codecs)."""
     import cv2
-    import mediapipe as mp
 
     seen = 0
-    with mp.solutions.pose.Pose(static_image_mode=True, model_complexity=1, min_detection_confidence=0.5) as pose:
+    with get().pose(static=True) as pose:
         for f in sampled_frames(video, PERSON_SECONDS, n):
             seen += 1
-            if pose.process(cv2.cvtColor(f, cv2.COLOR_BGR2RGB)).pose_landmarks is not None:
+            if pose(cv2.cvtColor(f, cv2.COLOR_BGR2RGB)) is not None:
                 return
     raise InputError(f"no person found in {video} ({seen} frames sampled in its first {PERSON_SECONDS:g} s)")
 
@@ -247,8 +247,6 @@ def build(
                 elif not body:
                     notes.append(f"{v}: no window with the upper body and hands in view and speech throughout")
     for ds in datasets:
-        from anima.dataset.windows import read_clips, read_windows
-
         c, w = read_clips(ds), read_windows(ds)
         clips += c
         parts.append(w)

@@ -7,6 +7,7 @@ The result is a tracked sequence (``gesture.npz``) written by the one motion wri
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,7 @@ from anima.audio.features import read_audio, speech_features
 from anima.audio.stress import find_stresses
 from anima.core.clock import Stopwatch
 from anima.core.contract import CHARACTER_FPS
+from anima.dataset.windows import read_windows
 from anima.errors import InputError
 from anima.export.framing import generated_sequence
 from anima.export.motion import write_motion_outputs
@@ -31,31 +33,30 @@ from anima.io.mapped import cache_key, file_stamp, mapped_arrays
 from anima.io.outdir import OutputFolder, check_out_dir
 from anima.library import builtin
 
+SEED_SEARCH = GestureConfig(stroke_rank=0.0, stroke_shift=0.0)
+"""The seed's search: :class:`GestureConfig` with no strokes placed on the speech's stresses (the command's
+defaults place them)."""
+
 
 def synthesize(
     speech_path: str,
     db,
-    k: int = 0,
-    controls: list | None = None,
-    init: str = "mean",
-    seed: int = 0,
+    cfg: GestureConfig = SEED_SEARCH,
     refiner=None,
-    keywords: list | None = None,
     keyword_dbs: dict | None = None,
-    blend: bool = True,
-    no_repeat_s: float = 4.0,
     sw: Stopwatch | None = None,
-    control_every_frame: bool = True,
-    stroke_rank: float = 0.0,
-    stroke_shift: float = 0.0,
 ) -> tuple[np.ndarray, dict]:
     """k-NN search (and, with ``refiner`` from ``anima.gesture.refine.load_refiner``, the cGAN refinement)
-    at the database's frame rate. ``keywords`` (``anima.gesture.keywords.Keyword``) switch the search to
-    ``keyword_dbs[word]`` (MatchDB) while the word is spoken. ``blend``: inertialized joins
-    (:mod:`anima.gesture.post`); the output is always re-posed on the database's one skeleton. ``stroke_rank``,
-    ``stroke_shift``: strokes on the speech's stresses (:mod:`anima.gesture.strokes`; 0, the default here: the
-    seed's timing; the command's defaults are :class:`GestureConfig`'s). ``sw``: a stopwatch given the stages
-    ``speech``, ``search`` and ``post``."""
+    at the database's frame rate, as ``cfg`` sets it (its ``k``, ``control``, ``init``, ``seed``, ``keyword``,
+    ``blend``, ``no_repeat_s``, ``control_ends_only``, ``stroke_rank``, ``stroke_shift``). ``cfg.keyword``
+    switches the search to ``keyword_dbs[word]`` (MatchDB) while the word is spoken. ``blend``: inertialized
+    joins (:mod:`anima.gesture.post`); the output is always re-posed on the database's one skeleton. Strokes on
+    the speech's stresses: :mod:`anima.gesture.strokes` (off in the default, :data:`SEED_SEARCH`). ``sw``: a
+    stopwatch given the stages ``speech``, ``search`` and ``post``."""
+    controls = [parse_control(c) for c in cfg.control]
+    keywords = [parse_keyword(k) for k in cfg.keyword]
+    k, init, seed, blend, no_repeat_s = cfg.k, cfg.init, cfg.seed, cfg.blend, cfg.no_repeat_s
+    stroke_rank, stroke_shift, control_every_frame = cfg.stroke_rank, cfg.stroke_shift, not cfg.control_ends_only
     sw = sw or Stopwatch()
     fps = db.fps
     with sw("speech"):
@@ -136,8 +137,6 @@ def talking_face_of(db: str, S: np.ndarray, fps: float, seed: int = 0) -> tuple[
     """A talking face ``[T, 56]`` for speech features ``S`` (:mod:`anima.gesture.face`), its mouth model from
     the dataset's captured faces (through a memory-mapped cache keyed on the dataset's manifest); a note when
     the dataset has no captured face."""
-    from anima.dataset.windows import read_windows  # lazy: pyarrow, only when the cache is made
-
     manifest = Path(db) / "manifest.json"
     code = file_stamp(Path(__file__).parent / "face.py")
 
@@ -228,8 +227,10 @@ def run(
     check_out_dir(out, inputs=inputs)  # a user's folder is refused before anything is read
     if not Path(speech).is_file():
         raise InputError(f"speech file not found: {speech}")
-    controls = [parse_control(c) for c in cfg.control]
-    keywords = [parse_keyword(k) for k in cfg.keyword]
+    for spec in cfg.control:  # a bad --control or --keyword is refused before anything is read
+        parse_control(spec)
+    for spec in cfg.keyword:
+        parse_keyword(spec)
     if generator and (cfg.control or refiner or cfg.keyword):
         raise InputError("--control, --refiner and --keyword apply to the k-NN search (--db), not to --generator")
     if generator and db:
@@ -268,23 +269,7 @@ def run(
             no_repeat = cfg.no_repeat_s
             if not db and no_repeat > 0:  # a small library: keep its stretches apart for longer
                 no_repeat = library_no_repeat_s(match_db, no_repeat)
-            J, info = synthesize(
-                speech,
-                match_db,
-                cfg.k,
-                controls,
-                cfg.init,
-                cfg.seed,
-                ref,
-                keywords,
-                kw_dbs,
-                blend=cfg.blend,
-                no_repeat_s=no_repeat,
-                control_every_frame=not cfg.control_ends_only,
-                sw=sw,
-                stroke_rank=cfg.stroke_rank,
-                stroke_shift=cfg.stroke_shift,
-            )
+            J, info = synthesize(speech, match_db, replace(cfg, no_repeat_s=no_repeat), ref, kw_dbs, sw)
             with sw("face"):
                 S = info.pop("speech_features")
                 if db:

@@ -17,11 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.core.bvh_math import (
-    axis_matrix,
-    forward_kinematics,
-    matrix_to_euler_zxy,
-)
+from anima.core.bvh_math import axis_matrix, matrix_to_euler_zxy
+from anima.core.kinematics import forward, forward_kinematics
 from anima.errors import InputError
 from anima.io.atomic import write_text
 
@@ -39,7 +36,6 @@ class BVH:
         """Global joint positions ``[F, J, 3]`` by forward kinematics (file units)."""
         F, J = len(self.motion), len(self.names)
         L = np.tile(np.eye(3), (F, J, 1, 1))
-        root_pos = np.zeros((F, 3))
         pos_local = np.zeros((F, J, 3))
         col = 0
         for j, chans in enumerate(self.channels):
@@ -52,20 +48,7 @@ class BVH:
                 else:
                     pos_local[:, j, "XYZ".index(ch[0].upper())] = v
             L[:, j] = R
-        F_, J_ = L.shape[:2]
-        G = np.zeros_like(L)
-        P = np.zeros((F_, J_, 3))
-        for j in range(J_):
-            p = self.parents[j]
-            off = self.offsets[j] + pos_local[:, j]
-            if p < 0:
-                G[:, j] = L[:, j]
-                P[:, j] = off
-            else:
-                G[:, j] = G[:, p] @ L[:, j]
-                P[:, j] = P[:, p] + (G[:, p] @ off[:, :, None])[:, :, 0]
-        del root_pos
-        return P
+        return forward(L, self.parents, self.offsets[None] + pos_local)[1]
 
 
 def read_bvh(path: str | Path) -> BVH:

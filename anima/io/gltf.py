@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.core.character import CharacterMesh, Motion, Skeleton
 from anima.core.contract import TEXT_FPS
 from anima.core.rotations import matrix_to_quat
 from anima.io.atomic import write_bytes
@@ -109,59 +110,92 @@ UBYTE, USHORT = 5121, 5123
 
 def write_character_glb(
     path: str | Path,
-    joint_names: list[str],
-    parents: np.ndarray,
-    rest_joints_m: np.ndarray,
-    root_positions_m: np.ndarray,
-    local_quats_xyzw: np.ndarray,
-    vertices_m: np.ndarray,
-    normals: np.ndarray,
-    tris: np.ndarray,
-    skin_joints: np.ndarray,
-    skin_weights: np.ndarray,
-    morphs: list[tuple[np.ndarray, np.ndarray]],
-    morph_names: list[str],
-    weights: np.ndarray,
-    fps: float,
+    character: CharacterMesh,
+    motion: Motion,
     extras: dict | None = None,
     scene_extras: dict | None = None,
-    animated: np.ndarray | None = None,
-    rest_rotations: np.ndarray | None = None,
     doc_extensions: dict | None = None,
-    colors: np.ndarray | None = None,
 ) -> Path:
     """A skinned character and its motion in one animated glTF 2.0 binary (one timeline):
 
-    * one node per joint (``joint_names``, ``parents``, parents first), at its rest position
-      ``rest_joints_m [J, 3]`` (its translation is the offset from its parent; rest rotations identity), and a
-      skin over all of them (inverse bind matrices of that rest pose);
-    * the mesh ``vertices_m [V, 3]`` (rest pose, metres) with ``normals``, ``tris [T, 3]``, four joints and
-      weights a vertex, a neutral material, and the morph targets ``morphs`` (``(vertex indices, deltas)``
-      each, written as sparse accessors) named ``morph_names`` (``mesh.extras.targetNames``);
-    * one animation: the root's translation ``[F, 3]``, the local rotations ``[F, J, 4]`` (x, y, z, w) of the
-      joints in ``animated`` (default: every joint), and the morph ``weights [F, E]``, LINEAR, at ``fps``;
+    * one node per joint of ``character.skeleton`` (parents first) at its rest position (its translation is the
+      offset from its parent), and a skin over all of them (inverse bind matrices of that rest pose); a rig
+      with rest rotations (an A-pose, rolled bones) gets them as its nodes' rest rotations and inverse bind
+      matrices, and ``motion.local_quats`` are then the nodes' local rotations as glTF has them;
+    * the mesh (rest pose, metres) with its normals, four joints and weights a vertex, a neutral material
+      (white, multiplying ``COLOR_0``, where the character has vertex colours), and the morph targets (written
+      as sparse accessors) named in ``mesh.extras.targetNames``;
+    * one animation: the root's translation, the local rotations of the joints ``motion.animated`` names and
+      the morph weights, LINEAR, at ``motion.fps``;
     * ``scene_extras``: the scene's ``extras`` (Blender's importer keeps them as the scene's custom
       properties: anima puts the frame rate, the frame range and the unit there);
-    * ``rest_rotations [J, 3, 3]``: the joints' rest *world* rotations (default identity: anima's own rig); a
-      rig with other rest axes (an A-pose, rolled bones) gets them as its nodes' rest rotations and inverse
-      bind matrices, and ``local_quats_xyzw`` are then the nodes' local rotations as glTF has them;
-    * ``doc_extensions``: top-level glTF extensions (e.g. ``VRMC_vrm``; listed in ``extensionsUsed``);
-    * ``colors [V, 3]``: the vertices' colours (linear RGB in [0, 1]), written as ``COLOR_0`` (8-bit,
-      normalised), which the material multiplies (its base colour white).
+    * ``doc_extensions``: top-level glTF extensions (e.g. ``VRMC_vrm``; listed in ``extensionsUsed``).
     """
-    J = len(joint_names)
-    F = len(root_positions_m)
-    parents = np.asarray(parents)
-    rest = np.asarray(rest_joints_m, np.float64)
+    sk = character.skeleton
     buf = _Buffer()
-    Rw = np.tile(np.eye(3), (J, 1, 1)) if rest_rotations is None else np.asarray(rest_rotations, np.float64)
+    nodes, ibm = _joint_nodes(sk)
+    ibm_acc = buf.add(ibm.transpose(0, 2, 1).reshape(len(nodes), 16), FLOAT, "MAT4")  # column-major
+    prim, targets = _skinned_primitive(buf, character)
+    mesh_node = len(nodes)
+    nodes.append({"name": "character", "mesh": 0, "skin": 0})
+    root = int(np.flatnonzero(np.asarray(sk.parents) < 0)[0])
+    samplers, channels = _motion_channels(buf, motion, root, mesh_node, bool(len(character.morph_names)))
+    if character.colors is not None:
+        c8 = np.clip(np.round(np.asarray(character.colors, np.float64) * 255), 0, 255).astype(np.uint8)
+        c8 = np.concatenate([c8, np.full((len(c8), 1), 255, np.uint8)], 1)
+        acc = buf.add(c8, UBYTE, "VEC4", ARRAY_BUFFER)
+        buf.accessors[acc]["normalized"] = True
+        prim["attributes"]["COLOR_0"] = acc
+    if targets:
+        prim["targets"] = targets
+    gltf = {
+        "asset": {"version": "2.0", "generator": "anima", **({"extras": extras} if extras else {})},
+        "scene": 0,
+        "scenes": [
+            {"name": "avatar", "nodes": [root, mesh_node], **({"extras": scene_extras} if scene_extras else {})}
+        ],
+        "nodes": nodes,
+        "skins": [{"name": "rig", "joints": list(range(mesh_node)), "skeleton": root, "inverseBindMatrices": ibm_acc}],
+        "materials": [
+            {
+                "name": "neutral",
+                "pbrMetallicRoughness": {
+                    "baseColorFactor": [0.78, 0.76, 0.74, 1.0] if character.colors is None else [1.0, 1.0, 1.0, 1.0],
+                    "metallicFactor": 0.0,
+                    "roughnessFactor": 0.7,
+                },
+            }
+        ],  # fmt: skip
+        "meshes": [
+            {
+                "name": "character",
+                "primitives": [prim],
+                **({"weights": [0.0] * len(targets)} if targets else {}),
+                "extras": {"targetNames": list(character.morph_names)},
+            }
+        ],
+        "animations": [{"name": "motion", "samplers": samplers, "channels": channels}],
+    }
+    if doc_extensions:
+        gltf["extensions"] = doc_extensions
+        gltf["extensionsUsed"] = sorted(doc_extensions)
+    return _pack(path, gltf, buf)
+
+
+def _joint_nodes(sk: Skeleton) -> tuple[list[dict], np.ndarray]:
+    """The skeleton's nodes (name, translation from the parent, rest rotation where the rig has them, children)
+    and their inverse bind matrices ``[J, 4, 4]`` (float32)."""
+    J = len(sk.names)
+    parents = np.asarray(sk.parents)
+    rest = np.asarray(sk.rest, np.float64)
+    Rw = np.tile(np.eye(3), (J, 1, 1)) if sk.rest_rotations is None else np.asarray(sk.rest_rotations, np.float64)
     nodes = []
     for j in range(J):
         p = parents[j]
         Rp = Rw[p] if p >= 0 else np.eye(3)
         off = Rp.T @ (rest[j] - (rest[p] if p >= 0 else 0.0))
-        nodes.append({"name": joint_names[j], "translation": [float(x) for x in off]})
-        if rest_rotations is not None:
+        nodes.append({"name": sk.names[j], "translation": [float(x) for x in off]})
+        if sk.rest_rotations is not None:
             nodes[j]["rotation"] = [float(x) for x in matrix_to_quat(Rp.T @ Rw[j])]
     for j in range(J):
         kids = [int(c) for c in np.flatnonzero(parents == j)]
@@ -170,24 +204,28 @@ def write_character_glb(
     ibm = np.tile(np.eye(4), (J, 1, 1))
     ibm[:, :3, :3] = np.swapaxes(Rw, -1, -2)
     ibm[:, :3, 3] = -np.einsum("jab,jb->ja", np.swapaxes(Rw, -1, -2), rest)
-    ibm = ibm.astype(np.float32)
-    ibm_acc = buf.add(ibm.transpose(0, 2, 1).reshape(J, 16), FLOAT, "MAT4")  # column-major
-    V = len(vertices_m)
-    pos = buf.add(np.asarray(vertices_m, np.float32), FLOAT, "VEC3", ARRAY_BUFFER, minmax=True)
-    nrm = buf.add(np.asarray(normals, np.float32), FLOAT, "VEC3", ARRAY_BUFFER)
+    return nodes, ibm.astype(np.float32)
+
+
+def _skinned_primitive(buf: _Buffer, ch: CharacterMesh) -> tuple[dict, list[dict]]:
+    """The mesh's primitive (positions, normals, indices, joints and weights in ``buf``) and its morph targets
+    (sparse accessors, their vertex indices sorted)."""
+    V = len(ch.vertices)
+    pos = buf.add(np.asarray(ch.vertices, np.float32), FLOAT, "VEC3", ARRAY_BUFFER, minmax=True)
+    nrm = buf.add(np.asarray(ch.normals, np.float32), FLOAT, "VEC3", ARRAY_BUFFER)
     small = V < 65536
     idx = buf.add(
-        np.asarray(tris, np.uint16 if small else np.uint32).ravel(),
+        np.asarray(ch.faces, np.uint16 if small else np.uint32).ravel(),
         USHORT if small else UINT,
         "SCALAR",
         ELEMENT_ARRAY_BUFFER,
     )
-    jnt_acc = buf.add(np.asarray(skin_joints, np.uint8), UBYTE, "VEC4", ARRAY_BUFFER)
-    w = np.asarray(skin_weights, np.float32)
+    jnt_acc = buf.add(np.asarray(ch.skin_joints, np.uint8), UBYTE, "VEC4", ARRAY_BUFFER)
+    w = np.asarray(ch.skin_weights, np.float32)
     w = w / w.sum(1, keepdims=True)
     wgt_acc = buf.add(w, FLOAT, "VEC4", ARRAY_BUFFER)
     targets = []
-    for vi, d in morphs:
+    for vi, d in ch.morphs:
         vi = np.asarray(vi)
         order = np.argsort(vi)
         vi, d = vi[order], np.asarray(d, np.float32)[order]
@@ -205,115 +243,78 @@ def write_character_glb(
             }
         buf.accessors.append(acc)
         targets.append({"POSITION": len(buf.accessors) - 1})
-    mesh_node = len(nodes)
-    nodes.append({"name": "character", "mesh": 0, "skin": 0})
-    root = int(np.flatnonzero(parents < 0)[0])
-    times = (np.arange(F, dtype=np.float32) / np.float32(fps)).astype(np.float32)
-    t_acc = buf.add(times, FLOAT, "SCALAR", minmax=True)
-    samplers = [
-        {
-            "input": t_acc,
-            "output": buf.add(np.asarray(root_positions_m, np.float32), FLOAT, "VEC3"),
-            "interpolation": "LINEAR",
-        }
-    ]
-    channels = [{"sampler": 0, "target": {"node": root, "path": "translation"}}]
-    q = np.asarray(local_quats_xyzw, np.float64)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    for j in range(J) if animated is None else np.flatnonzero(animated):
-        samplers.append(
-            {"input": t_acc, "output": buf.add(q[:, j].astype(np.float32), FLOAT, "VEC4"), "interpolation": "LINEAR"}
-        )
-        channels.append({"sampler": len(samplers) - 1, "target": {"node": int(j), "path": "rotation"}})
-    if len(morph_names):
-        samplers.append(
-            {
-                "input": t_acc,
-                "output": buf.add(np.clip(weights, 0, 1).astype(np.float32).ravel(), FLOAT, "SCALAR"),
-                "interpolation": "LINEAR",
-            }
-        )
-        channels.append({"sampler": len(samplers) - 1, "target": {"node": mesh_node, "path": "weights"}})
     prim = {
         "attributes": {"POSITION": pos, "NORMAL": nrm, "JOINTS_0": jnt_acc, "WEIGHTS_0": wgt_acc},
         "indices": idx,
         "material": 0,
         "mode": 4,
     }
-    if colors is not None:
-        c8 = np.clip(np.round(np.asarray(colors, np.float64) * 255), 0, 255).astype(np.uint8)
-        c8 = np.concatenate([c8, np.full((len(c8), 1), 255, np.uint8)], 1)
-        acc = buf.add(c8, UBYTE, "VEC4", ARRAY_BUFFER)
-        buf.accessors[acc]["normalized"] = True
-        prim["attributes"]["COLOR_0"] = acc
-    if targets:
-        prim["targets"] = targets
-    gltf = {
-        "asset": {"version": "2.0", "generator": "anima", **({"extras": extras} if extras else {})},
-        "scene": 0,
-        "scenes": [
-            {"name": "avatar", "nodes": [root, mesh_node], **({"extras": scene_extras} if scene_extras else {})}
-        ],
-        "nodes": nodes,
-        "skins": [{"name": "rig", "joints": list(range(J)), "skeleton": root, "inverseBindMatrices": ibm_acc}],
-        "materials": [
+    return prim, targets
+
+
+def _motion_channels(
+    buf: _Buffer, motion: Motion, root: int, mesh_node: int, morphs: bool
+) -> tuple[list[dict], list[dict]]:
+    """The animation's samplers and channels: the ``root`` node's translation, the animated joints' rotations
+    (normalised) and, with ``morphs``, the mesh node's weights (clipped to [0, 1])."""
+    F = motion.n_frames
+    times = (np.arange(F, dtype=np.float32) / np.float32(motion.fps)).astype(np.float32)
+    t_acc = buf.add(times, FLOAT, "SCALAR", minmax=True)
+    samplers = [
+        {
+            "input": t_acc,
+            "output": buf.add(np.asarray(motion.root, np.float32), FLOAT, "VEC3"),
+            "interpolation": "LINEAR",
+        }
+    ]
+    channels = [{"sampler": 0, "target": {"node": root, "path": "translation"}}]
+    q = np.asarray(motion.local_quats, np.float64)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    for j in range(q.shape[1]) if motion.animated is None else np.flatnonzero(motion.animated):
+        samplers.append(
+            {"input": t_acc, "output": buf.add(q[:, j].astype(np.float32), FLOAT, "VEC4"), "interpolation": "LINEAR"}
+        )
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": int(j), "path": "rotation"}})
+    if morphs:
+        samplers.append(
             {
-                "name": "neutral",
-                "pbrMetallicRoughness": {
-                    "baseColorFactor": [0.78, 0.76, 0.74, 1.0] if colors is None else [1.0, 1.0, 1.0, 1.0],
-                    "metallicFactor": 0.0,
-                    "roughnessFactor": 0.7,
-                },
+                "input": t_acc,
+                "output": buf.add(np.clip(motion.weights, 0, 1).astype(np.float32).ravel(), FLOAT, "SCALAR"),
+                "interpolation": "LINEAR",
             }
-        ],  # fmt: skip
-        "meshes": [
-            {
-                "name": "character",
-                "primitives": [prim],
-                **({"weights": [0.0] * len(targets)} if targets else {}),
-                "extras": {"targetNames": list(morph_names)},
-            }
-        ],
-        "animations": [{"name": "motion", "samplers": samplers, "channels": channels}],
-    }
-    if doc_extensions:
-        gltf["extensions"] = doc_extensions
-        gltf["extensionsUsed"] = sorted(doc_extensions)
-    return _pack(path, gltf, buf)
+        )
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": mesh_node, "path": "weights"}})
+    return samplers, channels
 
 
 def write_vrma(
     path: str | Path,
-    bone_names: list[str],
-    parents: np.ndarray,
-    rest_joints_m: np.ndarray,
-    root_positions_m: np.ndarray,
-    local_quats_xyzw: np.ndarray,
-    fps: float,
+    skeleton: Skeleton,
+    motion: Motion,
     humanoid: dict[str, int],
     expressions: dict[str, np.ndarray],
     extras: dict | None = None,
 ) -> Path:
     """A VRM Animation (``.vrma``: glTF 2.0 binary with ``VRMC_vrm_animation`` 1.0): the skeleton's nodes at
-    their rest (world rotations identity, i.e. the T-pose rest, offsets ``rest_joints_m`` child minus parent),
-    one animation of the root's translation ``[F, 3]``, every joint's local rotation ``[F, J, 4]`` and one node
-    per expression whose translation's x is the weight (as the extension defines); ``humanoid``: VRM bone name
-    -> joint index; ``expressions``: VRM preset name -> weights ``[F]``."""
-    J = len(bone_names)
-    parents = np.asarray(parents)
-    rest = np.asarray(rest_joints_m, np.float64)
+    their rest (world rotations identity, i.e. the T-pose rest, offsets child minus parent of ``skeleton.rest``),
+    one animation of the root's translation ``[F, 3]``, the humanoid joints' local rotations (``motion``'s) and
+    one node per expression whose translation's x is the weight (as the extension defines); ``humanoid``: VRM
+    bone name -> joint index; ``expressions``: VRM preset name -> weights ``[F]``."""
+    J = len(skeleton.names)
+    parents = np.asarray(skeleton.parents)
+    rest = np.asarray(skeleton.rest, np.float64)
     buf = _Buffer()
     nodes = []
     for j in range(J):
         off = rest[j] - (rest[parents[j]] if parents[j] >= 0 else 0.0)
-        nodes.append({"name": bone_names[j], "translation": [float(x) for x in off]})
+        nodes.append({"name": skeleton.names[j], "translation": [float(x) for x in off]})
     for j in range(J):
         kids = [int(c) for c in np.flatnonzero(parents == j)]
         if kids:
             nodes[j]["children"] = kids
     root = int(np.flatnonzero(parents < 0)[0])
-    F = len(root_positions_m)
-    times = (np.arange(F, dtype=np.float32) / np.float32(fps)).astype(np.float32)
+    F = motion.n_frames
+    times = (np.arange(F, dtype=np.float32) / np.float32(motion.fps)).astype(np.float32)
     t_acc = buf.add(times, FLOAT, "SCALAR", minmax=True)
     samplers, channels = [], []
 
@@ -322,8 +323,8 @@ def write_vrma(
                          "interpolation": "LINEAR"})  # fmt: skip
         channels.append({"sampler": len(samplers) - 1, "target": {"node": int(node), "path": what}})
 
-    track(root, "translation", np.asarray(root_positions_m), "VEC3")
-    q = np.asarray(local_quats_xyzw, np.float64)
+    track(root, "translation", np.asarray(motion.root), "VEC3")
+    q = np.asarray(motion.local_quats, np.float64)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     for j in humanoid.values():
         track(j, "rotation", q[:, j], "VEC4")

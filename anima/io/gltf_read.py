@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from anima.core.kinematics import parents_first
 from anima.core.rotations import matrix_to_quat, quat_to_matrix
 from anima.errors import InputError, SchemaError
 from anima.io.gltf_check import check_document
@@ -95,7 +96,7 @@ class Gltf:
         """Every node's world transform ``[N, 4, 4]`` (parents first): the rest pose, or with ``overrides``
         ``{node: {"translation" | "rotation" | "scale": value}}`` replacing parts of nodes' local transforms."""
         W = np.tile(np.eye(4), (len(self.nodes), 1, 1))
-        for i in _order(self.parents):
+        for i in parents_first(self.parents):
             p = self.parents[i]
             L = self.local(i) if not overrides or i not in overrides else self._local_with(i, overrides[i])
             W[i] = (W[p] if p >= 0 else np.eye(4)) @ L
@@ -141,20 +142,6 @@ class Gltf:
                     ov.setdefault(node, {})[path] = v[min(f, len(v) - 1)]
             out[f] = self.world(ov)
         return out
-
-
-def _order(parents: np.ndarray) -> list[int]:
-    """Node indices with every parent before its children (breadth first from the roots: linear time, no
-    recursion; the hierarchy is a forest, checked when read)."""
-    kids: dict[int, list[int]] = {}
-    for i, p in enumerate(parents):
-        kids.setdefault(int(p), []).append(i)
-    out = list(kids.get(-1, []))
-    k = 0
-    while k < len(out):
-        out.extend(kids.get(out[k], []))
-        k += 1
-    return out
 
 
 def read_gltf(path: str | Path) -> Gltf:

@@ -43,13 +43,14 @@ def input_file(path: str | os.PathLike, what: str = "file") -> Path:
     return p
 
 
-def _depth(x, limit: int, level: int = 0) -> int:
+def json_depth(x, limit: int, level: int = 0) -> int:
+    """How deep parsed JSON ``x`` nests (dicts and lists), counted no further than just past ``limit``."""
     if level > limit:
         return level
     if isinstance(x, dict):
-        return max([_depth(v, limit, level + 1) for v in x.values()], default=level + 1)
+        return max([json_depth(v, limit, level + 1) for v in x.values()], default=level + 1)
     if isinstance(x, list):
-        return max([_depth(v, limit, level + 1) for v in x], default=level + 1)
+        return max([json_depth(v, limit, level + 1) for v in x], default=level + 1)
     return level
 
 
@@ -70,7 +71,7 @@ def parse_json(text: str | bytes, where: str, max_depth: int = MAX_JSON_DEPTH):
         raise InputError(f"{where}: JSON nested too deeply") from None
     except ValueError as e:
         raise InputError(f"{where}: not valid JSON ({str(e).splitlines()[0][:120]})") from None
-    if _depth(obj, max_depth) > max_depth:
+    if json_depth(obj, max_depth) > max_depth:
         raise InputError(f"{where}: JSON nested deeper than {max_depth} levels")
     return obj
 

@@ -221,6 +221,68 @@ def frame_times(path: str | os.PathLike) -> np.ndarray:
 _SHOWINFO = re.compile(r"pts_time:\s*(-?[0-9.]+(?:e[-+]?[0-9]+)?)")
 
 
+def _stamped_decoder(info: VideoInfo, seek: float | None, prefetch: int):
+    """An ffmpeg decoding ``info``'s video (from the keyframe before ``seek`` seconds, original timestamps kept)
+    and its two reader threads, started: ``(process, queue of (timestamp, frame) then None, stop event, threads,
+    the log's last lines)``."""
+    q: queue.Queue = queue.Queue(maxsize=prefetch)
+    stop_ev = threading.Event()
+    proc = subprocess.Popen(
+        [FFMPEG, "-hide_banner", "-nostdin", "-loglevel", "info"]
+        + (["-ss", f"{seek:.6f}", "-noaccurate_seek"] if seek is not None else [])
+        + ["-copyts", "-i", info.path, "-map", "0:v:0", "-vf", "showinfo", "-vsync", "0"]
+        + ["-f", "rawvideo", "-pix_fmt", "rgb24", "-"],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    stamps: queue.Queue = queue.Queue()
+    tail: list[str] = []
+
+    def read_log(proc=proc, stamps=stamps, tail=tail):
+        for raw_line in proc.stderr:
+            line = raw_line.decode(errors="replace")
+            m = _SHOWINFO.search(line)
+            if m:
+                stamps.put(float(m.group(1)))
+            elif line.strip():
+                tail[:] = (tail + [line.strip()])[-3:]
+        stamps.put(None)
+
+    def read_frames(proc=proc, q=q, stop_ev=stop_ev, stamps=stamps):
+        size = info.width * info.height * 3
+        try:
+            while not stop_ev.is_set():
+                buf = proc.stdout.read(size)
+                if len(buf) < size:
+                    break
+                ts = stamps.get()
+                if ts is None:
+                    break
+                q.put((ts, np.frombuffer(buf, np.uint8).reshape(info.height, info.width, 3)))
+        finally:
+            q.put(None)
+
+    threads = [threading.Thread(target=f, daemon=True) for f in (read_log, read_frames)]
+    for th in threads:
+        th.start()
+    return proc, q, stop_ev, threads, tail
+
+
+def _stop_decoder(proc, q: queue.Queue, stop_ev: threading.Event, threads: list) -> None:
+    """Stop a :func:`_stamped_decoder`: its process killed, its threads drained and joined."""
+    stop_ev.set()
+    proc.kill()
+    while any(th.is_alive() for th in threads):
+        try:
+            q.get(timeout=0.05)
+        except queue.Empty:
+            pass
+    for th in threads:
+        th.join(timeout=1)
+    proc.wait()
+
+
 def iter_frame_range(
     info: VideoInfo,
     start: int,
@@ -249,47 +311,7 @@ def iter_frame_range(
     t_first, t_end = t[start] - tol, (t[stop] - tol if stop < len(t) else np.inf)
     seek = t[start] - 1.0 if start > 0 and t[start] - 1.0 > t[0] else None
     for attempt in (seek, None) if seek is not None else (None,):
-        q: queue.Queue = queue.Queue(maxsize=prefetch)
-        stop_ev = threading.Event()
-        proc = subprocess.Popen(
-            [FFMPEG, "-hide_banner", "-nostdin", "-loglevel", "info"]
-            + (["-ss", f"{attempt:.6f}", "-noaccurate_seek"] if attempt is not None else [])
-            + ["-copyts", "-i", info.path, "-map", "0:v:0", "-vf", "showinfo", "-vsync", "0"]
-            + ["-f", "rawvideo", "-pix_fmt", "rgb24", "-"],
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-        )
-        stamps: queue.Queue = queue.Queue()
-        tail: list[str] = []
-
-        def read_log(proc=proc, stamps=stamps, tail=tail):
-            for raw_line in proc.stderr:
-                line = raw_line.decode(errors="replace")
-                m = _SHOWINFO.search(line)
-                if m:
-                    stamps.put(float(m.group(1)))
-                elif line.strip():
-                    tail[:] = (tail + [line.strip()])[-3:]
-            stamps.put(None)
-
-        def read_frames(proc=proc, q=q, stop_ev=stop_ev, stamps=stamps):
-            size = info.width * info.height * 3
-            try:
-                while not stop_ev.is_set():
-                    buf = proc.stdout.read(size)
-                    if len(buf) < size:
-                        break
-                    ts = stamps.get()
-                    if ts is None:
-                        break
-                    q.put((ts, np.frombuffer(buf, np.uint8).reshape(info.height, info.width, 3)))
-            finally:
-                q.put(None)
-
-        threads = [threading.Thread(target=f, daemon=True) for f in (read_log, read_frames)]
-        for th in threads:
-            th.start()
+        proc, q, stop_ev, threads, tail = _stamped_decoder(info, attempt, prefetch)
         overshot = False
         try:
             first = True
@@ -309,16 +331,7 @@ def iter_frame_range(
                 k = int(np.clip(np.searchsorted(t, ts + tol) - 1, 0, len(t) - 1))
                 yield k, frame
         finally:
-            stop_ev.set()
-            proc.kill()
-            while any(th.is_alive() for th in threads):
-                try:
-                    q.get(timeout=0.05)
-                except queue.Empty:
-                    pass
-            for th in threads:
-                th.join(timeout=1)
-            proc.wait()
+            _stop_decoder(proc, q, stop_ev, threads)
         if not overshot:
             if proc.returncode not in (0, -9) and errors is not None and tail:
                 errors.append(f"decoding stopped early ({tail[-1]}); keeping the frames decoded so far")

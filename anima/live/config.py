@@ -6,6 +6,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from anima.track import DEFAULT as DEFAULT_TRACKER
+from anima.track import TRACKERS as TRACKER_NAMES
+
 TRACKERS = 2
 """Holistic trackers in parallel (``anima live`` without ``--face-only``), each on every other frame: one
 Holistic pass takes ~60 ms on a laptop core, two on two cores keep up with 25-30 fps (MediaPipe releases the
@@ -26,6 +29,8 @@ class LiveConfig(SourceConfig):
     """Camera index (0, 1, ...), video file, or stream URL (with --allow-network)."""
     face_only: bool = False
     """Track the face only (Face Mesh: faster)."""
+    tracker: str = field(default=DEFAULT_TRACKER, metadata={"choices": tuple(TRACKER_NAMES)})
+    """The tracker that finds the face, body and hands (docs/architecture.md says how to add one)."""
     realtime: bool = False
     """Play a video file at its own frame rate as a camera would, dropping frames when behind (default for a
     file: every frame, as fast as they are tracked)."""

@@ -13,7 +13,6 @@ import numpy as np
 
 from anima.capture.config import CaptureConfig
 from anima.capture.fit import LandmarkBasis, choose_keyframes, fit_frames, fit_identity
-from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.core.camera import mediapipe_to_camera
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
@@ -23,6 +22,7 @@ from anima.reenact.config import ReenactConfig
 from anima.reenact.pipeline import Reenactor, Smoother
 from anima.reenact.run import check_run, load_target_frames, pingpong, prepare, single_thread_blas, write_record
 from anima.reenact.synth import expression_mapping
+from anima.track import DEFAULT, get
 
 
 def reenact_live(
@@ -44,11 +44,11 @@ class ActorTracker:
     first 30 fitted frames (the actor statistics so far). Call with an RGB frame; returns ``(found, x)``:
     ``found`` False when no face is tracked, ``x`` None while the identity is still being gathered."""
 
-    def __init__(self, db, cfg: ReenactConfig, warm: int = 10):
+    def __init__(self, db, cfg: ReenactConfig, warm: int = 10, tracker: str = DEFAULT):
         self.db, self.cfg, self.warm_n = db, cfg, warm
         self.fcfg = CaptureConfig().fit
         self.basis = LandmarkBasis.build(load_face_model(), load_correspondence(), self.fcfg.use_iris)
-        self.tracker = FaceMeshTracker(static_image_mode=False)
+        self.tracker = get(tracker).face_mesh(static=False)
         self.warm, self.seen, self.identity, self.mapping = [], [], None, None
 
     def __call__(self, rgb: np.ndarray):

@@ -38,7 +38,8 @@ from anima.live.sinks import check_sinks, open_sinks
 from anima.live.sources import check_live_source, open_source
 from anima.live.take import Journal, part_names, read_parts, recover, write_take
 from anima.live.tracker import LiveTracker, StopOnSignal, message, tracked
-from anima.view.export import _js, viewer_files
+from anima.track import get
+from anima.view.export import js_global, viewer_files
 from anima.view.serve import open_server, page_url
 from anima.view.ws import Broadcaster
 
@@ -56,15 +57,15 @@ def _page(root: Path, title: str, fps: float, avatar: str | None = None, front: 
         vrm = Path(avatar).suffix.lower() == ".vrm"
         data["avatar"] = {"avatar": Path(avatar).name, "as": "retargeted live, frame by frame", "vrm": vrm,
                           "front": front}  # fmt: skip
-        write_text(root / "view-data.js", _js("ANIMA_VIEW", data))
-        write_text(root / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(Path(avatar).read_bytes()).decode()))
+        write_text(root / "view-data.js", js_global("ANIMA_VIEW", data))
+        write_text(root / "avatar-glb.js", js_global("ANIMA_GLB", base64.b64encode(Path(avatar).read_bytes()).decode()))
         for f in viewer_files():
             copy_file(f, root / f.name)
         return
-    write_text(root / "view-data.js", _js("ANIMA_VIEW", data))
+    write_text(root / "view-data.js", js_global("ANIMA_VIEW", data))
     with tempfile.TemporaryDirectory(prefix="anima-live-") as tmp:
         glb = write_character_avatar(Path(tmp) / "character.glb", preset="anima")
-        write_text(root / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(Path(glb).read_bytes()).decode()))
+        write_text(root / "avatar-glb.js", js_global("ANIMA_GLB", base64.b64encode(Path(glb).read_bytes()).decode()))
     for f in viewer_files():
         copy_file(f, root / f.name)
 
@@ -96,6 +97,7 @@ def check(cfg: LiveConfig) -> tuple[str, dict]:
                              "or empty folder: give another folder")  # fmt: skip
     if cfg.avatar is not None:
         input_file(cfg.avatar, "--avatar")
+    get(cfg.tracker)  # an unknown name: one line, before any model loads
     return src, targets
 
 
@@ -104,7 +106,8 @@ def run(cfg: LiveConfig, command: str | None = None, announce=print) -> dict:
     ``max_seconds``, ``max_frames``, Ctrl-C or SIGTERM)."""
     src, targets = check(cfg)
     retarget = LiveRetarget(cfg.avatar, load_character().joints) if cfg.avatar is not None else None
-    tracker = LiveTracker(cfg.face_only, cfg.trackers)  # the models load before the first frame is offered
+    # the models load before the first frame is offered
+    tracker = LiveTracker(cfg.face_only, cfg.trackers, cfg.tracker)
     reader = open_source(src, realtime=cfg.realtime or not Path(src).exists(), loop=cfg.loop)
     root = Path(tempfile.mkdtemp(prefix="anima-live-"))
     server = None

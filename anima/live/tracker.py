@@ -17,8 +17,6 @@ import numpy as np
 from anima.capture.body import assemble_frame, assemble_legs
 from anima.capture.config import CaptureConfig
 from anima.capture.fit import LandmarkBasis, choose_keyframes, fit_frames, fit_identity
-from anima.capture.holistic import HolisticTracker
-from anima.capture.mediapipe_face import FaceMeshTracker
 from anima.core import rig
 from anima.core.camera import mediapipe_to_camera
 from anima.core.contract import JOINT_NAMES, LEG_JOINTS, N_EXPR, N_JOINTS
@@ -31,6 +29,7 @@ from anima.facemodel.ict import load_face_model
 from anima.live.config import TRACKERS
 from anima.live.sources import PacedReader
 from anima.live.take import LiveFrame
+from anima.track import DEFAULT, get
 
 WARM = 10
 MIN_CONF = 0.5  # a body joint below this visibility is unseen (the capture's threshold)
@@ -40,13 +39,12 @@ class LiveTracker:
     """Per frame: landmarks (:meth:`landmarks`, thread-safe per tracker ``k``), then the face fit and the rig
     (:meth:`frame`, in order on one thread). See the module docstring."""
 
-    def __init__(self, face_only: bool = False, trackers: int = TRACKERS):
+    def __init__(self, face_only: bool = False, trackers: int = TRACKERS, tracker: str = DEFAULT):
         self.face_only = face_only
         self.fcfg = CaptureConfig().fit
         self.basis = LandmarkBasis.build(load_face_model(), load_correspondence(), self.fcfg.use_iris)
-        self.trackers = (
-            [FaceMeshTracker(static_image_mode=False)] if face_only else [HolisticTracker() for _ in range(trackers)]
-        )
+        t = get(tracker)
+        self.trackers = [t.face_mesh(static=False)] if face_only else [t.holistic() for _ in range(trackers)]
         self.warm: list[np.ndarray] = []
         self.warm_frames: list[tuple] = []  # (index, t_capture, body) of each warm-up face
         self.backfill: list[LiveFrame] = []  # the warm-up frames fitted once the identity is known

@@ -29,6 +29,7 @@ from anima.io.atomic import write_npz
 from anima.io.safe_npz import load_object_member
 from anima.io.video import iter_frames, probe_video
 from anima.pose3d.joints import BONES, K, humaneva_to_h36m, mediapipe_to_h36m
+from anima.track import get
 
 TRAIN_SUBJECTS = ("S1", "S5", "S6", "S7", "S8")
 TEST_SUBJECTS = ("S9", "S11")
@@ -124,24 +125,21 @@ def subject_bone_lengths(subjects=TRAIN_SUBJECTS) -> dict[str, np.ndarray]:
 
 # ----------------------------------------------------------------------------------- MediaPipe evidence
 class PoseDetector:
-    """MediaPipe Pose (legacy solutions API; models ship in the wheel). Returns pixel landmarks ``(33, 2)``,
-    visibility ``(33,)`` and world landmarks ``(33, 3)`` in metres (MediaPipe axes), or None."""
+    """The tracker's pose model (:mod:`anima.track`). Returns pixel landmarks ``(33, 2)``, visibility ``(33,)``
+    and world landmarks ``(33, 3)`` in metres (MediaPipe axes), or None."""
 
     def __init__(self, static_image_mode: bool = True, model_complexity: int = 1):
-        import mediapipe as mp
-
-        self._p = mp.solutions.pose.Pose(
-            static_image_mode=static_image_mode, model_complexity=model_complexity, min_detection_confidence=0.5
-        )
+        if model_complexity != 1:
+            raise ValueError("the tracker's pose model runs at model_complexity 1")
+        self._p = get().pose(static=static_image_mode)
 
     def __call__(self, rgb: np.ndarray):
         h, w = rgb.shape[:2]
-        r = self._p.process(np.ascontiguousarray(rgb))
-        if r.pose_landmarks is None:
+        r = self._p(rgb)
+        if r is None:
             return None
-        lm = np.array([(p.x * w, p.y * h, p.visibility) for p in r.pose_landmarks.landmark], np.float32)
-        wl = np.array([(p.x, p.y, p.z) for p in r.pose_world_landmarks.landmark], np.float32)
-        return lm[:, :2], lm[:, 2], wl
+        uv = (r.image[:, :2].astype(np.float64) * [w, h]).astype(np.float32)
+        return uv, r.image[:, 3].copy(), r.world[:, :3].copy()
 
     def close(self):
         self._p.close()

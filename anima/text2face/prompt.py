@@ -253,6 +253,84 @@ def _takes_side(events: list[Event], side: str) -> bool:
     return all(e.attribute in SIDED or e.attribute == "gaze" for e in events)
 
 
+def _understood(clause: str) -> set[int]:
+    """The character positions of ``clause`` that anima understands: every vocabulary word (repeated ones
+    included), the counts, the intensity words and the negations."""
+    used = set()
+    for pats in LEXICON.values():
+        for p in pats:
+            for m in re.finditer(r"\b" + p + r"\b", clause):
+                used.update(range(*m.span()))
+    for pat, _ in COUNTS + INTENSITY + [(NEGATION, None), (r"\bat\s+all\b", None)]:
+        for m in re.finditer(pat, clause):
+            used.update(range(*m.span()))
+    return used
+
+
+def _drop_negated(clause: str, hits: list, plan: Plan) -> list:
+    """``hits`` without the ones a negation excludes (the first event after it in the clause), which the plan
+    lists as excluded."""
+    negated = set()
+    for m in re.finditer(NEGATION, clause):
+        nxt = next((k for k, h in enumerate(hits) if h[0] >= m.end()), None)
+        if nxt is not None:
+            negated.add(nxt)
+    for k in sorted(negated):
+        plan.excluded.append(hits[k][1] + f" ('{clause[hits[k][2][0] : hits[k][2][1]]}')")
+    return [h for k, h in enumerate(hits) if k not in negated]
+
+
+def _add_events(plan: Plan, clause: str, hits: list, clause_i: int, count: int | None, inten: float) -> None:
+    """The events of one clause's ``hits`` appended to the plan: a count attaches to the event it follows, each
+    event's side bound from the clause's side words (a wink and a one-sided event default to the left; a gaze
+    takes its direction); an event anima cannot place is noted instead."""
+    sides = _bind_sides(clause, hits)
+    for k, (_, ev, (a, b)) in enumerate(hits):
+        # a count attaches to the event it follows (the last one before it in the clause)
+        c = 1
+        if count is not None:
+            cm = max((m.start() for pat, _ in COUNTS for m in re.finditer(pat, clause)), default=-1)
+            nxt = hits[k + 1][0] if k + 1 < len(hits) else len(clause) + 1
+            if a <= cm < nxt or (len(hits) == 1):
+                c = count
+        if ev in UNPLACED:
+            plan.notes.append(UNPLACED[ev])
+            plan.unplaced.append(clause[a:b])
+            continue
+        sd = sides.get(k) if ev in SIDED else None
+        if ev == BLINK and "wink" in clause[a:b] and sd is None:
+            sd = "left"
+        if ev in ONE_SIDED and sd is None and re.search(ONE_SIDED[ev], clause):
+            sd = "left"
+        if ev == "gaze":
+            sd = _direction(clause[a:b], clause)
+        plan.events.append(Event(ev, max(1, c), inten, sd, clause_i, clause[a:b]))
+
+
+def _order_clauses(plan: Plan) -> None:
+    """Within a clause, a neutral face gives way to the other events and an event that cannot happen with the
+    ones before it follows them; the events sorted by clause, the clauses renumbered densely."""
+    by_clause: dict[int, list[Event]] = {}
+    for e in plan.events:
+        by_clause.setdefault(e.clause, []).append(e)
+    for c, evs in by_clause.items():
+        if len(evs) > 1 and any(e.attribute == NEUTRAL for e in evs):
+            plan.events = [e for e in plan.events if not (e.clause == c and e.attribute == NEUTRAL)]
+            evs[:] = [e for e in evs if e.attribute != NEUTRAL]
+        for i, e in enumerate(evs):
+            if any({e.attribute, f.attribute} in CONFLICTS for f in evs[:i] if f.clause == c):
+                plan.notes.append(f"'{e.words}' cannot happen together with the events before it: it follows them")
+                e.clause = c + 0.5  # after its clause, before the next
+    if plan.events:
+        plan.events.sort(key=lambda e: e.clause)
+        # renumber clauses densely in order
+        order = {c: i for i, c in enumerate(dict.fromkeys(e.clause for e in plan.events))}
+        for e in plan.events:
+            e.clause = order[e.clause]
+    else:
+        plan.notes.append("no facial event recognised: a neutral face is returned")
+
+
 def parse(prompt: str, encoder=None) -> Plan:
     """The events a prompt asks for (see the module docstring). ``encoder``: an object with ``encode(list
     of str) -> [N, d]`` unit vectors, used only for clauses the lexicon does not cover."""
@@ -276,23 +354,8 @@ def parse(prompt: str, encoder=None) -> Plan:
         names = [h[1] for h in hits]
         if NEUTRAL in names and len(names) > 1:
             hits = [h for h in hits if h[1] != NEUTRAL]
-        used = set()
-        for pats in LEXICON.values():  # every vocabulary word is understood, repeated ones included
-            for p in pats:
-                for m in re.finditer(r"\b" + p + r"\b", clause):
-                    used.update(range(*m.span()))
-        for pat, _ in COUNTS + INTENSITY + [(NEGATION, None), (r"\bat\s+all\b", None)]:
-            for m in re.finditer(pat, clause):
-                used.update(range(*m.span()))
-        # a negation excludes the first event after it in the clause
-        negated = set()
-        for m in re.finditer(NEGATION, clause):
-            nxt = next((k for k, h in enumerate(hits) if h[0] >= m.end()), None)
-            if nxt is not None:
-                negated.add(nxt)
-        for k in sorted(negated):
-            plan.excluded.append(hits[k][1] + f" ('{clause[hits[k][2][0] : hits[k][2][1]]}')")
-        hits = [h for k, h in enumerate(hits) if k not in negated]
+        used = _understood(clause)
+        hits = _drop_negated(clause, hits, plan)
         rest = "".join(ch if i not in used else " " for i, ch in enumerate(clause))
         words = [w for w in re.findall(r"[a-z']+", rest) if w not in GRAMMAR and not w.isdigit()]
         if not hits and encoder is not None and words:
@@ -331,52 +394,14 @@ def parse(prompt: str, encoder=None) -> Plan:
         inten = _intensity(pending + " " + clause)
         pending = ""
         n_before = len(plan.events)
-        sides = _bind_sides(clause, hits)
-        for k, (_, ev, (a, b)) in enumerate(hits):
-            # a count attaches to the event it follows (the last one before it in the clause)
-            c = 1
-            if count is not None:
-                cm = max((m.start() for pat, _ in COUNTS for m in re.finditer(pat, clause)), default=-1)
-                nxt = hits[k + 1][0] if k + 1 < len(hits) else len(clause) + 1
-                if a <= cm < nxt or (len(hits) == 1):
-                    c = count
-            if ev in UNPLACED:
-                plan.notes.append(UNPLACED[ev])
-                plan.unplaced.append(clause[a:b])
-                continue
-            sd = sides.get(k) if ev in SIDED else None
-            if ev == BLINK and "wink" in clause[a:b] and sd is None:
-                sd = "left"
-            if ev in ONE_SIDED and sd is None and re.search(ONE_SIDED[ev], clause):
-                sd = "left"
-            if ev == "gaze":
-                sd = _direction(clause[a:b], clause)
-            plan.events.append(Event(ev, max(1, c), inten, sd, clause_i, clause[a:b]))
+        _add_events(plan, clause, hits, clause_i, count, inten)
         last = (clause, plan.events[n_before:])
     if len(plan.events) > MAX_PROMPT_EVENTS:
         raise InputError(
             f"the prompt names {len(plan.events)} events: anima plans at most {MAX_PROMPT_EVENTS} "
             f"(each up to {MAX_COUNT} times)"
         )
-    by_clause: dict[int, list[Event]] = {}
-    for e in plan.events:
-        by_clause.setdefault(e.clause, []).append(e)
-    for c, evs in by_clause.items():
-        if len(evs) > 1 and any(e.attribute == NEUTRAL for e in evs):
-            plan.events = [e for e in plan.events if not (e.clause == c and e.attribute == NEUTRAL)]
-            evs[:] = [e for e in evs if e.attribute != NEUTRAL]
-        for i, e in enumerate(evs):
-            if any({e.attribute, f.attribute} in CONFLICTS for f in evs[:i] if f.clause == c):
-                plan.notes.append(f"'{e.words}' cannot happen together with the events before it: it follows them")
-                e.clause = c + 0.5  # after its clause, before the next
-    if plan.events:
-        plan.events.sort(key=lambda e: e.clause)
-        # renumber clauses densely in order
-        order = {c: i for i, c in enumerate(dict.fromkeys(e.clause for e in plan.events))}
-        for e in plan.events:
-            e.clause = order[e.clause]
-    else:
-        plan.notes.append("no facial event recognised: a neutral face is returned")
+    _order_clauses(plan)
     if plan.excluded:
         plan.notes.append("not made, as the prompt says: " + ", ".join(plan.excluded))
     if plan.unknown:

@@ -164,6 +164,56 @@ def training_videos(dataset: str | Path, clips) -> list[str]:
     return sorted({table.get(c.video_id, {}).get("key_path", c.video_id) for c in clips if c.split == "train"})
 
 
+def _resume(ck_path: Path, cfg: TrainConfig, model, opt) -> tuple[int, list, float]:
+    """``(step, losses, seconds)`` of the checkpoint at ``ck_path``, its model and optimiser state loaded, when it
+    was trained with ``cfg`` (to at most ``cfg.steps``: resumed or extended); InputError otherwise."""
+    ck = load_checkpoint(ck_path)
+    mine = json.loads(json.dumps(asdict(cfg)))
+    same = {**ck["train_config"], "steps": cfg.steps, "ckpt_every": cfg.ckpt_every} == mine
+    if ck["kind"] == cfg.kind and same and ck.get("optim") and ck["step"] <= cfg.steps:  # resume or extend
+        model.load_state_dict(ck["state"])
+        opt.load_state_dict(ck["optim"])
+        return ck["step"], ck["info"].get("losses", []), ck["info"].get("wall_s", 0.0)
+    raise InputError(
+        f"{ck_path} exists but was trained with another configuration (or further than --steps); use another --out"
+    )
+
+
+def _padded_batch(motions: list, idx) -> tuple[torch.Tensor, torch.Tensor]:
+    """The motions ``idx`` zero-padded to the longest ``[B, T, C]`` and their mask ``[B, T]`` (1 where real)."""
+    T = max(len(motions[i]) for i in idx)
+    x = torch.zeros(len(idx), T, motions[0].shape[1])
+    mask = torch.zeros(len(idx), T)
+    for b, i in enumerate(idx):
+        x[b, : len(motions[i])] = motions[i]
+        mask[b, : len(motions[i])] = 1
+    return x, mask
+
+
+def _text2face_loss(model, cfg: TrainConfig, step: int, E_t, idx, code, x, mask, std_t, G) -> torch.Tensor:
+    """One step's loss of the text2face model: its dead codes restarted every ``cfg.restart_every`` steps
+    (stateless: a resumed run restarts them alike), then teacher-forced (``x`` noised and dropped as ``cfg``
+    says) or rolled out, the reconstruction loss plus the quantiser's."""
+    if cfg.restart_every and step % cfg.restart_every == 0:  # stateless: resumes exactly
+        with torch.no_grad():
+            used = model.guide.quantize(model.guide.enc(E_t))[1]
+        model.guide.restart_codes(
+            E_t,
+            torch.bincount(used, minlength=model.cfg.N_emb),
+            torch.Generator().manual_seed(cfg.seed * 7919 + step),
+        )
+    if cfg.fresh_codes:
+        code = torch.randn(len(idx), code.shape[1])
+    if cfg.scheme == "teacher":
+        xin = x + cfg.tf_noise * torch.randn_like(x) if cfg.tf_noise else x
+        if cfg.tf_drop:
+            xin = xin * (torch.rand(x.shape[:2]) >= cfg.tf_drop)[..., None]
+        pred, vq = model(E_t[idx], code, xin)
+    else:
+        pred, vq = model._rollout(E_t[idx], code, x.shape[1], cached=True)
+    return rec_loss(pred, x, mask, std_t, G, cfg.w_rot) + vq
+
+
 def train(
     dataset: str | Path, out: str | Path, cfg: TrainConfig, progress: bool = True, command: str = "", prepared=None
 ) -> dict:
@@ -176,21 +226,7 @@ def train(
     mcfg = model_config(cfg, enc.dim)
     model = build_model(cfg.kind, mcfg)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
-    step, losses, wall0 = 0, [], 0.0
-    if ck_path.is_file():
-        ck = load_checkpoint(ck_path)
-        mine = json.loads(json.dumps(asdict(cfg)))
-        same = {**ck["train_config"], "steps": cfg.steps, "ckpt_every": cfg.ckpt_every} == mine
-        if ck["kind"] == cfg.kind and same and ck.get("optim") and ck["step"] <= cfg.steps:  # resume or extend
-            model.load_state_dict(ck["state"])
-            opt.load_state_dict(ck["optim"])
-            step, losses = ck["step"], ck["info"].get("losses", [])
-            wall0 = ck["info"].get("wall_s", 0.0)
-        else:
-            raise InputError(
-                f"{ck_path} exists but was trained with another configuration (or further than "
-                f"--steps); use another --out"
-            )
+    step, losses, wall0 = _resume(ck_path, cfg, model, opt) if ck_path.is_file() else (0, [], 0.0)
     std_t, G = torch.tensor(stats[1]), torch.tensor(gram)
     d_r = mcfg.get("d_r", 0)
     codes = torch.from_numpy(
@@ -223,30 +259,10 @@ def train(
         rng = np.random.default_rng((cfg.seed, step))
         torch.manual_seed(cfg.seed * 1_000_003 + step)
         idx = rng.integers(0, len(pool), cfg.batch)
-        T = max(len(motions[i]) for i in idx)
-        x = torch.zeros(cfg.batch, T, motions[0].shape[1])
-        mask = torch.zeros(cfg.batch, T)
-        for b, i in enumerate(idx):
-            x[b, : len(motions[i])] = motions[i]
-            mask[b, : len(motions[i])] = 1
+        x, mask = _padded_batch(motions, idx)
         if cfg.kind == "text2face":
-            if cfg.restart_every and step % cfg.restart_every == 0:  # stateless: resumes exactly
-                with torch.no_grad():
-                    used = model.guide.quantize(model.guide.enc(E_t))[1]
-                model.guide.restart_codes(
-                    E_t,
-                    torch.bincount(used, minlength=model.cfg.N_emb),
-                    torch.Generator().manual_seed(cfg.seed * 7919 + step),
-                )
-            code = torch.randn(len(idx), d_r) if cfg.fresh_codes else codes[idx, :d_r]
-            if cfg.scheme == "teacher":
-                xin = x + cfg.tf_noise * torch.randn_like(x) if cfg.tf_noise else x
-                if cfg.tf_drop:
-                    xin = xin * (torch.rand(x.shape[:2]) >= cfg.tf_drop)[..., None]
-                pred, vq = model(E_t[idx], code, xin)
-            else:
-                pred, vq = model._rollout(E_t[idx], code, T, cached=True)
-            loss = rec_loss(pred, x, mask, std_t, G, cfg.w_rot) + vq
+            code = codes[idx, :d_r]
+            loss = _text2face_loss(model, cfg, step, E_t, idx, code, x, mask, std_t, G)
         else:
             t = torch.from_numpy(rng.integers(0, model.cfg.steps, cfg.batch))
             noise = torch.randn_like(x)

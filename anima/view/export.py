@@ -76,7 +76,8 @@ def viewer_files() -> list[Path]:
     return files
 
 
-def _js(name: str, value) -> str:
+def js_global(name: str, value) -> str:
+    """A script that sets ``window.NAME`` to ``value`` (as JSON): how the viewer's data files hand it data."""
     return f"window.{name} = {json.dumps(value, separators=(',', ':'))};\n"
 
 
@@ -258,7 +259,7 @@ def _sequence_view(folder: Path, kind: str, out: Path, notes: list, wrote: list)
         notes.append("no avatar.glb in the folder (an older result): the head alone, made from the sequence")
     else:
         glb_bytes = glb.read_bytes()
-    wrote.append(write_text(out / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(glb_bytes).decode())))
+    wrote.append(write_text(out / "avatar-glb.js", js_global("ANIMA_GLB", base64.b64encode(glb_bytes).decode())))
     title = {
         "capture": f"capture of {Path(src).name if src else folder.name}",
         "text2face": f"text to face: “{info.get('prompt', seq.meta.get('prompt', ''))}”",
@@ -310,7 +311,7 @@ def _dataset_view(folder: Path, out: Path, notes: list, wrote: list, max_clips: 
             animate_head=False,
         )
         glb_bytes = Path(head).read_bytes()
-    wrote.append(write_text(out / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(glb_bytes).decode())))
+    wrote.append(write_text(out / "avatar-glb.js", js_global("ANIMA_GLB", base64.b64encode(glb_bytes).decode())))
     return {
         "kind": "dataset",
         "title": f"dataset {folder.name}: {len(clips)} clips",
@@ -431,8 +432,8 @@ def _avatar_view(folder: Path, kind: str, avatar: Path, out: Path, notes: list, 
             how = f"retargeted onto its rest ({r['convention']})"
             info = {"avatar": avatar.name, "as": how, "vrm": g.vrm is not None}
             notes.append(f"face on {avatar.name}: {r['face']['via']}, {len(r['face']['found_a_home'])} channels")
-    wrote.append(write_text(out / "avatar-glb.js", _js("ANIMA_GLB", base64.b64encode(glb_bytes).decode())
-                            + _js("ANIMA_VRMA", base64.b64encode(vrma).decode() if vrma else None)))  # fmt: skip
+    wrote.append(write_text(out / "avatar-glb.js", js_global("ANIMA_GLB", base64.b64encode(glb_bytes).decode())
+                            + js_global("ANIMA_VRMA", base64.b64encode(vrma).decode() if vrma else None)))  # fmt: skip
     info["front"] = avatar_front(g, hum)  # where the face close-up's camera stands
     return info
 
@@ -451,14 +452,14 @@ def build_view(folder: str | Path, out: str | Path, avatar: str | Path | None = 
         data = _dataset_view(folder, out, notes, wrote)
     elif kind == "reenact":
         data = _reenact_view(folder, out, notes, wrote)
-        wrote.append(write_text(out / "avatar-glb.js", _js("ANIMA_GLB", None)))
+        wrote.append(write_text(out / "avatar-glb.js", js_global("ANIMA_GLB", None)))
     else:
         data = _sequence_view(folder, kind, out, notes, wrote)
         if avatar is not None:
             data["avatar"] = _avatar_view(folder, kind, Path(avatar), out, notes, wrote, motion)
             wrote = list(dict.fromkeys(wrote))
     data.update(schema=SCHEMA, version=VERSION, anima_version=__version__, notes=notes, source=str(folder))
-    wrote.append(write_text(out / "view-data.js", _js("ANIMA_VIEW", data)))
+    wrote.append(write_text(out / "view-data.js", js_global("ANIMA_VIEW", data)))
     for f in files:
         wrote.append(copy_file(f, out / f.name))
     data["written"] = sorted({Path(p).name for p in wrote})

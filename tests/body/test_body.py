@@ -22,11 +22,11 @@ def test_skeleton_definition():
 
 @pytest.fixture(scope="module")
 def tango_track():
-    from anima.capture.holistic import HolisticTracker
     from anima.io.video import read_video
+    from anima.track import get
 
     frames, info = read_video(asset(TANGO))
-    with HolisticTracker() as h:
+    with get().holistic() as h:
         hf = [h(f) for f in frames]
     return assemble(hf, info.width, info.height, info.fps)
 

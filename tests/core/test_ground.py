@@ -14,19 +14,6 @@ S13 = "liveportrait-examples/assets/examples/source/s13.mp4"  # a woman standing
 S20 = "liveportrait-examples/assets/examples/source/s20.mp4"  # half body, hands held at the chest
 
 
-def test_two_bone_ik_reaches_and_keeps_the_knee_plane():
-    rng = np.random.default_rng(0)
-    hip = rng.normal(size=(50, 3))
-    target = hip + rng.normal(size=(50, 3)) * 0.3
-    pole = rng.normal(size=(50, 3))
-    knee = ground.two_bone(hip, target, 0.45, 0.42, pole)
-    np.testing.assert_allclose(np.linalg.norm(knee - hip, axis=-1), 0.45, atol=1e-9)
-    reach = np.linalg.norm(target - hip, axis=-1) < 0.87
-    np.testing.assert_allclose(np.linalg.norm(knee - target, axis=-1)[reach], 0.42, atol=1e-9)
-    n = np.cross(target - hip, pole)
-    assert np.abs(np.einsum("fi,fi->f", knee - hip, n))[reach].max() < 1e-9  # in the plane of hip, target, pole
-
-
 def test_no_step_beyond_the_limit_and_small_steps_untouched():
     rng = np.random.default_rng(1)
     rv = np.cumsum(rng.normal(0, 0.05, (60, 4, 3)), 0)

@@ -179,9 +179,11 @@ def test_fgd_separates_captured_from_shuffled_motion(db):
 
 
 def test_keyword_database_takes_over_while_the_word_is_spoken(ds, wav):
+    from dataclasses import replace
+
     from anima.gesture.database import from_dataset
     from anima.gesture.keywords import parse_keyword
-    from anima.gesture.run import synthesize
+    from anima.gesture.run import SEED_SEARCH, synthesize
 
     db = from_dataset(ds, None)
     videos = sorted({s for s, _ in db.source})
@@ -191,14 +193,14 @@ def test_keyword_database_takes_over_while_the_word_is_spoken(ds, wav):
     kw_db = MatchDB(db.F[kw_rows], db.P[kw_rows], db.G[kw_rows], [db.source[i] for i in kw_rows], db.S[kw_rows])
     rest = [i for i in range(db.M) if i not in kw_rows]
     main = MatchDB(db.F[rest], db.P[rest], db.G[rest], [db.source[i] for i in rest], db.S[rest])
-    J, info = synthesize(str(wav), main, keywords=[parse_keyword("yes@1.0-2.5s")], keyword_dbs={"yes": kw_db})
+    J, info = synthesize(str(wav), main, replace(SEED_SEARCH, keyword=["yes@1.0-2.5s"]), keyword_dbs={"yes": kw_db})
     used = info["database_per_step"]
     step_t = np.arange(len(used)) * 8 / 15
     assert all((u == "yes") == (1.0 <= t < 2.5) for u, t in zip(used, step_t))
     for (m, _), u in zip(info["picks"], used):  # union layout: the standard windows first, then the keyword's
         assert (m >= main.M) == (u == "yes")
     with pytest.raises(Exception, match="no database"):
-        synthesize(str(wav), main, keywords=[parse_keyword("no@0-1s")], keyword_dbs={"yes": kw_db})
+        synthesize(str(wav), main, replace(SEED_SEARCH, keyword=["no@0-1s"]), keyword_dbs={"yes": kw_db})
     with pytest.raises(Exception, match="WORD@START-END"):
         parse_keyword("yes at 3s")
 

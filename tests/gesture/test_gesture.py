@@ -361,13 +361,15 @@ def test_sync_pairs_take_off_sync_gestures_from_other_windows():
 def test_joins_continue_without_repeating_and_blend(db, tmp_path):
     """On real windows and unseen speech: the search continues from r + 8 (no join repeats the last frame), the
     output keeps one skeleton, and blended joins move the wrists no more than the frames inside windows do."""
+    from dataclasses import replace
+
     from anima.core.skeleton import JOINT_NAMES, PARENTS
     from anima.gesture.post import joins_of
-    from anima.gesture.run import synthesize
+    from anima.gesture.run import SEED_SEARCH, synthesize
 
     speech = tmp_path / "s.wav"
     subprocess.run([FFMPEG, "-v", "error", "-y", "-i", str(asset(SPEECH)), "-t", "8", "-vn", str(speech)], check=True)
-    raw, info_raw = synthesize(str(speech), db, blend=False)
+    raw, info_raw = synthesize(str(speech), db, replace(SEED_SEARCH, blend=False))
     J, info = synthesize(str(speech), db)
     picks = info["picks"]
     steps = np.arange(len(picks)) * 8
@@ -392,9 +394,11 @@ def test_joins_continue_without_repeating_and_blend(db, tmp_path):
 def test_speed_controlled_joins_are_not_blended(db, tmp_path):
     """A wrist-speed control asks for stillness (or motion) that the join blend's decaying offset would change:
     joins inside its time range stay as searched, the others are still blended."""
+    from dataclasses import replace
+
     from anima.gesture.control import parse_control, speed_steps
     from anima.gesture.post import finish_knn, joins_of, one_skeleton
-    from anima.gesture.run import synthesize
+    from anima.gesture.run import SEED_SEARCH, synthesize
 
     speech = tmp_path / "s.wav"
     subprocess.run([FFMPEG, "-v", "error", "-y", "-i", str(asset(SPEECH)), "-t", "8", "-vn", str(speech)], check=True)
@@ -402,7 +406,7 @@ def test_speed_controlled_joins_are_not_blended(db, tmp_path):
     raw_steps = speed_steps([c], 15, 8 / 15)
     assert raw_steps == set(range(8))  # steps starting before 4 s
     assert not speed_steps([parse_control("left_wrist_height>=p85")], 15, 8 / 15)
-    J, info = synthesize(str(speech), db, controls=[c])
+    J, info = synthesize(str(speech), db, replace(SEED_SEARCH, control=["left_wrist_speed<=p15@0-4s"]))
     G = np.concatenate([db.G[m, r : r + 8] for m, r in info["picks"]])[: len(J)]
     joins = joins_of(info["picks"], 8)
     plain = one_skeleton(G.reshape(len(G), -1, 3), db.bone_lengths)

@@ -143,7 +143,7 @@ def refiner_rows(
     training or its inputs; the judged inputs are k-NN outputs searched in the fold's training videos (their
     own row, ``knn_fold_inputs``, beside the refined one). Training pairs follow ``cfg.k_sampling`` (default
     the seed's draws; ``"ks"``: the k = ``ks`` outputs from the mean pose)."""
-    T, fps = db.G.shape[1], db.fps
+    T = db.G.shape[1]
     cfg = cfg or RefinerTrainConfig()
     if steps is not None:
         cfg = dataclasses.replace(cfg, steps=steps)
@@ -184,44 +184,10 @@ def refiner_rows(
             }
         )
         for i in test:
-            gt = db.G[i].reshape(T, -1, 3)
-            knn = inp["outs"][i]
-            outs = [one_skeleton(ref.refine(db.S[i], o), inp["lengths"]) for o in knn]
-            g = outs[0]
-            if cfg.k_sampling == "seed":
-                kept.setdefault("refined", {})[i] = g
+            _judge_refined(db, i, ref, inp, kept, cfg, res, base, adherence)
             judged_videos.append(db.source[i][0])
-            res["l1_cm"].append(l1_cm(g, gt))
-            res["l1_to_knn_cm"].append(l1_cm(g, knn[0]))
-            res["diversity_cm"].append(diversity_cm(outs))
-            res["jerk"].append(jerk(g, fps))
-            res["jerk_knn"].append(jerk(knn[0], fps))
-            res["wrist_motion_cm"].append(wrist_motion(g))
-            res["jerk_captured"].append(jerk(gt, fps))
-            res["beat_consistency"].append(beat_consistency(g, kept["onsets"][i], fps))
-            base["l1_cm"].append(l1_cm(knn[0], gt))
-            base["diversity_cm"].append(diversity_cm(knn))
-            base["jerk"].append(jerk(knn[0], fps))
-            base["wrist_motion_cm"].append(wrist_motion(knn[0]))
-            base["beat_consistency"].append(beat_consistency(knn[0], kept["onsets"][i], fps))
-            adherence["none"]["values"].append(control_features(g.reshape(1, T, -1), fps))
-            for c, per in inp["ctrl"].items():
-                out, thr = per[i]
-                refined = one_skeleton(ref.refine(db.S[i], out), inp["lengths"])
-                adherence[c]["values"].append(control_features(refined.reshape(1, T, -1), fps))
-                adherence[c].setdefault("thresholds", []).append(thr)
-                adherence[c].setdefault("videos", []).append(db.source[i][0])
     return {
-        "protocol": f"{folds}-fold cross-validation {fold_words(by_speaker)}; WGAN-GP, {cfg.critic_steps} critic "
-        f"steps per generator step, {cfg.steps} generator steps, loss weights L1 {cfg.l1} / adversarial {cfg.adv} / "
-        f"gradient penalty {cfg.gp}, training pairs: "
-        + (
-            "the seed's k (1 for half, 2..15) from random initial poses"
-            if cfg.k_sampling == "seed"
-            else f"k in {list(cfg.ks)} from the mean pose"
-        )
-        + "; clean folds: training pairs, judged k-NN inputs and bone lengths from the other folds' videos only; "
-        "the correction smoothing chosen per fold on its own training videos (each fold's 'correction_sigma')",
+        "protocol": _refiner_protocol(cfg, folds, by_speaker),
         "train_config": {k: v for k, v in dataclasses.asdict(cfg).items() if k != "model"},
         "metrics": {k: float(np.nanmean(v)) for k, v in res.items()},
         "knn_fold_inputs": {k: float(np.nanmean(v)) for k, v in base.items()},
@@ -235,6 +201,54 @@ def refiner_rows(
         "windows_judged": len(judged_videos),
         "fold_speakers": fold_speakers(fold_of, folds),
     }
+
+
+def _judge_refined(db, i: int, ref, inp: dict, kept: dict, cfg: RefinerTrainConfig, res, base, adherence) -> None:
+    """Window ``i`` of a fold's test windows refined by ``ref`` from its k-NN inputs (``inp``): its metrics
+    appended to ``res`` (and the k-NN inputs' to ``base``), and its control features, plain and under each
+    control, to ``adherence``."""
+    T, fps = db.G.shape[1], db.fps
+    gt = db.G[i].reshape(T, -1, 3)
+    knn = inp["outs"][i]
+    outs = [one_skeleton(ref.refine(db.S[i], o), inp["lengths"]) for o in knn]
+    g = outs[0]
+    if cfg.k_sampling == "seed":
+        kept.setdefault("refined", {})[i] = g
+    res["l1_cm"].append(l1_cm(g, gt))
+    res["l1_to_knn_cm"].append(l1_cm(g, knn[0]))
+    res["diversity_cm"].append(diversity_cm(outs))
+    res["jerk"].append(jerk(g, fps))
+    res["jerk_knn"].append(jerk(knn[0], fps))
+    res["wrist_motion_cm"].append(wrist_motion(g))
+    res["jerk_captured"].append(jerk(gt, fps))
+    res["beat_consistency"].append(beat_consistency(g, kept["onsets"][i], fps))
+    base["l1_cm"].append(l1_cm(knn[0], gt))
+    base["diversity_cm"].append(diversity_cm(knn))
+    base["jerk"].append(jerk(knn[0], fps))
+    base["wrist_motion_cm"].append(wrist_motion(knn[0]))
+    base["beat_consistency"].append(beat_consistency(knn[0], kept["onsets"][i], fps))
+    adherence["none"]["values"].append(control_features(g.reshape(1, T, -1), fps))
+    for c, per in inp["ctrl"].items():
+        out, thr = per[i]
+        refined = one_skeleton(ref.refine(db.S[i], out), inp["lengths"])
+        adherence[c]["values"].append(control_features(refined.reshape(1, T, -1), fps))
+        adherence[c].setdefault("thresholds", []).append(thr)
+        adherence[c].setdefault("videos", []).append(db.source[i][0])
+
+
+def _refiner_protocol(cfg: RefinerTrainConfig, folds: int, by_speaker: bool) -> str:
+    return (
+        f"{folds}-fold cross-validation {fold_words(by_speaker)}; WGAN-GP, {cfg.critic_steps} critic "
+        f"steps per generator step, {cfg.steps} generator steps, loss weights L1 {cfg.l1} / adversarial {cfg.adv} / "
+        f"gradient penalty {cfg.gp}, training pairs: "
+        + (
+            "the seed's k (1 for half, 2..15) from random initial poses"
+            if cfg.k_sampling == "seed"
+            else f"k in {list(cfg.ks)} from the mean pose"
+        )
+        + "; clean folds: training pairs, judged k-NN inputs and bone lengths from the other folds' videos only; "
+        "the correction smoothing chosen per fold on its own training videos (each fold's 'correction_sigma')"
+    )
 
 
 def fold_words(by_speaker: bool) -> str:
@@ -334,30 +348,9 @@ def choose_adv_weight(
     }
 
 
-def generator_rows(
-    w: Windows,
-    kept: dict,
-    knn_db,
-    folds: int,
-    steps: int | None,
-    progress: bool,
-    refined_outs: dict | None,
-    kinds: tuple = KINDS,
-    adv_weights: tuple | None = ADV_WEIGHTS,
-    fgd_steps: int = 1500,
-    facegood_seconds: float | None = None,
-) -> dict:
-    """The §4.4 generator (adversarial), direct regression (no adversarial term), the LSTM baseline, the
-    velocity-adversarial baseline (Ginosar et al.) and the MoGlow-style flow,
-    cross-validated with the refiner's folds (by speaker); FGD for every method; lip error (table 4.3).
-    ``w``: every window of the dataset (face-only ones train the face decoder). ``adv_weights``: the §4.4
-    generator's adversarial weight is chosen among these in each fold on its own training videos
-    (:func:`choose_adv_weight`); ``None``: the config's (0.1) for every fold."""
-    T, fps = knn_db.G.shape[1], knn_db.fps
-    model = load_face_model()
-    key = {(s, round(st, 3)): n for n, (s, st) in enumerate(zip(w.source, w.start_s))}
-    # the refiner's folds over the body videos' speakers, then the face-only videos' other speakers (a speaker's
-    # face-only videos in that speaker's fold)
+def _generator_folds(w: Windows, knn_db, kept: dict, folds: int) -> tuple[dict, bool]:
+    """``({video: fold}, by speaker)``: the refiner's folds over the body videos' speakers, then the face-only
+    videos' other speakers (a speaker's face-only videos in that speaker's fold; by video for one speaker)."""
     body = [knn_db.source[i][0] for i in sorted(kept["outs"])]
     by_speaker = len({speaker_of(s) for s in body}) > 1
     fold_of = speaker_folds(body, folds, by_speaker)
@@ -367,75 +360,32 @@ def generator_rows(
     else:
         other = sorted(set(w.source) - set(fold_of))
         fold_of |= {v: n % folds for n, v in enumerate(other)}
-    fold = np.array([fold_of[s] for s in w.source])
-    has_body = w.has_body
-    cfg = GeneratorTrainConfig() if steps is None else GeneratorTrainConfig(steps=steps)
-    res = {k: defaultdict(list) for k in kinds}
-    gen_windows = {k: {} for k in kinds}
-    lip = {k: [] for k in kinds}
-    lip_random = []
-    rng = np.random.default_rng(0)
-    gens = {k: [] for k in kinds}
-    info = {k: [] for k in kinds}
-    n_to_i = {key[(s, round(st, 3))]: i for i, (s, st) in enumerate(knn_db.source) if (s, round(st, 3)) in key}
-    for f in range(folds):
-        tr, te = fold != f, np.flatnonzero(fold == f)
-        if not tr.any() or not len(te) or not has_body[tr].any():
-            continue
-        choice = None
-        if adv_weights and "adversarial" in kinds:
-            choice = choose_adv_weight(w, tr, n_to_i, knn_db, cfg, adv_weights, progress, f, fgd_steps)
-        for kind in kinds:
-            bar = tqdm(total=cfg.steps, desc=f"{kind} fold {f + 1}/{folds}", disable=not progress, leave=False)
-            kcfg = dataclasses.replace(cfg, adv_weight=choice["value"]) if kind == "adversarial" and choice else cfg
-            gen, inf = train_generator(
-                w.speech[tr],
-                w.body[tr],
-                w.face[tr],
-                GeneratorConfig(kind=kind, fps=w.fps),
-                kcfg,
-                progress=lambda s: bar.update(1),
-            )
-            bar.close()
-            gens[kind].append(gen)
-            info[kind].append(
-                {
-                    "fold": f,
-                    "train_windows": inf["windows"],
-                    "train_body_windows": inf["body_windows"],
-                    "wall_s": inf["wall_s"],
-                    "loss_weights": inf["loss_weights"],
-                    **({"adv_weight": choice} if kind == "adversarial" and choice else {}),
-                }
-            )
-            for n in te:
-                J, face = gen.generate(w.speech[n])
-                lip[kind].append(lip_error_mm(face, w.face[n], model))
-                if has_body[n]:
-                    gen_windows[kind][n] = J
-        for n in te:  # sanity row of table 4.3: the captured face of a random window of another video
-            cand = np.flatnonzero(np.array(w.source) != w.source[n])
-            lip_random.append(lip_error_mm(w.face[rng.choice(cand)], w.face[n], model))
-    # body metrics on the windows the k-NN rows judged (the same windows, the same captured motion)
-    judged = []
-    for i in sorted(kept["outs"]):
-        n = key.get((knn_db.source[i][0], round(knn_db.source[i][1], 3)))
-        if n is not None and all(n in gen_windows[k] for k in kinds):
-            judged.append((i, n))
-    for kind in kinds:
-        for i, n in judged:
-            g, gt = gen_windows[kind][n], knn_db.G[i].reshape(T, -1, 3)
-            if kind == "moglow":  # stochastic: five sampling seeds of the model that judged this window
-                fold_gen = gens[kind][[x["fold"] for x in info[kind]].index(fold[n])]
-                res[kind]["diversity_cm"].append(
-                    diversity_cm([g] + [fold_gen.generate(w.speech[n], s)[0] for s in range(1, 5)])
-                )
-            res[kind]["l1_cm"].append(l1_cm(g, gt))
-            res[kind]["jerk"].append(jerk(g, fps))
-            res[kind]["wrist_motion_cm"].append(wrist_motion(g))
-            res[kind]["beat_consistency"].append(beat_consistency(g, kept["onsets"][i], fps))
-    # FGD per fold: each fold's feature network is trained on the other folds' videos only and
-    # measures that fold's judged windows; the rows are the window-weighted mean over folds
+    return fold_of, by_speaker
+
+
+def _body_metrics(res, kind: str, judged: list, outs: dict, gens: list, info: list, fold, w: Windows, knn_db,
+                  kept: dict) -> None:  # fmt: skip
+    """One method's body metrics on the judged windows (``(k-NN row, window)`` pairs) appended to ``res``: L1,
+    jerk, wrist motion, beat consistency, and for the stochastic MoGlow-style row the diversity over five
+    sampling seeds of the fold's model that judged the window."""
+    T, fps = knn_db.G.shape[1], knn_db.fps
+    for i, n in judged:
+        g, gt = outs[n], knn_db.G[i].reshape(T, -1, 3)
+        if kind == "moglow":  # stochastic: five sampling seeds of the model that judged this window
+            fold_gen = gens[[x["fold"] for x in info].index(fold[n])]
+            res["diversity_cm"].append(diversity_cm([g] + [fold_gen.generate(w.speech[n], s)[0] for s in range(1, 5)]))
+        res["l1_cm"].append(l1_cm(g, gt))
+        res["jerk"].append(jerk(g, fps))
+        res["wrist_motion_cm"].append(wrist_motion(g))
+        res["beat_consistency"].append(beat_consistency(g, kept["onsets"][i], fps))
+
+
+def _fgd_per_fold(knn_db, kept: dict, judged: list, fold, fold_of: dict, gen_windows: dict, kinds, refined_outs,
+                  fgd_steps: int):  # fmt: skip
+    """FGD per fold: each fold's feature network is trained on the other folds' videos only and measures that
+    fold's judged windows; the rows are the window-weighted mean over folds. Returns (rows, per fold, the last
+    fold's network)."""
+    T = knn_db.G.shape[1]
     fgd_rows, fgd_folds = defaultdict(float), []
     perm_rng = np.random.default_rng(0)
     for f in sorted({int(fold[n]) for _, n in judged}):
@@ -458,6 +408,111 @@ def generator_rows(
         has = [x for x in fgd_folds if k in x]  # the refined row: only the folds the refiner judged
         total = sum(x["windows"] for x in has)
         fgd_rows[k] = sum(x[k] * x["windows"] / total for x in has)
+    return fgd_rows, fgd_folds, net
+
+
+def _generator_protocol(cfg: GeneratorTrainConfig, folds: int, by_speaker: bool, adv_weights, kinds) -> str:
+    return (
+        f"{folds}-fold cross-validation {fold_words(by_speaker)} (the refiner's folds; face-only "
+        f"windows from talking-head clips train the face decoder); {cfg.steps} steps, batch {cfg.batch}, Adam "
+        f"{cfg.lr}, adversarial weight "
+        + (
+            f"chosen per fold among {list(adv_weights)} on that fold's own training videos (inner validation; "
+            "each fold's 'adv_weight')"
+            if adv_weights and "adversarial" in kinds
+            else f"{cfg.adv_weight} (not chosen on data)"
+        )
+        + f" (velocity-adversarial baseline: {cfg.velocity_adv_weight}, Ginosar et al.'s); "
+        "the U-Net and LSTM rows are deterministic (diversity 0); the MoGlow-style row is judged on sampling seed "
+        "0, its diversity over seeds 0-4"
+    )
+
+
+def _fold_generator(w: Windows, tr, kind: str, cfg: GeneratorTrainConfig, choice: dict | None, progress: bool,
+                    desc: str) -> tuple:  # fmt: skip
+    """A ``kind`` generator trained on the windows ``tr`` (the adversarial weight ``choice["value"]`` where one
+    was chosen) and what its fold's log says of it."""
+    bar = tqdm(total=cfg.steps, desc=desc, disable=not progress, leave=False)
+    kcfg = dataclasses.replace(cfg, adv_weight=choice["value"]) if choice else cfg
+    gen, inf = train_generator(
+        w.speech[tr], w.body[tr], w.face[tr], GeneratorConfig(kind=kind, fps=w.fps), kcfg,
+        progress=lambda s: bar.update(1),
+    )  # fmt: skip
+    bar.close()
+    log = {
+        "train_windows": inf["windows"],
+        "train_body_windows": inf["body_windows"],
+        "wall_s": inf["wall_s"],
+        "loss_weights": inf["loss_weights"],
+        **({"adv_weight": choice} if choice else {}),
+    }
+    return gen, log
+
+
+def generator_rows(
+    w: Windows,
+    kept: dict,
+    knn_db,
+    folds: int,
+    steps: int | None,
+    progress: bool,
+    refined_outs: dict | None,
+    kinds: tuple = KINDS,
+    adv_weights: tuple | None = ADV_WEIGHTS,
+    fgd_steps: int = 1500,
+    facegood_seconds: float | None = None,
+) -> dict:
+    """The §4.4 generator (adversarial), direct regression (no adversarial term), the LSTM baseline, the
+    velocity-adversarial baseline (Ginosar et al.) and the MoGlow-style flow,
+    cross-validated with the refiner's folds (by speaker); FGD for every method; lip error (table 4.3).
+    ``w``: every window of the dataset (face-only ones train the face decoder). ``adv_weights``: the §4.4
+    generator's adversarial weight is chosen among these in each fold on its own training videos
+    (:func:`choose_adv_weight`); ``None``: the config's (0.1) for every fold."""
+    T, fps = knn_db.G.shape[1], knn_db.fps
+    model = load_face_model()
+    key = {(s, round(st, 3)): n for n, (s, st) in enumerate(zip(w.source, w.start_s))}
+    fold_of, by_speaker = _generator_folds(w, knn_db, kept, folds)
+    fold = np.array([fold_of[s] for s in w.source])
+    has_body = w.has_body
+    cfg = GeneratorTrainConfig() if steps is None else GeneratorTrainConfig(steps=steps)
+    res = {k: defaultdict(list) for k in kinds}
+    gen_windows = {k: {} for k in kinds}
+    lip = {k: [] for k in kinds}
+    lip_random = []
+    rng = np.random.default_rng(0)
+    gens = {k: [] for k in kinds}
+    info = {k: [] for k in kinds}
+    n_to_i = {key[(s, round(st, 3))]: i for i, (s, st) in enumerate(knn_db.source) if (s, round(st, 3)) in key}
+    for f in range(folds):
+        tr, te = fold != f, np.flatnonzero(fold == f)
+        if not tr.any() or not len(te) or not has_body[tr].any():
+            continue
+        choice = None
+        if adv_weights and "adversarial" in kinds:
+            choice = choose_adv_weight(w, tr, n_to_i, knn_db, cfg, adv_weights, progress, f, fgd_steps)
+        for kind in kinds:
+            gen, inf = _fold_generator(w, tr, kind, cfg, choice if kind == "adversarial" else None, progress,
+                                       f"{kind} fold {f + 1}/{folds}")  # fmt: skip
+            gens[kind].append(gen)
+            info[kind].append({"fold": f, **inf})
+            for n in te:
+                J, face = gen.generate(w.speech[n])
+                lip[kind].append(lip_error_mm(face, w.face[n], model))
+                if has_body[n]:
+                    gen_windows[kind][n] = J
+        for n in te:  # sanity row of table 4.3: the captured face of a random window of another video
+            cand = np.flatnonzero(np.array(w.source) != w.source[n])
+            lip_random.append(lip_error_mm(w.face[rng.choice(cand)], w.face[n], model))
+    # body metrics on the windows the k-NN rows judged (the same windows, the same captured motion)
+    judged = []
+    for i in sorted(kept["outs"]):
+        n = key.get((knn_db.source[i][0], round(knn_db.source[i][1], 3)))
+        if n is not None and all(n in gen_windows[k] for k in kinds):
+            judged.append((i, n))
+    for kind in kinds:
+        _body_metrics(res[kind], kind, judged, gen_windows[kind], gens[kind], info[kind], fold, w, knn_db, kept)
+    fgd_rows, fgd_folds, net = _fgd_per_fold(knn_db, kept, judged, fold, fold_of, gen_windows, kinds, refined_outs,
+                                             fgd_steps)  # fmt: skip
     rows = {
         kind: {
             "diversity_cm": 0.0,
@@ -473,18 +528,7 @@ def generator_rows(
         if not h:
             face_only[speaker_of(s_)][s_].append(st)
     return {
-        "protocol": f"{folds}-fold cross-validation {fold_words(by_speaker)} (the refiner's folds; face-only "
-        f"windows from talking-head clips train the face decoder); {cfg.steps} steps, batch {cfg.batch}, Adam "
-        f"{cfg.lr}, adversarial weight "
-        + (
-            f"chosen per fold among {list(adv_weights)} on that fold's own training videos (inner validation; "
-            "each fold's 'adv_weight')"
-            if adv_weights and "adversarial" in kinds
-            else f"{cfg.adv_weight} (not chosen on data)"
-        )
-        + f" (velocity-adversarial baseline: {cfg.velocity_adv_weight}, Ginosar et al.'s); "
-        "the U-Net and LSTM rows are deterministic (diversity 0); the MoGlow-style row is judged on sampling seed "
-        "0, its diversity over seeds 0-4",
+        "protocol": _generator_protocol(cfg, folds, by_speaker, adv_weights, kinds),
         "windows_judged": len(judged),
         "lip_windows": len(lip[kinds[0]]),
         "rows": rows,

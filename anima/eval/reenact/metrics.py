@@ -9,7 +9,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from anima.capture.mediapipe_face import FaceMeshTracker
+from anima.track import get
 
 
 def ssim(a: np.ndarray, b: np.ndarray) -> float:
@@ -35,12 +35,6 @@ def temporal_flow_error(out: np.ndarray, gt: np.ndarray) -> np.ndarray:
     )
 
 
-def _lips():
-    import mediapipe as mp
-
-    return np.array(sorted({i for e in mp.solutions.face_mesh.FACEMESH_LIPS for i in e}))
-
-
 def video_metrics(out: list[np.ndarray], gt: list[np.ndarray], box) -> dict:
     from anima.eval.reenact.lpips import lpips
 
@@ -49,9 +43,10 @@ def video_metrics(out: list[np.ndarray], gt: list[np.ndarray], box) -> dict:
     cg = np.stack([g[y0 : y0 + h, x0 : x0 + w] for g in gt])
     s = [ssim(a, b) for a, b in zip(co, cg)]
     lp = np.concatenate([lpips(co[i : i + 32], cg[i : i + 32]) for i in range(0, len(co), 32)])
-    lips = _lips()
+    tracker = get()
+    lips = tracker.lip_landmarks()
     nme = []
-    with FaceMeshTracker(static_image_mode=True) as t1, FaceMeshTracker(static_image_mode=True) as t2:
+    with tracker.face_mesh(static=True) as t1, tracker.face_mesh(static=True) as t2:
         for o, g in zip(out, gt):
             lo, lg = t1(o), t2(g)
             if lo is None or lg is None:

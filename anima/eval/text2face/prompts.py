@@ -137,17 +137,9 @@ def _channel(m: np.ndarray, stem: str) -> np.ndarray:
     return m[:, idx].mean(1)
 
 
-def score_runs(
-    rows: list[dict], runs: dict[int, list[np.ndarray]], captured_max: dict, detector=None, attributes=None
-) -> dict:
-    """``runs[i]``: the motions of prompt i (one per seed). ``detector``: motion -> events (default: the
-    dataset's detectors, :func:`anima.text2face.compose.detect_motion`; the independent judge with
-    ``--judge``), reading ``attributes`` (default: the detectors'); order and count are scored on the prompts
-    whose events it reads."""
-    attributes = tuple(attributes or ATTRIBUTES)
-    scored = [i for i, r in enumerate(rows) if r["kind"] not in ("emotion", "side")]
-    detector = detector or detect_motion
-    events = {i: [detector(m) for m in runs[i]] for i in runs}
+def _per_attribute(rows: list[dict], events: dict, attributes, scored: list[int]) -> dict:
+    """Per attribute: its recall over the runs of the prompts that ask for it, its false alarms over those of
+    the prompts that do not allow it (among the ``scored`` prompts)."""
     per_attr = {}
     for a in attributes:
         pos = [i for i in scored if a in expected(rows[i])]
@@ -160,6 +152,72 @@ def score_runs(
             "prompts": len(pos),
             "runs": len(hit),
         }
+    return per_attr
+
+
+def _emotion_checks(rows: list[dict], runs: dict, captured_max: dict) -> list[dict]:
+    """Per emotion prompt and checked weight: its rise over the same method's neutral prompts and its peak
+    against the captured maximum (none without neutral prompts)."""
+    neutral = [m for i, r in enumerate(rows) if r["kind"] == "neutral" for m in runs[i]]
+    emo = []
+    if neutral:
+        stems = [stem for s in EMOTION_CHECKS.values() for stem in s]
+        base = {stem: float(np.mean([_channel(m, stem).mean() for m in neutral])) for stem in stems}
+        for i, r in enumerate(rows):
+            e = r.get("emotion") or ("surprised" if r["kind"] == "emotion" and SURPRISE in expected(r) else None)
+            if not e:
+                continue
+            for stem in EMOTION_CHECKS[e]:
+                vals = [float(_channel(m, stem).mean()) for m in runs[i]]
+                peak = max(float(_channel(m, stem).max()) for m in runs[i])
+                rise = float(np.mean(vals)) - base[stem]
+                emo.append(
+                    {
+                        "prompt": r["prompt"],
+                        "emotion": e,
+                        "weight": stem,
+                        "rise": round(rise, 4),
+                        "peak": round(peak, 3),
+                        "captured_max": captured_max.get(stem),
+                        "holds": bool(rise > 0.01 and peak <= captured_max.get(stem, 1.0) + 1e-6),
+                    }
+                )
+    return emo
+
+
+def _seed0_distances(rows: list[dict], runs: dict) -> list[float]:
+    """Between the seed-0 motions of every two prompts that ask for different things: the largest difference
+    of any expression weight or head rotation (rad) at any frame."""
+    keys = {
+        i: frozenset((e["attribute"], e["count"]) for c in rows[i].get("clauses", []) for e in c)
+        | {rows[i].get("emotion")}
+        for i in runs
+    }
+    dists = []
+    ids = sorted(runs)
+    for x in range(len(ids)):
+        for y in range(x + 1, len(ids)):
+            i, j = ids[x], ids[y]
+            if keys[i] != keys[j]:
+                a, b = runs[i][0], runs[j][0]
+                T = min(len(a), len(b))
+                # the largest difference of any expression weight or head rotation (rad) at any frame
+                dists.append(float(np.abs(a[:T] - b[:T]).max()))
+    return dists
+
+
+def score_runs(
+    rows: list[dict], runs: dict[int, list[np.ndarray]], captured_max: dict, detector=None, attributes=None
+) -> dict:
+    """``runs[i]``: the motions of prompt i (one per seed). ``detector``: motion -> events (default: the
+    dataset's detectors, :func:`anima.text2face.compose.detect_motion`; the independent judge with
+    ``--judge``), reading ``attributes`` (default: the detectors'); order and count are scored on the prompts
+    whose events it reads."""
+    attributes = tuple(attributes or ATTRIBUTES)
+    scored = [i for i, r in enumerate(rows) if r["kind"] not in ("emotion", "side")]
+    detector = detector or detect_motion
+    events = {i: [detector(m) for m in runs[i]] for i in runs}
+    per_attr = _per_attribute(rows, events, attributes, scored)
     order, count, side = [], [], []
     for i, r in enumerate(rows):
         cl = r.get("clauses", [])
@@ -193,47 +251,8 @@ def score_runs(
                 for e in c:
                     if e["count"] > 1:
                         count.append(sum(1 for n, _, _ in ev if n == e["attribute"]) == e["count"])
-    # emotions: the named weights against the same method's neutral prompts
-    neutral = [m for i, r in enumerate(rows) if r["kind"] == "neutral" for m in runs[i]]
-    emo = []
-    if neutral:
-        stems = [stem for s in EMOTION_CHECKS.values() for stem in s]
-        base = {stem: float(np.mean([_channel(m, stem).mean() for m in neutral])) for stem in stems}
-        for i, r in enumerate(rows):
-            e = r.get("emotion") or ("surprised" if r["kind"] == "emotion" and SURPRISE in expected(r) else None)
-            if not e:
-                continue
-            for stem in EMOTION_CHECKS[e]:
-                vals = [float(_channel(m, stem).mean()) for m in runs[i]]
-                peak = max(float(_channel(m, stem).max()) for m in runs[i])
-                rise = float(np.mean(vals)) - base[stem]
-                emo.append(
-                    {
-                        "prompt": r["prompt"],
-                        "emotion": e,
-                        "weight": stem,
-                        "rise": round(rise, 4),
-                        "peak": round(peak, 3),
-                        "captured_max": captured_max.get(stem),
-                        "holds": bool(rise > 0.01 and peak <= captured_max.get(stem, 1.0) + 1e-6),
-                    }
-                )
-    # distinctness on seed 0
-    keys = {
-        i: frozenset((e["attribute"], e["count"]) for c in rows[i].get("clauses", []) for e in c)
-        | {rows[i].get("emotion")}
-        for i in runs
-    }
-    dists = []
-    ids = sorted(runs)
-    for x in range(len(ids)):
-        for y in range(x + 1, len(ids)):
-            i, j = ids[x], ids[y]
-            if keys[i] != keys[j]:
-                a, b = runs[i][0], runs[j][0]
-                T = min(len(a), len(b))
-                # the largest difference of any expression weight or head rotation (rad) at any frame
-                dists.append(float(np.abs(a[:T] - b[:T]).max()))
+    emo = _emotion_checks(rows, runs, captured_max)
+    dists = _seed0_distances(rows, runs)
     dists = np.array(dists) if dists else np.zeros(1)
 
     def frac(v):

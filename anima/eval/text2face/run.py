@@ -216,6 +216,73 @@ def score(method: Method, items, item_E, geom, reps, progress) -> dict:
     return out
 
 
+def _r_precision_evaluator(ev_path: Path, pool, pool_E, stats, progress: bool):
+    """The R-precision evaluator on the training crops (cached at ``ev_path``, beside the models)."""
+    norm = [(it.motion - stats[0]) / stats[1] for it in pool]
+    if ev_path.is_file():
+        return load_evaluator(ev_path)
+    bar = tqdm(total=1500, desc="train R-precision evaluator", disable=not progress, leave=False)
+    ev = train_evaluator(norm, pool_E, progress=lambda s, l: bar.update(1))
+    bar.close()
+    save_evaluator(ev_path, ev)
+    return ev
+
+
+def _method_row(m, s: dict, ev, head, stats, item_E, labels, covered) -> dict:
+    """One method's row of the tables from its scores ``s`` (:func:`score`): the errors, R-precision on the
+    headline windows (the evaluator ``ev``), attribute recall, its validation scores and what it is."""
+    rp = np.mean(
+        [
+            r_precision(ev, (g[head] - stats[0]) / stats[1], item_E[head, r % item_E.shape[1]])
+            for r, g in enumerate(s["generated"])
+        ],
+        0,
+    )
+    return {
+        "mae_mm": s["mae_mm"],
+        "mae_mm_over_videos": s["mae_mm_over_videos"],
+        "rmse_mm": s["rmse_mm"],
+        "diversity_mm": s["diversity_mm"],
+        "r_precision": [round(float(x), 3) for x in rp],
+        "attribute_recall": recall_table(labels, [[d[i] for i in head] for d in s["detected"]], covered),
+        **({"validation": s["validation"]} if "validation" in s else {}),
+        "score_s": s["score_s"],
+        **m.info,
+    }
+
+
+def _protocol(clips, pool, held, items, head_name: str, head, chosen: dict, ours_steps: int, reps: int, geom,
+              covered: list, labels: list) -> dict:  # fmt: skip
+    """What the tables stand on: the data, the windows, the intervals and how each setting was chosen."""
+    return {
+        "train_clips": sum(c.split == "train" for c in clips),
+        "train_crops": len(pool),
+        "heldout_clips": len(held),
+        "heldout_videos": len({c.video_id for c in held}),
+        "eval_windows": len(items),
+        "windows_per_split": {k: sum(it.split == k for it in items) for k in ("val", "test")},
+        "videos_per_split": {k: len({it.video for it in items if it.split == k}) for k in ("val", "test")},
+        "window_frames": EVAL_LEN,
+        "headline_windows": f"{head_name}: {len(head)} windows of {len({items[i].video for i in head})} videos "
+        "(MAE, RMSE, Diversity, R-precision and attribute recall); the validation windows chose the steps and "
+        "are reported apart ('validation', 'mae_mm_over_videos.val')",
+        "intervals": "'± x' over the sampling repetitions (one fixed set of windows); 'mae_mm_over_videos': "
+        "per-window MAE (mean over repetitions), 95 % interval resampling whole held-out videos, per split",
+        "choices": {
+            "steps": {
+                **chosen,
+                "ablation_rows": f"ours' steps ({ours_steps}; the autoregressive row a tenth), not chosen per row",
+            },
+            "model_size_codebook_dropout": "the seed's (§6.3), not tuned here",
+            "diffusion_guidance": "2.5 for both diffusion baselines (MDM's), not tuned here",
+        },
+        "reps": reps,
+        "metric_vertices": geom.n_metric,
+        "attributes_covered": covered,
+        "label_counts": {a: sum(a in s for s in labels) for a in covered},
+    }
+
+
 def evaluate(
     dataset,
     work: Path,
@@ -261,14 +328,8 @@ def evaluate(
                 dataset, work, name, cfg, step_grid, items, item_E, geom, val_reps, prepared, progress, command
             )
         else:
-            path = train(
-                dataset,
-                work / _slug(name),
-                replace(cfg, steps=steps),
-                progress=progress,
-                prepared=prepared,
-                command=command,
-            )["path"]
+            path = train(dataset, work / _slug(name), replace(cfg, steps=steps), progress=progress,
+                         prepared=prepared, command=command)["path"]  # fmt: skip
             chosen[name] = {"value": steps, "chosen_on": "given on the command line (--steps)"}
         methods.append(model_method(name, path))
     ours_steps = chosen["ours"]["value"] or steps or 1000
@@ -278,17 +339,7 @@ def evaluate(
 
     if SHIPPED.is_file() and not checkpoint:
         methods.append(model_method("shipped", SHIPPED))
-
-    # R-precision evaluator on the training crops (cached beside the models)
-    ev_path = work / "evaluator.pt"
-    norm = [(it.motion - stats[0]) / stats[1] for it in pool]
-    if ev_path.is_file():
-        ev = load_evaluator(ev_path)
-    else:
-        bar = tqdm(total=1500, desc="train R-precision evaluator", disable=not progress, leave=False)
-        ev = train_evaluator(norm, pool_E, progress=lambda s, l: bar.update(1))
-        bar.close()
-        save_evaluator(ev_path, ev)
+    ev = _r_precision_evaluator(work / "evaluator.pt", pool, pool_E, stats, progress)
 
     real = np.stack([it.motion for it in items])
     head_name, head = headline_split(items)
@@ -296,33 +347,9 @@ def evaluate(
     covered = [a for a in ATTRIBUTES if sum(a in s for s in labels) >= 2]
     real_det = attribute_sets(real[head])
     result = {
-        "protocol": {
-            "train_clips": sum(c.split == "train" for c in clips),
-            "train_crops": len(pool),
-            "heldout_clips": len(held),
-            "heldout_videos": len({c.video_id for c in held}),
-            "eval_windows": len(items),
-            "windows_per_split": {k: sum(it.split == k for it in items) for k in ("val", "test")},
-            "videos_per_split": {k: len({it.video for it in items if it.split == k}) for k in ("val", "test")},
-            "window_frames": EVAL_LEN,
-            "headline_windows": f"{head_name}: {len(head)} windows of {len({items[i].video for i in head})} videos "
-            "(MAE, RMSE, Diversity, R-precision and attribute recall); the validation windows chose the steps and "
-            "are reported apart ('validation', 'mae_mm_over_videos.val')",
-            "intervals": "'± x' over the sampling repetitions (one fixed set of windows); 'mae_mm_over_videos': "
-            "per-window MAE (mean over repetitions), 95 % interval resampling whole held-out videos, per split",
-            "choices": {
-                "steps": {
-                    **chosen,
-                    "ablation_rows": f"ours' steps ({ours_steps}; the autoregressive row a tenth), not chosen per row",
-                },
-                "model_size_codebook_dropout": "the seed's (§6.3), not tuned here",
-                "diffusion_guidance": "2.5 for both diffusion baselines (MDM's), not tuned here",
-            },
-            "reps": reps,
-            "metric_vertices": geom.n_metric,
-            "attributes_covered": covered,
-            "label_counts": {a: sum(a in s for s in labels) for a in covered},
-        },
+        "protocol": _protocol(
+            clips, pool, held, items, head_name, head, chosen, ours_steps, reps, geom, covered, labels
+        ),
         "real": {
             "diversity_mm": ci([diversity(real[head], geom, np.random.default_rng(r)) for r in range(reps)]),
             "attribute_recall": recall_table(labels, [real_det], covered),
@@ -341,24 +368,7 @@ def evaluate(
     }
     for m in methods:
         s = score(m, items, item_E, geom, reps, progress)
-        rp = np.mean(
-            [
-                r_precision(ev, (g[head] - stats[0]) / stats[1], item_E[head, r % item_E.shape[1]])
-                for r, g in enumerate(s["generated"])
-            ],
-            0,
-        )
-        result["methods"][m.name] = {
-            "mae_mm": s["mae_mm"],
-            "mae_mm_over_videos": s["mae_mm_over_videos"],
-            "rmse_mm": s["rmse_mm"],
-            "diversity_mm": s["diversity_mm"],
-            "r_precision": [round(float(x), 3) for x in rp],
-            "attribute_recall": recall_table(labels, [[d[i] for i in head] for d in s["detected"]], covered),
-            **({"validation": s["validation"]} if "validation" in s else {}),
-            "score_s": s["score_s"],
-            **m.info,
-        }
+        result["methods"][m.name] = _method_row(m, s, ev, head, stats, item_E, labels, covered)
     result["tables"] = tables_markdown(result)
     return result
 
