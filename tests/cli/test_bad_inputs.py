@@ -991,6 +991,15 @@ def cases(d: Path) -> list[tuple[str, list, dict]]:
     add("view --static is a file", "view", d / "view_in" / seq_bad[0], "--static", files["text"])
     for v in ("0", "-1", "65536", "abc"):
         add(f"view --port {v}", "view", files["dir"], "--port", v, "--no-browser")
+    foreign = d / "studio_foreign"
+    foreign.mkdir(exist_ok=True)
+    (foreign / "notes.txt").write_text("a user's file")
+    for v in ("-1", "65536", "abc"):
+        add(f"studio --port {v}", "studio", "--root", d / "studio_root", "--port", v, "--no-browser")
+    for v in ("0", "-5", "abc"):
+        add(f"studio --max-upload-mb {v}", "studio", "--root", d / "studio_root", "--max-upload-mb", v, "--no-browser")
+    add("studio --root is a file", "studio", "--root", files["text"], "--no-browser")
+    add("studio --root holds a user's files", "studio", "--root", foreign, "--no-browser")
 
     for name, argv in _red_team(d, files, npz, base, ck, ds):
         add(name, *argv)
