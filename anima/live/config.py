@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from anima.facemodel.character import BUILDS, DEFAULT_BUILD
 from anima.track import DEFAULT as DEFAULT_TRACKER
 from anima.track import TRACKERS as TRACKER_NAMES
 
@@ -44,6 +45,8 @@ class LiveConfig(SourceConfig):
     vmc: str | None = field(default=None, metadata={"metavar": "HOST:PORT"})
     """Also send every frame to a VMC protocol receiver (VSeeFace, Warudo, VNyan, VMagicMirror; port 39539):
     humanoid bones, the 52 ARKit blend values and the VRM presets (docs/live.md)."""
+    body: str = field(default=DEFAULT_BUILD, metadata={"choices": BUILDS})
+    """anima's character's build (neutral, female, male; docs/rig.md): the page's character and the take's."""
     avatar: str | None = None
     """Your character (.vrm VRM 1.0, or a skinned .glb with humanoid bone names) instead of anima's: each frame
     is retargeted onto its own rest pose (as `anima retarget` does)."""

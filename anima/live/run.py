@@ -28,7 +28,7 @@ from anima.core import rig
 from anima.errors import InputError
 from anima.export.retarget import LiveRetarget, avatar_front
 from anima.export.vrm import write_character_avatar
-from anima.facemodel.character import load_character
+from anima.facemodel.character import DEFAULT_BUILD, build_coeffs, load_character
 from anima.io.arkit import ARKIT_NAMES
 from anima.io.atomic import copy_file, write_text
 from anima.io.outdir import OutputFolder, check_out_dir, holds_nothing
@@ -46,7 +46,9 @@ from anima.view.ws import Broadcaster
 __all__ = ["check", "recover", "run"]
 
 
-def _page(root: Path, title: str, fps: float, avatar: str | None = None, front: list | None = None) -> None:
+def _page(
+    root: Path, title: str, fps: float, avatar: str | None = None, front: list | None = None, body: str = DEFAULT_BUILD
+) -> None:
     """The live page in ``root``: anima's character, or ``avatar`` as it is (``front``: its forward at rest)."""
     data = {
         "schema": "anima.view", "version": 1, "kind": "live", "live": True, "title": title, "fps": fps,
@@ -64,7 +66,7 @@ def _page(root: Path, title: str, fps: float, avatar: str | None = None, front: 
         return
     write_text(root / "view-data.js", js_global("ANIMA_VIEW", data))
     with tempfile.TemporaryDirectory(prefix="anima-live-") as tmp:
-        glb = write_character_avatar(Path(tmp) / "character.glb", preset="anima")
+        glb = write_character_avatar(Path(tmp) / "character.glb", shape=body, preset="anima")
         write_text(root / "avatar-glb.js", js_global("ANIMA_GLB", base64.b64encode(Path(glb).read_bytes()).decode()))
     for f in viewer_files():
         copy_file(f, root / f.name)
@@ -105,9 +107,10 @@ def run(cfg: LiveConfig, command: str | None = None, announce=print) -> dict:
     """``anima live`` (see the module docstring); returns the take's numbers when it ends (the source ends,
     ``max_seconds``, ``max_frames``, Ctrl-C or SIGTERM)."""
     src, targets = check(cfg)
-    retarget = LiveRetarget(cfg.avatar, load_character().joints) if cfg.avatar is not None else None
+    rest = load_character().shaped(build_coeffs(cfg.body))[1]  # the build's joints: the page's character
+    retarget = LiveRetarget(cfg.avatar, rest) if cfg.avatar is not None else None
     # the models load before the first frame is offered
-    tracker = LiveTracker(cfg.face_only, cfg.trackers, cfg.tracker)
+    tracker = LiveTracker(cfg.face_only, cfg.trackers, cfg.tracker, rest)
     reader = open_source(src, realtime=cfg.realtime or not Path(src).exists(), loop=cfg.loop)
     root = Path(tempfile.mkdtemp(prefix="anima-live-"))
     server = None
@@ -129,7 +132,7 @@ def run(cfg: LiveConfig, command: str | None = None, announce=print) -> dict:
     journal = Journal(od, reader.fps) if od is not None else None
     try:
         front = avatar_front(retarget.g, retarget.hum) if retarget is not None else None
-        _page(root, f"live: {Path(src).name if Path(src).exists() else src}", reader.fps, cfg.avatar, front)
+        _page(root, f"live: {Path(src).name if Path(src).exists() else src}", reader.fps, cfg.avatar, front, cfg.body)
         server, note = open_server(root, cfg.port, live=hub)
         threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.2}, daemon=True).start()
         url = page_url(server)
@@ -208,7 +211,7 @@ def run(cfg: LiveConfig, command: str | None = None, announce=print) -> dict:
         try:
             journal.flush()  # the last frames too: the take is read back from its parts
             frames = read_parts(od.path)[0] if journal.parts else []
-            out["record"] = write_take(frames, reader.fps, od, out, journal)
+            out["record"] = write_take(frames, reader.fps, od, out, journal, cfg.body)
         except InputError:  # nothing worth recovering (no face, no body): the take's own parts go, nothing else
             journal.discard()
             od.__exit__(*sys.exc_info())

@@ -261,16 +261,19 @@ def _take_legs(frames: list[LiveFrame], idx: np.ndarray, grid: np.ndarray, cfg: 
     return out
 
 
-def write_take(frames: list[LiveFrame], fps: float, od: OutputFolder, stats: dict, journal: Journal | None) -> dict:
+def write_take(
+    frames: list[LiveFrame], fps: float, od: OutputFolder, stats: dict, journal: Journal | None, body: str | None = None
+) -> dict:
     """``--record DIR``: the take as a result folder (``capture.npz``, ``avatar.glb``, ``body.bvh``,
-    ``arkit.csv``, ``info.json``; the manifest last, when ``od`` closes), written when the take ends; the
-    journal's parts go once the result is written."""
+    ``arkit.csv``, ``info.json``; the manifest last, when ``od`` closes), written when the take ends, on the
+    character's build ``body`` (``--body``; None: the default); the journal's parts go once the result is
+    written."""
     seq = take_sequence(frames, fps)
     if seq is None:
         raise InputError("the take never saw a face or a body: nothing to record")
     info = {"live": {k: v for k, v in stats.items() if k != "rss_mb"}, "frames": seq.n_frames, "fps": fps}
     od.info = info
-    files = write_motion_outputs(seq, od, "capture.npz", render=False, info=info, progress=False)
+    files = write_motion_outputs(seq, od, "capture.npz", render=False, info=info, progress=False, body=body)
     if journal is not None:
         journal.discard()
     remove_parts(od.path, part_names(od.path))  # a recovered take's parts: the result now holds them

@@ -39,7 +39,9 @@ class LiveTracker:
     """Per frame: landmarks (:meth:`landmarks`, thread-safe per tracker ``k``), then the face fit and the rig
     (:meth:`frame`, in order on one thread). See the module docstring."""
 
-    def __init__(self, face_only: bool = False, trackers: int = TRACKERS, tracker: str = DEFAULT):
+    def __init__(
+        self, face_only: bool = False, trackers: int = TRACKERS, tracker: str = DEFAULT, rest: np.ndarray | None = None
+    ):
         self.face_only = face_only
         self.fcfg = CaptureConfig().fit
         self.basis = LandmarkBasis.build(load_face_model(), load_correspondence(), self.fcfg.use_iris)
@@ -49,7 +51,7 @@ class LiveTracker:
         self.warm_frames: list[tuple] = []  # (index, t_capture, body) of each warm-up face
         self.backfill: list[LiveFrame] = []  # the warm-up frames fitted once the identity is known
         self.identity = None
-        self.rest = load_character().joints
+        self.rest = load_character().joints if rest is None else np.asarray(rest, np.float64)  # the build's
         self.idle = rig.idle_body(1, self.rest, 30.0)[0]  # contract: not (one still frame)
         self.held = np.tile(np.eye(3), (rig.N_RIG, 1, 1))
         self.rotation = np.zeros(3)
