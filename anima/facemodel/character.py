@@ -70,6 +70,13 @@ class Character:
         J = self.joints + np.einsum("k,kjc->jc", c, self.shape_joints.astype(np.float64))
         return V, J
 
+    def shaped_joints(self, coeffs: np.ndarray | None = None) -> np.ndarray:
+        """The joints ``[J, 3]`` of :meth:`shaped` alone (a shape fit's measures need no mesh)."""
+        if coeffs is None or not np.any(coeffs):
+            return self.joints.astype(np.float64)
+        c = np.asarray(coeffs, np.float64)
+        return self.joints + np.einsum("k,kjc->jc", c, self.shape_joints.astype(np.float64))
+
     def morph_dense(self) -> np.ndarray:
         """The 53 morph targets as dense deltas ``[53, V, 3]`` (float32)."""
         out = np.zeros((len(EXPR_NAMES), len(self.vertices), 3), np.float32)
@@ -266,7 +273,7 @@ def fit_shape(
         target = np.array([measured[n] for n in names])
         sd = np.maximum(ch.shape_sdev, 1e-9)
         for _ in range(12):
-            m0 = np.array([character_measures(ch.shaped(c)[1])[n] for n in names])
+            m0 = np.array([character_measures(ch.shaped_joints(c))[n] for n in names])
             h0 = _height(ch, c)
             lo, hi = HEIGHT_RANGE_M
             hinge = lambda h: 10.0 * (max(0.0, lo - h) + max(0.0, h - hi)) / lo
@@ -275,7 +282,7 @@ def fit_shape(
             for k in range(K):
                 e = np.zeros(K)
                 e[k] = 1e-3 * sd[k]
-                m1 = np.array([character_measures(ch.shaped(c + e)[1])[n] for n in names])
+                m1 = np.array([character_measures(ch.shaped_joints(c + e))[n] for n in names])
                 Jac[: len(names), k] = (m1 - m0) / target / e[k]
                 Jac[-1, k] = (hinge(_height(ch, c + e)) - hinge(h0)) / e[k]
             Jac[len(names) : -1] = np.diag(PRIOR_WEIGHT / (prior * sd))
