@@ -22,7 +22,6 @@ import shutil
 import sys
 import tempfile
 import threading
-import webbrowser
 from http import HTTPStatus
 from pathlib import Path
 from urllib.parse import parse_qs, unquote, urlsplit
@@ -33,7 +32,7 @@ from anima.studio import uploads
 from anima.studio.jobs import KINDS, RETARGET_SHARE, RIGS, SEQUENCES, Jobs, dumps, remove_job
 from anima.studio.uploads import UploadError
 from anima.view.export import build_view
-from anima.view.serve import HOST, FileHandler, open_server
+from anima.view.serve import HOST, FileHandler, open_server, serve_until_stopped
 
 STATIC = Path(__file__).parent / "static"
 DEFAULT_MAX_UPLOAD_MB = 2048
@@ -445,10 +444,7 @@ def serve(
         url = studio_url(server)
         announce(f"studio: {url}")
         sys.stdout.flush()
-        has_screen = sys.platform != "linux" or os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-        if browser and has_screen:
-            threading.Thread(target=webbrowser.open, args=(url,), daemon=True).start()
-        server.serve_forever(poll_interval=0.2)
+        serve_until_stopped(server, url, browser)
     except KeyboardInterrupt:
         pass
     finally:

@@ -323,6 +323,17 @@ def open_server(
     return server, note
 
 
+def serve_until_stopped(server, url: str, browser: bool) -> None:
+    """Open ``url`` in a browser (when asked and there is a screen), then serve until Ctrl-C."""
+    has_screen = sys.platform != "linux" or os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    if browser and has_screen:
+        threading.Thread(target=webbrowser.open, args=(url,), daemon=True).start()
+    try:
+        server.serve_forever(poll_interval=0.2)
+    except KeyboardInterrupt:
+        pass
+
+
 def page_url(server) -> str:
     return f"http://{HOST}:{server.server_address[1]}/{server.token}/index.html"
 
@@ -366,10 +377,7 @@ def serve(
             print(f"anima: note: {n}", file=sys.stderr)
         announce(f"anima view: {kind} {folder} at {url}  (Ctrl-C to stop)")
         sys.stdout.flush()
-        has_screen = sys.platform != "linux" or os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-        if browser and has_screen:
-            threading.Thread(target=webbrowser.open, args=(url,), daemon=True).start()
-        server.serve_forever(poll_interval=0.2)
+        serve_until_stopped(server, url, browser)
     except KeyboardInterrupt:
         pass
     finally:
