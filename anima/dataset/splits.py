@@ -4,7 +4,7 @@ A video's split is decided by its *source group*, never by its file alone or its
 
 1. Its **key path**: the path relative to the data root (``anima.io.assets.data_root``) for shared data; for a
    video elsewhere, its folder's name and its file name (``speaker_a/take3.mp4``), so moving or copying a
-   folder leaves every split as it was.
+   folder leaves every split as it was (and renaming it moves none: 4.).
 2. Its **source key** (the speaker, actor, recording or talk): the first rule of :data:`SOURCE_RULES` whose
    prefix the key path starts with, applied to the file name; a video no rule names gets
    ``<folder>:<file name less a trailing clip/part/take number>``.
@@ -15,8 +15,11 @@ A video's split is decided by its *source group*, never by its file alone or its
    other's) join one group, named by its smallest source key; so a clip copied under two folders, re-encoded
    or re-cropped cannot sit on two sides. Each row says why it was grouped (``grouped_with``).
 4. The group's split: a hash of its name against :data:`TEST` and :data:`VAL` (so adding videos never moves
-   another video's split). A group of videos outside the data root lands by its content instead (the smallest
-   sha256 of its files), so the same videos under differently named folders get the same splits.
+   another video's split). A group of videos wholly outside the data root lands by its content instead
+   (:func:`content_key`: the sha256 of its first video by file name), so the same videos under differently
+   named folders get the same splits: there names (the folder, a speaker hint, and the file) still decide what
+   belongs together, content decides the side. Adding a video to such a group moves it only where the new
+   video's file name sorts first.
 
 ``table(videos)`` returns all of it per video; ``anima dataset build`` writes it into the manifest
 (``split_table``) and each row carries its video's split.
@@ -177,6 +180,13 @@ def same_recording(a: list[int], b: list[int]) -> bool:
     return min(sum(map(any, near)), sum(map(any, zip(*near)))) >= FACE_MIN_FRAMES
 
 
+def content_key(paths: list[str], fingerprints: dict) -> str | None:
+    """What decides the side of a group of videos outside the data root: the sha256 of its first video by file
+    name (then by sha256), the folder left out; None where none of them was read."""
+    read = sorted((Path(p).name, fingerprints[p][0]) for p in paths if p in fingerprints)
+    return f"content:{read[0][1]}" if read else None
+
+
 def table(videos: list[str | Path], root: Path | None = None, fingerprints: dict | None = None) -> dict[str, dict]:
     """Per video (its resolved path as a string): ``{"key_path", "source", "group", "split", "grouped_with"}``
     (``grouped_with``: the other sources it was found to share content with, and how).
@@ -239,10 +249,10 @@ def table(videos: list[str | Path], root: Path | None = None, fingerprints: dict
     side = {}
     for g, ps in members.items():
         outside = all(not Path(p).is_relative_to(base) for p in ps)
-        shas = sorted(fps[p][0] for p in ps if p in fps)
+        content = content_key(ps, fps) if outside else None
         # videos outside the data root: their names group them, their content decides the side (a folder renamed
         # or a copy under another folder keeps its split); the shared data keeps the rule by its source names
-        side[g] = split_of_group(f"content:{shas[0]}") if outside and shas else split_of_group(g)
+        side[g] = split_of_group(content or g)
     out = {}
     for p in paths:
         g = find(source[p])
@@ -254,5 +264,6 @@ def table(videos: list[str | Path], root: Path | None = None, fingerprints: dict
 def rule() -> dict:
     """What a manifest records of the rule its splits came from."""
     return {"salt": SALT, "test": TEST, "val": VAL, "near_bits": NEAR, "face_frames": FACE_FRAMES,
-            "face_near_bits": FACE_NEAR, "face_min_frames": FACE_MIN_FRAMES, "outside_the_data_root": "by content",
-            "module": __name__}  # fmt: skip
+            "face_near_bits": FACE_NEAR, "face_min_frames": FACE_MIN_FRAMES,
+            "outside_the_data_root": "grouped by names, the side by content: the sha256 of the group's first video "
+            "by file name", "module": __name__}  # fmt: skip

@@ -104,17 +104,68 @@ def run_row(ev: Evaluation, name: str, cfg) -> dict:
     return {"command": ev.command(cfg), "status": status, "wall_s": round(time.perf_counter() - t0, 1), "result": res}
 
 
-def _worker_threads(threads: int) -> None:
-    """A worker process's start: its share of the cores, for the libraries already loaded (BLAS) and for
-    those a row loads later (torch and numba read the environment when imported)."""
-    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS"):
+THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+def row_threads(jobs: int) -> int:
+    """The threads each row of a run with ``--jobs jobs`` gets: the machine's cores // jobs (at least one). A
+    function of ``jobs`` alone, so a row gets the same count whether it ran in the first run or alone in a
+    resumed one."""
+    return max(1, (os.cpu_count() or 1) // max(1, jobs))
+
+
+def set_threads(threads: int) -> dict:
+    """Give this process ``threads`` threads: the environment (torch and numba read it when imported), the
+    thread pools already loaded (BLAS, OpenMP: threadpoolctl), torch's intra-op threads and numba's where they
+    are imported. Returns what it replaced (for :func:`_restore_threads`)."""
+    import sys
+
+    torch, numba = sys.modules.get("torch"), sys.modules.get("numba")
+    old = {"env": {v: os.environ.get(v) for v in THREAD_VARS}}  # torch's count read before the pools move it
+    old |= {"torch": torch.get_num_threads()} if torch else {}
+    old |= {"numba": numba.get_num_threads()} if numba else {}
+    old["pools"] = threadpool_limits(threads)
+    for var in THREAD_VARS:
         os.environ[var] = str(threads)
-    threadpool_limits(threads)
+    if torch:
+        torch.set_num_threads(threads)
+    if numba:
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))  # numba's pool is sized at import
+    return old
+
+
+def _restore_threads(old: dict) -> None:
+    import sys
+
+    for var, value in old["env"].items():
+        if value is None:
+            os.environ.pop(var, None)
+        else:
+            os.environ[var] = value
+    old["pools"].restore_original_limits()
+    if "torch" in old:
+        sys.modules["torch"].set_num_threads(old["torch"])
+    if "numba" in old:
+        sys.modules["numba"].set_num_threads(old["numba"])
+
+
+def _worker_threads(threads: int) -> None:
+    """A worker process's start: its share of the cores (:func:`set_threads`), before any row imports torch."""
+    set_threads(threads)
+
+
+def _threads_now() -> int | None:
+    """The threads this process's rows run with: torch's where it is loaded, else what the environment says."""
+    import sys
+
+    if "torch" in sys.modules:
+        return sys.modules["torch"].get_num_threads()
+    return int(os.environ.get("OMP_NUM_THREADS", "0")) or None
 
 
 def _worker_row(ev_name: str, name: str, cfg) -> dict:
     ev = next(e for e in EVALUATIONS if e.name == ev_name)
-    return run_row(ev, name, cfg) | {"threads": int(os.environ.get("OMP_NUM_THREADS", "0")) or None}
+    return run_row(ev, name, cfg) | {"threads": _threads_now()}
 
 
 def run_rows(
@@ -124,20 +175,26 @@ def run_rows(
     on_row: Callable[[dict], None] | None = None,
 ) -> dict:
     """Run each row (evaluation, name, config) as its command does; a refusal is recorded as skipped, a
-    failure as failed, and neither stops the others. ``jobs`` > 1: rows side by side in fresh processes, each
-    with ``cores // jobs`` threads (one row as well: a resumed run's last row runs as it would have in the
-    first run), the long rows started first; the result keeps the rows' order; each row says its ``threads``.
+    failure as failed, and neither stops the others. Each row runs with :func:`row_threads` threads (torch,
+    numba, BLAS: :func:`set_threads`), a function of ``jobs`` alone: a resumed run's rows, however few are
+    left, run as they would have in the first run; each row records its ``threads``. ``jobs`` 1: one after
+    another in this process (its thread settings restored after); > 1: side by side in fresh processes (one
+    row left as well), the long rows started first. The result keeps the rows' order.
     ``on_row(rows so far)`` after each row ends (the caller saves them: a run stopped later keeps them)."""
-    if jobs <= 1 or not rows:  # one row left of a resumed --jobs 2 run still gets its share, not every core
+    threads = row_threads(jobs)
+    if jobs <= 1 or not rows:
         out = {}
         for ev, name, cfg in rows:
             if progress:
                 progress(f"{name}: {ev.command(cfg)}")
-            out[name] = run_row(ev, name, cfg) | {"threads": os.cpu_count()}
+            old = set_threads(threads)
+            try:
+                out[name] = run_row(ev, name, cfg) | {"threads": _threads_now()}
+            finally:
+                _restore_threads(old)
             if on_row:
                 on_row(dict(out))
         return out
-    threads = max(1, (os.cpu_count() or 1) // jobs)
     order = sorted(rows, key=lambda r: not r[0].long)  # the long evaluations' rows first (a stable sort)
     done = {}
     ctx = multiprocessing.get_context("spawn")

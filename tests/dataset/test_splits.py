@@ -3,6 +3,7 @@ same splits; on the shared data no source or recording sits on two sides, and th
 
 import collections
 import shutil
+from pathlib import Path
 
 from anima.dataset import splits
 from anima.dataset.build import expand_videos
@@ -103,19 +104,44 @@ def test_one_recording_under_two_names_is_found_by_its_face_crops(tmp_path):
     assert len(fa) >= 10 and splits.same_recording(fa, fb) and not splits.same_recording(fa, fc)
 
 
+def _cut(src, dst, seconds=4.0):
+    """The first ``seconds`` of a video, its streams copied (small files, the same bytes for every copy)."""
+    import subprocess
+
+    from anima.io.video import FFMPEG
+
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    cmd = [FFMPEG, "-v", "error", "-y", "-i", str(src), "-t", str(seconds), "-c", "copy", str(dst)]
+    subprocess.run(cmd, check=True)
+    return dst
+
+
 def test_videos_outside_the_data_root_land_by_content_not_by_their_folders_name(tmp_path):
-    """The same three talking clips copied into folders ``a/`` and ``b/c/`` (outside the data root) and split
-    twice: each clip lands on the same side both times (the side a group lands on is decided by its files'
-    content; before, the folder's name was in the key and moved reagan_clip1 from val to test)."""
-    rels = [f"styletalk-samples/samples/source_video/video/{n}.mp4" for n in ("andrew_clip_1", "reagan_clip1",
-                                                                            "Obama_clip1")]  # fmt: skip
-    got = []
-    for folder in (tmp_path / "a", tmp_path / "b" / "c"):
+    """The same three talking clips (their first 4 s) copied into folders ``a/`` and ``b/c/`` (outside the data
+    root) and split twice: each clip lands on the same side both times. Names still decide what belongs together
+    (the folder a speaker hint), the side a group lands on is its first video's content (by file name): before,
+    the folder's name was in the key and moved andrew_clip_1 from train to val, reagan_clip1 from val to test.
+    Another take of a speaker added later joins its group and moves nothing."""
+    from anima.io.outdir import sha256
+
+    names = ("andrew_clip_1", "reagan_clip1", "Obama_clip1", "andrew_clip_2")
+    cut = {n: _cut(asset(f"styletalk-samples/samples/source_video/video/{n}.mp4"), tmp_path / "cut" / f"{n}.mp4")
+           for n in names}  # fmt: skip
+    assert all(p.stat().st_size < 150_000 for p in cut.values())
+
+    def build(folder, which):
         folder.mkdir(parents=True)
-        paths = []
-        for r in rels:
-            shutil.copyfile(asset(r), folder / r.rsplit("/", 1)[1])
-            paths.append(folder / r.rsplit("/", 1)[1])
-        t = splits.table(paths, tmp_path / "nowhere")
-        got.append({r["key_path"].rsplit("/", 1)[1]: r["split"] for r in t.values()})
-    assert got[0] == got[1], got
+        paths = [shutil.copyfile(cut[n], folder / f"{n}.mp4") for n in which]
+        return {Path(p).stem: r for p, r in splits.table(paths, tmp_path / "nowhere").items()}
+
+    a, bc = build(tmp_path / "a", names[:3]), build(tmp_path / "b" / "c", names[:3])
+    assert {n: r["split"] for n, r in a.items()} == {n: r["split"] for n, r in bc.items()}
+    assert a["andrew_clip_1"]["group"] == "a:andrew" and bc["andrew_clip_1"]["group"] == "c:andrew"
+    for n, r in a.items():  # the side is the content's: a hash of the clip's sha256, no name in it
+        assert r["split"] == splits.split_of_group(f"content:{sha256(cut[n])}"), (n, r)
+    # a later take of the same speaker in the folder: one group by name, the group keeps its first video's side
+    d = build(tmp_path / "speaker_x", names)
+    assert d["andrew_clip_2"]["group"] == d["andrew_clip_1"]["group"] == "speaker_x:andrew"
+    assert {n: r["split"] for n, r in d.items()} == {n: a[n]["split"] for n in names[:3]} | {
+        "andrew_clip_2": a["andrew_clip_1"]["split"]
+    }
