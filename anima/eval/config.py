@@ -7,12 +7,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-HELDOUT_PROMPTS = Path(__file__).parent / "prompts" / "text2face_heldout.json"
-"""The held-out prompt suite: written and frozen before any method ran on it, run once per
-release by ``anima eval all``; its result is reported whatever it is and never used to change anything. After a
-release it joins the development suites and a new one is written (the protocol: docs/text2face.md)."""
-HELDOUT_SHA256 = "49c9ff532d64588984dd30354f9db62c9642fc11f542edaf3f53793e973d870f"
-"""The held-out suite's file hash, recorded when it was frozen (2026-11-27); a test fails if the file changes."""
+HELDOUT_PROMPTS = Path(__file__).parent / "prompts" / "text2face_heldout3.json"
+"""The held-out prompt suite (third edition): written and frozen before any method ran on it, run once, by the
+final ``anima eval all``; its result is reported whatever it is and never used to change anything. After a
+release it joins the development suites and a new one is written (the protocol: docs/text2face.md). The second
+edition, ``text2face_heldout.json``, was run three times and is a development suite now."""
+HELDOUT_SHA256 = "dfa801432f8f01f0106a314263bd49798120b796ed38f1942c4922148c83dfda"
+"""The held-out suite's file hash, written here when it was frozen (2026-12-06)."""
+FROZEN_SUITES = {HELDOUT_PROMPTS.name: HELDOUT_SHA256}
+"""Prompt suites frozen by their hash (file name -> sha256): the evaluation refuses a file of that name whose
+content differs (:func:`anima.eval.text2face.prompts.load_suite`)."""
 DEV2_PROMPTS = Path(__file__).parent / "prompts" / "text2face_dev2.json"
 """The second development suite: 40 prompts written after the first suite (its judge failures were seen before
 the round that fixed smiles, frowns and shakes, so its scores are development scores)."""
@@ -73,7 +77,10 @@ class GestureEval:
     db: str = field(default="", metadata={"required": True, "metavar": "DB"})
     """Dataset folder from `anima dataset build`."""
     refiner_folds: int = field(default=3, metadata={"range": (0, 100)})
-    """k-NN + cGAN rows: cross-validation folds by video (0 = skip the learned models)."""
+    """The learned models' cross-validation folds, each speaker's videos in one fold (at most one per speaker:
+    leave-one-speaker-out; by video with --speaker; 0 = skip the learned models)."""
+    seeds: int = field(default=3, metadata={"range": (1, 100)})
+    """Training seeds of every learned model in every fold: its rows are the mean over seeds, with their spread."""
     refiner_steps: int | None = field(default=None, metadata={"range": (1, None)})
     """Generator steps per fold of the refiner (default 600)."""
     refiner_ablation: bool = False
@@ -113,8 +120,8 @@ class Text2FaceEval:
     """Score this checkpoint as 'ours' instead of training it."""
     prompts: str | None = field(default=None, metadata={"const": "", "metavar": "FILE"})
     """Instead of the tables: the prompt suite (default: the 114 prompts shipped in
-    anima/eval/prompts/text2face.json; beside it text2face_dev2.json, 40 more for development, and
-    text2face_heldout.json, the frozen held-out suite) scored for the
+    anima/eval/prompts/text2face.json; beside it text2face_dev2.json and text2face_heldout.json, 40 more each for
+    development, and text2face_heldout3.json, the frozen held-out suite) scored for the
     timeline method, the seed model (the shipped checkpoint or --checkpoint) and retrieval with the dataset's
     detectors: per-event recall and false alarms, order, count and side accuracy, emotion checks, distinct
     motions (about 1 min on 2 cores)."""

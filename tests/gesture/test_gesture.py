@@ -221,10 +221,22 @@ def test_silent_speech_and_speech_longer_than_the_database(db, tmp_path):
     assert any("longer than the database" in n for n in info["notes"])
 
 
-def test_eval_gesture_leave_one_video_out(ds):
-    from anima.eval.gesture.run import evaluate
+def test_eval_gesture_leave_one_speaker_out(ds, monkeypatch):
+    """The whole evaluation on three PATS videos read as three speakers (oliver1, oliver3, seth3: the test
+    dataset has two real ones, and a refiner needs two training speakers to search its pairs without their own),
+    with two training seeds."""
+    import anima.eval.gesture.learned as learned
+    import anima.eval.gesture.metrics as metrics
+    import anima.eval.gesture.run as run
 
-    r = evaluate(
+    real = metrics.speaker_of
+
+    def by_video(src):
+        return src.rsplit("/", 1)[-1].split("_")[0] if "pats-crops" in src else real(src)
+
+    for m in (metrics, learned, run):
+        monkeypatch.setattr(m, "speaker_of", by_video)
+    r = run.evaluate(
         str(ds),
         refiner_folds=3,
         refiner_steps=15,
@@ -232,53 +244,67 @@ def test_eval_gesture_leave_one_video_out(ds):
         generator_steps=10,
         fgd_steps=30,
         facegood_seconds=6.0,
+        seeds=2,
     )
-    assert r["videos"] == 3 and r["minutes_of_audio_motion"] > 0.2
-    assert set(r["minutes_per_speaker"]) == {"oliver", "seth"}
+    assert r["videos"] == 3 and r["speakers"] == 3 and r["minutes_of_audio_motion"] > 0.2
+    assert set(r["minutes_per_speaker"]) == {"oliver1", "oliver3", "seth3"}
+    assert r["knn_folds"] == 3 and r["knn_protocol"].startswith("leave-one-speaker-out, 3 folds")
     ca = r["control_adherence"]
     assert ca["left_wrist_height>=p85"]["mean"] > ca["none"]["mean"] > ca["left_wrist_height<=p15"]["mean"]
     assert r["knn"]["l1_cm"] > 0 and r["knn"]["diversity_cm"] > 0
     cg = r["knn_cgan"]  # the refiner rows judge the same windows, each refined by a model that never saw its speaker
-    assert len(cg["folds"]) == 2 and sorted(cg["fold_speakers"]) == [["oliver"], ["seth"]]  # 2 speakers, 2 folds
-    assert "by speaker" in cg["protocol"]
-    # with oliver held out, seth's one video is left to train on: no k-NN pair without its own video, said
-    (skip,) = [f for f in cg["folds"] if "skipped" in f]
-    assert "training pair" in skip["skipped"]
+    assert len(cg["folds"]) == 3 and sorted(cg["fold_speakers"]) == [["oliver1"], ["oliver3"], ["seth3"]]
+    assert cg["protocol"].startswith("leave-one-speaker-out, 3 folds") and "training seeds [0, 1]" in cg["protocol"]
+    assert cg["seeds"] == [0, 1] and len(cg["metrics_per_seed"]) == 2
+    assert set(cg["metrics_sd_over_seeds"]) == set(cg["metrics"]) and cg["metrics_sd_over_seeds"]["l1_cm"] >= 0
     judged = [f for f in cg["folds"] if "skipped" not in f]
-    assert sum(f["test_windows"] for f in judged) == cg["windows_judged"] > 0
-    # clean folds: no k-NN synthesis a fold's refiner trains on or refines drew from that fold's videos
-    assert all(f["held_out_videos"] >= 1 and f["held_out_videos_in_inputs"] == 0 for f in judged)
-    for f in judged:  # the correction smoothing is chosen on the fold's own training videos, or the default
+    assert len(judged) == 3 and sum(f["test_windows"] for f in judged) == cg["windows_judged"] == r["windows"]
+    # clean folds: no k-NN synthesis a fold's refiner trains on or refines drew from that fold's speaker, and no
+    # training pair's from its own window's speaker
+    for f in judged:
+        assert f["held_out_videos"] == 1 and f["held_out_videos_in_inputs"] == 0
+        assert f["own_group_in_training_pairs"] == 0 and [x["seed"] for x in f["per_seed"]] == [0, 1]
+        # two training speakers: one is the inner validation, the other alone can make no pair: the default
         assert f["correction_sigma"]["value"] in f["correction_sigma"]["grid"] and f["correction_sigma"]["chosen_on"]
     assert set(cg["knn_fold_inputs"]) >= {"l1_cm", "jerk"} and "clean folds" in cg["protocol"]
     assert cg["metrics"]["l1_cm"] > 0 and np.isfinite(cg["metrics"]["jerk"])
     assert set(cg["control_adherence"]) == set(ca)
     gen = r["generator"]  # the §4.4 generator and its baselines on the same windows, with FGD and lip error
     assert set(gen["rows"]) == {"adversarial", "regression", "lstm", "velocity_adversarial", "moglow"}
-    assert gen["windows_judged"] == r["windows"]
+    assert gen["windows_judged"] == r["windows"] and gen["seeds"] == [0, 1]
     assert gen["lip_windows"] > r["windows"]  # the talking head's face-only windows are judged too
     assert gen["face_only_windows_per_speaker"] == {"feifeili": gen["lip_windows"] - r["windows"]}
     for row in gen["rows"].values():
         assert row["l1_cm"] > 0 and row["lip_error_mm"] > 0 and np.isfinite(row["fgd"])
+        assert [x["seed"] for x in row["per_seed"]] == [0, 1] and row["l1_cm"] == np.mean(
+            [x["l1_cm"] for x in row["per_seed"]]
+        )
+        assert set(row["sd_over_seeds"]) >= {"l1_cm", "fgd", "lip_error_mm"}
+        assert sorted((x["fold"], x["seed"]) for x in row["folds"]) == [(f, s) for f in range(3) for s in (0, 1)]
     chosen = [f["adv_weight"] for f in gen["rows"]["adversarial"]["folds"] if "validation" in f["adv_weight"]]
-    assert len(chosen) == 1  # seth's one video, left when oliver is held out, has no inner validation: the default
-    for choice in chosen:  # the weight chosen on the fold's own training videos
-        assert set(choice["validation"]) == {"0.01", "0.1", "1.0"} and choice["validation_windows"] > 0
+    assert len(chosen) == 6  # every fold: two training speakers, one the inner validation (the same for both seeds)
+    for choice, f in zip(chosen, gen["rows"]["adversarial"]["folds"]):  # chosen on the fold's own training speakers
+        assert set(choice["validation"]) == {"0.1", "0.01", "1.0"} and choice["validation_windows"] > 0
         assert choice["value"] == min(choice["grid"], key=lambda a: choice["validation"][str(a)]["fgd_frames"])
-    assert "chosen per fold" in gen["protocol"] and "by speaker" in gen["protocol"]
+        assert len(choice["validation_speakers"]) == 1
+        assert choice["validation_speakers"][0] not in cg["fold_speakers"][f["fold"]]
+    assert "chosen per fold" in gen["protocol"] and gen["protocol"].startswith("leave-one-speaker-out, 3 folds")
     assert set(gen["fgd"]) >= {"knn", "knn_cgan", "adversarial", "captured_half_vs_half"}
+    assert set(gen["fgd_sd_over_seeds"]) >= {"knn_cgan", "adversarial"}
     # FGD per fold: each fold's feature network saw only the other folds' windows
-    assert len(gen["fgd_folds"]) == 2
+    assert len(gen["fgd_folds"]) == 3
     assert all(x["train_windows"] + x["windows"] == r["windows"] for x in gen["fgd_folds"])
     fg = gen["facegood_lip_sync"]
-    assert fg["recordings"] == 7 and set(fg["rows"]) == set(gen["rows"])
+    assert fg["recordings"] == 7 and set(fg["rows"]) == set(gen["rows"]) and fg["seeds"] == [0, 1]
+    assert all(len(v["best_lag_frames"]) == 14 and "r_lag0_sd_over_seeds" in v for v in fg["rows"].values())
     sync = r["sync_classifier"]
     assert set(sync) == {"16_frames", "32_frames", "64_frames"}
     assert all(0 <= v["accuracy"] <= 1 and sum(v["test_windows"]) == r["windows"] for v in sync.values())
-    from anima.eval.gesture.run import summary  # the docs' generated tables render from this result
-
-    text = "\n".join(summary(r))
+    assert all(len(v["accuracy_per_seed"]) == 2 for v in sync.values())
+    text = "\n".join(run.summary(r))  # the docs' generated tables render from this result
     assert "| k-NN + cGAN refiner (clean folds) |" in text and "| moglow |" in text and "Sync classifier" in text
+    assert "| k-NN, leave one speaker out |" in text and "k-NN: leave-one-speaker-out, 3 folds" in text
+    assert " ± " in text and "training seeds [0, 1]" in text
 
 
 def test_correction_smoothing_rule_is_closest_jerk_ties_to_smaller():

@@ -1,7 +1,10 @@
 """Rows of the learned gesture models, cross-validated by speaker (by video for one speaker): the
 k-NN + cGAN refiner (§5.3.3), the §4.4 generator with its baselines (direct regression, LSTM), FGD, the lip
 error (table 4.3) and the sync classifier (table 4.4). Every model is trained by its feature package
-(``anima.gesture``) on the training folds' videos and judged on the held-out fold's windows."""
+(``anima.gesture``) on the training folds' videos and judged on the held-out fold's windows; a held-out speaker's
+videos are all held out together, and a setting chosen inside a fold is chosen on inner validation speakers
+(:func:`anima.eval.gesture.metrics.inner_validation`) of that fold's training speakers. Every model is trained with
+several training seeds per fold; a row is the mean over seeds, beside its standard deviation over seeds."""
 
 from __future__ import annotations
 
@@ -21,6 +24,8 @@ from anima.eval.gesture.metrics import (
     bootstrap_over_groups,
     diversity_cm,
     fold_count,
+    group_of,
+    inner_validation,
     jerk,
     l1_cm,
     lip_error_mm,
@@ -39,22 +44,25 @@ from anima.gesture.refine import CORRECTION_SIGMA, RefinerTrainConfig, pair_draw
 from anima.gesture.sync import accuracy, train_sync
 
 
-def fold_inputs(db, test_videos: set, ks, controls, cfg: RefinerTrainConfig, rng, no_repeat: int, blend: bool) -> dict:
+def fold_inputs(db, test_videos: set, ks, controls, cfg: RefinerTrainConfig, rng, no_repeat: int, blend: bool,
+                by_speaker: bool = True) -> dict:  # fmt: skip
     """Everything one refiner fold reads, from databases without that fold's videos: the training
     pairs (each training window's k-NN syntheses searched in the fold's training videos less the window's own
-    video), the judged inputs (each held-out window's k = ``ks`` outputs and controlled outputs searched in the
-    fold's training videos) and the bone lengths every output is re-posed on (measured on the training videos)."""
+    speaker's, as the held-out windows' are; less its own video with ``by_speaker`` False), the judged inputs
+    (each held-out window's k = ``ks`` outputs and controlled outputs searched in the fold's training videos) and
+    the bone lengths every output is re-posed on (measured on the training videos)."""
     T, fps = db.G.shape[1], db.fps
     train = [i for i, (s, _) in enumerate(db.source) if s not in test_videos]
     tr_db = db.subset(train)
     lengths = tr_db.bone_lengths
-    by_video = defaultdict(list)
+    by_group = defaultdict(list)
     for i in train:
-        by_video[db.source[i][0]].append(i)
+        by_group[group_of(db.source[i][0], by_speaker)].append(i)
     S, K, R, W = [], [], [], []
     used = set()  # the videos every synthesis drew its windows from
-    for v, idx in by_video.items():
-        sub = db.subset([i for i in train if db.source[i][0] != v])
+    own_in_pairs = 0  # training syntheses that drew from their own window's speaker (video): 0
+    for g, idx in by_group.items():
+        sub = db.subset([i for i in train if group_of(db.source[i][0], by_speaker) != g])
         if not sub.M:
             continue
         for i in idx:
@@ -66,6 +74,7 @@ def fold_inputs(db, test_videos: set, ks, controls, cfg: RefinerTrainConfig, rng
             for k, p in draws:
                 G, picks = search(sub, db.F[i], k, p, no_repeat_steps=no_repeat)
                 used |= {sub.source[m][0] for m, _ in picks}
+                own_in_pairs += any(group_of(sub.source[m][0], by_speaker) == g for m, _ in picks)
                 S.append(db.S[i])
                 K.append(finish_knn(G, picks, lengths, N_STEP))
                 R.append(db.G[i].reshape(T, -1, 3))
@@ -87,7 +96,15 @@ def fold_inputs(db, test_videos: set, ks, controls, cfg: RefinerTrainConfig, rng
             raw = speed_steps([parse_control(c)], T // N_STEP, N_STEP / fps)
             ctrl[c][i] = (finish_knn(G, picks, lengths, N_STEP, blend, raw_steps=raw), thr)
     pairs = (np.stack(S), np.stack(K), np.stack(R), np.array(W)) if S else None
-    return {"pairs": pairs, "outs": outs, "ctrl": ctrl, "lengths": lengths, "test": test, "used_videos": used}
+    return {
+        "pairs": pairs,
+        "outs": outs,
+        "ctrl": ctrl,
+        "lengths": lengths,
+        "test": test,
+        "used_videos": used,
+        "own_group_in_pairs": own_in_pairs,
+    }
 
 
 SIGMA_GRID = (0.0, 0.75, 1.5, 3.0)  # frames: the refiner's correction smoothing tried on inner validation
@@ -99,14 +116,16 @@ def pick_sigma(scores: dict, captured_jerk: float) -> float:
     return min(sorted(scores), key=lambda s: abs(scores[s]["jerk"] - captured_jerk))
 
 
-def choose_correction_sigma(db, held: set, videos: list, cfg: RefinerTrainConfig, no_repeat: int, blend: bool) -> dict:
-    """The refiner's correction smoothing chosen on one outer fold's training videos only: every third of them
-    is the inner validation; a refiner trained on the rest (clean inputs, :func:`fold_inputs`) refines the
-    validation windows' k-NN outputs with each sigma of :data:`SIGMA_GRID`, and :func:`pick_sigma` chooses."""
+def choose_correction_sigma(db, held: set, videos: list, cfg: RefinerTrainConfig, no_repeat: int, blend: bool,
+                            by_speaker: bool = True) -> dict:  # fmt: skip
+    """The refiner's correction smoothing chosen on one outer fold's training videos only: every third of their
+    speakers (:func:`inner_validation`; every third video for one speaker) is the inner validation; a refiner
+    trained on the other training speakers (clean inputs, :func:`fold_inputs`) refines the validation windows'
+    k-NN outputs with each sigma of :data:`SIGMA_GRID`, and :func:`pick_sigma` chooses."""
     train_videos = sorted(v for v in videos if v not in held)
-    val = set(train_videos[::3])
+    val = inner_validation(train_videos, by_speaker)
     T, fps = db.G.shape[1], db.fps
-    inp = fold_inputs(db, held | val, (0,), [], cfg, np.random.default_rng(cfg.seed + 1), no_repeat, blend)
+    inp = fold_inputs(db, held | val, (0,), [], cfg, np.random.default_rng(cfg.seed + 1), no_repeat, blend, by_speaker)
     val_windows = [i for i in inp["test"] if db.source[i][0] in val]
     if not val_windows or inp["pairs"] is None or len(val) == len(train_videos):
         default = "no inner validation split: the default"
@@ -127,93 +146,144 @@ def choose_correction_sigma(db, held: set, videos: list, cfg: RefinerTrainConfig
         "validation": {str(s): v for s, v in scores.items()},
         "validation_captured_jerk": round(captured, 4),
         "validation_videos": len(val),
+        "validation_speakers": sorted({speaker_of(v) for v in val}),
         "validation_windows": len(val_windows),
-        "chosen_on": "the inner validation videos of this fold's training videos (every third); the refined "
-        "wrist jerk closest to the captured jerk of those windows, ties to the smaller sigma",
+        "chosen_on": f"the inner validation {_unit(by_speaker)} of this fold's training videos (every third, by "
+        "name), a refiner trained on the other training "
+        f"{_unit(by_speaker)}; the refined wrist jerk closest to the captured jerk of those windows, ties to the "
+        "smaller sigma",
     }
 
 
+def _unit(by_speaker: bool) -> str:
+    return "speakers" if by_speaker else "videos"
+
+
+def _over_seeds(per_seed: list[dict]) -> tuple[dict, dict]:
+    """(mean, sample standard deviation) over seeds of each key of the per-seed dicts (0 for one seed)."""
+    keys = [k for k in per_seed[0] if all(k in m for m in per_seed)] if per_seed else []
+    mean = {k: float(np.mean([m[k] for m in per_seed])) for k in keys}
+    sd = {k: float(np.std([m[k] for m in per_seed], ddof=1)) if len(per_seed) > 1 else 0.0 for k in keys}
+    return mean, sd
+
+
 def refiner_rows(
-    db, kept: dict, ks, folds: int, steps: int | None, progress: bool, cfg: RefinerTrainConfig | None = None
+    db,
+    kept: dict,
+    ks,
+    folds: int,
+    steps: int | None,
+    progress: bool,
+    cfg: RefinerTrainConfig | None = None,
+    seeds: int = 1,
 ) -> dict:
     """k-NN + cGAN, cross-validated by speaker (:func:`speaker_folds`; by video for one speaker): the videos are
-    split into ``folds`` groups; each group's windows
-    are refined by a refiner trained on the other groups' (k-NN, captured) pairs. Clean folds
-    (:func:`fold_inputs`): no window, bone length or k-NN synthesis of a held-out video enters the refiner's
-    training or its inputs; the judged inputs are k-NN outputs searched in the fold's training videos (their
-    own row, ``knn_fold_inputs``, beside the refined one). Training pairs follow ``cfg.k_sampling`` (default
-    the seed's draws; ``"ks"``: the k = ``ks`` outputs from the mean pose)."""
+    split into ``folds`` groups; each group's windows are refined by refiners trained on the other groups' (k-NN,
+    captured) pairs, one per training seed (``cfg.seed`` .. ``cfg.seed + seeds - 1``; the fold's inputs and its
+    correction smoothing are the same for every seed). Clean folds (:func:`fold_inputs`): no window, bone length
+    or k-NN synthesis of a held-out video enters the refiner's training or its inputs; the judged inputs are k-NN
+    outputs searched in the fold's training videos (their own row, ``knn_fold_inputs``, beside the refined one).
+    Training pairs follow ``cfg.k_sampling`` (default the seed's draws; ``"ks"``: the k = ``ks`` outputs from the
+    mean pose). ``metrics``: the mean over seeds of each seed's mean over the judged windows;
+    ``metrics_sd_over_seeds`` their standard deviation; ``metrics_ci95_over_videos`` over the test videos of the
+    windows' seed means; the control adherence pools every seed's syntheses."""
     T = db.G.shape[1]
     cfg = cfg or RefinerTrainConfig()
     if steps is not None:
         cfg = dataclasses.replace(cfg, steps=steps)
+    seed_list = [cfg.seed + n for n in range(max(1, seeds))]
     windows = sorted(kept["outs"])
     videos = sorted({db.source[i][0] for i in windows})
     srcs = [db.source[i][0] for i in windows]
     by_speaker = len({speaker_of(s) for s in srcs}) > 1  # one speaker (--speaker): the seed's protocol, by video
     folds = fold_count(srcs, folds, by_speaker)
     fold_of = speaker_folds(srcs, folds, by_speaker)
-    res, base = defaultdict(list), defaultdict(list)
+    res, base = {s: defaultdict(list) for s in seed_list}, defaultdict(list)
     adherence = {c: {"values": []} for c in ["none"] + list(kept["ctrl"])}
     judged_videos = []
     logs = []
     rng = np.random.default_rng(0)
     for f in range(folds):
         held = {v for v in videos if fold_of[v] == f}
-        inp = fold_inputs(db, held, ks, list(kept["ctrl"]), cfg, rng, kept["no_repeat"], kept["blend"])
+        inp = fold_inputs(db, held, ks, list(kept["ctrl"]), cfg, rng, kept["no_repeat"], kept["blend"], by_speaker)
         test = [i for i in inp["test"] if i in kept["outs"]]
-        if not test or inp["pairs"] is None:  # e.g. one training video left: no k-NN pair without its own video
-            why = "no test window" if not test else "no training pair (a training video needs another to search)"
+        if not test or inp["pairs"] is None:  # e.g. one training speaker left: no k-NN pair without its own
+            why = (
+                "no test window"
+                if not test
+                else f"no training pair (a training window's k-NN input is searched in the other training "
+                f"{_unit(by_speaker)}: one is left)"
+            )
             logs.append({"fold": f, "held_out_videos": len(held), "skipped": why, "test_windows": 0})
             continue
-        bar = tqdm(total=cfg.steps, desc=f"refiner fold {f + 1}/{folds}", disable=not progress, leave=False)
-        ref, info = train_refiner(None, cfg, progress=lambda s: bar.update(1), pairs=inp["pairs"])
-        bar.close()
-        sigma = choose_correction_sigma(db, held, videos, cfg, kept["no_repeat"], kept["blend"])
-        ref.correction_sigma = sigma["value"]
+        sigma = choose_correction_sigma(db, held, videos, cfg, kept["no_repeat"], kept["blend"], by_speaker)
+        per_seed = []
+        for seed in seed_list:
+            scfg = dataclasses.replace(cfg, seed=seed)
+            bar = tqdm(total=cfg.steps, desc=f"refiner fold {f + 1}/{folds} seed {seed}", disable=not progress,
+                       leave=False)  # fmt: skip
+            ref, info = train_refiner(None, scfg, progress=lambda s: bar.update(1), pairs=inp["pairs"])
+            bar.close()
+            ref.correction_sigma = sigma["value"]
+            per_seed.append(
+                {"seed": seed, "wall_s": info["wall_s"], "critic_last": float(np.mean(info["log"]["critic"][-50:]))}
+            )
+            for i in test:
+                _judge_refined(db, i, ref, inp, kept, scfg, res[seed], base if seed == seed_list[0] else None,
+                               adherence, seed)  # fmt: skip
+        judged_videos += [db.source[i][0] for i in test]
         logs.append(
             {
                 "fold": f,
                 "held_out_videos": len(held),
+                "held_out_speakers": sorted({speaker_of(v) for v in held}),
                 "held_out_videos_in_inputs": len(held & inp["used_videos"]),  # 0: clean
+                "own_group_in_training_pairs": inp["own_group_in_pairs"],  # 0: pairs searched as the tests are
                 "train_pairs": int(len(inp["pairs"][0])),
                 "test_windows": len(test),
-                "wall_s": info["wall_s"],
-                "critic_last": float(np.mean(info["log"]["critic"][-50:])),
+                "wall_s": round(sum(x["wall_s"] for x in per_seed), 1),  # every seed's training
+                "per_seed": per_seed,
                 "correction_sigma": sigma,
             }
         )
-        for i in test:
-            _judge_refined(db, i, ref, inp, kept, cfg, res, base, adherence)
-            judged_videos.append(db.source[i][0])
+    seed_means = [{k: float(np.nanmean(v)) for k, v in res[s].items()} for s in seed_list if res[s]]
+    metrics, sd = _over_seeds(seed_means)
+    window_means = {k: np.mean([np.asarray(res[s][k], float) for s in seed_list], 0) for k in metrics}
     return {
-        "protocol": _refiner_protocol(cfg, folds, by_speaker),
+        "protocol": _refiner_protocol(
+            cfg, folds, by_speaker, seed_list, len({group_of(v, by_speaker) for v in videos})
+        ),
+        "seeds": seed_list,
         "train_config": {k: v for k, v in dataclasses.asdict(cfg).items() if k != "model"},
-        "metrics": {k: float(np.nanmean(v)) for k, v in res.items()},
+        "metrics": metrics,
+        "metrics_sd_over_seeds": sd,
+        "metrics_per_seed": [{"seed": s, **m} for s, m in zip(seed_list, seed_means)],
         "knn_fold_inputs": {k: float(np.nanmean(v)) for k, v in base.items()},
         "metrics_ci95_over_videos": {
-            k: bootstrap_over_groups(np.asarray(v, float), np.array(judged_videos))
-            for k, v in res.items()
+            k: bootstrap_over_groups(v, np.array(judged_videos))
+            for k, v in window_means.items()
             if np.isfinite(v).all()
         },
-        "control_adherence": adherence_table(adherence, T),
+        "control_adherence": adherence_table(adherence, T) if judged_videos else {},
         "folds": logs,
         "windows_judged": len(judged_videos),
         "fold_speakers": fold_speakers(fold_of, folds),
     }
 
 
-def _judge_refined(db, i: int, ref, inp: dict, kept: dict, cfg: RefinerTrainConfig, res, base, adherence) -> None:
+def _judge_refined(db, i: int, ref, inp: dict, kept: dict, cfg: RefinerTrainConfig, res, base, adherence,
+                   seed: int = 0) -> None:  # fmt: skip
     """Window ``i`` of a fold's test windows refined by ``ref`` from its k-NN inputs (``inp``): its metrics
-    appended to ``res`` (and the k-NN inputs' to ``base``), and its control features, plain and under each
-    control, to ``adherence``."""
+    appended to ``res`` (and the k-NN inputs' to ``base``, unless None), and its control features, plain and
+    under each control, to ``adherence``; with the seed's k sampling its refined output is kept (per ``seed``)
+    for FGD."""
     T, fps = db.G.shape[1], db.fps
     gt = db.G[i].reshape(T, -1, 3)
     knn = inp["outs"][i]
     outs = [one_skeleton(ref.refine(db.S[i], o), inp["lengths"]) for o in knn]
     g = outs[0]
     if cfg.k_sampling == "seed":
-        kept.setdefault("refined", {})[i] = g
+        kept.setdefault("refined", {}).setdefault(seed, {})[i] = g
     res["l1_cm"].append(l1_cm(g, gt))
     res["l1_to_knn_cm"].append(l1_cm(g, knn[0]))
     res["diversity_cm"].append(diversity_cm(outs))
@@ -222,11 +292,12 @@ def _judge_refined(db, i: int, ref, inp: dict, kept: dict, cfg: RefinerTrainConf
     res["wrist_motion_cm"].append(wrist_motion(g))
     res["jerk_captured"].append(jerk(gt, fps))
     res["beat_consistency"].append(beat_consistency(g, kept["onsets"][i], fps))
-    base["l1_cm"].append(l1_cm(knn[0], gt))
-    base["diversity_cm"].append(diversity_cm(knn))
-    base["jerk"].append(jerk(knn[0], fps))
-    base["wrist_motion_cm"].append(wrist_motion(knn[0]))
-    base["beat_consistency"].append(beat_consistency(knn[0], kept["onsets"][i], fps))
+    if base is not None:
+        base["l1_cm"].append(l1_cm(knn[0], gt))
+        base["diversity_cm"].append(diversity_cm(knn))
+        base["jerk"].append(jerk(knn[0], fps))
+        base["wrist_motion_cm"].append(wrist_motion(knn[0]))
+        base["beat_consistency"].append(beat_consistency(knn[0], kept["onsets"][i], fps))
     adherence["none"]["values"].append(control_features(g.reshape(1, T, -1), fps))
     for c, per in inp["ctrl"].items():
         out, thr = per[i]
@@ -236,9 +307,9 @@ def _judge_refined(db, i: int, ref, inp: dict, kept: dict, cfg: RefinerTrainConf
         adherence[c].setdefault("videos", []).append(db.source[i][0])
 
 
-def _refiner_protocol(cfg: RefinerTrainConfig, folds: int, by_speaker: bool) -> str:
+def _refiner_protocol(cfg: RefinerTrainConfig, folds: int, by_speaker: bool, seeds: list, groups: int) -> str:
     return (
-        f"{folds}-fold cross-validation {fold_words(by_speaker)}; WGAN-GP, {cfg.critic_steps} critic "
+        f"{fold_protocol(folds, groups, by_speaker)}; {seeds_words(seeds)}; WGAN-GP, {cfg.critic_steps} critic "
         f"steps per generator step, {cfg.steps} generator steps, loss weights L1 {cfg.l1} / adversarial {cfg.adv} / "
         f"gradient penalty {cfg.gp}, training pairs: "
         + (
@@ -246,17 +317,29 @@ def _refiner_protocol(cfg: RefinerTrainConfig, folds: int, by_speaker: bool) -> 
             if cfg.k_sampling == "seed"
             else f"k in {list(cfg.ks)} from the mean pose"
         )
-        + "; clean folds: training pairs, judged k-NN inputs and bone lengths from the other folds' videos only; "
-        "the correction smoothing chosen per fold on its own training videos (each fold's 'correction_sigma')"
+        + f", each searched in the fold's other training {_unit(by_speaker)}; clean folds: training pairs, judged "
+        "k-NN inputs and bone lengths from the other folds' videos only; the correction smoothing chosen per fold "
+        f"on inner validation {_unit(by_speaker)} of its own training videos (each fold's 'correction_sigma')"
     )
 
 
-def fold_words(by_speaker: bool) -> str:
-    return (
-        "by speaker (each speaker's videos in one fold)"
-        if by_speaker
-        else "by video within one speaker (the seed's person-specific protocol)"
-    )
+def fold_protocol(folds: int, groups: int, by_speaker: bool) -> str:
+    """The learned rows' folds in words: leave-one-speaker-out where there is one fold per speaker, else
+    ``folds``-fold cross-validation with each speaker's videos held out together (by video for one speaker)."""
+    if by_speaker:
+        if folds == groups:
+            return f"leave-one-speaker-out, {folds} folds (one per speaker)"
+        return (
+            f"{folds}-fold cross-validation by speaker ({groups} speakers; each speaker's videos in one fold, held "
+            "out together)"
+        )
+    if folds == groups:
+        return f"leave-one-video-out within one speaker, {folds} folds (the seed's person-specific protocol)"
+    return f"{folds}-fold cross-validation by video within one speaker (the seed's person-specific protocol)"
+
+
+def seeds_words(seeds: list) -> str:
+    return f"training seeds {list(seeds)} per fold (rows: mean over seeds; spread: standard deviation over seeds)"
 
 
 def fold_speakers(fold_of: dict, folds: int) -> list[list[str]]:
@@ -264,34 +347,45 @@ def fold_speakers(fold_of: dict, folds: int) -> list[list[str]]:
     return [sorted({speaker_of(v) for v, f in fold_of.items() if f == k}) for k in range(folds)]
 
 
-def sync_rows(db, folds: int, lengths=(16, 32, 64), steps: int = 300) -> dict:
+def sync_rows(db, folds: int, lengths=(16, 32, 64), steps: int = 300, seeds: int = 1) -> dict:
     """Table 4.4: the discriminator trained as an in-sync / off-sync classifier, cross-validated by speaker
-    (the same folds as the refiner); accuracy on 2 x 200 held-out crops per fold and length (chance 0.5)."""
+    (the same folds as the refiner), one classifier per fold and training seed (seed ``n * folds + fold`` for
+    n = 0 .. seeds - 1); accuracy on 2 x 200 held-out crops per fold and length (chance 0.5), window-weighted
+    over folds, then the mean over seeds (``accuracy_sd_over_seeds``: its spread)."""
     srcs = [v for v, _ in db.source]
     by_speaker = len({speaker_of(s) for s in srcs}) > 1
     fold_of = speaker_folds(srcs, folds, by_speaker)
     fold = np.array([fold_of[v] for v in srcs])
     rows = {}
     for L in lengths:
-        accs, ns = [], []
-        for f in range(folds):
-            tr, te = fold != f, fold == f
-            if tr.sum() < 2 or te.sum() < 2:
-                continue
-            S_mean = db.S[tr].reshape(-1, SPEECH_DIM).mean(0)
-            S_std = db.S[tr].reshape(-1, SPEECH_DIM).std(0) + 1e-4
-            G_mean, G_std = db.G[tr].reshape(-1, BODY_DIM).mean(0), db.G[tr].reshape(-1, BODY_DIM).std(0) + 1e-4
+        per_seed = []
+        for n in range(max(1, seeds)):
+            accs, ns = [], []
+            for f in range(folds):
+                tr, te = fold != f, fold == f
+                if tr.sum() < 2 or te.sum() < 2:
+                    continue
+                S_mean = db.S[tr].reshape(-1, SPEECH_DIM).mean(0)
+                S_std = db.S[tr].reshape(-1, SPEECH_DIM).std(0) + 1e-4
+                G_mean, G_std = db.G[tr].reshape(-1, BODY_DIM).mean(0), db.G[tr].reshape(-1, BODY_DIM).std(0) + 1e-4
 
-            def norm(m):
-                return ((db.S[m] - S_mean) / S_std).astype(np.float32), ((db.G[m] - G_mean) / G_std).astype(np.float32)
+                def norm(m):
+                    return ((db.S[m] - S_mean) / S_std).astype(np.float32), ((db.G[m] - G_mean) / G_std).astype(
+                        np.float32
+                    )
 
-            net, _ = train_sync(*norm(tr), L, steps=steps, seed=f)
-            accs.append(accuracy(net, *norm(te), L))
-            ns.append(int(te.sum()))
+                net, _ = train_sync(*norm(tr), L, steps=steps, seed=n * folds + f)
+                accs.append(accuracy(net, *norm(te), L))
+                ns.append(int(te.sum()))
+            per_seed.append((float(np.average(accs, weights=ns)) if accs else float("nan"), accs, ns))
+        acc = [a for a, _, _ in per_seed]
         rows[f"{L}_frames"] = {
-            "accuracy": float(np.average(accs, weights=ns)) if accs else float("nan"),
-            "per_fold": [round(a, 3) for a in accs],
-            "test_windows": ns,
+            "accuracy": float(np.mean(acc)),
+            "accuracy_sd_over_seeds": float(np.std(acc, ddof=1)) if len(acc) > 1 else 0.0,
+            "accuracy_per_seed": [round(a, 4) for a in acc],
+            "per_fold": [round(float(np.mean([p[1][k] for p in per_seed])), 3) for k in range(len(per_seed[0][1]))],
+            "test_windows": per_seed[0][2],
+            "seeds": list(range(len(per_seed))),  # seed n: fold f's classifier trained with n * folds + f
         }
     return rows
 
@@ -300,16 +394,28 @@ ADV_WEIGHTS = (0.01, 0.1, 1.0)  # the adversarial weights tried on each fold's i
 
 
 def choose_adv_weight(
-    w: Windows, tr: np.ndarray, n_to_i: dict, knn_db, cfg, grid, progress, fold: int, fgd_steps: int = 1500
+    w: Windows,
+    tr: np.ndarray,
+    n_to_i: dict,
+    knn_db,
+    cfg,
+    grid,
+    progress,
+    fold: int,
+    fgd_steps: int = 1500,
+    by_speaker: bool = True,
 ) -> dict:
     """Nested choice of the §4.4 generator's adversarial weight, on one outer fold's training videos only:
-    every third of those with body windows is the inner validation, the rest trains one generator per weight
-    of ``grid``; the weight whose validation motion is closest to the captured (FGD of the code's time steps,
-    with an autoencoder trained on the inner training windows) wins. Every weight's FGD and L1 are kept."""
+    every third of the speakers with body windows among them (:func:`inner_validation`; every third video for
+    one speaker) is the inner validation, with all of those speakers' windows; the other training speakers train
+    one generator per weight of ``grid``; the weight whose validation motion is closest to the captured (FGD of
+    the code's time steps, with an autoencoder trained on the inner training windows) wins. Every weight's FGD
+    and L1 are kept."""
     T = knn_db.G.shape[1]
-    src = np.array(w.source)
+    groups = np.array([group_of(s, by_speaker) for s in w.source])
     body_videos = sorted({s for s, h, t in zip(w.source, w.has_body, tr) if h and t})
-    val = tr & np.isin(src, body_videos[::3])
+    val_groups = sorted({group_of(v, by_speaker) for v in inner_validation(body_videos, by_speaker)})
+    val = tr & np.isin(groups, val_groups)
     itr = tr & ~val
     val_n = [n for n in np.flatnonzero(val & w.has_body) if n in n_to_i]
     fit_n = [n for n in np.flatnonzero(itr & w.has_body) if n in n_to_i]
@@ -341,10 +447,12 @@ def choose_adv_weight(
         "value": best,
         "grid": list(grid),
         "validation": {str(a): v for a, v in scores.items()},
-        "validation_videos": len(body_videos[::3]),
+        "validation_videos": len({w.source[n] for n in val_n}),
+        "validation_speakers": sorted({speaker_of(w.source[n]) for n in val_n}),
         "validation_windows": len(val_n),
-        "chosen_on": "the inner validation videos of this fold's training videos (every third with body "
-        "windows); lowest FGD of the code's time steps",
+        "chosen_on": f"the inner validation {_unit(by_speaker)} of this fold's training videos (every third with "
+        f"body windows, by name), generators trained on the other training {_unit(by_speaker)}; lowest FGD of the "
+        "code's time steps",
     }
 
 
@@ -383,48 +491,67 @@ def _body_metrics(res, kind: str, judged: list, outs: dict, gens: list, info: li
 def _fgd_per_fold(knn_db, kept: dict, judged: list, fold, fold_of: dict, gen_windows: dict, kinds, refined_outs,
                   fgd_steps: int):  # fmt: skip
     """FGD per fold: each fold's feature network is trained on the other folds' videos only and measures that
-    fold's judged windows; the rows are the window-weighted mean over folds. Returns (rows, per fold, the last
-    fold's network)."""
+    fold's judged windows, for every training seed's outputs (``gen_windows``: ``{seed: {kind: {window: J}}}``;
+    ``refined_outs``: ``{seed: {row: J}}``); a row is the window-weighted mean over folds, per seed, then the mean
+    over seeds. Returns (rows, their standard deviation over seeds, per seed, per fold, the last fold's network)."""
     T = knn_db.G.shape[1]
-    fgd_rows, fgd_folds = defaultdict(float), []
+    fgd_folds = []
     perm_rng = np.random.default_rng(0)
+    seeds = list(gen_windows)
+    net = None
     for f in sorted({int(fold[n]) for _, n in judged}):
         jf = [(i, n) for i, n in judged if fold[n] == f]
         tr_rows = [i for i, (s, _) in enumerate(knn_db.source) if fold_of[s] != f]
         net = train_fgd(knn_db.G[tr_rows].reshape(len(tr_rows), T, -1), steps=fgd_steps)
         real = np.stack([knn_db.G[i].reshape(T, -1) for i, _ in jf])
-        one = {k: net.distance(real, np.stack([gen_windows[k][n].reshape(T, -1) for _, n in jf])) for k in kinds}
+        per_seed = {
+            k: [net.distance(real, np.stack([gen_windows[s][k][n].reshape(T, -1) for _, n in jf])) for s in seeds]
+            for k in kinds
+        }
+        if refined_outs:  # a fold the refiner skipped: not in its mean
+            r = [
+                net.distance(real, np.stack([outs[i].reshape(T, -1) for i, _ in jf]))
+                for _, outs in sorted(refined_outs.items())
+                if all(i in outs for i, _ in jf)
+            ]
+            if r:
+                per_seed["knn_cgan"] = r
+        one = {k: float(np.mean(v)) for k, v in per_seed.items()}
         one["knn"] = net.distance(real, np.stack([kept["outs"][i][0].reshape(T, -1) for i, _ in jf]))
-        if refined_outs and all(i in refined_outs for i, _ in jf):  # a fold the refiner skipped: not in its mean
-            one["knn_cgan"] = net.distance(real, np.stack([refined_outs[i].reshape(T, -1) for i, _ in jf]))
         # two random halves of the fold's captured windows against each other: what sampling noise alone gives
         half = len(real) // 2
         perm = perm_rng.permutation(len(real))
         one["captured_half_vs_half"] = (
             net.distance(real[perm[:half]], real[perm[half : 2 * half]]) if half >= 2 else float("nan")
         )
-        fgd_folds.append({"fold": f, "windows": len(jf), "train_windows": len(tr_rows), **one})
-    for k in {k for x in fgd_folds for k in x} - {"fold", "windows", "train_windows"}:
+        fgd_folds.append({"fold": f, "windows": len(jf), "train_windows": len(tr_rows), **one, "per_seed": per_seed})
+    fgd_rows, fgd_sd, fgd_seeds = {}, {}, {}
+    for k in {k for x in fgd_folds for k in x} - {"fold", "windows", "train_windows", "per_seed"}:
         has = [x for x in fgd_folds if k in x]  # the refined row: only the folds the refiner judged
         total = sum(x["windows"] for x in has)
         fgd_rows[k] = sum(x[k] * x["windows"] / total for x in has)
-    return fgd_rows, fgd_folds, net
+        n = {len(x["per_seed"].get(k, [])) for x in has}
+        if len(n) == 1 and min(n) > 0:  # the same seeds in every fold: each seed's window-weighted mean
+            fgd_seeds[k] = [sum(x["per_seed"][k][j] * x["windows"] / total for x in has) for j in range(min(n))]
+            fgd_sd[k] = float(np.std(fgd_seeds[k], ddof=1)) if len(fgd_seeds[k]) > 1 else 0.0
+    return fgd_rows, fgd_sd, fgd_seeds, fgd_folds, net
 
 
-def _generator_protocol(cfg: GeneratorTrainConfig, folds: int, by_speaker: bool, adv_weights, kinds) -> str:
+def _generator_protocol(cfg: GeneratorTrainConfig, folds: int, by_speaker: bool, adv_weights, kinds, seeds: list,
+                        groups: int) -> str:  # fmt: skip
     return (
-        f"{folds}-fold cross-validation {fold_words(by_speaker)} (the refiner's folds; face-only "
-        f"windows from talking-head clips train the face decoder); {cfg.steps} steps, batch {cfg.batch}, Adam "
+        f"{fold_protocol(folds, groups, by_speaker)}, the refiner's folds (face-only windows from talking-head clips "
+        f"train the face decoder); {seeds_words(seeds)}; {cfg.steps} steps, batch {cfg.batch}, Adam "
         f"{cfg.lr}, adversarial weight "
         + (
-            f"chosen per fold among {list(adv_weights)} on that fold's own training videos (inner validation; "
-            "each fold's 'adv_weight')"
+            f"chosen per fold among {list(adv_weights)} on inner validation {_unit(by_speaker)} of that fold's own "
+            "training videos (training seed 0; each fold's 'adv_weight')"
             if adv_weights and "adversarial" in kinds
             else f"{cfg.adv_weight} (not chosen on data)"
         )
         + f" (velocity-adversarial baseline: {cfg.velocity_adv_weight}, Ginosar et al.'s); "
         "the U-Net and LSTM rows are deterministic (diversity 0); the MoGlow-style row is judged on sampling seed "
-        "0, its diversity over seeds 0-4"
+        "0, its diversity over sampling seeds 0-4"
     )
 
 
@@ -461,13 +588,17 @@ def generator_rows(
     adv_weights: tuple | None = ADV_WEIGHTS,
     fgd_steps: int = 1500,
     facegood_seconds: float | None = None,
+    seeds: int = 1,
 ) -> dict:
     """The §4.4 generator (adversarial), direct regression (no adversarial term), the LSTM baseline, the
     velocity-adversarial baseline (Ginosar et al.) and the MoGlow-style flow,
     cross-validated with the refiner's folds (by speaker); FGD for every method; lip error (table 4.3).
     ``w``: every window of the dataset (face-only ones train the face decoder). ``adv_weights``: the §4.4
     generator's adversarial weight is chosen among these in each fold on its own training videos
-    (:func:`choose_adv_weight`); ``None``: the config's (0.1) for every fold."""
+    (:func:`choose_adv_weight`); ``None``: the config's (0.1) for every fold. ``seeds``: every model of every
+    fold is trained with training seeds ``cfg.seed`` .. ``cfg.seed + seeds - 1`` (the adversarial weight is chosen
+    once per fold); a row is the mean over seeds of each seed's value, ``sd_over_seeds`` its spread.
+    ``refined_outs``: the refiner's outputs per seed (``{seed: {row: J}}``), for its FGD."""
     T, fps = knn_db.G.shape[1], knn_db.fps
     model = load_face_model()
     key = {(s, round(st, 3)): n for n, (s, st) in enumerate(zip(w.source, w.start_s))}
@@ -475,12 +606,13 @@ def generator_rows(
     fold = np.array([fold_of[s] for s in w.source])
     has_body = w.has_body
     cfg = GeneratorTrainConfig() if steps is None else GeneratorTrainConfig(steps=steps)
-    res = {k: defaultdict(list) for k in kinds}
-    gen_windows = {k: {} for k in kinds}
-    lip = {k: [] for k in kinds}
+    seed_list = [cfg.seed + n for n in range(max(1, seeds))]
+    res = {s: {k: defaultdict(list) for k in kinds} for s in seed_list}
+    gen_windows = {s: {k: {} for k in kinds} for s in seed_list}
+    lip = {s: {k: [] for k in kinds} for s in seed_list}
     lip_random = []
     rng = np.random.default_rng(0)
-    gens = {k: [] for k in kinds}
+    gens = {s: {k: [] for k in kinds} for s in seed_list}
     info = {k: [] for k in kinds}
     n_to_i = {key[(s, round(st, 3))]: i for i, (s, st) in enumerate(knn_db.source) if (s, round(st, 3)) in key}
     for f in range(folds):
@@ -489,17 +621,19 @@ def generator_rows(
             continue
         choice = None
         if adv_weights and "adversarial" in kinds:
-            choice = choose_adv_weight(w, tr, n_to_i, knn_db, cfg, adv_weights, progress, f, fgd_steps)
-        for kind in kinds:
-            gen, inf = _fold_generator(w, tr, kind, cfg, choice if kind == "adversarial" else None, progress,
-                                       f"{kind} fold {f + 1}/{folds}")  # fmt: skip
-            gens[kind].append(gen)
-            info[kind].append({"fold": f, **inf})
-            for n in te:
-                J, face = gen.generate(w.speech[n])
-                lip[kind].append(lip_error_mm(face, w.face[n], model))
-                if has_body[n]:
-                    gen_windows[kind][n] = J
+            choice = choose_adv_weight(w, tr, n_to_i, knn_db, cfg, adv_weights, progress, f, fgd_steps, by_speaker)
+        for seed in seed_list:
+            scfg = dataclasses.replace(cfg, seed=seed)
+            for kind in kinds:
+                gen, inf = _fold_generator(w, tr, kind, scfg, choice if kind == "adversarial" else None, progress,
+                                           f"{kind} fold {f + 1}/{folds} seed {seed}")  # fmt: skip
+                gens[seed][kind].append(gen)
+                info[kind].append({"fold": f, "seed": seed, **inf})
+                for n in te:
+                    J, face = gen.generate(w.speech[n])
+                    lip[seed][kind].append(lip_error_mm(face, w.face[n], model))
+                    if has_body[n]:
+                        gen_windows[seed][kind][n] = J
         for n in te:  # sanity row of table 4.3: the captured face of a random window of another video
             cand = np.flatnonzero(np.array(w.source) != w.source[n])
             lip_random.append(lip_error_mm(w.face[rng.choice(cand)], w.face[n], model))
@@ -507,38 +641,74 @@ def generator_rows(
     judged = []
     for i in sorted(kept["outs"]):
         n = key.get((knn_db.source[i][0], round(knn_db.source[i][1], 3)))
-        if n is not None and all(n in gen_windows[k] for k in kinds):
+        if n is not None and all(n in gen_windows[s][k] for s in seed_list for k in kinds):
             judged.append((i, n))
+    for seed in seed_list:
+        for kind in kinds:
+            seed_info = [x for x in info[kind] if x["seed"] == seed]
+            _body_metrics(res[seed][kind], kind, judged, gen_windows[seed][kind], gens[seed][kind], seed_info, fold,
+                          w, knn_db, kept)  # fmt: skip
+    fgd_rows, fgd_sd, fgd_seeds, fgd_folds, net = _fgd_per_fold(
+        knn_db, kept, judged, fold, fold_of, gen_windows, kinds, refined_outs, fgd_steps
+    )
+    rows = {}
     for kind in kinds:
-        _body_metrics(res[kind], kind, judged, gen_windows[kind], gens[kind], info[kind], fold, w, knn_db, kept)
-    fgd_rows, fgd_folds, net = _fgd_per_fold(knn_db, kept, judged, fold, fold_of, gen_windows, kinds, refined_outs,
-                                             fgd_steps)  # fmt: skip
-    rows = {
-        kind: {
-            "diversity_cm": 0.0,
-            **{k: float(np.nanmean(v)) for k, v in res[kind].items()},
-            "lip_error_mm": float(np.mean(lip[kind])),
-            "fgd": fgd_rows[kind],
+        per_seed = [
+            {
+                "diversity_cm": 0.0,
+                **{k: float(np.nanmean(v)) for k, v in res[seed][kind].items()},
+                "lip_error_mm": float(np.mean(lip[seed][kind])),
+                **({"fgd": fgd_seeds[kind][j]} if kind in fgd_seeds else {}),
+            }
+            for j, seed in enumerate(seed_list)
+        ]
+        mean, sd = _over_seeds(per_seed)
+        rows[kind] = {
+            **mean,
+            "fgd": fgd_rows.get(kind, float("nan")),
+            "sd_over_seeds": sd,
+            "per_seed": [{"seed": seed, **m} for seed, m in zip(seed_list, per_seed)],
             "folds": info[kind],
         }
-        for kind in kinds
-    }
     face_only = defaultdict(lambda: defaultdict(list))
     for s_, st, h in zip(w.source, w.start_s, has_body):
         if not h:
             face_only[speaker_of(s_)][s_].append(st)
+    groups = len({group_of(v, by_speaker) for v in {knn_db.source[i][0] for i in kept["outs"]}})
     return {
-        "protocol": _generator_protocol(cfg, folds, by_speaker, adv_weights, kinds),
+        "protocol": _generator_protocol(cfg, folds, by_speaker, adv_weights, kinds, seed_list, groups),
+        "seeds": seed_list,
         "windows_judged": len(judged),
-        "lip_windows": len(lip[kinds[0]]),
+        "lip_windows": len(lip[seed_list[0]][kinds[0]]),
         "rows": rows,
         "lip_error_mm_random_other_video": float(np.mean(lip_random)),
         "face_only_windows_per_speaker": {k: sum(len(x) for x in v.values()) for k, v in sorted(face_only.items())},
         "face_only_minutes_per_speaker": {k: minutes_covered(v.items(), T / fps) for k, v in sorted(face_only.items())},
         "fgd": dict(fgd_rows),
+        "fgd_sd_over_seeds": fgd_sd,
         "fgd_protocol": "per fold: the feature network trained on the other folds' videos, distances on the "
-        "fold's judged windows; window-weighted mean over folds",
+        "fold's judged windows; window-weighted mean over folds, per training seed, then the mean over seeds",
         "fgd_folds": fgd_folds,
-        "fgd_autoencoder": net.info,
-        "facegood_lip_sync": facegood_sync(gens, fps, seconds=facegood_seconds),
+        "fgd_autoencoder": net.info if net is not None else None,
+        "facegood_lip_sync": _facegood_over_seeds(gens, fps, facegood_seconds),
     }
+
+
+def _facegood_over_seeds(gens: dict, fps: float, seconds: float | None) -> dict | None:
+    """:func:`facegood_sync` for each training seed's models (``{seed: {kind: [one per fold]}}``): each row's
+    correlations are the mean over seeds (``*_sd_over_seeds``: their spread), its best lags every seed's."""
+    per = {seed: facegood_sync(g, fps, seconds=seconds) for seed, g in gens.items()}
+    first = next(iter(per.values()), None)
+    if first is None:
+        return None
+    rows = {}
+    for kind in first["rows"]:
+        vals = [x["rows"][kind] for x in per.values()]
+        mean, sd = _over_seeds([{k: v for k, v in x.items() if k != "best_lag_frames"} for x in vals])
+        rows[kind] = {
+            **mean,
+            "best_lag_frames": [lag for x in vals for lag in x["best_lag_frames"]],  # seed by seed
+            **{f"{k}_sd_over_seeds": v for k, v in sd.items()},
+            "per_seed": [{"seed": seed, **x["rows"][kind]} for seed, x in per.items()],
+        }
+    return {**first, "rows": rows, "seeds": list(per)}

@@ -163,6 +163,21 @@ def speaker_folds(sources, folds: int, by_speaker: bool = True, fixed: dict | No
     return {v: place[speaker_of(v)] for v in videos}
 
 
+def group_of(source: str, by_speaker: bool = True) -> str:
+    """What is held out together: a video's speaker (:func:`speaker_of`), or the video itself where every
+    window is one speaker's (``--speaker``: the seed's person-specific protocol)."""
+    return speaker_of(source) if by_speaker else source
+
+
+def inner_validation(videos, by_speaker: bool = True) -> set:
+    """The inner validation videos of an outer fold's training ``videos`` (a nested choice of a setting): every
+    third of their speakers (sorted by name) with all of that speaker's videos, or every third video for one
+    speaker. Every video when there is a single group: no inner split (the caller falls back to its default)."""
+    groups = sorted({group_of(v, by_speaker) for v in videos})
+    val = set(groups[::3])
+    return {v for v in videos if group_of(v, by_speaker) in val}
+
+
 def fold_count(sources, folds: int, by_speaker: bool = True) -> int:
     """How many folds ``folds`` can be: at least 2, at most the speakers (``by_speaker``) or the videos."""
     groups = {speaker_of(s) for s in sources} if by_speaker else set(sources)

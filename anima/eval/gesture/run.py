@@ -1,8 +1,10 @@
 """``anima eval gesture``: seed 004 ch. 4-5 on the dataset's (audio, motion) windows. The k-NN search is
-evaluated leave-one-video-out (each video's windows synthesised from its speech with a database of the other
-videos' windows) and compared with the captured motion; the learned models (k-NN + cGAN refiner, the §4.4
-generator, direct regression, the LSTM baseline, the sync classifier) are cross-validated by speaker in 3 folds
-(each speaker's videos in one fold; by video within the speaker with ``--speaker``).
+evaluated leave-one-speaker-out (each speaker's windows synthesised from their speech with a database of the
+other speakers' windows only) and compared with the captured motion; the learned models (k-NN + cGAN refiner,
+the §4.4 generator, direct regression, the LSTM baseline, the sync classifier) are cross-validated by speaker in
+3 folds (each speaker's videos in one fold, held out together; the settings chosen inside a fold are chosen on
+inner validation speakers of its training speakers) and trained with 3 training seeds per fold (mean and spread
+over seeds). With ``--speaker`` (one speaker's windows) the folds hold out videos within that speaker instead.
 
 * control adherence (table 5.3): for each control (high / low left-wrist height, high / low left-wrist speed
   at the database's 85th / 15th percentile), the mean and standard deviation of the controlled feature over
@@ -37,6 +39,7 @@ from anima.eval.gesture.metrics import (
     bootstrap_over_groups,
     diversity_cm,
     fold_count,
+    group_of,
     jerk,
     l1_cm,
     minutes_covered,
@@ -55,25 +58,30 @@ NO_REPEAT_S = GestureConfig().no_repeat_s
 CONTROLS = ["left_wrist_height>=p85", "left_wrist_height<=p15", "left_wrist_speed>=p85", "left_wrist_speed<=p15"]
 
 
-def knn_rows(db, ks, blend: bool = True, seed_rule: bool = True) -> tuple[dict, dict, dict]:
-    """Leave-one-video-out k-NN synthesis of every window: (metrics per window, table 5.3 adherence, what the
-    learned rows reuse: per window the k-NN outputs, the controlled outputs and the audio onsets). Table 5.3
-    is measured with the command's rule (every frame of a step satisfies the control) and, with
-    ``seed_rule``, also with the seed's (first and last frame of a step) under ``"seed_rule"``."""
+def knn_rows(db, ks, blend: bool = True, seed_rule: bool = True, by_speaker: bool = True) -> tuple[dict, dict, dict]:
+    """Leave-one-speaker-out k-NN synthesis of every window (``by_speaker`` False: leave-one-video-out, for one
+    speaker's windows): each speaker's windows are synthesised with a database of the other speakers' windows
+    only. Returns (metrics per window, table 5.3 adherence, what the learned rows reuse: per window the k-NN
+    outputs, the controlled outputs and the audio onsets, and ``held_out``: each fold's group and its
+    database's videos). Table 5.3 is measured with the command's rule (every frame of a step satisfies the
+    control) and, with ``seed_rule``, also with the seed's (first and last frame of a step) under
+    ``"seed_rule"``."""
     T, fps = db.G.shape[1], db.fps
     no_repeat = round(NO_REPEAT_S * fps / N_STEP) if blend else 0  # the command's defaults (--no-blend: the seed)
-    by_video = defaultdict(list)
+    by_group = defaultdict(list)
     for i, (src, _) in enumerate(db.source):
-        by_video[src].append(i)
+        by_group[group_of(src, by_speaker)].append(i)
     res = defaultdict(list)
     adherence = {c: {"values": []} for c in ["none"] + CONTROLS}
     seed_adherence = {c: {"values": []} for c in CONTROLS}
     rules = [("command", True)] + ([("seed", False)] if seed_rule else [])
     kept = {"outs": {}, "ctrl": defaultdict(dict), "onsets": {}, "videos": [], "no_repeat": no_repeat, "blend": blend}
+    kept["held_out"] = []  # per fold: the held-out group and the videos of its database (tests: disjoint)
     distinct = defaultdict(list)  # database windows used per synthesis (variety), uncontrolled and per control
-    for idx in by_video.values():
+    for group, idx in sorted(by_group.items()):
         own = set(idx)
         sub = db.subset([i for i in range(db.M) if i not in own])
+        kept["held_out"].append({"group": group, "database_videos": sorted({s for s, _ in sub.source})})
         p0 = sub.P.reshape(-1, sub.P.shape[-1]).mean(0)
         controlled = {}  # per control: this database's step masks and threshold (the same for all its queries)
         for c in CONTROLS:
@@ -133,10 +141,12 @@ def evaluate(
     refiner_ablation: bool = False,
     fgd_steps: int = 1500,
     facegood_seconds: float | None = None,
+    seeds: int = 3,
 ) -> dict:
     """``refiner_ablation``: also the refiner with anima's earlier loss weights and k (``knn_cgan_anima_v1``).
     ``speaker``: evaluate on that speaker's windows only (databases, training and tests), the seed's
-    subject-specific protocol; default: all speakers together."""
+    subject-specific protocol; default: all speakers together. ``seeds``: every learned model is trained with
+    training seeds 0 .. seeds - 1 in every fold; its rows are the mean over seeds, with their spread."""
     db = from_dataset(folder, None)
     if speaker is not None:
         keep = [i for i, (s, _) in enumerate(db.source) if speaker_of(s) == speaker]
@@ -145,10 +155,12 @@ def evaluate(
             raise InputError(f"no (audio, motion) windows of speaker {speaker!r}; speakers: {', '.join(known)}")
         db = db.subset(keep)
     videos = {s for s, _ in db.source}
+    speakers = {speaker_of(s) for s in videos}
+    by_speaker = len(speakers) > 1  # one speaker (--speaker): the seed's person-specific protocol, by video
     if len(videos) < 2:
-        raise InputError("leave-one-video-out needs windows from at least two videos")
+        raise InputError("the held-out k-NN rows need windows from at least two videos")
     window_s = db.G.shape[1] / db.fps
-    res, table, kept = knn_rows(db, ks, blend)
+    res, table, kept = knn_rows(db, ks, blend, by_speaker=by_speaker)
     seed_table = table.pop("seed_rule")
     starts = defaultdict(list)
     for src, st in db.source:
@@ -161,9 +173,12 @@ def evaluate(
         "windows": db.M,
         "fps": db.fps,
         "minutes_of_audio_motion": minutes_covered(starts.items(), window_s),
+        "speakers": len(speakers),
+        "knn_protocol": knn_protocol(len(kept["held_out"]), by_speaker),
+        "knn_folds": len(kept["held_out"]),
         "knn": {k: float(np.nanmean(v)) for k, v in res.items()},
         "knn_ci95_over_videos": {  # each window's value, whole test videos resampled
-            k: bootstrap_over_groups(np.asarray(v, float), np.array([s for s, _ in db.source]))
+            k: bootstrap_over_groups(np.asarray(v, float), np.array(kept["videos"]))
             for k, v in res.items()
             if len(v) == len(kept["videos"]) and np.isfinite(v).all()
         },
@@ -171,10 +186,12 @@ def evaluate(
         "control_adherence_seed_rule": seed_table,
     }
     if refiner_folds:
-        out["knn_cgan"] = refiner_rows(db, kept, ks, refiner_folds, refiner_steps, progress)
+        out["knn_cgan"] = refiner_rows(db, kept, ks, refiner_folds, refiner_steps, progress, seeds=seeds)
         if refiner_ablation:  # RefinerTrainConfig.anima_v1, on the same folds and windows
             v1 = RefinerTrainConfig.anima_v1()
-            out["knn_cgan_anima_v1"] = refiner_rows(db, kept, ks, refiner_folds, refiner_steps, progress, v1)
+            out["knn_cgan_anima_v1"] = refiner_rows(
+                db, kept, ks, refiner_folds, refiner_steps, progress, v1, seeds=seeds
+            )
         body = [db.source[i][0] for i in sorted(kept["outs"])]
         folds = fold_count(body, refiner_folds, len({speaker_of(s) for s in body}) > 1)  # the refiner's folds
         w = read_windows(folder)
@@ -190,8 +207,9 @@ def evaluate(
             kept.get("refined"),
             fgd_steps=fgd_steps,
             facegood_seconds=facegood_seconds,
+            seeds=seeds,
         )
-        out["sync_classifier"] = sync_rows(db, folds, steps=sync_steps)
+        out["sync_classifier"] = sync_rows(db, folds, steps=sync_steps, seeds=seeds)
     per = defaultdict(list)
     for src, st in starts.items():
         per[speaker_of(src)].append((src, st))
@@ -212,6 +230,20 @@ def run(cfg: GestureEval, progress: bool = False) -> dict:
         blend=cfg.blend,
         refiner_ablation=cfg.refiner_ablation,
         fgd_steps=cfg.fgd_steps,
+        seeds=cfg.seeds,
+    )
+
+
+def knn_protocol(folds: int, by_speaker: bool) -> str:
+    """The k-NN rows' protocol line (in the result and the docs' table)."""
+    if by_speaker:
+        return (
+            f"leave-one-speaker-out, {folds} folds (one per speaker): each speaker's windows synthesised with a "
+            "database of the other speakers' windows only"
+        )
+    return (
+        f"leave-one-video-out within one speaker, {folds} folds (the seed's person-specific protocol): each "
+        "video's windows synthesised with a database of the speaker's other videos"
     )
 
 
@@ -223,6 +255,16 @@ def _iv(ci: dict, name: str, fmt: str = ".2f") -> str:
     return f" [{ci[name][0]:{fmt}}, {ci[name][1]:{fmt}}]" if name in ci else ""
 
 
+def _sd(sd: dict | None, name: str, fmt: str = ".2f") -> str:
+    """`` ± spread`` over training seeds where the result has it (results before seeds: nothing)."""
+    return f" ± {sd[name]:{fmt}}" if sd and name in sd and np.isfinite(sd[name]) else ""
+
+
+def _knn_label(r: dict) -> str:
+    p = r.get("knn_protocol", "leave-one-video-out")
+    return "k-NN, leave one speaker out" if p.startswith("leave-one-speaker-out") else "k-NN, leave one video out"
+
+
 def summary(r: dict) -> list[str]:
     """The markdown of ``eval all`` and of the docs' generated blocks (tools/doc_tables.py)."""
     k, ci = r["knn"], r.get("knn_ci95_over_videos", {})
@@ -231,59 +273,94 @@ def summary(r: dict) -> list[str]:
     out = [
         f"{r['windows']} full-body windows from {r['videos']} videos ({r['minutes_of_audio_motion']:.2f} min of "
         f"(audio, motion), {r['fps']} fps); joins: {r['joins']}. Intervals: 95 % over test videos "
-        "(whole videos resampled).",
+        "(whole videos resampled)"
+        + (
+            f"; ± the standard deviation over training seeds {r['knn_cgan']['seeds']}. k-NN: {r['knn_protocol']}."
+            if "knn_protocol" in r and "seeds" in r.get("knn_cgan", {})
+            else f". k-NN: {r['knn_protocol']}."
+            if "knn_protocol" in r
+            else "."
+        ),
         "",
         "| method | L1 cm | FGD | wrist motion cm | jerk m/s^3 | beat consistency | diversity cm | lip error mm |",
         "|---|---|---|---|---|---|---|---|",
         f"| captured | - | {_f(fgd.get('captured_half_vs_half'))} (random halves) | "
         f"{k['wrist_motion_cm_captured']:.2f} | {k['jerk_captured']:.1f} | {k['beat_consistency_captured']:.3f} | "
         f"- | {_f(gen.get('lip_error_mm_random_other_video'))} (another video's face) |",
-        f"| k-NN, leave one video out | {k['l1_cm']:.2f}{_iv(ci, 'l1_cm')} | {_f(fgd.get('knn'))} | "
+        f"| {_knn_label(r)} | {k['l1_cm']:.2f}{_iv(ci, 'l1_cm')} | {_f(fgd.get('knn'))} | "
         f"{k['wrist_motion_cm']:.2f} | {k['jerk']:.1f}{_iv(ci, 'jerk', '.1f')} | "
         f"{k['beat_consistency']:.3f}{_iv(ci, 'beat_consistency', '.3f')} | {k['diversity_cm']:.2f} | - |",
     ]
     if "knn_cgan" in r:
         c = r["knn_cgan"]
         b, m, mci = c.get("knn_fold_inputs", {}), c["metrics"], c.get("metrics_ci95_over_videos", {})
+        sd, fsd = c.get("metrics_sd_over_seeds"), gen.get("fgd_sd_over_seeds")
         if b:
             out.append(
                 f"| k-NN searched in the fold's training videos (the refiner's input) | {b['l1_cm']:.2f} | - | "
                 f"{b['wrist_motion_cm']:.2f} | {b['jerk']:.1f} | {b['beat_consistency']:.3f} | "
                 f"{b['diversity_cm']:.2f} | - |"
             )
-        out.append(
-            f"| k-NN + cGAN refiner (clean folds) | {m['l1_cm']:.2f}{_iv(mci, 'l1_cm')} | {_f(fgd.get('knn_cgan'))} | "
-            f"{m['wrist_motion_cm']:.2f} | {m['jerk']:.1f}{_iv(mci, 'jerk', '.1f')} | {m['beat_consistency']:.3f} | "
-            f"{m['diversity_cm']:.2f} | - |"
-        )
+        if m:
+            out.append(
+                f"| k-NN + cGAN refiner (clean folds) | {m['l1_cm']:.2f}{_sd(sd, 'l1_cm')}{_iv(mci, 'l1_cm')} | "
+                f"{_f(fgd.get('knn_cgan'))}{_sd(fsd, 'knn_cgan')} | "
+                f"{m['wrist_motion_cm']:.2f}{_sd(sd, 'wrist_motion_cm')} | "
+                f"{m['jerk']:.1f}{_sd(sd, 'jerk', '.1f')}{_iv(mci, 'jerk', '.1f')} | "
+                f"{m['beat_consistency']:.3f}{_sd(sd, 'beat_consistency', '.3f')} | "
+                f"{m['diversity_cm']:.2f}{_sd(sd, 'diversity_cm')} | - |"
+            )
+        else:
+            out.append(
+                "| k-NN + cGAN refiner (clean folds) | no fold judged (see the folds below) | - | - | - | - | - | - |"
+            )
     for name, g in gen.get("rows", {}).items():
+        sd, fsd = g.get("sd_over_seeds"), gen.get("fgd_sd_over_seeds")
         out.append(
-            f"| {name} | {g['l1_cm']:.2f} | {_f(g['fgd'])} | {g['wrist_motion_cm']:.2f} | {g['jerk']:.1f} | "
-            f"{g['beat_consistency']:.3f} | {g['diversity_cm']:.2f} | {g['lip_error_mm']:.2f} |"
+            f"| {name} | {g['l1_cm']:.2f}{_sd(sd, 'l1_cm')} | {_f(g['fgd'])}{_sd(fsd, name)} | "
+            f"{g['wrist_motion_cm']:.2f}{_sd(sd, 'wrist_motion_cm')} | {g['jerk']:.1f}{_sd(sd, 'jerk', '.1f')} | "
+            f"{g['beat_consistency']:.3f}{_sd(sd, 'beat_consistency', '.3f')} | "
+            f"{g['diversity_cm']:.2f}{_sd(sd, 'diversity_cm') if name == 'moglow' else ''} | "
+            f"{g['lip_error_mm']:.2f}{_sd(sd, 'lip_error_mm')} |"
         )
     if "knn_cgan" in r:
-        folds = r["knn_cgan"]["folds"]
-        out += [
-            "",
-            f"Refiner: {r['knn_cgan']['protocol']}. Per fold (held-out videos / training pairs / test windows; "
-            "held-out videos in its inputs; correction smoothing chosen on the fold's inner validation): "
-            + "; ".join(
-                f"{f['held_out_videos']} / {f['train_pairs']} / {f['test_windows']}; {f['held_out_videos_in_inputs']}; "
-                f"sigma {f['correction_sigma']['value']}"
-                + ("" if "validation" in f["correction_sigma"] else " (default)")
-                for f in folds
-                if "correction_sigma" in f
+        folds, c = r["knn_cgan"]["folds"], r["knn_cgan"]
+        judged, skipped = [f for f in folds if "correction_sigma" in f], [f for f in folds if "skipped" in f]
+        parts = [f"Refiner: {c['protocol']}."]
+        if judged:
+            parts.append(
+                "Per fold (held-out videos / training pairs / test windows; held-out videos in its inputs; "
+                "correction smoothing chosen on the fold's inner validation): "
+                + "; ".join(
+                    f"{f['held_out_videos']} / {f['train_pairs']} / {f['test_windows']}; "
+                    f"{f['held_out_videos_in_inputs']}; sigma {f['correction_sigma']['value']}"
+                    + ("" if "validation" in f["correction_sigma"] else " (default)")
+                    for f in judged
+                )
+                + "."
             )
-            + f". Moved {r['knn_cgan']['metrics']['l1_to_knn_cm']:.2f} cm from its k-NN input.",
-        ]
+        if skipped:
+            parts.append("Skipped: " + "; ".join(f"fold {f['fold']}: {f['skipped']}" for f in skipped) + ".")
+        if "l1_to_knn_cm" in c["metrics"]:
+            parts.append(f"Moved {c['metrics']['l1_to_knn_cm']:.2f} cm from its k-NN input.")
+        out += ["", " ".join(parts)]
     if gen:
-        adv = [f.get("adv_weight", {}).get("value") for f in gen["rows"].get("adversarial", {}).get("folds", [])]
+        adv = [  # one per fold (the weight is chosen once per fold, for every training seed)
+            f.get("adv_weight", {}).get("value")
+            for f in gen["rows"].get("adversarial", {}).get("folds", [])
+            if f.get("seed", 0) == gen.get("seeds", [0])[0]
+        ]
         out += [
             "",
             f"Generators: {gen['protocol']}. Adversarial weight per fold: {', '.join(map(str, adv)) or '-'}. "
             f"Lip error over {gen['lip_windows']} windows; FGD per fold ({gen['fgd_protocol']}): "
             + ", ".join(f"fold {x['fold']} {x['windows']} windows" for x in gen.get("fgd_folds", []))
-            + ". The generator rows have one number per fold, no interval over videos: not ranked.",
+            + (
+                f". The generator rows are the mean ± standard deviation over training seeds {gen['seeds']}, "
+                "with no interval over videos: not ranked."
+                if "seeds" in gen
+                else ". The generator rows have one number per fold, no interval over videos: not ranked."
+            ),
         ]
         fg = gen.get("facegood_lip_sync")
         if fg and fg.get("rows"):
@@ -301,8 +378,17 @@ def summary(r: dict) -> list[str]:
     if "sync_classifier" in r:
         out += [
             "",
-            "Sync classifier (table 4.4), held-out accuracy (chance 0.5): "
-            + ", ".join(f"{n.replace('_', ' ')} {v['accuracy']:.3f}" for n, v in r["sync_classifier"].items())
+            "Sync classifier (table 4.4), held-out accuracy (chance 0.5"
+            + (
+                "; ± over training seeds"
+                if any("accuracy_sd_over_seeds" in v for v in r["sync_classifier"].values())
+                else ""
+            )
+            + "): "
+            + ", ".join(
+                f"{n.replace('_', ' ')} {v['accuracy']:.3f}{_sd(v, 'accuracy_sd_over_seeds', '.3f')}"
+                for n, v in r["sync_classifier"].items()
+            )
             + ".",
         ]
     out += ["", "| control (table 5.3) | mean | threshold | satisfied [95 % over videos] |", "|---|---|---|---|"]
