@@ -44,13 +44,76 @@ def test_a_number_in_the_prose_is_generated_from_its_json_pointer(tmp_path):
     (tmp_path / "r.json").write_text('{"rows": {"a b": {"x": [0.5, 0.0721]}}}')
     doc = tmp_path / "docs" / "x.md"
     doc.parent.mkdir()
-    line = "reads <!--v r.json /rows/a%20b/x/1 .3f-->{}<!--/v--> on <!--v r.json /rows/a%20b/x/0-->{}<!--/v-->"
-    line += " of <!--v r.json /rows/a%20b/x len-->2<!--/v-->\n"
+    line = "reads <!--v:test r.json /rows/a%20b/x/1 .3f-->{}<sup>test</sup><!--/v--> on "
+    line += "<!--v:development r.json /rows/a%20b/x/0-->{}<sup>development</sup><!--/v-->"
+    line += " of <!--v:count r.json /rows/a%20b/x len-->2<sup>count</sup><!--/v-->\n"
     doc.write_text(line.format("0.072", "0.5"))
     assert tool.refresh(doc, tmp_path) == (doc.read_text(), [])
     doc.write_text(line.format("0.07", "0.5"))  # typed over, or the JSON changed since
     text, changed = tool.refresh(doc, tmp_path)
     assert text == line.format("0.072", "0.5") and len(changed) == 1
+
+
+def test_every_generated_number_says_its_kind_where_it_appears(tmp_path):
+    """Every generated block and value names its kind (a held-out test, a validation or development figure, a
+    consistency check; or a count, cost or setting, which are not scores), and the generated text shows it to
+    the reader: a value ends with the kind as a small tag, a block opens with a line naming its kind(s).
+    ``--check`` fails on a block or value without a kind, or with one it does not know, and on a tag typed
+    over."""
+    tool = _tool()
+    for d in tool.documents():
+        assert tool.untagged(d) == [], d
+    (tmp_path / "README.md").write_text("Nothing generated.\n")
+    (tmp_path / "r.json").write_text('{"rows": [{"name": "a", "r": 0.91}], "x": 0.5}')
+    doc = tmp_path / "docs" / "x.md"
+    doc.parent.mkdir()
+    good = (
+        "The mouth reads r <!--v:consistency r.json /x .2f-->0.50<sup>consistency</sup><!--/v--> on it.\n\n"
+        "<!-- results:test table:/rows r.json -->\n"
+        f"{tool.block_head(['test'])}| name | r |\n|---|---|\n| a | 0.91 |\n<!-- /results -->\n"
+    )
+    doc.write_text(good)
+    assert tool.refresh(doc, tmp_path) == (good, []) and tool.untagged(doc, tmp_path) == []
+    assert tool.main(["--check"], root=tmp_path) == 0
+    assert "<sup>**test**: held out" in good
+    for bad in (
+        good.replace("<!--v:consistency ", "<!--v ").replace("<sup>consistency</sup>", ""),  # a value, no kind
+        good.replace("<!-- results:test ", "<!-- results: ").replace(tool.block_head(["test"]), ""),  # a block
+        good.replace("consistency", "evidence"),  # a kind it does not know
+    ):
+        doc.write_text(bad)
+        assert len(tool.untagged(doc, tmp_path)) == 1, bad
+        assert tool.main(["--check"], root=tmp_path) == 1
+    doc.write_text(good.replace("<sup>consistency</sup>", "<sup>test</sup>"))  # the tag typed over
+    assert tool.refresh(doc, tmp_path)[1] and tool.main(["--check"], root=tmp_path) == 1
+    # a block of several kinds names each
+    assert tool.kinds_of("<!-- results:test+validation x y -->") == ["test", "validation"]
+    assert "**test**" in tool.block_head(["test", "validation"]) and "**validation**" in tool.block_head(
+        ["test", "validation"]
+    )
+
+
+def test_the_face_read_back_is_a_consistency_check_and_the_round_trip_its_evidence():
+    """The face's Face Mesh read-back (driven, calibrated and judged by Face Mesh) is tagged consistency
+    wherever a number of it appears; the face round trip's test identities are the test; the emotion checks on
+    the shared clips are development figures; the text-to-face prompt suites' detector tables are consistency
+    checks and the held-out suite's judge is the test."""
+    tool = _tool()
+    seen = {}  # a block's name (EVAL or EVAL:SECTION) and every file named -> the kinds given to it
+    for d in tool.documents():
+        text = d.read_text()
+        for m in tool.BLOCK.finditer(text):
+            for key in (m.group(2), m.group(3)):
+                seen.setdefault(key, set()).update(tool.kinds_of(m.group(1)))
+        for m in tool.VALUE.finditer(text):
+            seen.setdefault(m.group(2), set()).update(tool.kinds_of(m.group(1)))
+    readback = {k for k in seen if "face_readback" in k}
+    assert readback and all(seen[k] <= {"consistency", "count"} for k in readback)
+    assert seen["benchmarks/results/emotion_facs.json"] <= {"development", "count"}
+    assert "test" in seen["benchmarks/results/roundtrip_face.json"]
+    assert seen["text2face_prompts_heldout:detectors"] == {"consistency"}
+    assert seen["text2face_prompts_heldout:judge"] == {"test"}
+    assert seen["text2face_prompts:judge"] == seen["text2face_prompts_dev2:judge"] == {"development"}
 
 
 def test_a_range_in_the_prose_is_reduced_from_every_row_of_a_result(tmp_path):

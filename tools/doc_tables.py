@@ -2,7 +2,7 @@
 
 A block in any markdown file under ``docs/`` or in ``README.md``::
 
-    <!-- results: EVAL benchmarks/results/FILE.json -->
+    <!-- results:KIND EVAL benchmarks/results/FILE.json -->
     ...generated lines...
     <!-- /results -->
 
@@ -15,12 +15,22 @@ list of records at that JSON pointer of any result file (a benchmark's rows) as 
 
 A number in the prose is generated the same way, inline::
 
-    ... the neutral clip reads mouthSmile <!--v FILE POINTER FORMAT-->0.072<!--/v--> ...
+    ... the neutral clip reads mouthSmile <!--v:development FILE POINTER FORMAT-->0.072<sup>development</sup><!--/v-->
 
 where ``POINTER`` is a JSON pointer into ``FILE`` (``/rows/annotations/result/capture_emotions/neutral_mouth_smile``;
 ``%20`` for a space in a key) and ``FORMAT`` a Python format spec (``.3f``, ``.0%``, ``,d``; default ``g``)
 or ``len`` (how many items a list holds); ``*`` in the pointer takes every item of a list, and ``min``,
 ``max``, ``median`` or ``mean`` before the spec (``min.2%``) reduce them to one number.
+
+Every generated number says what kind of number it is (``KINDS``): ``KIND`` after ``results:`` or ``v:`` is
+one of them (a block may name several joined by ``+`` when its own rows or columns say which is which), and the
+generated text carries it where a reader sees it: a value ends with the kind as a small tag
+(``0.072<sup>development</sup>``), a block opens with a line naming its kinds. A held-out ``test`` is run once
+on data never used to choose anything; a ``validation`` figure is on data that chose a setting; a
+``development`` figure on data looked at while building; a ``consistency`` check scores a method by what drives
+it (the face's Face Mesh read-back, the text-to-face timeline read by the detectors that labelled its
+segments); ``count``, ``cost`` and ``setting`` are not scores (how many, how long or how much memory, a value
+the code uses). ``--check`` fails on a block or value without a known kind.
 
 A result is never typed: :func:`typed_results` finds a number in the prose (outside blocks, inline
 values and code) that reads as a measurement (after a metric word such as r, F1, MAE, SSIM, recall, mean or
@@ -29,8 +39,8 @@ took; "1.7x faster"; "9 ms a frame"), unless a comparison or bound precedes it (
 with why. ``--check`` fails on any other.
 
     .venv/bin/python tools/doc_tables.py           # rewrite every block
-    .venv/bin/python tools/doc_tables.py --check   # exit 1 when a block differs from its JSON or a result is
-                                                   # typed (a test runs it)
+    .venv/bin/python tools/doc_tables.py --check   # exit 1 when a block differs from its JSON, a block or
+                                                   # value has no kind, or a result is typed (a test runs it)
 """
 
 from __future__ import annotations
@@ -48,8 +58,50 @@ sys.path.insert(0, str(ROOT))
 
 from anima.io.atomic import write_text  # noqa: E402
 
-BLOCK = re.compile(r"(<!-- results: (\S+) (\S+) -->\n)(.*?)(<!-- /results -->)", re.S)
-VALUE = re.compile(r"(<!--v (\S+) (\S+?)(?: (\S+?))?-->)(.*?)(<!--/v-->)")
+BLOCK = re.compile(r"(<!-- results(?::\S*)? (\S+) (\S+) -->\n)(.*?)(<!-- /results -->)", re.S)
+VALUE = re.compile(r"(<!--v(?::\S*)? (\S+) (\S+?)(?: (\S+?))?-->)(.*?)(<!--/v-->)")
+KIND_OF = re.compile(r"^<!--(?: results|v)(?::(\S*))? ")  # the KIND of a block's or a value's opening marker
+# what each kind of number is: (the words a block's opening line gives it, scores or not)
+KINDS = {
+    "test": "held out: run once, on data never used to choose anything",
+    "validation": "on data that chose a setting; not a result",
+    "development": "on data looked at while building",
+    "consistency": "a method scored by what drives it; not evidence of quality",
+    "count": "how many; not a score",
+    "cost": "time, speed or memory; not a score",
+    "setting": "a value the code uses; not a score",
+}
+
+
+def kinds_of(marker: str) -> list[str]:
+    """The kinds a block's or a value's opening marker names (``results:test+consistency``); [] when none."""
+    m = KIND_OF.match(marker)
+    return [k for k in (m.group(1) or "").split("+") if k] if m else []
+
+
+def kind_problem(marker: str) -> str | None:
+    """Why a block's or value's marker has no usable kind, or None."""
+    ks = kinds_of(marker)
+    if not ks:
+        return "no kind (" + " / ".join(KINDS) + ")"
+    bad = [k for k in ks if k not in KINDS]
+    return f"unknown kind {', '.join(bad)!r} (" + " / ".join(KINDS) + ")" if bad else None
+
+
+def value_tag(kinds: list[str]) -> str:
+    """What follows a generated value: its kind, small."""
+    return "<sup>" + "+".join(kinds) + "</sup>" if kinds else ""
+
+
+def block_head(kinds: list[str]) -> str:
+    """A block's first generated line: its kind(s) in words, small."""
+    if not kinds:
+        return ""
+    if len(kinds) == 1:
+        return f"<sup>**{kinds[0]}**: {KINDS.get(kinds[0], '?')}</sup>\n\n"
+    named = "; ".join(f"**{k}**: {KINDS.get(k, '?')}" for k in kinds)
+    return f"<sup>{named} (the rows and columns say which)</sup>\n\n"
+
 
 _NUM = r"\d+\.\d+(?:\s?%|x\b)?|\d+(?:\s?%|x\b| ?ms\b| ?mm\b| ?fps\b)"
 TYPED = re.compile(
@@ -183,13 +235,13 @@ def refresh(doc: Path, root: Path = ROOT) -> tuple[str, list[str]]:
     changed = []
 
     def sub(m):
-        new = render(m.group(2), root / m.group(3))
+        new = block_head(kinds_of(m.group(1))) + render(m.group(2), root / m.group(3))
         if new != m.group(4):
             changed.append(f"{doc.relative_to(root)}: {m.group(2)} ({m.group(3)})")
         return m.group(1) + new + m.group(5)
 
     def sub_value(m):
-        new = value(root / m.group(2), m.group(3), m.group(4))
+        new = value(root / m.group(2), m.group(3), m.group(4)) + value_tag(kinds_of(m.group(1)))
         if new != m.group(5):
             changed.append(f"{doc.relative_to(root)}: {m.group(3)} ({m.group(2)}): {m.group(5)} -> {new}")
         return m.group(1) + new + m.group(6)
@@ -197,24 +249,41 @@ def refresh(doc: Path, root: Path = ROOT) -> tuple[str, list[str]]:
     return VALUE.sub(sub_value, BLOCK.sub(sub, text)), changed
 
 
-def main(argv=None) -> int:
+def untagged(doc: Path, root: Path = ROOT) -> list[str]:
+    """The blocks and values of ``doc`` whose marker names no known kind."""
+    out = []
+    text = doc.read_text()
+    for m in blocks(text):
+        why = kind_problem(m.group(1))
+        if why:
+            line = text.count("\n", 0, m.start()) + 1
+            where = doc.relative_to(root) if doc.is_relative_to(root) else doc
+            out.append(f"{where}:{line}: {why}: {m.group(1).strip()}")
+    return out
+
+
+def main(argv=None, root: Path = ROOT) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--check", action="store_true", help="only say which blocks are stale (exit 1 if any)")
     args = ap.parse_args(argv)
     stale = []
-    for doc in documents():
+    docs = [d for d in documents(root) if d.is_file()]
+    for doc in docs:
         if not blocks(doc.read_text()):
             continue
-        text, changed = refresh(doc)
+        text, changed = refresh(doc, root)
         stale += changed
         if changed and not args.check:
             write_text(doc, text)
     for s in stale:
         print(("stale: " if args.check else "rewrote: ") + s)
-    typed = [t for doc in documents() for t in typed_results(doc)]
+    typed = [t for doc in docs for t in typed_results(doc)]
     for t in typed:
         print(t)
-    return 1 if (stale and args.check) or typed else 0
+    kindless = [u for doc in docs for u in untagged(doc, root)]
+    for u in kindless:
+        print(u)
+    return 1 if (stale and args.check) or typed or kindless else 0
 
 
 if __name__ == "__main__":

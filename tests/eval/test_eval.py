@@ -242,8 +242,57 @@ def test_a_row_names_a_shipped_suite_by_its_project_path():
     from anima.eval.registry import command_line
 
     cmd = command_line("text2face", Text2FaceEval(dataset="ds", prompts=str(HELDOUT_PROMPTS)))
-    assert "--prompts anima/eval/prompts/text2face_heldout.json" in cmd, cmd
+    assert "--prompts anima/eval/prompts/text2face_heldout3.json" in cmd, cmd
     assert str(HELDOUT_PROMPTS.parents[3]) not in cmd
+
+
+def test_a_frozen_prompt_suite_whose_bytes_differ_is_refused(tmp_path):
+    """The held-out suite is frozen by the sha256 written in the code: the evaluation refuses a file of its name
+    whose content differs (an edited copy, a prompt changed; the loader every prompt run and the command's
+    check go through); the same bytes load."""
+    import json
+
+    import pytest
+
+    from anima.errors import InputError
+    from anima.eval.config import FROZEN_SUITES, HELDOUT_PROMPTS
+    from anima.eval.text2face.prompts import load_suite
+
+    assert FROZEN_SUITES[HELDOUT_PROMPTS.name]
+    same = tmp_path / "same" / HELDOUT_PROMPTS.name
+    same.parent.mkdir()
+    same.write_bytes(HELDOUT_PROMPTS.read_bytes())
+    assert len(load_suite(same)) == 40
+    doc = json.loads(HELDOUT_PROMPTS.read_text())
+    doc["prompts"][0]["prompt"] += " again"
+    edited = tmp_path / HELDOUT_PROMPTS.name
+    edited.write_text(json.dumps(doc, indent=1, ensure_ascii=False) + "\n")
+    with pytest.raises(InputError, match="frozen"):
+        load_suite(edited)
+    # one byte more (a trailing newline) is another file too
+    edited.write_bytes(HELDOUT_PROMPTS.read_bytes() + b"\n")
+    with pytest.raises(InputError, match="frozen"):
+        load_suite(edited)
+
+
+def test_the_held_out_prompts_are_new_not_the_development_ones():
+    """The held-out suite's prompts are written anew: none is a prompt of a development suite (the earlier
+    held-out edition included), and its kinds are those of the earlier edition (the same size and mix)."""
+    import collections
+
+    from anima.eval.config import HELDOUT_PROMPTS
+    from anima.eval.text2face.prompts import load_suite
+
+    folder = HELDOUT_PROMPTS.parent
+    new = load_suite(HELDOUT_PROMPTS)
+    old = {
+        r["prompt"].lower()
+        for f in ("text2face.json", "text2face_dev2.json", "text2face_heldout.json")
+        for r in load_suite(folder / f)
+    }
+    assert not {r["prompt"].lower() for r in new} & old
+    kinds = collections.Counter(r["kind"] for r in new)
+    assert kinds == collections.Counter(r["kind"] for r in load_suite(folder / "text2face_heldout.json"))
 
 
 def test_the_held_out_prompts_are_frozen_and_only_eval_all_runs_them():

@@ -338,6 +338,7 @@ def test_steps_are_chosen_on_validation_windows_from_snapshots_of_one_run(ds, tm
     geom = FaceGeometry()
     path, rec = choose_steps(ds, tmp_path, "smf", cfg, (12, 6), items, E, geom, 2, prepared, False, "test")
     assert rec["grid"] == [6, 12] and set(rec["validation_mae_mm"]) == {"6", "12"}
+    assert set(rec["validation_over_videos"]) == {"6", "12"} and rec["spread"]["training_runs_per_step"] == 1
     assert rec["value"] == min((6, 12), key=lambda n: rec["validation_mae_mm"][str(n)])
     assert path.name == f"step_{rec['value']}.pt" and "3 windows of 1 videos" in rec["chosen_on"]
     again = validation_mae(model_method("smf", path), items, E, geom, 2)
@@ -392,6 +393,41 @@ def test_held_out_errors_get_intervals_over_videos_per_split():
     assert lo < r["test"]["mean"] < hi and lo < 1.6 and hi > 3.3  # the spread between videos, not within
     one = over_videos(np.array(x[:4]), items[:4])["val"]
     assert one["ci95_over_videos"][0] == one["ci95_over_videos"][1] == pytest.approx(one["mean"], abs=1e-4)
+    # each video's own mean, and the lowest and highest of them
+    assert set(r["test"]["per_video"]) == {"c", "d", "e"}
+    assert r["test"]["min_video"] == pytest.approx(1.0, abs=0.02)
+    assert r["test"]["max_video"] == pytest.approx(4.0, abs=0.02)
+
+
+def test_the_text2face_row_states_its_mae_over_videos_and_the_step_choices_spread():
+    """The headline MAE of the tables is the mean over the test windows with its interval over test videos and
+    the per-video range, not the sampling repetitions' spread; a step choice made on one training run says its
+    spread beside it: the grid's range, and which step counts its interval over validation videos cannot tell
+    apart from it."""
+    from anima.eval.text2face.run import _row, _spread, step_spread
+
+    over = {
+        "test": {"mean": 3.37, "ci95_over_videos": [2.79, 4.05], "min_video": 1.9, "max_video": 5.2},
+        "val": {"mean": 2.28, "ci95_over_videos": [2.05, 2.6]},
+    }
+    r = {
+        "mae_mm": {"mean": 3.368, "ci95": 0.008},
+        "mae_mm_over_videos": over,
+        "rmse_mm": {"mean": 4.6, "ci95": 0.01},
+        "diversity_mm": {"mean": 1.8, "ci95": 0.07},
+        "r_precision": [0.02, 0.06, 0.08],
+    }
+    row = _row("ours", r)
+    assert row.split(" | ")[1] == "3.37 [2.79, 4.05] (1.90-5.20)" and "0.008" not in row
+    choice = {
+        "value": 1000,
+        "validation_mae_mm": {"250": 2.5, "500": 3.09, "1000": 2.29, "2000": 3.07},
+        "validation_over_videos": {"1000": {"ci95_over_videos": [2.05, 2.6]}},
+    }
+    sp = step_spread(choice)
+    assert sp["validation_mae_range_mm"] == [2.29, 3.09] and sp["steps_inside_chosen_interval"] == [250, 1000]
+    assert "2.29-3.09" in _spread(choice) and "inside it: 250 steps" in _spread(choice)
+    assert _spread({"value": 250, "validation_mae_mm": {"250": 2.5}}) == "validation MAE 2.50-2.50 over the grid"
 
 
 def test_headline_metrics_are_on_the_test_windows_and_validation_is_apart():

@@ -32,7 +32,8 @@ def item_errors(gen: np.ndarray, real: np.ndarray, geom: FaceGeometry) -> np.nda
 
 def over_videos(per_item: np.ndarray, items, reps: int = 2000, seed: int = 0) -> dict:
     """Per split (``val``, ``test``, ``all``): the mean of a per-item value and its 95 % interval when whole
-    held-out videos are resampled (windows within a video stay together), with the counts behind it."""
+    held-out videos are resampled (windows within a video stay together), each video's own mean
+    (``per_video``) with the lowest and highest of them, and the counts behind it."""
     out = {}
     for name in ("val", "test", "all"):
         sel = [i for i, it in enumerate(items) if name == "all" or it.split == name]
@@ -50,6 +51,9 @@ def over_videos(per_item: np.ndarray, items, reps: int = 2000, seed: int = 0) ->
                 round(float(np.percentile(means, 2.5)), 4),
                 round(float(np.percentile(means, 97.5)), 4),
             ],
+            "per_video": {str(k): round(float(v), 4) for k, v in zip(keys, sums / counts)},
+            "min_video": round(float((sums / counts).min()), 4),
+            "max_video": round(float((sums / counts).max()), 4),
             "videos": int(len(keys)),
             "windows": int(len(sel)),
         }

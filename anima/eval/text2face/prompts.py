@@ -3,8 +3,9 @@
 ``anima eval text2face DATASET --prompts [FILE]`` generates every prompt of the suite
 (``anima/eval/prompts/text2face.json``: 114 prompts written for the suite, not taken from the dataset's
 descriptions; ``text2face_dev2.json``: 40 more, written after the timeline method was tuned on the first 114,
-since then also developed on; ``text2face_heldout.json``: 40 frozen before any run, run once per release, issue
-52) with each method and seeds 0..``seeds``-1, and reads the motion back with
+since then also developed on; ``text2face_heldout.json``: 40 more, the second held-out edition, run three times
+and a development suite since; ``text2face_heldout3.json``: 40 frozen by their hash before any run, run once by
+the final ``anima eval all``) with each method and seeds 0..``seeds``-1, and reads the motion back with
 the dataset's own detectors (``anima.text2face.compose.detect_motion``: the detectors of ``anima dataset
 build``, the clip's first and last frames held for 1 s on either side so brows and lids have a rest to be
 measured against; the same rule for every method):
@@ -35,6 +36,7 @@ many prompts and runs stand behind them.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from pathlib import Path
@@ -47,6 +49,7 @@ from anima.core.events import BLINK, MOUTH_OPEN, RAISE_BROWS, SMILE, SQUINT, SUR
 from anima.dataset.attributes import ATTRIBUTES
 from anima.dataset.windows import read_clips
 from anima.errors import InputError
+from anima.eval.config import FROZEN_SUITES
 from anima.eval.text2face.judge import ATTRIBUTES as READS
 from anima.eval.text2face.judge import UNRELIABLE, JudgeConfig, judge_motion
 from anima.io.assets import shown_path
@@ -75,7 +78,15 @@ SAME_MOTION = 0.05  # no weight differs by more than 0.05, no rotation by more t
 
 
 def load_suite(path: str | Path | None = None) -> list[dict]:
+    """The prompts of a suite file, checked; a frozen suite (``FROZEN_SUITES``, by its file name) only when its
+    bytes are the ones whose sha256 was written down when it was frozen."""
     p = Path(path) if path else SUITE
+    frozen = FROZEN_SUITES.get(p.name)
+    if frozen is not None and p.is_file() and hashlib.sha256(p.read_bytes()).hexdigest() != frozen:
+        raise InputError(
+            f"{p}: a frozen prompt suite whose content differs from the one frozen (sha256 {frozen[:12]}...): "
+            "a held-out suite is never edited; write a new one"
+        )
     doc = read_json(p, "prompt suite")
     rows = doc.get("prompts") if isinstance(doc, dict) else None
     if not isinstance(rows, list) or not rows:
@@ -430,13 +441,50 @@ def _acc(x: dict) -> str:
     return "-" if not x.get("runs") else f"{x['accuracy']:.2f} ({x['runs']} runs)"
 
 
-def prompts_summary(r: dict) -> list[str]:
-    """The markdown of ``eval all`` and of the docs' generated blocks: every method by the dataset's
-    detectors, then (with ``--judge``) by the independent judge, per event, and where the two disagree."""
+def judge_summary(r: dict) -> list[str]:
+    """The headline of a prompt suite: the independent judge (rendered, tracked with MediaPipe, events from
+    landmark geometry) per event, beside the detectors on the same seed-0 runs; [] without ``--judge``."""
+    j = r.get("judge")
+    if not j:
+        return []
+    p = r["protocol"]
+    reads = json.loads(j["reads"]) if isinstance(j["reads"], str) else j["reads"]
+    out = [
+        f"{p['prompts']} prompts ({Path(p.get('suite', 'suite')).name}), seed 0. Independent judge (rendered, "
+        "tracked with MediaPipe, events from landmark geometry), recall per event, judge / detectors on the same "
+        "runs:",
+        "",
+        "| method | "
+        + " | ".join(a + (" (unreliable)" if a in j.get("unreliable", {}) else "") for a in reads)
+        + " | order | count | highest false alarm | disagree |",
+        "|---|" + "---|" * (len(reads) + 4),
+    ]
+    det = j.get("detectors_on_seed_0", {})
+    for name, m in j["methods"].items():
+        dm = det.get(name, {}).get("per_attribute", {})
+
+        def cell(a, m=m, dm=dm):
+            jr = m["per_attribute"].get(a, {}).get("recall")
+            dr = dm.get(a, {}).get("recall")
+            return "-" if jr is None else f"{jr:.2f}" + ("" if dr is None else f" / {dr:.2f}")
+
+        out.append(
+            f"| {name} | "
+            + " | ".join(cell(a) for a in reads)
+            + f" | {_acc(m['order'])} | {_acc(m['count'])} | {_highest_false_alarm(m)} | "
+            f"{len(j['disagree'].get(name, []))} prompts |"
+        )
+    return out
+
+
+def detectors_summary(r: dict) -> list[str]:
+    """Every method read back by the dataset's own detectors: for the timeline a consistency check, not evidence
+    (the same detectors labelled the segments it composes from)."""
     p = r["protocol"]
     out = [
         f"{p['prompts']} prompts ({Path(p.get('suite', 'suite')).name}) x {p['seeds']} seeds; detectors: "
-        f"{p['detectors']}.",
+        f"{p['detectors']}. The timeline's recall and false alarms here are circular: the detectors that read "
+        "them labelled the segments it composes.",
         "",
         "| method | lowest event recall | highest false alarm | order | count | side | emotion checks | "
         "same-motion pairs |",
@@ -449,32 +497,11 @@ def prompts_summary(r: dict) -> list[str]:
             f"{_acc(m['side'])} | {m['emotion_checks']['holds']} / {m['emotion_checks']['of']} | "
             f"{d['same_motion_pairs']} of {d['pairs']:,} |"
         )
-    j = r.get("judge")
-    if j:
-        reads = json.loads(j["reads"]) if isinstance(j["reads"], str) else j["reads"]
-        out += [
-            "",
-            "Independent judge (rendered, tracked with MediaPipe, events from landmark geometry; seed 0), recall "
-            "per event, judge / detectors on the same seed-0 runs:",
-            "",
-            "| method | "
-            + " | ".join(a + (" (unreliable)" if a in j.get("unreliable", {}) else "") for a in reads)
-            + " | order | count | highest false alarm | disagree |",
-            "|---|" + "---|" * (len(reads) + 4),
-        ]
-        det = j.get("detectors_on_seed_0", {})
-        for name, m in j["methods"].items():
-            dm = det.get(name, {}).get("per_attribute", {})
-
-            def cell(a, m=m, dm=dm):
-                jr = m["per_attribute"].get(a, {}).get("recall")
-                dr = dm.get(a, {}).get("recall")
-                return "-" if jr is None else f"{jr:.2f}" + ("" if dr is None else f" / {dr:.2f}")
-
-            out.append(
-                f"| {name} | "
-                + " | ".join(cell(a) for a in reads)
-                + f" | {_acc(m['order'])} | {_acc(m['count'])} | {_highest_false_alarm(m)} | "
-                f"{len(j['disagree'].get(name, []))} prompts |"
-            )
     return out
+
+
+def prompts_summary(r: dict) -> list[str]:
+    """The markdown of ``eval all``: the independent judge first (with ``--judge``; the headline), then every
+    method by the dataset's detectors (a consistency check for the timeline)."""
+    judge = judge_summary(r)
+    return judge + ([""] if judge else []) + detectors_summary(r)

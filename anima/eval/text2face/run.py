@@ -41,7 +41,7 @@ from anima.eval.text2face.metrics import (
     over_videos,
     recall_table,
 )  # fmt: skip
-from anima.eval.text2face.prompts import evaluate_prompts, prompts_summary
+from anima.eval.text2face.prompts import detectors_summary, evaluate_prompts, judge_summary, prompts_summary
 from anima.io.assets import shown_path
 from anima.io.atomic import copy_file, write_json
 from anima.io.outdir import claim_folder
@@ -137,12 +137,38 @@ def variants(steps: int, ablations: bool, seed_preset: bool) -> dict[str, TrainC
 
 def validation_mae(method: Method, items, item_E, geom, reps: int) -> float:
     """Mean MAE (mm) over ``reps`` sampling repetitions on the validation windows only."""
+    return validation_scores(method, items, item_E, geom, reps)[0]
+
+
+def validation_scores(method: Method, items, item_E, geom, reps: int) -> tuple[float, dict]:
+    """:func:`validation_mae` and the same windows' MAE over the validation videos (:func:`over_videos`'s
+    ``val``: each video's mean over the repetitions, the 95 % interval resampling videos)."""
     val = [i for i, it in enumerate(items) if it.split == "val"]
     real = np.stack([items[i].motion for i in val])
     E = item_E[val]
-    return float(
-        np.mean([errors(method(E[:, r % E.shape[1]], EVAL_LEN, 1000 + r), real, geom)[0] for r in range(reps)])
-    )
+    maes, per_item = [], []
+    for r in range(reps):
+        m = method(E[:, r % E.shape[1]], EVAL_LEN, 1000 + r)
+        maes.append(errors(m, real, geom)[0])
+        per_item.append(item_errors(m, real, geom))
+    videos = over_videos(np.mean(per_item, 0), [items[i] for i in val]).get("val", {})
+    return float(np.mean(maes)), {k: v for k, v in videos.items() if k != "per_video"}
+
+
+def step_spread(chosen: dict) -> dict:
+    """How firm a step choice is (:func:`choose_steps`' record): one training run (one seed) per step count, so
+    the spread is said beside the choice: the validation MAE's range over the grid, and the step counts whose
+    validation MAE lies inside the chosen one's 95 % interval over the validation videos (where the record has
+    it): those the validation windows cannot tell apart from the choice."""
+    val = {int(k): v for k, v in chosen.get("validation_mae_mm", {}).items()}
+    out = {"training_runs_per_step": 1}
+    if val:
+        out["validation_mae_range_mm"] = [round(min(val.values()), 4), round(max(val.values()), 4)]
+    iv = chosen.get("validation_over_videos", {}).get(str(chosen.get("value")), {}).get("ci95_over_videos")
+    if iv and val:
+        out["chosen_ci95_over_videos"] = iv
+        out["steps_inside_chosen_interval"] = sorted(n for n, v in val.items() if iv[0] <= v <= iv[1])
+    return out
 
 
 def choose_steps(
@@ -152,21 +178,25 @@ def choose_steps(
     resumes exactly, so a snapshot is the model a run of that many steps gives), score every snapshot on the
     validation windows and keep the lowest MAE. Returns the chosen snapshot and the record of the choice."""
     folder = work / "steps" / _slug(name)
-    val_mae = {}
+    val_mae, val_videos = {}, {}
     for n in sorted(grid):
         snap = folder / f"step_{n}.pt"
         if not snap.is_file():
             r = train(dataset, folder, replace(cfg, steps=n), progress=progress, prepared=prepared, command=command)
             copy_file(r["path"], snap)
-        val_mae[n] = round(validation_mae(model_method(name, snap), items, item_E, geom, reps), 4)
+        mae, val_videos[n] = validation_scores(model_method(name, snap), items, item_E, geom, reps)
+        val_mae[n] = round(mae, 4)
     best = min(val_mae, key=val_mae.get)
-    return folder / f"step_{best}.pt", {
+    record = {
         "value": best,
         "grid": sorted(grid),
         "validation_mae_mm": {str(k): v for k, v in val_mae.items()},
+        "validation_over_videos": {str(k): v for k, v in val_videos.items()},
         "chosen_on": f"the validation windows ({sum(it.split == 'val' for it in items)} windows of "
-        f"{len({it.video for it in items if it.split == 'val'})} videos), {reps} repetitions; lowest MAE",
+        f"{len({it.video for it in items if it.split == 'val'})} videos), {reps} repetitions; lowest MAE; one "
+        "training run (one seed) per step count",
     }
+    return folder / f"step_{best}.pt", {**record, "spread": step_spread(record)}
 
 
 def headline_split(items) -> tuple[str, list[int]]:
@@ -266,8 +296,10 @@ def _protocol(clips, pool, held, items, head_name: str, head, chosen: dict, ours
         "headline_windows": f"{head_name}: {len(head)} windows of {len({items[i].video for i in head})} videos "
         "(MAE, RMSE, Diversity, R-precision and attribute recall); the validation windows chose the steps and "
         "are reported apart ('validation', 'mae_mm_over_videos.val')",
-        "intervals": "'± x' over the sampling repetitions (one fixed set of windows); 'mae_mm_over_videos': "
-        "per-window MAE (mean over repetitions), 95 % interval resampling whole held-out videos, per split",
+        "intervals": "the MAE's interval is over videos ('mae_mm_over_videos': per-window MAE, mean over the "
+        "repetitions, 95 % interval resampling whole held-out videos, per split, with each video's mean and the "
+        "lowest and highest of them); 'mae_mm', RMSE and Diversity's '± x' is over the sampling repetitions of "
+        "one fixed set of windows, not over videos",
         "choices": {
             "steps": {
                 **chosen,
@@ -383,14 +415,17 @@ def _row(name, r):
     rp = r.get("r_precision", [])
     v = r.get("mae_mm_over_videos", {})
 
-    def over(k):
+    def over(k, spread=False):
         if k not in v:
             return "-"
         lo, hi = v[k]["ci95_over_videos"]
-        return f"{v[k]['mean']:.2f} [{lo:.2f}, {hi:.2f}]"
+        cell = f"{v[k]['mean']:.2f} [{lo:.2f}, {hi:.2f}]"
+        if spread and "min_video" in v[k]:
+            cell += f" ({v[k]['min_video']:.2f}-{v[k]['max_video']:.2f})"
+        return cell
 
     return (
-        f"| {name} | {f(r['mae_mm'])} | {over('val')} | {over('test')} | {f(r['rmse_mm'])} | {f(r['diversity_mm'])} | "
+        f"| {name} | {over('test', True)} | {over('val')} | {f(r['rmse_mm'])} | {f(r['diversity_mm'])} | "
         + " / ".join(f"{x:.2f}" for x in rp)
         + " |"
     )
@@ -400,14 +435,15 @@ def tables_markdown(res: dict) -> str:
     p = res["protocol"]
     on = "test" if p.get("headline_windows", "test").startswith("test") else "held-out"
     head = (
-        f"| method | MAE {on} (mm) ↓ | MAE validation ({p['videos_per_split']['val']} videos, chose the steps; "
-        "not a result) [95 % over videos] | "
-        f"MAE test ({p['videos_per_split']['test']} videos) [95 % over videos] | RMSE {on} (mm) ↓ | "
-        f"Diversity {on} (mm) → | R-precision {on} top-1/2/3 ↑ |\n|---|---|---|---|---|---|---|"
+        f"| method | MAE test (mm) ↓ [95 % over its {p['videos_per_split']['test']} videos] "
+        "(per-video lowest-highest) | "
+        f"MAE validation ({p['videos_per_split']['val']} videos, chose the steps; not a result) [95 % over videos] | "
+        f"RMSE {on} (mm) ↓ ± over repetitions | Diversity {on} (mm) → ± over repetitions | "
+        f"R-precision {on} top-1/2/3 ↑ |\n|---|---|---|---|---|---|"
     )
     real = res["real"]
     real_row = (
-        f"| real | - | - | - | - | {real['diversity_mm']['mean']:.3f} ± {real['diversity_mm']['ci95']:.3f} | "
+        f"| real | - | - | - | {real['diversity_mm']['mean']:.3f} ± {real['diversity_mm']['ci95']:.3f} | "
         + " / ".join(f"{x:.2f}" for x in real["r_precision"])
         + " |"
     )
@@ -483,6 +519,27 @@ def run(cfg: Text2FaceEval, progress: bool = False) -> dict:
     return r
 
 
+SECTIONS = (judge_summary, detectors_summary)  # a prompt row's parts the docs render apart (``ROW:judge``)
+
+
+def _spread(choice: dict) -> str:
+    """The spread beside a step choice (:func:`step_spread`, computed from the record when an older result
+    lacks it)."""
+    sp = choice.get("spread") or step_spread(choice)
+    parts = []
+    if "validation_mae_range_mm" in sp:
+        lo, hi = sp["validation_mae_range_mm"]
+        parts.append(f"validation MAE {lo:.2f}-{hi:.2f} over the grid")
+    if "steps_inside_chosen_interval" in sp:
+        lo, hi = sp["chosen_ci95_over_videos"]
+        inside = [n for n in sp["steps_inside_chosen_interval"] if n != choice.get("value")]
+        parts.append(
+            f"chosen [{lo:.2f}, {hi:.2f}] over the validation videos; "
+            + (f"inside it: {', '.join(f'{n:,}' for n in inside)} steps" if inside else "no other step inside it")
+        )
+    return "; ".join(parts) or "-"
+
+
 def summary(r: dict) -> list[str]:
     """The markdown of ``eval all`` and of the docs' generated blocks: the data behind the numbers, the steps
     each learned model was given by the validation windows, then tables 7.1-7.3 and the attribute recall."""
@@ -500,12 +557,14 @@ def summary(r: dict) -> list[str]:
     grids = sorted({int(n) for v in steps.values() for n in v.get("validation_mae_mm", {})})
     if grids:
         out += [
-            "| model | validation MAE (mm) at " + " / ".join(f"{n:,}" for n in grids) + " steps | chosen |",
+            "| model | validation MAE (mm) at " + " / ".join(f"{n:,}" for n in grids) + " steps | chosen | "
+            "the choice's spread (one training run per step count) |",
             "|---|---|---|",
         ]
         for name, v in steps.items():
             val = v.get("validation_mae_mm", {})
             cells = " / ".join(f"{val[str(n)]:.2f}" if str(n) in val else "-" for n in grids)
-            out.append(f"| {name} | {cells} | {v['value'] if v['value'] is not None else '-'} |")
+            out.append(f"| {name} | {cells} | {v['value'] if v['value'] is not None else '-'} | {_spread(v)} |")
+        out[out.index("|---|---|---|")] = "|---|---|---|---|"
         out += ["", f"Ablation rows: {p['choices']['steps'].get('ablation_rows', '-')}.", ""]
     return out + [tables_markdown(r)]
