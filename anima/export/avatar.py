@@ -172,31 +172,66 @@ def character_motion(seq: TrackedSequence, seed: int = 0) -> dict:
 
 POSTURES = ("auto", "seated", "standing")
 BOTTOM_EDGE = 0.92
-"""``--posture auto``: a body whose hips sit at or under this share of the picture's height (or out of it) and
-whose legs the picture never shows is a speaker seen from the waist up, taken as seated (a desk, a chair, an
-interview); with legs in the picture, their tracked pose decides."""
+"""``--posture auto``: a body whose hips the picture shows at or under this share of its height (rounded to a
+percent, as info.json says it), and whose legs it never shows, is a speaker seen from the waist up at a desk or
+in a chair: taken as seated. With legs in the picture, their tracked pose decides."""
+HIPS_SEEN = 0.25
+"""``--posture auto``: the share of frames in which both hips must be seen (kept by the body's cleaning: Pose
+visibility at least its ``min_conf``) for the picture to show where they are. Where they are not, the picture
+is cut above them (a head-and-shoulders or chest-up framing): MediaPipe still places them, out of the picture,
+but that is its guess, and such a framing shows no seat, so the character stands."""
+
+
+def hips_in_picture(seq: TrackedSequence) -> tuple[float, float | None]:
+    """Where ``seq``'s picture shows the hips: (the share of frames in which both hips are seen, the median of
+    their row over those frames as a share of the picture's height, or None when they are never seen)."""
+    hips = [JOINT_NAMES.index("left_hip"), JOINT_NAMES.index("right_hip")]
+    if seq.body_image is None or not len(seq.body_image):
+        return 0.0, None
+    if seq.body_conf is not None:
+        min_conf = float(seq.meta.get("skeleton", {}).get("cleaning", {}).get("min_conf", 0.5))
+        seen = (seq.body_conf[:, hips] >= min_conf).all(1)
+    else:  # no confidence stored: the hips the cleaning kept
+        seen = np.isfinite(seq.body_joints[:, hips]).all((1, 2))
+    seen &= np.isfinite(seq.body_image[:, hips]).all((1, 2))
+    if not seen.any():
+        return 0.0, None
+    rows = seq.body_image[seen][:, hips, 1].mean(1)
+    return float(seen.mean()), float(np.median(rows) / seq.height)
+
+
+def _thighs_seen(legs: dict) -> np.ndarray:
+    """The frames ``[F]`` in which both thighs are seen (hip and knee): those the rig follows the legs in
+    (:func:`anima.core.rig.tracked_legs`; a lone ankle or toe, or one knee, is not a leg it can pose)."""
+    parts = [legs.get(f"{s}_{j}") for s in ("left", "right") for j in ("hip", "knee")]
+    if any(x is None for x in parts):
+        return np.zeros(0, bool)
+    return np.logical_and.reduce([np.isfinite(x).all(-1) for x in parts])
 
 
 def posture_of(seq: TrackedSequence, legs: dict | None) -> tuple[str, str] | None:
-    """How the legs of ``seq``'s body stand when the picture does not show them: ``(posture, why)``, or None
-    when tracked legs decide. ``seq.meta["posture"]`` (``anima capture --posture``) is ``auto`` (default),
-    ``seated`` or ``standing``."""
+    """How the legs of ``seq``'s body stand: ``(posture, why)``, or None for a sequence without a picture
+    (generated motion). ``seq.meta["posture"]`` (``anima capture --posture``) is ``auto`` (default), ``seated``
+    or ``standing``. Auto stands the character unless the picture shows a seat: legs in the picture (both
+    thighs seen) are followed as tracked (``tracked``: a seated person whose knees are seen sits as they show);
+    without them, hips seen at the picture's bottom edge (:data:`BOTTOM_EDGE`) are a speaker at a desk or in a
+    chair (``seated``); hips seen higher up, or not seen at all (a chest-up framing, :data:`HIPS_SEEN`), stand
+    it (``standing``)."""
     asked = str(seq.meta.get("posture", "auto"))
-    if legs is not None and asked == "auto":
-        return None
     if asked in ("seated", "standing"):
         return asked, "--posture " + asked
     if seq.body_image is None:  # generated motion (gesture, text2face): no picture to read a chair from
         return None
-    hips = None
-    if seq.body_image is not None:
-        with np.errstate(all="ignore"):
-            y = np.nanmedian(seq.body_image[:, [JOINT_NAMES.index("left_hip"), JOINT_NAMES.index("right_hip")], 1])
-        hips = None if not np.isfinite(y) else float(y / seq.height)
-    if hips is None or hips >= BOTTOM_EDGE:
-        where = "out of the picture" if hips is None else f"at {hips:.0%} of its height"
-        return "seated", f"auto: the hips {where}, no legs seen"
-    return "standing", "auto: the hips in the picture, no legs seen"
+    if legs is not None and _thighs_seen(legs).any():
+        return "tracked", "auto: the legs are in the picture and followed as tracked"
+    share, row = hips_in_picture(seq)
+    row = None if row is None else round(row, 2)  # as info.json says it
+    if row is None or share < HIPS_SEEN:
+        seen = "never seen" if row is None else f"seen in only {share:.0%} of the frames"
+        return "standing", f"auto: the hips {seen} (the picture is cut above them): nothing shows a seat"
+    if row >= BOTTOM_EDGE:
+        return "seated", f"auto: the hips seen at the picture's bottom edge ({row:.0%} of its height), no legs seen"
+    return "standing", f"auto: the hips seen above the picture's bottom edge ({row:.0%} of its height), no legs seen"
 
 
 class OnCharacter:

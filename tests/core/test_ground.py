@@ -235,3 +235,64 @@ def test_a_speaker_seen_from_the_waist_up_sits(captures):
     m2 = character_motion(standing)
     assert m2["report"]["posture"] == "standing (--posture standing)"
     assert m2["root"][:, 1].mean() > m["root"][:, 1].mean() + 0.3  # the hips stand
+
+
+def test_a_chest_up_framing_stands_and_a_waist_up_host_sits():
+    """--posture auto seats the character only where the picture shows a seat. CREMA-D's actor 1001, a standing
+    man framed from the chest up: the picture never shows his hips (MediaPipe places them half a picture under
+    its bottom edge, a guess), so nothing shows a seat and he stands, the report saying why. John Oliver at his
+    desk (PATS oliver1): his hips are seen at the picture's bottom edge, no leg under them, and he sits."""
+    from anima.capture.config import CaptureConfig
+    from anima.capture.pipeline import capture_video
+    from anima.export.avatar import character_motion, legs_of, posture_of
+
+    seq = capture_video(str(asset("emotion-clips/crema-d/1001_DFA_NEU_XX.flv")), CaptureConfig(), progress=False)
+    m = character_motion(seq)
+    assert m["report"]["posture"].startswith("standing (auto: the hips never seen"), m["report"]["posture"]
+    assert not m["report"]["legs"].startswith("seated"), m["report"]["legs"]
+    hips = m["rest"][rig.HIPS, 1]  # the character's hips standing at rest
+    assert np.abs(m["root"][:, 1] - hips).max() < 0.1 * hips  # the hips stand (seated they sit ~40 % lower)
+    host = capture_video(str(asset("gesture-video/pats-crops/oliver1_gt.mp4")), CaptureConfig(max_frames=60),
+                         progress=False)  # fmt: skip
+    posture, why = posture_of(host, legs_of(host))
+    assert posture == "seated" and "bottom edge" in why, why
+
+
+def test_auto_posture_reads_the_hips_the_picture_shows():
+    """The rule on constructed pictures (640 x 480): hips seen at the bottom edge with no leg sit; hips seen
+    higher up stand; hips the picture never shows (only MediaPipe's guess, under the picture) stand, as they do
+    when seen in too few frames; legs seen (both thighs) are followed; --posture overrides; no picture, no
+    posture."""
+    import dataclasses
+
+    from anima.capture.pipeline import empty_face_sequence
+    from anima.core.contract import JOINT_NAMES
+    from anima.export.avatar import HIPS_SEEN, posture_of
+
+    F, hips = 40, [JOINT_NAMES.index("left_hip"), JOINT_NAMES.index("right_hip")]
+    base = empty_face_sequence(F, 640, 480, 25.0, {})
+
+    def picture(row, seen_frames=F, **meta):
+        image = np.full((F, len(JOINT_NAMES), 2), 200.0)
+        image[:, hips, 1] = row * 480
+        conf = np.ones((F, len(JOINT_NAMES)))
+        conf[seen_frames:, hips] = 0.0
+        joints = np.zeros((F, len(JOINT_NAMES), 3))
+        return dataclasses.replace(base, body_image=image, body_conf=conf, body_joints=joints, meta=meta)
+
+    assert posture_of(picture(0.97), None)[0] == "seated"
+    assert posture_of(picture(1.04), None)[0] == "seated"  # the hip joint a little under the cut
+    assert posture_of(picture(0.80), None)[0] == "standing"
+    assert posture_of(picture(1.55, seen_frames=0), None) == (
+        "standing",
+        "auto: the hips never seen (the picture is cut above them): nothing shows a seat",
+    )
+    few = int(F * HIPS_SEEN) - 1
+    assert posture_of(picture(0.97, seen_frames=few), None)[0] == "standing"
+    legs = {f"{s}_{j}": np.zeros((F, 3)) for s in ("left", "right") for j in ("hip", "knee")}
+    assert posture_of(picture(0.97), legs)[0] == "tracked"
+    legs["right_knee"] = np.full((F, 3), np.nan)  # one knee is no pair of legs the rig can follow
+    assert posture_of(picture(0.97), legs)[0] == "seated"
+    assert posture_of(picture(1.55, seen_frames=0, posture="seated"), None) == ("seated", "--posture seated")
+    assert posture_of(picture(0.97, posture="standing"), None) == ("standing", "--posture standing")
+    assert posture_of(dataclasses.replace(base, body_image=None), None) is None
