@@ -29,17 +29,20 @@ class FitConfig:
     """Use MediaPipe's 10 iris landmarks (468-477) for the eye-gaze shapes."""
     huber_cm: float = 0.3
     """Huber threshold (cm) of the robust identity fit."""
+    reader: bool = True
+    """Read the expression from the posed landmarks with the shipped expression reader
+    (:mod:`anima.facemodel.reader`, learned on renders with known weights); off: the least-squares fit's weights."""
 
 
 @dataclass
 class CaptureConfig:
     smooth_sigma: float = field(default=1.0, metadata={"flag": "--sigma", "range": (0.0, 100.0)})
     """Gaussian temporal smoothing of the fitted parameters, in frames (0 = off). Zero-phase, so no lag.
-    ``anima eval stability`` chooses it on its validation clips together with the dataset's detectors: by
-    jitter alone 0.75 would do (at least 40 % of MediaPipe's landmark jitter removed, the landmark error at
-    most 10 % worse; 1.0 passes too), but the detectors' thresholds were calibrated at 1.0 and their F1 on
-    the labelled non-test clips is not higher at 0.75 (at 0.75 the talk detector fires on a labelled clip
-    with no speech). Seed 004 used 1.5 frames on 15 fps."""
+    1.0 is the smoothing the dataset's detectors' thresholds were calibrated on. ``anima eval stability``
+    chooses a sigma on its validation clips, always one whose landmark error there stays within 10 % of the
+    unsmoothed fit's (together with the detectors' F1 among those that also remove at least 40 % of
+    MediaPipe's landmark jitter), and says whether its choice and this default each meet those targets on
+    the validation and the test clips. Seed 004 used 1.5 frames on 15 fps."""
     max_frames: int | None = field(default=None, metadata={"range": (1, None)})
     """Only the first N frames (default: the whole video)."""
     low_conf_nme: float = 0.05
@@ -71,6 +74,7 @@ class CaptureConfig:
     ``anima train pose`` writes)."""
     posture: str = field(default="auto", metadata={"choices": ("auto", "seated", "standing")})
     """How the character's legs stand where the video shows none: ``seated`` (thighs level, shins down: a
-    speaker at a desk), ``standing``, or ``auto`` (seated when the hips sit at the picture's bottom edge or
-    below it and no leg is seen; info.json says which and why)."""
+    speaker at a desk), ``standing``, or ``auto`` (legs in the picture are followed; without them, seated only
+    when the hips are seen at the picture's bottom edge, standing otherwise, a chest-up framing included;
+    info.json says which and why)."""
     fit: FitConfig = field(default_factory=FitConfig)

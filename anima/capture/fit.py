@@ -32,6 +32,7 @@ from anima.core.camera import camera_to_image, umeyama
 from anima.core.rotations import matrix_to_euler
 from anima.facemodel.correspondence import Correspondence
 from anima.facemodel.ict import FaceModel
+from anima.facemodel.reader import ExpressionReader, landmark_offsets
 
 _BASIS_CACHE: dict = {}
 
@@ -217,3 +218,15 @@ def fit_identity(P: np.ndarray, basis: LandmarkBasis, cfg: FitConfig, n_rounds: 
         rhs = basis.ident.reshape(-1, n_id).T @ np.einsum("jk,jcd,jkd->kc", w, M, target).reshape(-1)
         identity = np.linalg.solve(lhs + cfg.lam_id * J * np.eye(n_id), rhs)
     return identity
+
+
+def read_expression(P: np.ndarray, fit: FrameFit, basis: LandmarkBasis, identity: np.ndarray,
+                    reader: ExpressionReader | None) -> np.ndarray:  # fmt: skip
+    """The frames' weights ``[F, 53]`` as ``reader`` reads the landmarks ``P`` posed by ``fit`` (its channels; the
+    others, the gaze, stay the fit's); the fit's own weights where ``reader`` is None."""
+    if reader is None:
+        return fit.expr
+    D = landmark_offsets(to_model_space(P, fit.scale, fit.R, fit.t), basis.index, basis.shape(identity))
+    out = np.array(fit.expr, copy=True)
+    out[:, reader.channels] = reader(D)
+    return out

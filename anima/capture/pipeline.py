@@ -16,7 +16,16 @@ from anima.audio.features import NoAudio, read_audio, speech_features
 from anima.capture.body import assemble, clean
 from anima.capture.camera_motion import BackgroundMotion
 from anima.capture.config import CaptureConfig
-from anima.capture.fit import FrameFit, LandmarkBasis, choose_keyframes, fit_frames, fit_identity, landmark_error
+from anima.capture.fit import (
+    FrameFit,
+    LandmarkBasis,
+    choose_keyframes,
+    fit_frames,
+    fit_identity,
+    landmark_error,
+    read_expression,
+    to_model_space,
+)
 from anima.core.camera import mediapipe_to_camera
 from anima.core.contract import N_FACE_LANDMARKS as N_LANDMARKS
 from anima.core.filters import gaussian_smooth
@@ -25,6 +34,7 @@ from anima.core.skeleton import JOINT_NAMES, PARENTS
 from anima.errors import InputError
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
+from anima.facemodel.reader import landmark_offsets, load_reader
 from anima.io.sequence import FLAG_LOW_CONFIDENCE, FLAG_NO_FACE, TrackedSequence
 from anima.io.video import VideoInfo, iter_frame_range, iter_frames, probe_video
 from anima.pose3d.config import default_checkpoint
@@ -197,19 +207,27 @@ def fit_landmark_sequence(
     expr[found], R[found], s[found], t[found] = fit.expr, fit.R, fit.scale, fit.t
     expr, s, t = _fill_gaps(expr, found), _fill_gaps(s, found), _fill_gaps(t, found)
     R = _fill_gaps(R, found)
-    expr = with_seen_blinks(expr, list(model.expr_names), lm, found, width, height)
     if cfg.smooth_sigma > 0:
-        expr = np.clip(gaussian_smooth(expr, cfg.smooth_sigma), 0, 1)
         s = gaussian_smooth(s, cfg.smooth_sigma)
         t = gaussian_smooth(t, cfg.smooth_sigma)
         R = _smooth_rotations(R, cfg.smooth_sigma, np.ones(F, bool))
     else:
         U, _, Vt = np.linalg.svd(R)
         R = U @ Vt
-    # error of the final (smoothed) fit against the tracked landmarks
+    fitted = expr
+    reader = load_reader() if cfg.fit.reader else None
+    if reader is not None:  # the weights as the reader reads each frame's posed landmarks, as anima live does
+        read = expr.copy()
+        read[found] = read_expression(P, fit, basis, identity, reader)
+        expr = _fill_gaps(read, found)
+    expr = with_seen_blinks(expr, list(model.expr_names), lm, found, width, height)
+    if cfg.smooth_sigma > 0:
+        expr = np.clip(gaussian_smooth(expr, cfg.smooth_sigma), 0, 1)
+        fitted = np.clip(gaussian_smooth(fitted, cfg.smooth_sigma), 0, 1)
+    # error of the final (smoothed) fit against the tracked landmarks: the model's own weights
     err = np.full(F, np.nan)
     nme = np.full(F, np.nan)
-    V = basis.points(identity, expr[found])
+    V = basis.points(identity, fitted[found])
     err[found], nme[found] = landmark_error(P, V, s[found], R[found], t[found])
     uv = P[..., :2]
     face_px = np.full(F, np.nan)
@@ -229,6 +247,7 @@ def fit_landmark_sequence(
             "correspondence": corr.meta,
         },
         fit={k: getattr(cfg.fit, k) for k in cfg.fit.__dataclass_fields__},
+        expression_from="the expression reader (anima.facemodel.reader)" if reader is not None else "the fit",
         smoothing={"filter": "gaussian", "sigma_frames": cfg.smooth_sigma},
         keyframes=np.flatnonzero(found)[key].tolist(),
         identity_from=(
@@ -254,6 +273,22 @@ def fit_landmark_sequence(
         expr_names=list(model.expr_names),
         meta=meta,
     )
+
+
+def landmark_offsets_of(seq: TrackedSequence) -> np.ndarray:
+    """A captured sequence's landmark offsets ``[F, 478, 3]`` as the expression reader reads them
+    (:func:`anima.facemodel.reader.landmark_offsets`): each seen frame's landmarks posed by that frame's own fit
+    (with the sequence's identity, as capture and ``anima live`` pose them) into the face model's space, less the
+    identity's neutral shape; NaN where no face was seen."""
+    cfg = CaptureConfig()
+    basis = LandmarkBasis.build(load_face_model(), load_correspondence(), cfg.fit.use_iris)
+    found = seq.tracked
+    D = np.full((seq.n_frames, 478, 3), np.nan)
+    if found.any():
+        P = mediapipe_to_camera(np.asarray(seq.landmarks, np.float64)[found][:, basis.index], seq.width, seq.height)
+        fit = fit_frames(P, basis, seq.identity, cfg.fit)
+        D[found] = landmark_offsets(to_model_space(P, fit.scale, fit.R, fit.t), basis.index, basis.shape(seq.identity))
+    return D
 
 
 _EYES = ((159, 145, 33, 133), (386, 374, 362, 263))  # MediaPipe: (upper lid, lower lid, corner, corner) of each eye

@@ -39,7 +39,7 @@ from anima.core.occlusion import hand_over_face
 from anima.export.avatar import OnCharacter, body_of, render_avatar_preview, write_avatar, write_speech
 from anima.export.formats import export_arkit_csv, export_bvh, export_glb
 from anima.facemodel.character import BUILDS
-from anima.facemodel.neutral import presented
+from anima.facemodel.neutral import MAX_REST, presented
 from anima.io.atomic import write_json
 from anima.io.outdir import OutputFolder
 from anima.io.sequence import TrackedSequence, write_sequence
@@ -120,7 +120,7 @@ def write_motion_outputs(
                 how = "anima.facemodel.neutral: each channel's " + (
                     f"median over the rest clip {ref} (--neutral)"
                     if ref
-                    else "10th percentile over the clip (at most 0.35)"
+                    else f"10th percentile over the clip (at most {MAX_REST})"
                 )
                 info["rest_face"] = {"channels": rest, "how": how + ", taken out of every animation"}
             covered = hand_over_face(seq) & seq.tracked

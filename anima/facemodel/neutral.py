@@ -43,7 +43,11 @@ FADE_S = 0.25
 """Where the face is lost, the animation eases from the last seen face to the rest face over this long, and back
 from the rest face to the next seen one (a short drop-out never reaches the rest: it holds)."""
 REST_PERCENTILE = 10.0
-MAX_REST = 0.35
+MAX_REST = 0.15
+"""What a clip's own rest can take out of a channel. With the expression reader (:mod:`anima.facemodel.reader`)
+no development clip's rest came near it (CREMA-D's six takes and MEAD's six read the same with 0.35 and 0.15, and
+0.08 cut into the disgusted take), so a clip-long expression keeps all of itself above it (0.35 before the reader,
+when the fit read up to 0.36 on a neutral face)."""
 MIN_SECONDS = 2.0
 
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from anima.capture.body import assemble_frame, assemble_legs
 from anima.capture.config import CaptureConfig
-from anima.capture.fit import LandmarkBasis, choose_keyframes, fit_frames, fit_identity
+from anima.capture.fit import LandmarkBasis, choose_keyframes, fit_frames, fit_identity, read_expression
 from anima.core import rig
 from anima.core.camera import mediapipe_to_camera
 from anima.core.contract import JOINT_NAMES, LEG_JOINTS, N_EXPR, N_JOINTS
@@ -26,6 +26,7 @@ from anima.export.retarget import LiveRetarget
 from anima.facemodel.character import load_character, to_arkit
 from anima.facemodel.correspondence import load_correspondence
 from anima.facemodel.ict import load_face_model
+from anima.facemodel.reader import load_reader
 from anima.live.config import TRACKERS
 from anima.live.sources import PacedReader
 from anima.live.take import LiveFrame
@@ -45,6 +46,7 @@ class LiveTracker:
         self.face_only = face_only
         self.fcfg = CaptureConfig().fit
         self.basis = LandmarkBasis.build(load_face_model(), load_correspondence(), self.fcfg.use_iris)
+        self.reader = load_reader() if self.fcfg.reader else None
         t = get(tracker)
         self.trackers = [t.face_mesh(static=False)] if face_only else [t.holistic() for _ in range(trackers)]
         self.warm: list[np.ndarray] = []
@@ -88,13 +90,15 @@ class LiveTracker:
                     self.identity = fit_identity(Pw[key], self.basis, self.fcfg)
                     # the warm-up faces streamed without a fit: fitted now for the recorded take
                     back = fit_frames(Pw[:-1], self.basis, self.identity, self.fcfg)
+                    read = read_expression(Pw[:-1], back, self.basis, self.identity, self.reader)
                     self.backfill = [
-                        LiveFrame(i, t, True, np.clip(back.expr[k], 0.0, 1.0), matrix_to_rotvec(back.R[k]), b, None)
+                        LiveFrame(i, t, True, np.clip(read[k], 0.0, 1.0), matrix_to_rotvec(back.R[k]), b, None)
                         for k, (i, t, b) in enumerate(self.warm_frames[:-1])
                     ]
             if self.identity is not None:
                 fit = fit_frames(P, self.basis, self.identity, self.fcfg)
-                expr, R, face = np.clip(fit.expr[0], 0.0, 1.0), fit.R[0], True
+                read = read_expression(P, fit, self.basis, self.identity, self.reader)
+                expr, R, face = np.clip(read[0], 0.0, 1.0), fit.R[0], True
                 self.rotation = matrix_to_rotvec(R)
         frame_body = body if body is not None else (self.idle if self.face_only else np.full((N_JOINTS, 3), np.nan))
         leg_dict = None
