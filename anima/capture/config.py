@@ -34,6 +34,11 @@ class FitConfig:
     (:mod:`anima.facemodel.reader`, learned on renders with known weights); off: the least-squares fit's weights."""
 
 
+FIT_FOR_DETECTORS = FitConfig(reader=False)
+"""The fit the dataset's event detectors read (``anima dataset build``, the library, their evaluations): their
+thresholds were calibrated on the least-squares fit's weights, not on the expression reader's."""
+
+
 @dataclass
 class CaptureConfig:
     smooth_sigma: float = field(default=1.0, metadata={"flag": "--sigma", "range": (0.0, 100.0)})

@@ -35,7 +35,7 @@ from tqdm import tqdm
 
 from anima import __version__
 from anima.audio.features import NoAudio, read_audio, speech_features
-from anima.capture.config import CaptureConfig
+from anima.capture.config import FIT_FOR_DETECTORS, CaptureConfig
 from anima.capture.pipeline import Tracked, capture_video, join_chunks, track_holistic_range
 from anima.core.contract import BODY_DIM, FACE_DIM, GESTURE_FPS, SPEECH_DIM, TEXT_FPS
 from anima.dataset import ray_guard, splits
@@ -164,7 +164,7 @@ def video_payload(
     audio = paired_audio(path)
     seq = capture_video(
         path,
-        CaptureConfig(max_frames=cfg.max_frames),
+        CaptureConfig(max_frames=cfg.max_frames, fit=FIT_FOR_DETECTORS),
         audio=str(audio),
         progress=False,
         on_progress=on_progress,

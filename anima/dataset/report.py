@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.capture.config import CaptureConfig
+from anima.capture.config import FIT_FOR_DETECTORS, CaptureConfig
 from anima.capture.pipeline import capture_video
 from anima.dataset.storage import check_dataset, read_table
 from anima.dataset.windows import clip_events
@@ -86,7 +86,7 @@ def contact_sheet(source: str, start_s: float, end_s: float, path: Path, n: int 
     a, b = int(start_s * info.fps), min(int(end_s * info.fps), len(frames))
     if b - a < 2:
         return False
-    seq = capture_video(source, CaptureConfig(face_only=True, max_frames=b), progress=False)
+    seq = capture_video(source, CaptureConfig(face_only=True, max_frames=b, fit=FIT_FOR_DETECTORS), progress=False)
     mesh = SequenceMesh(seq)
     tiles = []
     for f in np.linspace(a, b - 1, n).astype(int):

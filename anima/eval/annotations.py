@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from anima.capture.config import CaptureConfig
+from anima.capture.config import FIT_FOR_DETECTORS, CaptureConfig
 from anima.capture.pipeline import capture_video
 from anima.core.events import BLINK, FROWN, MOUTH_OPEN, NOD, RAISE_BROWS, SHAKE_HEAD, SMILE, SQUINT, TALK, TURN, YAWN
 from anima.dataset.attributes import ATTRIBUTES, detect, frame_mask
@@ -47,7 +47,7 @@ def _ranges_mask(ranges, n):
 def capture_labelled(lab: dict, sigma: float | None = None):
     """A labelled clip captured as the dataset captures it (face only; ``sigma``: the smoothing, default the
     capture's)."""
-    cfg = CaptureConfig(face_only=True, max_frames=lab.get("frames"))
+    cfg = CaptureConfig(face_only=True, max_frames=lab.get("frames"), fit=FIT_FOR_DETECTORS)
     if sigma is not None:
         cfg = dataclasses.replace(cfg, smooth_sigma=sigma)
     return capture_video(str(asset(lab["clip"])), cfg, progress=False)
@@ -307,7 +307,9 @@ def talk_on_speech(cfg: DetectorConfig | None = None, clips=None, seconds: float
         wav = p.parent.parent / "wav" / f"{p.stem}.wav"
         seq = capture_video(
             str(p),
-            CaptureConfig(face_only=True, max_frames=int(seconds * 30)),  # the StyleTalk clips are 30 fps
+            CaptureConfig(
+                face_only=True, max_frames=int(seconds * 30), fit=FIT_FOR_DETECTORS
+            ),  # the StyleTalk clips are 30 fps
             audio=str(wav if wav.is_file() else p),
             progress=False,
         )
@@ -364,7 +366,7 @@ def capture_emotion_checks() -> dict:
     the same speaker's neutral clip, every check listed; the neutral clip's smile; and, for the brow checks,
     the tracker's inner-brow height (:func:`inner_brow_height`), which shows whether a failed brow check is
     the fit's or already in MediaPipe's landmarks."""
-    cap = CaptureConfig(face_only=True)
+    cap = CaptureConfig(face_only=True, fit=FIT_FOR_DETECTORS)
     neutral = capture_video(str(asset(CREMA_D_CLIPS.format("NEU"))), cap, progress=False)
     rows, brows = [], []
     for code, (emo, stems) in EMOTION_WEIGHTS.items():

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from anima.capture.config import CaptureConfig
+from anima.capture.config import FIT_FOR_DETECTORS, CaptureConfig
 from anima.capture.fit import LandmarkBasis
 from anima.capture.pipeline import fit_landmark_sequence, track_landmarks
 from anima.core.camera import camera_to_image, mediapipe_to_camera
@@ -70,7 +70,9 @@ def stability_of_clip(path: str, max_frames: int | None = 300, sigmas=None) -> d
     basis = LandmarkBasis.build(load_face_model(), load_correspondence())
     found = np.isfinite(lm).all(axis=(1, 2))
     raw = camera_to_image(mediapipe_to_camera(lm[:, basis.index], info.width, info.height))
-    seq_u = fit_landmark_sequence(lm, info.width, info.height, info.fps, CaptureConfig(smooth_sigma=0.0))
+    seq_u = fit_landmark_sequence(
+        lm, info.width, info.height, info.fps, CaptureConfig(smooth_sigma=0.0, fit=FIT_FOR_DETECTORS)
+    )
     i33, i263 = basis.outer_eyes
     iod = np.linalg.norm(raw[:, i33] - raw[:, i263], axis=-1)
     sel = np.flatnonzero(found)
@@ -79,7 +81,9 @@ def stability_of_clip(path: str, max_frames: int | None = 300, sigmas=None) -> d
     default = CaptureConfig().smooth_sigma
     per = {}
     for sg in sorted(set(sigmas or ()) | {default}):
-        seq_s = fit_landmark_sequence(lm, info.width, info.height, info.fps, CaptureConfig(smooth_sigma=sg))
+        seq_s = fit_landmark_sequence(
+            lm, info.width, info.height, info.fps, CaptureConfig(smooth_sigma=sg, fit=FIT_FOR_DETECTORS)
+        )
         acc_fit = mean_acceleration(fitted_landmarks_2d(seq_s, basis)[sel], iod[sel])
         err_s = float(np.nanmean(seq_s.fit_error_px))
         per[str(sg)] = {"acc_reduction": 1 - acc_fit / acc_raw, "error_ratio": err_s / err_u, "acc_fit": acc_fit}

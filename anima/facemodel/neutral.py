@@ -78,12 +78,12 @@ def reference_rest(expression: np.ndarray, names: list[str], tracked: np.ndarray
     return out
 
 
-MAX_NEUTRAL = 0.45
+MAX_NEUTRAL = 0.25
 """A ``--neutral`` take whose face holds a :data:`REST_CHANNELS` channel at or over this (its median) is not at
-rest, and is refused. A face at rest still reads some of them (the identity basis cannot hold every face's shape):
-CREMA-D actor 1001's neutral take reads up to 0.36 (mouthStretch_R, browDown_L); the same actor's happy take
-0.54 (mouthSmile_R) and disgusted take 0.59 (browDown_L), which are refused; his angry, sad and fearful takes
-(up to 0.45) are not told apart from a rest this way. Chosen on those six takes (development)."""
+rest, and is refused. As the expression reader reads them, CREMA-D actor 1001's neutral take holds up to 0.18
+(browDown_L), his angry, sad and fearful takes up to 0.23 (not told apart from a rest this way), his disgusted take
+0.28 (browDown_L) and his happy take 0.41 (mouthSmile_R), which are refused. Chosen on those six takes
+(development)."""
 
 
 def not_neutral(rest: dict[str, float]) -> list[tuple[str, float]]:
