@@ -11,6 +11,9 @@ from anima.capture.fit import _box_qp_gauss_seidel
 from anima.cli.main import _interrupted
 from anima.live.tracker import StopOnSignal
 
+# a test run started as a background job inherits SIGINT ignored (the shell's rule for such jobs): take it back
+signal.signal(signal.SIGINT, signal.default_int_handler)
+
 F, n = 2000, 53
 rng = np.random.default_rng(0)
 A = rng.normal(size=(n, n))
