@@ -1,4 +1,4 @@
-"""The blink rule of issue 16: the absolute eyeBlink level (before) against eyeBlink above its own running
+"""The blink rule: the absolute eyeBlink level (before) against eyeBlink above its own running
 median (now), on the clips labelled by watching frames. The window and level grid is scored on every labelled
 clip but the held-out one (the development clips: where the shipped 1.0 s / 0.2 was chosen), and the shipped
 rule and the old one are then scored on the held-out clip alone. Event-level precision and recall, the

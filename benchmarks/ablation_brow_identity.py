@@ -1,4 +1,4 @@
-"""Is the missed brow of issue 19 (item 5) the fit's identity/expression split? On CREMA-D actor 1001's six
+"""Is the missed brow the fit's identity/expression split? On CREMA-D actor 1001's six
 clips, the capture's brow and mouth weights (clip means) with the per-clip identity at several identity
 regularisations (``lam_id``; the default is 2), and with the neutral clip's identity imposed on every clip
 (the same face for all six, so no constant expression can hide in a clip's identity). Also each clip's

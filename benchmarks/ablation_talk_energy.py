@@ -1,4 +1,4 @@
-"""Talk's jaw motion (issue 50 item 5): the talk track tiled from every talk segment as captured (before) against
+"""Talk's jaw motion: the talk track tiled from every talk segment as captured (before) against
 the livelier half scaled up to ``TALK_JAW_STD`` (now), side by side in one run, on the built-in library and on a
 dataset (``--db``). Per library: jawOpen's standard deviation of 3-s talk tracks over ``--seeds`` seeds (mean
 and lowest). Writes benchmarks/results/talk_energy.json.

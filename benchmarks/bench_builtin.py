@@ -1,10 +1,10 @@
-"""Cold start with no dataset (issue 37): `anima text2face PROMPT` and `anima gesture SPEECH` on the built-in
+"""Cold start with no dataset: `anima text2face PROMPT` and `anima gesture SPEECH` on the built-in
 motion library, each in a fresh process (the way a user runs them), without and with the videos (side by
 side in one run: the difference is the render's cost). Writes benchmarks/results/builtin.json.
 
     python benchmarks/bench_builtin.py [--repeats 5]
 
-Target (issue 37): under 3 s each, cold, on 2 cores.
+Target: under 3 s each, cold, on 2 cores.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""60 s of gestures from a cold command (issue 21): ``anima gesture SPEECH --db DATASET`` with its video
+"""60 s of gestures from a cold command: ``anima gesture SPEECH --db DATASET`` with its video
 (``avatar.mp4``) and with ``--no-render``, each a fresh process as a user runs it, interleaved ``repeats``
 times so machine noise hits both alike. Per run: the wall time around the process (start-up and exit
 included) and the command's own split (``time_s`` of ``--json``: start, load, speech, search, post, write,
@@ -77,7 +77,7 @@ def main() -> None:
         "with_video": summary(video) | {"runs": video},
         "no_render": summary(no_video) | {"runs": no_video},
         "avatar_video": {"width": v.width, "height": v.height, "frames": v.n_frames, "fps": v.fps},
-        "target": "with the video under 3 s end to end, the search under 1 s (issue 21)",
+        "target": "with the video under 3 s end to end, the search under 1 s",
         "cpu_count": os.cpu_count(),
         "machine": platform.machine(),
     }

@@ -1,4 +1,4 @@
-"""``anima live`` in real time on 2 cores (issue 36): real clips fed as a camera (``--realtime --loop``), the
+"""``anima live`` in real time on 2 cores: real clips fed as a camera (``--realtime --loop``), the
 page open in headless Chromium (software WebGL, on the same 2 cores). Per mode (face only on a 30-fps clip;
 face + body + hands on a 25-fps clip): frames offered, tracked and dropped, the tracking rate, the latency from
 a frame's arrival to its message (process) and to the page's receipt (glass to avatar, from the page's own
@@ -12,7 +12,7 @@ receipt times), and the process's memory over the run.
 
 Writes benchmarks/results/live.json. Targets: >= 95 % of offered frames tracked, latency median <= 100 ms and
 p95 <= 150 ms, memory growth < 10 %. ``full_vmc`` is ``full`` with ``--vmc`` to a python-osc receiver on
-127.0.0.1 (issue 49: the tracking rate unchanged with it, >= 20 bundles a second arriving); ``full_vmc_no_page``
+127.0.0.1 (the tracking rate unchanged with it, >= 20 bundles a second arriving); ``full_vmc_no_page``
 the same with anima's page not open (a VTuber app draws the avatar from the VMC stream), and ``full_no_page``
 its like without ``--vmc``. ``--repeats N`` runs the modes interleaved N times (A B A B ...: a noisy machine's
 drift falls on every mode alike) and adds, per mode, the median of its runs, and the ratio of each ``*vmc*``

@@ -153,7 +153,7 @@ def main() -> None:
         ["export", "bvh", seq_big, "--out", d / "x.bvh", "--fps", "1000000"],
         "160 frames, --fps 1e6 (refused)",
     )
-    # the red team's cases (issue 32): each must stay near the small input's row, refused before allocating
+    # the red team's cases: each must stay near the small input's row, refused before allocating
     slow = d / "slow.npz"
     with np.load(seq_small) as z:
         arrays = {k: z[k] for k in z.files}
@@ -187,7 +187,7 @@ def main() -> None:
         ["dataset", "build", d0, "--out", d / "ds", "--annotations", big],
         "300 MB annotation file (refused by size)",
     )
-    # avatar bombs (issue 45): node counts bounded, walks linear, the retarget's work on the humanoid's nodes only
+    # avatar bombs: node counts bounded, walks linear, the retarget's work on the humanoid's nodes only
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
     import hostile_avatars
 

@@ -2,7 +2,7 @@
 decode and encode: MediaPipe face tracking, per-frame fit (identity fixed from the first frames), texture
 synthesis (n = 100 nearest, adaptive sigma, weighted median), geometry, rasterization and Laplacian blend.
 In the same run: the texture stage with the literal Listing 1 weighted median as the reference (ratio), the
-whole loop on the region before issue 21 (all 11,421 vertices, no colour transfer) beside the default
+whole loop on the old region (all 11,421 vertices, no colour transfer) beside the default
 (visible vertices only, colour transfer on), and the live loop's engine (``anima reenact --live``): the
 actor tracked one frame ahead on a worker thread (:class:`ActorTracker` through :func:`ahead`) while the
 main thread re-enacts, timed as frames over wall time on the same frames, unpaced.
@@ -179,7 +179,7 @@ def main() -> None:
         "all_vertices_no_transfer": before,
         "fps_ratio_default_vs_all_vertices": now["fps"] / before["fps"],
         "pipelined_over_sequential": now["pipelined_fps_median"] / now["fps"],
-        "target": {"fps": ">= 60 end to end excluding decode/encode (issue 21)"},
+        "target": {"fps": ">= 60 end to end excluding decode/encode"},
         "seed_table_4_9": "160 ms/frame on a laptop GPU (face detection, feature extraction, texture, render, blend)",
     }
     write_json(a.out, res)

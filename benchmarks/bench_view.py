@@ -5,8 +5,8 @@ playing, for a 1-minute capture beside a 3-second one (same run, so the ratio is
     python benchmarks/bench_view.py            # captures both clips first (~3 min)
     python benchmarks/bench_view.py --long DIR --short DIR
 
-Writes benchmarks/results/view.json and prints a table. Target (issue 18): the 1-minute capture interactive
-within 2 s and drawn at the clip's frame rate; issue 48's face close-up measured against the page without it
+Writes benchmarks/results/view.json and prints a table. Target: the 1-minute capture interactive
+within 2 s and drawn at the clip's frame rate; the face close-up measured against the page without it
 (``#noface``), loaded in turns.
 """
 

@@ -1,4 +1,4 @@
-"""Does reading blinks from the landmarks' lid opening help the dataset's detectors? (issue 48) The shipped
+"""Does reading blinks from the landmarks' lid opening help the dataset's detectors? The shipped
 detectors on the labelled clips of the train and validation splits (never test), each captured as the dataset
 captures it, with the fit's eyeBlink raised to the landmarks' lid opening (``anima.capture.pipeline.
 with_seen_blinks``, shipped) and without it; event-level F1 per attribute pooled over the clips.

@@ -1,4 +1,4 @@
-"""The character's proportions on every shared gesture clip (issue 34): each clip captured (body and hands,
+"""The character's proportions on every shared gesture clip: each clip captured (body and hands,
 the first ``--frames`` frames), the character's shape fitted to its bone lengths, and per clip the captured and
 the character's arm (shoulder to elbow to wrist, sides averaged), the error in %, the other measures' errors,
 the character's height.

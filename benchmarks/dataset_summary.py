@@ -1,4 +1,4 @@
-"""A dataset build's figures as a result file, for the docs (issue 38: numbers generated, not typed): videos,
+"""A dataset build's figures as a result file, for the docs (numbers generated, not typed): videos,
 clips and what removed them, windows, the split by source, frames, seconds and the build's wall time, read
 from the build's manifest (no paths of the machine that built it).
 

@@ -1,4 +1,4 @@
-"""How many descriptions a dataset build gives each clip (issue 37): for every (text, motion) clip of a dataset,
+"""How many descriptions a dataset build gives each clip: for every (text, motion) clip of a dataset,
 the descriptions `anima dataset build` makes from its events (`anima.dataset.describe.fitting_descriptions`,
 the build's own call), counted: distinct ones, tokens (the encoder's window is 256), repeated phrases, and
 which templates. Writes benchmarks/results/descriptions.json.

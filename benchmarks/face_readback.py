@@ -1,4 +1,4 @@
-"""Does the character's face read as the person's? (issue 48) The character's face is rendered close up, frame
+"""Does the character's face read as the person's? The character's face is rendered close up, frame
 by frame, and read back by a face tracker; so is the source video; the two are compared.
 
     python benchmarks/face_readback.py      # writes benchmarks/results/face_readback.json (about 10 minutes)
@@ -60,7 +60,7 @@ of the face at 384 x 384 (:func:`anima.export.avatar.face_camera`), coloured
 (:func:`anima.facemodel.character.vertex_colors`), its eyes drawn anti-aliased
 (:func:`anima.render.avatar.draw_close_up`). **The ceiling**: the fitted ICT face itself (the person's identity and
 the fitted expression, no head turn), rendered the same way in one colour, anti-aliased throughout. **The
-baseline**: the character's weights copied by name (no transfer, no rest face), as before issue 48;
+baseline**: the character's weights copied by name (no transfer, no rest face), as before the transfer;
 ``lids_by_transfer``, ``lips_by_transfer`` and ``brows_by_transfer``: the character with its lids, its lips or its
 brows by the transfer alone (not set from the landmarks).
 

@@ -1,5 +1,5 @@
 """How reproducible is the §4.4 generator's training, and how far does a float-level change of its input move
-it (issue 46: two runs of ``anima eval all`` at code whose gesture training is the same gave different generator
+it (two runs of ``anima eval all`` at code whose gesture training is the same gave different generator
 rows, while the k-NN, control and cGAN rows were equal)? On the training split only: every third training video
 with body windows is an inner validation, the rest trains. Trains the generator (``--kind``) with seed 0 twice,
 with seed 0 on face weights moved by one float32 ulp (``np.nextafter``, every value: what a dataset built on

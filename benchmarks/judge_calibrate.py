@@ -1,6 +1,6 @@
 """Fit the independent judge's thresholds (`anima.eval.text2face.judge.JudgeConfig`) on real video with human labels,
-never on generated output (issue 38, item 5), and only on the clips of the training and validation splits (issue
-52, item 2: the test clips choose nothing; their scores with the chosen values are reported apart). Every such
+never on generated output, and only on the clips of the training and validation splits (the test
+clips choose nothing; their scores with the chosen values are reported apart). Every such
 labelled clip of `anima/eval/labels/attributes` is read in two domains:
 
 * **round trip** (the one the judge is used in): the clip is captured (`anima capture --face-only`), its

@@ -1,4 +1,4 @@
-"""Does ``anima capture --neutral`` keep a clip-long expression? (issue 48)
+"""Does ``anima capture --neutral`` keep a clip-long expression?
 
     python benchmarks/neutral_reference.py    # writes benchmarks/results/neutral_reference.json (about a minute)
 

@@ -1,5 +1,5 @@
-"""The re-enactment's mouth detail and n (issue 21 item 2), chosen on a validation clip and reported on the test
-clip, as a result file for the docs (issue 38: numbers generated, not typed): self-re-enactment, method 1,
+"""The re-enactment's mouth detail and n, chosen on a validation clip and reported on the test
+clip, as a result file for the docs (numbers generated, not typed): self-re-enactment, method 1,
 every (n, detail) of the grid on Obama clip 2, then the seed's setting and the chosen one on Obama clip 1.
 
     python benchmarks/reenact_sharpness.py [--out benchmarks/results/reenact_sharpness.json]   # ~20 min, 2 cores

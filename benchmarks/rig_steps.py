@@ -1,6 +1,6 @@
 """The largest frame-to-frame turn of any bone direction of the character (`anima.core.rig`), on PATS clips the
 finger and hand snap rules were not chosen on (their thresholds were set looking at oliver1, seth3, noah1 and
-chem1): the issue-35 target is no bone turning more than 45 degrees between frames.
+chem1): the target is no bone turning more than 45 degrees between frames.
 
     python benchmarks/rig_steps.py [--clips chem2,noah2,oliver2,seth1] [--frames 150]
 

@@ -1,4 +1,4 @@
-"""Doc tables are generated from result JSON (issue 38): every ``<!-- results: ... -->`` block in docs/ and the
+"""Doc tables are generated from result JSON: every ``<!-- results: ... -->`` block in docs/ and the
 README equals what ``tools/doc_tables.py`` renders from its JSON file, and the tool notices a hand edit."""
 
 import importlib.util
@@ -128,7 +128,7 @@ def test_a_range_in_the_prose_is_reduced_from_every_row_of_a_result(tmp_path):
 
 
 def test_no_result_is_typed_in_the_docs():
-    """Issue 52: outside generated blocks and values every number that reads as a result is listed as a setting,
+    """Outside generated blocks and values every number that reads as a result is listed as a setting,
     a criterion or a quotation (``TYPED_OK``, each with why); none is typed."""
     tool = _tool()
     assert [t for d in tool.documents() for t in tool.typed_results(d)] == []
@@ -164,7 +164,7 @@ EVAL_ALL = "benchmarks/results/eval_all/results.json"
 
 
 def test_the_docs_render_every_evaluation_number_from_the_one_run():
-    """Issue 52: `anima eval all`'s results.json is the one evaluation result the docs render from: every block and
+    """`anima eval all`'s results.json is the one evaluation result the docs render from: every block and
     inline number that names a file under benchmarks/results/eval_all/ names that one file, the folder holds only
     it and its summary, and the run is complete, every registered row ok, on a clean commit."""
     import json

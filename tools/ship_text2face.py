@@ -1,4 +1,4 @@
-"""Ship the text2face checkpoint at the step count the validation windows choose (issue 52 item 6).
+"""Ship the text2face checkpoint at the step count the validation windows choose.
 
     python tools/ship_text2face.py DATASET [--work W]
 

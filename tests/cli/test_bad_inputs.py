@@ -320,7 +320,7 @@ OWNERSHIP = (
 
 
 def _red_team(d: Path, files: dict, npz: dict, base: Path, ck: dict, ds: dict) -> list[tuple[str, list]]:
-    """The outside red team's cases (issue 32): outputs at a user's folder, at an input, beside an input, at a
+    """The outside red team's cases: outputs at a user's folder, at an input, beside an input, at a
     special file; memory bombs; NaN; and what used to end in an internal error."""
     from anima.io.video import FFMPEG
 
@@ -559,7 +559,7 @@ def _red_team(d: Path, files: dict, npz: dict, base: Path, ck: dict, ds: dict) -
 
 
 def _results(d: Path, base: Path) -> Path:
-    """A user's results made by anima (issue 45): a capture result holding a nested text2face result and a
+    """A user's results made by anima: a capture result holding a nested text2face result and a
     dataset folder, each with anima's marker and manifest."""
     from anima.export.formats import export_file
     from anima.io.atomic import write_json
@@ -579,7 +579,7 @@ def _results(d: Path, base: Path) -> Path:
 
 
 def _second_pass(d: Path, base: Path, user: Path, inputs: Path, clip: Path, target: str) -> list:
-    """Issue 45's reproducers: an output equal to, inside or around an input; single files of the user's (with
+    """Reproducers: an output equal to, inside or around an input; single files of the user's (with
     the format's suffix, or not); a take into an existing result; hostile avatars and node bombs; addresses and
     frame rates of the wrong type; a crafted part of a take."""
     import sys
@@ -1067,7 +1067,7 @@ def _snapshot(d: Path) -> dict:
 
 def test_red_team_outputs_touch_no_user_file(results):
     """--out at a user's folder, at the folder holding the inputs, at an input, at a special file: refused for
-    that reason, and every user file and special file is as it was (issue 32)."""
+    that reason, and every user file and special file is as it was."""
     own = [(n, r) for n, _, r in results if n.startswith("own ")]
     assert len(own) >= 30
     wrong = [f"{n}: {r['stderr'][-200:]!r}" for n, r in own if not any(w in r["stderr"] for w in OWNERSHIP)]

@@ -123,7 +123,7 @@ def test_audio_features_command(tmp_path, cli):
         assert z["features"].shape == (s["frames"], 28) and np.isfinite(z["features"]).all()
     r = cli("audio", "features", asset("liveportrait-examples/assets/examples/driving/d0.mp4"), "--out", out)
     assert r.returncode == 2 and "no audio track" in r.stderr
-    # the output's suffix is the format's (issue 45): another name is refused and nothing is written
+    # the output's suffix is the format's: another name is refused and nothing is written
     r = cli("audio", "features", asset("videoretalking-examples/examples/audio/1.wav"), "--out", tmp_path / "x.dat")
     assert r.returncode == 2 and "expected a .npz file" in r.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f.npz"]
@@ -150,7 +150,7 @@ def test_capture_body_outputs_and_bvh_export(tmp_path, cli):
         assert (out / name).stat().st_size > 1000, name
     info = probe_video(out / "avatar.mp4")
     assert info.has_audio and info.n_frames == 30
-    run = json.loads((out / "info.json").read_text())  # issue 34: the BVH line agrees with the manifest
+    run = json.loads((out / "info.json").read_text())  # the BVH line agrees with the manifest
     assert run["bvh"] == "written" and "body.bvh" in json.loads((out / "manifest.json").read_text())["files"]
     r = cli("export", "bvh", out / "capture.npz", "--out", tmp_path / "g.bvh", "--fps", "15")
     assert r.returncode == 0, r.stderr
@@ -213,8 +213,8 @@ def test_bad_audio_keeps_motion(videos, tmp_path, d0_path, cli):
 
 def test_exports_replace_only_files_anima_wrote(tmp_path, cli):
     """Each export format writes its own suffix; run twice into the same path, the second run replaces the
-    first's file (anima's, by its content); a user's file of that name and suffix is never replaced (issue 45;
-    the refusals are in the bad-input matrix)."""
+    first's file (anima's, by its content); a user's file of that name and suffix is never replaced (the
+    refusals are in the bad-input matrix)."""
     import numpy as np
 
     from anima.export.framing import generated_sequence

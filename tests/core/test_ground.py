@@ -1,4 +1,4 @@
-"""The character in the world (issue 47): a floor, feet that plant, a spine that leans only as far as the
+"""The character in the world: a floor, feet that plant, a spine that leans only as far as the
 evidence goes, hands put on the body where the picture shows them there, steps any body makes. The maths on
 constructed cases; the behaviour on real clips of the shared data, measured with checks of their own (contacts
 from the source picture, distances to the skinned mesh), not with the code that chose the output."""

@@ -1,4 +1,4 @@
-"""A dataset build on a real two-node Ray cluster survives losing a node (issue 33): a head and a second node,
+"""A dataset build on a real two-node Ray cluster survives losing a node: a head and a second node,
 each started with ``ray start`` (token authentication, the nodes' own processes found and stopped by process
 id, never a broad kill), ``anima dataset build --address``, the second node killed with SIGKILL while it works on
 a video. The build finishes with every video, the output of a one-node build, and says which node made what."""

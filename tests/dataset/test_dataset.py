@@ -247,7 +247,7 @@ def test_a_long_video_is_tracked_in_chunks_and_cut_as_one(tmp_path, cli):
     rest = np.delete(d[:75], blinks, axis=1)
     assert rest.max() < 1e-3, (rest.max(), np.unravel_index(np.argmax(rest), rest.shape))
     # the blinks also by the lids' opening over the clip's open eye (its 90th percentile over every frame,
-    # later chunks' landmarks included: issue 48)
+    # later chunks' landmarks included)
     assert d[:75, blinks].max() < 5e-3, d[:75, blinks].max()
     assert d.mean() < 0.02 * np.abs(x).mean() and d.max() < 0.05, (d.mean(), d.max())
     a, b = shard(whole, "audio_motion"), shard(chunked, "audio_motion")

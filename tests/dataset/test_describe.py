@@ -99,7 +99,7 @@ def test_emotion_clips_are_named_by_their_emotion():
 
 
 def test_a_busy_clip_gets_ten_readable_descriptions_in_varied_templates():
-    """Issue 37: a busy 8-s clip (talk throughout, five blinks, a smile, a nod, raised brows) gets 10 distinct
+    """A busy 8-s clip (talk throughout, five blinks, a smile, a nod, raised brows) gets 10 distinct
     descriptions, each within the encoder's window, none repeating a phrase, in several templates (events in
     order, a summary, timed events), and each read back by the prompt parser as the clip's events in order."""
     from anima.dataset.describe import fits_encoder, fitting_descriptions

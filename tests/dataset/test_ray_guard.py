@@ -93,7 +93,7 @@ def test_killed_driver_leaves_no_ray_agents(tmp_path):
         time.sleep(0.2)
     time.sleep(3)  # Ray's agents are up
     assert _ray_processes() - before, "Ray did not start"
-    # issue 32: no Ray port of a local build (GCS, raylet, object manager, workers, agents, the driver)
+    # no Ray port of a local build (GCS, raylet, object manager, workers, agents, the driver)
     # listens beyond 127.0.0.1
     sockets = _listening([p.pid, *descendants(p.pid)])
     assert len(sockets) >= 3, sockets

@@ -1,4 +1,4 @@
-"""Splits by source, independent of where the data sits (issue 38): the same videos under two folders get the
+"""Splits by source, independent of where the data sits: the same videos under two folders get the
 same splits; on the shared data no source or recording sits on two sides, and the test side is large enough."""
 
 import collections
@@ -67,7 +67,7 @@ def test_no_source_or_recording_on_two_sides_of_the_shared_data_and_a_test_side_
     assert all(r["group"] == r["source"] for r in t.values()), [r for r in t.values() if r["group"] != r["source"]]
     assert all(splits.split_for(p) == r["split"] for p, r in t.items())
     # the cases an audit found on two sides: one CREMA-D actor, Obama in two corpora, one StyleTalk recording,
-    # one interview re-cropped in another corpus (issue 52)
+    # one interview re-cropped in another corpus
     by = {r["key_path"]: r for r in t.values()}
     for group in (
         ["emotion-clips/crema-d/1001_DFA_ANG_XX.flv", "emotion-clips/crema-d/1001_DFA_SAD_XX.flv"],
@@ -86,7 +86,7 @@ def test_no_source_or_recording_on_two_sides_of_the_shared_data_and_a_test_side_
 
 
 def test_one_recording_under_two_names_is_found_by_its_face_crops(tmp_path):
-    """Issue 52: an interview and its re-cropped copy in another corpus (the audit's pair), renamed and moved
+    """An interview and its re-cropped copy in another corpus (the audit's pair), renamed and moved
     outside any data root so no declared rule or file hash can tie them: the face crops group them, the row
     says why and the build's report says so; another speaker stays apart."""
     from anima.dataset.build import content_groups

@@ -46,7 +46,7 @@ def test_eval_annotations_is_out_of_sample():
     pairs = [(capture_labelled(labs[n]), labs[n]) for n in ("d0", "tpsmm_driving")]
     chosen = choose_thresholds(pairs[1:], DetectorConfig())  # d0's smile is not among these labels
     assert chosen["smile_on"] == DetectorConfig().smile_on
-    # chosen from declared grids, not around the shipped values (issue 38)
+    # chosen from declared grids, not around the shipped values
     from anima.eval.annotations import GRIDS
 
     for f in r["folds"]:
@@ -60,7 +60,7 @@ def test_eval_annotations_is_out_of_sample():
     brows = {b["emotion"]: b for b in emo["landmark_inner_brow_height_iod"]}  # the tracker's own brow evidence
     assert brows["fearful"]["raised"] and brows["fearful"]["clip"] > brows["fearful"]["neutral"] + 0.01
 
-    cal = r["calibration"]  # issue 52: the shipped thresholds come from training/validation clips only
+    cal = r["calibration"]  # the shipped thresholds come from training/validation clips only
     from anima.dataset.splits import split_for
     from anima.io.assets import asset
 
@@ -78,7 +78,7 @@ def test_eval_annotations_is_out_of_sample():
 def test_blink_is_measured_against_the_lids_own_rest():
     """CREMA-D's neutral sentence: one blink (frames 8-10, watched) over open lids that read about 0.2. The
     relative rule finds it and nothing else. The fit alone peaked just under 0.5 there (the old absolute rule,
-    0.5, missed it); since issue 48 the lids' opening in the landmarks lifts the blink (with_seen_blinks), so the
+    0.5, missed it); now the lids' opening in the landmarks lifts the blink (with_seen_blinks), so the
     absolute rule finds it too, and marks at least as many frames outside it as the relative rule."""
     from anima.dataset.config import DetectorConfig
 

@@ -1,4 +1,4 @@
-"""Issue 38 item 5: the independent judge reads generated faces back through a rendering and MediaPipe, with
+"""The independent judge reads generated faces back through a rendering and MediaPipe, with
 thresholds fitted on labelled real video, sharing no code with the dataset's detectors."""
 
 import ast
@@ -19,7 +19,7 @@ def _imports(module) -> set:
 
 
 def test_the_judge_shares_no_code_with_the_dataset_detectors_nor_the_previews():
-    """Issue 52 item 4: not the detectors, not the generator, not anima's face tracker, and a render by its own
+    """The judge uses not the detectors, not the generator, not anima's face tracker, and a render by its own
     path (not ``anima.render`` / ``anima.export``, which draw the previews)."""
     from anima.eval.text2face import judge_render
 
@@ -60,7 +60,7 @@ def test_the_round_trip_reads_what_the_face_does():
         seen[prompt] = [a for a, _, _ in judge.judge_motion(m, 30.0)]
     assert seen["she blinks twice"].count("blink") == 2, seen
     assert "mouth open" in seen["he opens his mouth"], seen
-    # a nod is one bob, counted as asked, and a head nodding down is not a frown (issue 50 item 4, issue 52)
+    # a nod is one bob, counted as asked, and a head nodding down is not a frown
     assert seen["he nods twice"] == ["nod", "nod"], seen
     m, _ = compose(parse("he shakes his head twice"), lib, None, 0)  # a shake's swings are one shake
     assert [a for a, _, _ in judge.judge_motion(m, 30.0)] == ["shake head", "shake head"]
@@ -69,9 +69,9 @@ def test_the_round_trip_reads_what_the_face_does():
 
 
 def test_smiles_frowns_and_shakes_are_seen_on_the_rendered_head():
-    """Issue 37 item 4: events at full strength, as a face tracker sees them on the rendered head (these three
+    """Events at full strength, as a face tracker sees them on the rendered head (these three
     were read 0.61 / 0.00 / 0.25 by the judge before their strengths and the keyframed shake). A plain "she
-    smiles" (mouthSmile 0.7) reads just under the smile threshold of the judge's own renderer (issue 52: the
+    smiles" (mouthSmile 0.7) reads just under the smile threshold of the judge's own renderer (the
     mouth's width rises 0.15-0.17 for a few frames against 0.16), which the prompt suites' judge tables show;
     a broad smile is seen."""
     lib = Library.from_builtin()

@@ -117,7 +117,7 @@ def test_bvh_in_blender(results, kind, name, tmp_path):
 
 @pytest.mark.parametrize("kind,name", [("capture", "capture.npz"), ("gesture", "gesture.npz"), ("t2f", "motion.npz")])
 def test_avatar_is_one_skinned_human_with_its_own_timeline_in_blender(results, kind, name, tmp_path):
-    """Issue 34: a capture of a half-body clip, a gesture result and a text2face result each open in Blender as
+    """A capture of a half-body clip, a gesture result and a text2face result each open in Blender as
     one skinned human 1.5-1.95 m tall whose scene plays the whole clip at its rate; its joints are where anima
     put them and its 52 face shape keys (ARKit's) carry the weights; a workbench render from the front shows a standing
     person (a tall silhouette with a head on top and two legs at the bottom)."""
@@ -135,7 +135,7 @@ def test_avatar_is_one_skinned_human_with_its_own_timeline_in_blender(results, k
     for f in picks:
         np.testing.assert_allclose(np.array(got["pose_heads"][str(f)]), _blender_from_yup(P[f]), atol=1e-3)
     assert got["shape_keys"] == 53  # Basis + ARKit's 52
-    W = character_face(seq)  # the character's own weights (issue 48: by geometry, from the rest face)
+    W = character_face(seq)  # the character's own weights (by geometry, from the rest face)
     A = to_arkit(W)  # as its ARKit morphs carry them
     for f in picks:
         assert sorted(got["shape_key_values"][str(f)]) == sorted(["Basis", *ARKIT_NAMES])
@@ -190,7 +190,7 @@ def test_avatar_files_validate_and_carry_the_speech(results):
 
 
 def test_a_retargeted_avatar_in_blender(results, tmp_path):
-    """Issue 35: the capture retargeted onto a Mixamo-named A-pose character with rolled forearm axes imports
+    """The capture retargeted onto a Mixamo-named A-pose character with rolled forearm axes imports
     in Blender as one skinned human playing anima's animation: every bone's head where anima's forward
     kinematics put it, at the first, middle and last frame."""
     from anima.export.retarget import find_humanoid, run

@@ -92,7 +92,7 @@ def test_ordered_map_keeps_order_bounds_work_ahead_and_raises():
 
 
 def test_a_minute_of_motion_makes_an_avatar_of_at_most_20_mb(tmp_path):
-    """Issue 34: a 1-minute sequence at 30 fps (body and face) as avatar.glb: at most 20 MB (the mesh and the
+    """A 1-minute sequence at 30 fps (body and face) as avatar.glb: at most 20 MB (the mesh and the
     sparse morph targets are written once; the animation grows with the frames)."""
     from anima.export.avatar import write_avatar
     from anima.export.framing import generated_sequence

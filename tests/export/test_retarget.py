@@ -1,4 +1,4 @@
-"""Issue 35: anima motion on a user's own avatar. A real capture and a gesture result retargeted onto anima's
+"""anima motion on a user's own avatar. A real capture and a gesture result retargeted onto anima's
 character written as VRM and as Mixamo/Unreal-named glTF in several shapes (one in an A-pose with rolled
 forearms), onto a rig the project never saw (every bone's axes turned at random, an A-pose, facing -z, another
 name prefix) and onto the third-party VRM 1.0 sample keep the arm pose frame by frame, never jump, and keep

@@ -1,4 +1,4 @@
-"""The character's rig (issue 34): a full skeleton in a T-pose rest with exact export presets, the person's
+"""The character's rig: a full skeleton in a T-pose rest with exact export presets, the person's
 proportions chosen from the captured bone lengths, every tracked bone followed on the character's own lengths,
 legs seated or standing with the feet on the floor, and joints that come back blending in instead of snapping."""
 

@@ -1,4 +1,4 @@
-"""The VMC protocol (issue 49): anima's OSC packets read by an independent parser (python-osc), `anima vmc`
+"""The VMC protocol: anima's OSC packets read by an independent parser (python-osc), `anima vmc`
 playing a real capture at its frame rate into a receiver that checks addresses, types, Unity's bone names and
 unit quaternions, and the round trip: the received bones pose anima's character to within 1 degree of the sent
 ones."""

@@ -1,4 +1,4 @@
-"""A face that reads (issue 48): the character's head in colour (brows, lips, eyes with irises and pupils, the
+"""A face that reads: the character's head in colour (brows, lips, eyes with irises and pupils, the
 inside of the mouth), its weights chosen so that its face moves as the fitted face does
 (transfer by geometry), a captured speaker's rest face taken out of every animation, and the face close up in
 ``avatar.mp4``; read back by MediaPipe's Face Mesh (its own API) on a real clip."""
@@ -592,7 +592,7 @@ def test_skinning_is_linear_blend_skinning():
 
 
 def test_the_close_up_is_mounted_on_the_head(d0_capture):
-    """The close-up's camera rides on the head like a face-capture rig's helmet camera (issue 48): on d0, where
+    """The close-up's camera rides on the head like a face-capture rig's helmet camera: on d0, where
     the head turns and tilts, the face's still points (the nose's tip, the eyes' corners, the forehead) stay
     within half a pixel of their place in a 384-pixel close-up on every frame, so only the expression moves;
     a camera that followed only the head's yaw let them wander (the brows read against the lids moved)."""

@@ -1,4 +1,4 @@
-"""Live Link Face packets (issue 36, item 4): the layout Unreal's Live Link Face source reads, and `anima
+"""Live Link Face packets: the layout Unreal's Live Link Face source reads, and `anima
 livelink` playing a real capture into a UDP parser on 127.0.0.1 at the capture's frame rate with the values of
 its arkit.csv."""
 

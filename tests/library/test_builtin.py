@@ -1,4 +1,4 @@
-"""Issue 37: the built-in motion library. Its provenance is checked against the real shared data (every source
+"""The built-in motion library. Its provenance is checked against the real shared data (every source
 file there, with the same sha256, licensed for an MIT package, in the training split), it reads back what its
 writer wrote, and `anima text2face PROMPT` / `anima gesture SPEECH` work with no dataset."""
 

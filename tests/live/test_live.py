@@ -1,4 +1,4 @@
-"""``anima live`` (issue 36): a real clip fed as a camera drives the character in headless Chromium over the
+"""``anima live``: a real clip fed as a camera drives the character in headless Chromium over the
 WebSocket (the page's own receipt times give frames/s and glass-to-avatar latency; numbers in
 benchmarks/bench_live.py, tests check behaviour), Live Link Face packets leave at the tracking rate, and a
 recorded take matches an offline `anima capture` of the same frames."""
@@ -169,7 +169,7 @@ def test_a_users_vrm_follows_the_camera_live(tmp_path, avatar):
     retargeting of `anima retarget`, one frame at a time): its hands move with the tracked person's. The shared
     sample (a third party's VRM, its head a test quad) and anima's own VRM cut in meshes as VRoid's avatars are
     (a face mesh of two primitives with the morphs, a body mesh): that one also shows its face close up, its face
-    morphs moving with the person's (issue 48)."""
+    morphs moving with the person's."""
     from hostile_avatars import split_like_vroid
 
     from anima.export.vrm import write_character_avatar
@@ -217,8 +217,7 @@ def test_a_users_vrm_follows_the_camera_live(tmp_path, avatar):
 
 def test_a_take_never_touches_what_it_did_not_start(cli, tmp_path):
     """``--record`` into an existing result is refused up front and the result stays byte-identical; a take that
-    ends with nothing to record (no face, no body) removes its own parts and the folder it made, nothing else
-    (issue 45)."""
+    ends with nothing to record (no face, no body) removes its own parts and the folder it made, nothing else."""
     from anima.io.outdir import OutputFolder
     from anima.io.video import FFMPEG
 
@@ -241,7 +240,7 @@ def test_a_take_never_touches_what_it_did_not_start(cli, tmp_path):
 def test_live_sends_every_frame_over_vmc(tmp_path):
     """``anima live CLIP --realtime --vmc``: a full-body clip at 25 fps played as a camera; the VMC receiver
     (python-osc) gets at least 20 bundles a second, every humanoid bone with a unit quaternion, and bones and
-    blend values that move (issue 49)."""
+    blend values that move."""
     from vmc_receiver import VmcReceiver
 
     with VmcReceiver(idle_s=20) as rx:

@@ -160,7 +160,7 @@ def test_database_on_a_real_clip(obama_db, tmp_path):
 
 
 def test_self_reenactment_colours_never_read_the_truth_frames(obama_db):
-    """Issue 38 / seed 001 §4.2.1: in self-re-enactment the truth frames are kept out of the database, and the
+    """Seed 001 §4.2.1: in self-re-enactment the truth frames are kept out of the database, and the
     colour target (the target video's skin) is computed from the database's frames alone."""
     from anima.eval.reenact.run import video_skin
     from anima.reenact.database import build_database
@@ -274,7 +274,7 @@ def test_reenact_command_end_to_end(obama_db, tmp_path, cli):
     assert rec["side_by_side"] and rec["config"]["n"] == ReenactConfig().n
     from anima.io import owned
 
-    # the record names the video's sha256: a later run may replace this video, only while it is anima's (issue 45)
+    # the record names the video's sha256: a later run may replace this video, only while it is anima's
     assert owned.video(out)
     mine = tmp_path / "mine.mp4"
     mine.write_bytes(out.read_bytes() + b"\0")

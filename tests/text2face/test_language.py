@@ -1,4 +1,4 @@
-"""Issue 37: the timeline method follows plain words on the built-in library (real captured clips): every ARKit
+"""The timeline method follows plain words on the built-in library (real captured clips): every ARKit
 channel is reachable by some phrasing, winks close one eye at full strength, the rest face is neutral and
 symmetric, negation and quantities are read, gaze goes where it is told, and what cannot be made is said."""
 
@@ -77,7 +77,7 @@ def test_a_wink_closes_one_eye_at_full_strength(lib):
 
 
 def test_smiles_frowns_and_shakes_at_full_strength(lib):
-    """Issue 37 item 4: a plain smile and frown peak in their declared ranges on their own channel, and a
+    """A plain smile and frown peak in their declared ranges on their own channel, and a
     shake swings equally both ways by the declared angle, once per shake asked for (the detectors count
     each: the shakes are further apart than one shake's swings)."""
     from anima.text2face.compose import FROWN_SNEER, N_EXPR, SHAKE_RAD, STRENGTH_OF
@@ -147,7 +147,7 @@ def test_gaze_goes_where_the_words_say(lib):
 
 
 def test_verbs_of_looking_and_restricting_words(lib):
-    """Issue 50 items 1-2 (phrasings of our own, not the outsider's): the verbs and nouns English uses for a
+    """On phrasings of our own, not the outsider's: the verbs and nouns English uses for a
     short look to one side are a turn of the head to that side; a restricting word ("only", "just") keeps the
     event and its side; words that mean nothing to anima are still reported."""
     for prompt, side in (
@@ -178,7 +178,7 @@ def test_verbs_of_looking_and_restricting_words(lib):
 
 
 def test_intensity_is_a_dial(lib):
-    """Issue 50 item 3: one softening word grades an event down, two of them (in one clause or next to it,
+    """One softening word grades an event down, two of them (in one clause or next to it,
     "a slight, faint smile") or a strengthened one ("very slightly") grade it down further; a faint event is
     made faint even where the detectors would not find it (it is not made stronger to be found)."""
     smile = [IX["mouthSmile_L"], IX["mouthSmile_R"]]
@@ -207,7 +207,7 @@ def test_the_length_grows_to_fit_the_events(lib):
 
 
 def test_the_development_phrasings_parse_as_written():
-    """Issue 50 item 6: our own development phrasings (anima/eval/prompts/phrasings_dev.json, kept apart from the
+    """Our own development phrasings (anima/eval/prompts/phrasings_dev.json, kept apart from the
     reported suites) parse to the events, counts, sides and intensity levels written beside them, reporting as
     not understood exactly the words a row lists (``unknown``: what a face cannot show, "at the screen"; none
     by default). Every miss is listed."""
@@ -228,7 +228,7 @@ def test_the_development_phrasings_parse_as_written():
 
 
 def test_talk_is_as_lively_from_a_library_of_quiet_talk(lib):
-    """Issue 50 item 5: TALK_JAW_STD is what it says (the built-in talk segments' median jaw motion); talk is
+    """TALK_JAW_STD is what it says (the built-in talk segments' median jaw motion); talk is
     tiled from the livelier half of a library's talk segments and scaled up to that level where its jaw moves
     less: a library whose every talk segment is the built-in ones at a third of their motion (a dataset whose
     detected talk is quiet) still talks at the built-in level."""
@@ -247,7 +247,7 @@ def test_talk_is_as_lively_from_a_library_of_quiet_talk(lib):
 
 
 def test_nods_are_counted_as_asked(lib):
-    """Issue 50 item 4: a nod is one bob of the head, chin down and back (keyframed; the captured ones bob two to
+    """A nod is one bob of the head, chin down and back (keyframed; the captured ones bob two to
     six times), so the pitch has exactly as many dips as the prompt asks, and the dataset's detectors read the
     same number; a stated intensity grades the bob."""
     from scipy.signal import find_peaks

@@ -163,7 +163,7 @@ def test_shipped_checkpoint_is_small_and_carries_its_manifest(shipped):
     assert p.stat().st_size < 8e6
     man = json.loads(p.with_suffix(".json").read_text())
     assert man["command"].startswith("python tools/ship_text2face.py") and len(man["data_fingerprint"]) == 16
-    # issue 52: trained at the step count the validation windows chose (recorded with their MAE per count)
+    # trained at the step count the validation windows chose (recorded with their MAE per count)
     chosen = man["steps_chosen"]
     val = {int(k): v for k, v in chosen["validation_mae_mm"].items()}
     assert man["steps"] == chosen["value"] == min(val, key=val.get) and "validation" in chosen["chosen_on"]
@@ -174,12 +174,12 @@ def test_shipped_checkpoint_is_small_and_carries_its_manifest(shipped):
 
 
 def test_the_shipped_checkpoint_never_saw_a_validation_or_test_video(shipped, shared_split_table):
-    """Its manifest lists the videos it trained on by key path (issue 38), checkable on any copy of the data:
+    """Its manifest lists the videos it trained on by key path, checkable on any copy of the data:
     every one is in the training split of the current rule, and the rule it was trained under is this one."""
     from anima.dataset import splits
 
     man = json.loads(shipped.path.with_suffix(".json").read_text())
-    # the split-deciding parts of the rule (issue 52 added grouping by face crops: it can only move videos, which
+    # the split-deciding parts of the rule (grouping by face crops can only move videos, which
     # the table below checks)
     same = ("salt", "test", "val", "near_bits", "module")
     assert {k: man["split_rule"][k] for k in same} == {k: splits.rule()[k] for k in same}
@@ -431,7 +431,7 @@ def test_the_text2face_row_states_its_mae_over_videos_and_the_step_choices_sprea
 
 
 def test_headline_metrics_are_on_the_test_windows_and_validation_is_apart():
-    """Issue 38: MAE, RMSE and Diversity in the headline come from the test windows only; the validation
+    """MAE, RMSE and Diversity in the headline come from the test windows only; the validation
     windows (which chose the steps) are reported apart. A method exact on test and off on validation shows it."""
     from anima.eval.text2face.run import EVAL_LEN, Method, score
     from anima.text2face.data import FaceGeometry, Item
@@ -456,7 +456,7 @@ def test_headline_metrics_are_on_the_test_windows_and_validation_is_apart():
     assert r["mae_mm_over_videos"]["test"]["mean"] == 0 and r["mae_mm_over_videos"]["val"]["mean"] > 0.1
 
 
-# ---- the timeline method (issue 19): prompts read as events, made from captured segments ------------------
+# ---- the timeline method: prompts read as events, made from captured segments ------------------
 
 
 def test_prompt_parser_reads_order_counts_intensity_side_and_reports_unknown_words():
@@ -472,7 +472,7 @@ def test_prompt_parser_reads_order_counts_intensity_side_and_reports_unknown_wor
     assert not p.events and p.unknown == ["xyzzy", "blorf"] and any("neutral" in n for n in p.notes)
     p = parse("eyes closed while winking")  # cannot co-occur: the wink follows
     assert [e.attribute for e in p.events] == ["close eyes", "blink"] and p.n_clauses == 2 and p.notes
-    # issue 37: negation excludes the event it governs (and says so); quantities before the noun count
+    # negation excludes the event it governs (and says so); quantities before the noun count
     p = parse("He talks without smiling.")
     assert [e.attribute for e in p.events] == ["talk"] and p.excluded == ["smile ('smiling')"] and p.notes
     p = parse("She doesn't blink at all.")
@@ -515,7 +515,7 @@ def test_expression_names_of_the_contract_are_the_face_models(face_model):
 
 
 def test_the_timeline_library_holds_only_training_videos(ds):
-    """The prompt suites' timeline method and retrieval draw on the dataset's training clips only (issue 38: no
+    """The prompt suites' timeline method and retrieval draw on the dataset's training clips only (no
     statistic of a held-out video enters a method it is judged by): by default the library is the training
     split, and asking for a split with no clip is refused."""
     from anima.dataset.windows import read_clips
@@ -554,7 +554,7 @@ def test_timeline_method_on_real_clips_follows_order_and_counts(ds):
     long = parse("she blinks five times, then smiles, then blinks five times")
     with pytest.raises(InputError, match="at least"):
         compose(long, lib, 40)
-    # issue 37: with no length asked, the clip grows to hold every event (3 s at least)
+    # with no length asked, the clip grows to hold every event (3 s at least)
     m4, rec = compose(long, lib, None, seed=0)
     assert len(m4) > 90 and rec["length"] == "fitted to the events" and rec["all_found"], rec["detected"]
     assert len(compose(parse("a person blinks"), lib, None)[0]) == 90

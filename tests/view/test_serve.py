@@ -1,4 +1,4 @@
-"""``anima view``'s server and page export under attack (issue 32), without a browser: the server answers only
+"""``anima view``'s server and page export under attack, without a browser: the server answers only
 its own token, its own Host and plain names of regular files; malformed requests are 400s, never tracebacks;
 an idle connection is closed. The export reads only regular files inside the result folder and keeps a user's
 file's permission bits. (What a browser does with the page is in test_view.py.)"""
@@ -119,7 +119,7 @@ def test_the_export_reads_only_regular_files_inside_the_result(tmp_path):
 
 
 def test_absolute_form_targets_are_refused(server):
-    """``GET http://other.host/TOKEN/...`` (a proxy's form) is a 400, not the page's file (issue 45)."""
+    """``GET http://other.host/TOKEN/...`` (a proxy's form) is a 400, not the page's file."""
     port, tok = server.server_address[1], server.token
     assert _ask(port, f"http://evil.example/{tok}/index.html")[0] == 400
     assert _ask(port, f"http://127.0.0.1:{port}/{tok}/index.html")[0] == 400
@@ -145,7 +145,7 @@ def _upgrade(port: int, tok: str) -> tuple[socket.socket, int]:
 
 def test_websocket_slots_are_refused_when_full_and_freed_when_idle(tmp_path, monkeypatch):
     """A page beyond the limit is answered 503 before the upgrade (not accepted and starved); a page that
-    answers none of the server's pings loses its slot, so idle sockets cannot lock the page out (issue 45)."""
+    answers none of the server's pings loses its slot, so idle sockets cannot lock the page out."""
     import anima.view.ws as ws
 
     monkeypatch.setattr(ws, "PING_S", 0.3)

@@ -79,7 +79,7 @@ def assert_head_drawn(b, name: str) -> None:
 
 
 def assert_face_inset(b, name: str, coloured: bool = True) -> np.ndarray:
-    """The face close-up (issue 48): a square in the canvas's top right, the character's face filling its middle
+    """The face close-up: a square in the canvas's top right, the character's face filling its middle
     (the camera follows the head: the face's centre near the square's), the square's corners background;
     ``coloured``: anima's skin and lips (not a grey avatar's). Returns the square's pixels."""
     face = b.execute_script("return anima.faceOnScreen()")
@@ -119,7 +119,7 @@ def test_capture_page_shows_the_artifact(results, browser):
             s = state(browser, f)
             assert s["frame"] == f
             assert sorted(s["morphs"]) == sorted(ARKIT_NAMES)
-            for k, n in enumerate(ARKIT_NAMES):  # the character's weights (issue 48), as avatar.glb carries them
+            for k, n in enumerate(ARKIT_NAMES):  # the character's weights, as avatar.glb carries them
                 assert s["morphs"][n] == pytest.approx(float(W[f, k]), abs=1e-4), (f, n)
             got = np.array([s["joints"][n] for n in rig.NAMES])
             np.testing.assert_allclose(got, P[f], atol=1e-3)
@@ -197,7 +197,7 @@ def test_text2face_page_from_disk(results, browser, tmp_path, cli):
     assert "a man smiles" in browser.find_element("id", "prompt").text
     from anima.export.avatar import character_face, character_motion
 
-    P = character_motion(seq)["positions"]  # text2face: the character standing at ease (issue 34)
+    P = character_motion(seq)["positions"]  # text2face: the character standing at ease
     W = to_arkit(character_face(seq))
     for f in (0, 23, 59):
         s = state(browser, f)
@@ -238,7 +238,7 @@ def test_dataset_page_plays_each_clip(gesture_ds, browser, tmp_path, cli):
         for i, n in enumerate(names):
             assert s["morphs"][n] == pytest.approx(float(c.motion[f, i]), abs=1e-5), (f, n)
     assert_head_drawn(browser, "dataset")
-    # issue 32: texts from data (a video named `<img onerror=...>.mp4`, its descriptions) are shown as text
+    # texts from data (a video named `<img onerror=...>.mp4`, its descriptions) are shown as text
     page = tmp_path / "page"
     data = json.loads((page / "view-data.js").read_text().split("=", 1)[1].rstrip().rstrip(";"))
     evil = '<img src=x onerror="window.pwned=1"><script>window.pwned=2</script>'
@@ -255,7 +255,7 @@ def test_dataset_page_plays_each_clip(gesture_ds, browser, tmp_path, cli):
 
 
 def test_another_site_reads_nothing_of_a_served_page(results, browser, tmp_path):
-    """Issue 32: a page of another origin that includes the viewer's data as a script (even knowing the URL and
+    """A page of another origin that includes the viewer's data as a script (even knowing the URL and
     its token) gets nothing: the server marks its files same-origin only."""
     import http.server
 
@@ -392,11 +392,11 @@ def _arm_pose(pos):
 
 
 def test_a_users_vrm_plays_the_result_in_three_vrm(results, browser, tmp_path):
-    """Issue 35: anima's character written as a VRM loads in @pixiv/three-vrm (>= 50 humanoid bones, >= 15
+    """anima's character written as a VRM loads in @pixiv/three-vrm (>= 50 humanoid bones, >= 15
     expressions); the capture reaches it as a VRM Animation (three-vrm-animation) with the arm pose of the
     source and the blink and viseme expressions following the face; an A-pose VRM plays the VRM Animation
-    too (relative to its rest, as VRM defines it) and, retargeted by anima, keeps the source's arm pose. Issue 48:
-    each shows the avatar's face close up, its mouth opening and shutting with the source's, and so do a glTF
+    too (relative to its rest, as VRM defines it) and, retargeted by anima, keeps the source's arm pose.
+    Each shows the avatar's face close up, its mouth opening and shutting with the source's, and so do a glTF
     rig anima never wrote (random bone axes, facing -z), a VRM drawn by MToon with an outline and one made of a
     face mesh and a body mesh (VRoid's ways)."""
     from anima.export.avatar import character_face, character_motion
@@ -429,7 +429,7 @@ def test_a_users_vrm_plays_the_result_in_three_vrm(results, browser, tmp_path):
             browser.get(url)
             wait_ready(browser, 120)
             S = [state(browser, f) for f in frames]
-            # issue 48: the user's avatar gets the face close-up too (its head's part of its skinned meshes, the
+            # the user's avatar gets the face close-up too (its head's part of its skinned meshes, the
             # camera riding its head bone), and the mouth moves there while the forehead keeps still
             square = {}
             for f in (shut, wide):
