@@ -290,8 +290,9 @@ def read_results(out: str | os.PathLike) -> dict | list | None:
 
 def finished_rows(out: Path, prov: dict, quick: bool) -> tuple[dict, float]:
     """The rows (name -> entry, status "ok") of a run into ``out`` that stopped, or ended, on the same clean
-    commit, shared data, dataset (its content: a rebuild that took other seconds is the same) and ``quick`` as
-    ``prov``, and that run's minutes: what ``--resume`` keeps.
+    commit, shared data, dataset (its content: a rebuild that took other seconds is the same), ``--jobs`` (a
+    row's threads follow it: :func:`row_threads`) and ``quick`` as ``prov``, and that run's minutes: what
+    ``--resume`` keeps.
     Anything else: none (a results file nested too deeply, :func:`read_results`: a :class:`SchemaError`)."""
     old = read_results(out)
     if old is None:
@@ -304,6 +305,7 @@ def finished_rows(out: Path, prov: dict, quick: bool) -> tuple[dict, float]:
             and p["commit"] == prov["commit"]
             and p["data"] == prov["data"]
             and _same_dataset(p["dataset"], prov["dataset"])
+            and p.get("jobs", 1) == prov.get("jobs", 1)
             and old.get("quick") == quick
         )
         if not same:

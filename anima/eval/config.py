@@ -150,5 +150,5 @@ class AllEval:
     """Rows run side by side in this many processes, the machine's cores shared between them (each row's torch
     threads: cores // jobs); 1: one after another, every core to each row."""
     resume: bool = False
-    """Keep the rows that a stopped run into OUT finished ("ok") on the same clean commit, shared data, dataset
-    and --quick, and run only the others (results.json lists the kept rows under "resumed")."""
+    """Keep the rows that a stopped run into OUT finished ("ok") on the same clean commit, shared data, dataset,
+    --jobs and --quick, and run only the others (results.json lists the kept rows under "resumed")."""

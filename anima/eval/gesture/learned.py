@@ -186,7 +186,8 @@ def refiner_rows(
     Training pairs follow ``cfg.k_sampling`` (default the seed's draws; ``"ks"``: the k = ``ks`` outputs from the
     mean pose). ``metrics``: the mean over seeds of each seed's mean over the judged windows;
     ``metrics_sd_over_seeds`` their standard deviation; ``metrics_ci95_over_videos`` over the test videos of the
-    windows' seed means; the control adherence pools every seed's syntheses."""
+    windows' seed means, ``metrics_ci95_over_speakers`` over their speakers (empty for one speaker); the control
+    adherence pools every seed's syntheses."""
     T = db.G.shape[1]
     cfg = cfg or RefinerTrainConfig()
     if steps is not None:
@@ -263,6 +264,11 @@ def refiner_rows(
             k: bootstrap_over_groups(v, np.array(judged_videos))
             for k, v in window_means.items()
             if np.isfinite(v).all()
+        },
+        "metrics_ci95_over_speakers": {  # the folds' unit: whole held-out speakers resampled
+            k: bootstrap_over_groups(v, np.array([speaker_of(s) for s in judged_videos]))
+            for k, v in window_means.items()
+            if by_speaker and np.isfinite(v).all()
         },
         "control_adherence": adherence_table(adherence, T) if judged_videos else {},
         "folds": logs,

@@ -182,6 +182,11 @@ def evaluate(
             for k, v in res.items()
             if len(v) == len(kept["videos"]) and np.isfinite(v).all()
         },
+        "knn_ci95_over_speakers": {  # the folds' unit: whole held-out speakers resampled (one speaker: none)
+            k: bootstrap_over_groups(np.asarray(v, float), np.array([speaker_of(s) for s in kept["videos"]]))
+            for k, v in res.items()
+            if by_speaker and len(v) == len(kept["videos"]) and np.isfinite(v).all()
+        },
         "control_adherence": table,
         "control_adherence_seed_rule": seed_table,
     }
