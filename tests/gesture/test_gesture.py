@@ -310,6 +310,7 @@ def test_eval_gesture_leave_one_speaker_out(ds, monkeypatch):
     assert "| k-NN + cGAN refiner (clean folds) |" in text and "| moglow |" in text and "Sync classifier" in text
     assert "| k-NN, leave one speaker out |" in text and "k-NN: leave-one-speaker-out, 3 folds" in text
     assert " ± " in text and "training seeds [0, 1]" in text
+    assert "Intervals: 95 % over held-out speakers (whole speakers resampled, 3 speakers" in text
 
 
 def test_correction_smoothing_rule_is_closest_jerk_ties_to_smaller():

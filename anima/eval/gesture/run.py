@@ -272,13 +272,16 @@ def _knn_label(r: dict) -> str:
 
 def summary(r: dict) -> list[str]:
     """The markdown of ``eval all`` and of the docs' generated blocks (tools/doc_tables.py)."""
-    k, ci = r["knn"], r.get("knn_ci95_over_videos", {})
+    by_speaker = bool(r.get("knn_ci95_over_speakers"))  # intervals over the folds' unit where there is one
+    unit = "speakers" if by_speaker else "videos"
+    k, ci = r["knn"], r.get(f"knn_ci95_over_{unit}", {})
     gen = r.get("generator", {})
     fgd = gen.get("fgd", {})
     out = [
         f"{r['windows']} full-body windows from {r['videos']} videos ({r['minutes_of_audio_motion']:.2f} min of "
-        f"(audio, motion), {r['fps']} fps); joins: {r['joins']}. Intervals: 95 % over test videos "
-        "(whole videos resampled)"
+        f"(audio, motion), {r['fps']} fps); joins: {r['joins']}. Intervals: 95 % over held-out {unit} "
+        f"(whole {unit} resampled"
+        + (f", {r['speakers']} speakers: wide)" if by_speaker and "speakers" in r else ")")
         + (
             f"; ± the standard deviation over training seeds {r['knn_cgan']['seeds']}. k-NN: {r['knn_protocol']}."
             if "knn_protocol" in r and "seeds" in r.get("knn_cgan", {})
@@ -298,7 +301,7 @@ def summary(r: dict) -> list[str]:
     ]
     if "knn_cgan" in r:
         c = r["knn_cgan"]
-        b, m, mci = c.get("knn_fold_inputs", {}), c["metrics"], c.get("metrics_ci95_over_videos", {})
+        b, m, mci = c.get("knn_fold_inputs", {}), c["metrics"], c.get(f"metrics_ci95_over_{unit}", {})
         sd, fsd = c.get("metrics_sd_over_seeds"), gen.get("fgd_sd_over_seeds")
         if b:
             out.append(
@@ -362,9 +365,9 @@ def summary(r: dict) -> list[str]:
             + ", ".join(f"fold {x['fold']} {x['windows']} windows" for x in gen.get("fgd_folds", []))
             + (
                 f". The generator rows are the mean ± standard deviation over training seeds {gen['seeds']}, "
-                "with no interval over videos: not ranked."
+                f"with no interval over {unit}: not ranked."
                 if "seeds" in gen
-                else ". The generator rows have one number per fold, no interval over videos: not ranked."
+                else f". The generator rows have one number per fold, no interval over {unit}: not ranked."
             ),
         ]
         fg = gen.get("facegood_lip_sync")
