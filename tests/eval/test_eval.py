@@ -151,14 +151,18 @@ def test_eval_all_writes_one_results_file_with_provenance(gesture_ds, cli, tmp_p
     assert "ict_original" in summary and "| landmarks |" in summary
     assert set(json.loads((out / "manifest.json").read_text())["files"]) == {"results.json", "summary.md"}
     assert res["complete"] is True and res["resumed"] == []
-    # --resume: the finished row is kept when the commit is clean (CI's clone), run again otherwise
-    r = cli("eval", "all", "--db", gesture_ds, "--out", out, "--only", "landmarks", "--resume", "--json")
+    # --resume: the finished row is kept when the commit is clean (CI's clone) and --jobs the same, run again
+    # otherwise
+    r = cli("eval", "all", "--db", gesture_ds, "--out", out, "--only", "landmarks", "--resume", "--jobs", "2", "--json")
     assert r.returncode == 0, r.stderr[-1000:]
     again = json.loads((out / "results.json").read_text())
     clean = p["commit"] is not None and not p["commit"].endswith("-dirty")
     assert again["resumed"] == (["landmarks"] if clean else [])
     if clean:  # kept as it was (a dirty tree's rerun may give the same row, to its wall time's last digit)
         assert again["rows"]["landmarks"] == res["rows"]["landmarks"]
+    r = cli("eval", "all", "--db", gesture_ds, "--out", out, "--only", "landmarks", "--resume", "--json")
+    assert r.returncode == 0, r.stderr[-1000:]  # --jobs 1 now: a row's threads differ, so nothing is kept
+    assert json.loads((out / "results.json").read_text())["resumed"] == []
 
 
 def test_eval_all_saves_each_row_as_it_ends(gesture_ds, tmp_path):
