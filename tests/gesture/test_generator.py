@@ -158,6 +158,8 @@ def test_frechet_distance_and_lip_error_maths():
     assert frechet_distance(a, a + [2.0, 0, 0]) == pytest.approx(4.0, rel=1e-6)
     # N(0, I) vs N(0, 4I) in 3-d: 3 * (1 + 4 - 2 * 2) = 3
     assert frechet_distance(a, 2 * rng.normal(size=(4000, 3))) == pytest.approx(3.0, rel=0.1)
+    # one window (no covariance) or a diverged model's NaN output: NaN, not an exception ending the row
+    assert np.isnan(frechet_distance(a[:1], a)) and np.isnan(frechet_distance(a, np.full((10, 3), np.nan)))
     f = np.zeros((5, 56))
     assert lip_error_mm(f, f) == 0
     jaw = f.copy()

@@ -21,7 +21,11 @@ G_DIM = BODY_DIM
 
 
 def frechet_distance(a: np.ndarray, b: np.ndarray) -> float:
-    """Fréchet distance between Gaussians fitted to feature sets ``a [N, D]`` and ``b [M, D]``."""
+    """Fréchet distance between Gaussians fitted to feature sets ``a [N, D]`` and ``b [M, D]``; NaN (said in the
+    result, not raised) when a set has fewer than two rows (no covariance) or a non-finite feature (a diverged
+    model's output): one fold or seed must not end a whole evaluation row."""
+    if len(a) < 2 or len(b) < 2 or not (np.isfinite(a).all() and np.isfinite(b).all()):
+        return float("nan")
     mu1, mu2 = a.mean(0), b.mean(0)
     s1, s2 = np.cov(a, rowvar=False), np.cov(b, rowvar=False)
     covmean, _ = scipy.linalg.sqrtm(s1 @ s2, disp=False)
